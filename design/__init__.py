@@ -1,0 +1,1 @@
+"""fdisyn.design — everything offline: plants, synthesis, verification, export, evaluation."""

@@ -1,0 +1,98 @@
+"""Certificates: what a design was verified against, and how well.
+
+Every design builds a :class:`Certificate` of named checks. Each check holds
+the measured value, the bound it must meet and the reason for that bound.
+``Certificate.require()`` turns any failed check into a
+:class:`~fdisyn.runtime.errors.CertificateError`: a design that fails its
+certificate is an error, not a warning.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from typing import Literal
+
+from fdisyn.runtime.errors import CertificateError
+
+__all__ = ["Check", "Certificate"]
+
+
+@dataclass(frozen=True)
+class Check:
+    """One verified quantity: ``value <relation> bound``, with the reason for the bound."""
+
+    name: str
+    value: float
+    bound: float
+    relation: Literal["<=", ">="]
+    reason: str
+
+    @property
+    def passed(self) -> bool:
+        v = float(self.value)
+        if math.isnan(v):
+            return False
+        return v <= self.bound if self.relation == "<=" else v >= self.bound
+
+    def to_dict(self) -> dict[str, object]:
+        return {
+            "name": self.name,
+            "value": float(self.value),
+            "bound": float(self.bound),
+            "relation": self.relation,
+            "passed": self.passed,
+            "reason": self.reason,
+        }
+
+
+@dataclass(frozen=True)
+class Certificate:
+    """A named set of checks plus informational figures (not pass/fail)."""
+
+    subject: str
+    checks: tuple[Check, ...]
+    info: Mapping[str, object] = field(default_factory=dict)
+
+    @classmethod
+    def of(cls, subject: str, checks: Iterable[Check], info: Mapping[str, object] | None = None) -> Certificate:
+        return cls(subject=subject, checks=tuple(checks), info=dict(info or {}))
+
+    @property
+    def passed(self) -> bool:
+        return all(c.passed for c in self.checks)
+
+    def failed(self) -> list[Check]:
+        return [c for c in self.checks if not c.passed]
+
+    def require(self) -> Certificate:
+        """Return ``self`` if every check passed, else raise :class:`CertificateError`."""
+        bad = self.failed()
+        if bad:
+            lines = "; ".join(f"{c.name} = {c.value:.3g} (must be {c.relation} {c.bound:.3g}: {c.reason})" for c in bad)
+            raise CertificateError(f"design {self.subject!r} failed its certificate: {lines}")
+        return self
+
+    def to_dict(self) -> dict[str, object]:
+        return {
+            "subject": self.subject,
+            "passed": self.passed,
+            "checks": [c.to_dict() for c in self.checks],
+            "info": _plain(self.info),
+        }
+
+
+def _plain(obj: object) -> object:
+    """Numbers, strings, lists and dicts only (numpy scalars/arrays converted)."""
+    import numpy as np
+
+    if isinstance(obj, Mapping):
+        return {str(k): _plain(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_plain(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _plain(obj.tolist())
+    if isinstance(obj, (np.floating, np.integer, np.bool_)):
+        return obj.item()
+    return obj

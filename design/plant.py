@@ -1,0 +1,247 @@
+"""The linear plant every linear design method starts from.
+
+``LinearPlant`` holds
+
+    x⁺ = A x + B u + E d + Fx f + w        (discrete, ``Ts`` given)
+    ẋ  = A x + B u + E d + Fx f + w        (continuous, ``Ts is None``)
+    y  = C x + D u + v
+
+with ``u`` known inputs, ``d`` unknown inputs (disturbances), ``f`` component
+or actuator faults with known directions, ``w ~ N(0, Q)`` and ``v ~ N(0, R)``.
+For a continuous plant ``Q`` is the intensity (power spectral density) of
+continuous white process noise and ``R`` the covariance of the sampled sensor
+noise; ``discretise`` turns ``Q`` into the exact sampled covariance.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from fdisyn.design.linalg import as_matrix
+from fdisyn.design.sampling import check_sample_time, van_loan, zoh
+from fdisyn.runtime.errors import ShapeError
+
+__all__ = ["LinearPlant"]
+
+_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+
+
+def _names(given: Sequence[str] | None, count: int, prefix: str, what: str) -> tuple[str, ...]:
+    if given is None:
+        return tuple(f"{prefix}{i}" for i in range(count))
+    names = tuple(str(g) for g in given)
+    if len(names) != count:
+        raise ShapeError(f"{what} names: expected {count} names to match the matrices, got {len(names)}: {list(names)}")
+    for nm in names:
+        if not _NAME.match(nm):
+            raise ShapeError(f"{what} name {nm!r} is not an identifier (letters, digits, underscore; no leading digit)")
+    if len(set(names)) != len(names):
+        dup = sorted({n for n in names if names.count(n) > 1})
+        raise ShapeError(f"{what} names must be unique; repeated: {dup}")
+    return names
+
+
+def _frozen(a: np.ndarray) -> np.ndarray:
+    a = np.array(a, dtype=float, copy=True)
+    a.setflags(write=False)
+    return a
+
+
+@dataclass(frozen=True, eq=False)
+class LinearPlant:
+    """A linear plant with unknown inputs, fault entries and Gaussian noise.
+
+    Construct with keyword arguments; missing ``D``, ``E``, ``Fx`` default to
+    zero matrices of the right size, missing ``Q``/``R`` to zero. Every matrix
+    is checked against the dimensions implied by ``A``, ``B`` and ``C``.
+    """
+
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    E: np.ndarray
+    Fx: np.ndarray
+    Q: np.ndarray
+    R: np.ndarray
+    Ts: float | None
+    states: tuple[str, ...]
+    inputs: tuple[str, ...]
+    unknown_inputs: tuple[str, ...]
+    outputs: tuple[str, ...]
+    component_faults: tuple[str, ...]
+    units: Mapping[str, str] = field(default_factory=dict)
+
+    @classmethod
+    def create(
+        cls,
+        *,
+        A: object,
+        B: object | None = None,
+        C: object,
+        D: object | None = None,
+        E: object | None = None,
+        Fx: object | None = None,
+        Q: object | None = None,
+        R: object | None = None,
+        Ts: float | None = None,
+        states: Sequence[str] | None = None,
+        inputs: Sequence[str] | None = None,
+        unknown_inputs: Sequence[str] | None = None,
+        outputs: Sequence[str] | None = None,
+        component_faults: Sequence[str] | None = None,
+        units: Mapping[str, str] | None = None,
+    ) -> LinearPlant:
+        """Validate and build a plant (the only constructor users need)."""
+        a = as_matrix(A, "A")
+        n = a.shape[0]
+        if a.shape != (n, n):
+            raise ShapeError(f"A must be square; got shape {a.shape}")
+        c = as_matrix(C, "C", cols=n)
+        p = c.shape[0]
+        b = np.zeros((n, 0)) if B is None else as_matrix(B, "B", rows=n, cols=None if np.ndim(B) == 2 else 1)
+        m = b.shape[1]
+        d = np.zeros((p, m)) if D is None else as_matrix(D, "D", rows=p, cols=m)
+        e = np.zeros((n, 0)) if E is None else as_matrix(E, "E", rows=n, cols=None if np.ndim(E) == 2 else 1)
+        fx = np.zeros((n, 0)) if Fx is None else as_matrix(Fx, "Fx", rows=n, cols=None if np.ndim(Fx) == 2 else 1)
+        q = np.zeros((n, n)) if Q is None else as_matrix(Q, "Q", rows=n, cols=n)
+        r = np.zeros((p, p)) if R is None else as_matrix(R, "R", rows=p, cols=p)
+        for nm, mat in (("Q", q), ("R", r)):
+            if not np.allclose(mat, mat.T, rtol=1e-12, atol=0.0):
+                raise ShapeError(f"{nm} must be symmetric; max |{nm} − {nm}ᵀ| = {np.max(np.abs(mat - mat.T)):.3g}")
+            ev = np.linalg.eigvalsh(0.5 * (mat + mat.T))
+            if ev.size and ev[0] < -1e-12 * max(1.0, float(np.max(np.abs(ev)))):
+                raise ShapeError(f"{nm} must be positive semidefinite (a covariance); smallest eigenvalue {ev[0]:.3g}")
+        ts = None if Ts is None else check_sample_time(Ts)
+        return cls(
+            A=_frozen(a),
+            B=_frozen(b),
+            C=_frozen(c),
+            D=_frozen(d),
+            E=_frozen(e),
+            Fx=_frozen(fx),
+            Q=_frozen(0.5 * (q + q.T)),
+            R=_frozen(0.5 * (r + r.T)),
+            Ts=ts,
+            states=_names(states, n, "x", "state"),
+            inputs=_names(inputs, m, "u", "input"),
+            unknown_inputs=_names(unknown_inputs, e.shape[1], "d", "unknown input"),
+            outputs=_names(outputs, p, "y", "output"),
+            component_faults=_names(component_faults, fx.shape[1], "f", "component fault"),
+            units=dict(units or {}),
+        )
+
+    # dimensions -------------------------------------------------------------
+    @property
+    def n(self) -> int:
+        return self.A.shape[0]
+
+    @property
+    def m(self) -> int:
+        return self.B.shape[1]
+
+    @property
+    def p(self) -> int:
+        return self.C.shape[0]
+
+    @property
+    def q(self) -> int:
+        return self.E.shape[1]
+
+    @property
+    def is_discrete(self) -> bool:
+        return self.Ts is not None
+
+    # transformations --------------------------------------------------------
+    def discretise(self, Ts: float) -> LinearPlant:
+        """Exact ZOH sampling of a continuous plant.
+
+        ``A_D = e^{A Ts}``; ``B``, ``E`` and ``Fx`` become step-invariant
+        (inputs, disturbances and faults held over the sample); ``Q`` becomes
+        the covariance of the sampled process noise (Van Loan); ``C``, ``D``,
+        ``R`` are unchanged (sensors are sampled).
+        """
+        if self.is_discrete:
+            raise ShapeError(f"the plant is already discrete (Ts = {self.Ts}); discretise a continuous plant")
+        ts = check_sample_time(Ts)
+        held = np.hstack([self.B, self.E, self.Fx])
+        ad, bd_all = zoh(self.A, held, ts)
+        m, q = self.m, self.q
+        return replace(
+            self,
+            A=_frozen(ad),
+            B=_frozen(bd_all[:, :m]),
+            E=_frozen(bd_all[:, m : m + q]),
+            Fx=_frozen(bd_all[:, m + q :]),
+            Q=_frozen(van_loan(self.A, self.Q, ts)),
+            Ts=ts,
+        )
+
+    def scaled(self, scale: Sequence[float] | np.ndarray) -> LinearPlant:
+        """The plant in scaled states ``x̃ = S⁻¹ x`` with ``S = diag(scale)``.
+
+        Input/output behaviour, and therefore every residual generator
+        designed on it, is unchanged; only the conditioning of the state
+        matrices improves when ``scale`` holds typical state magnitudes.
+        """
+        s = np.asarray(scale, dtype=float).reshape(-1)
+        if s.shape != (self.n,) or not np.all(np.isfinite(s)) or np.any(s <= 0):
+            raise ShapeError(f"state scaling must be {self.n} positive finite numbers; got {scale!r}")
+        si = 1.0 / s
+        return replace(
+            self,
+            A=_frozen(si[:, None] * self.A * s[None, :]),
+            B=_frozen(si[:, None] * self.B),
+            C=_frozen(self.C * s[None, :]),
+            E=_frozen(si[:, None] * self.E),
+            Fx=_frozen(si[:, None] * self.Fx),
+            Q=_frozen(si[:, None] * self.Q * si[None, :]),
+        )
+
+    def select_outputs(self, idx: Sequence[int]) -> LinearPlant:
+        """The plant seen through a subset of its sensors (rows of ``C``, ``D``, ``R``)."""
+        ii = [int(i) for i in idx]
+        for i in ii:
+            if not 0 <= i < self.p:
+                raise ShapeError(f"output index {i} out of range 0..{self.p - 1}")
+        return replace(
+            self,
+            C=_frozen(self.C[ii, :]),
+            D=_frozen(self.D[ii, :]),
+            R=_frozen(self.R[np.ix_(ii, ii)]),
+            outputs=tuple(self.outputs[i] for i in ii),
+        )
+
+    def output_index(self, name: str) -> int:
+        """Index of the output called ``name`` (error lists the valid names)."""
+        try:
+            return self.outputs.index(name)
+        except ValueError:
+            raise ShapeError(f"no output called {name!r}; outputs are {list(self.outputs)}") from None
+
+    def matrices(self) -> dict[str, np.ndarray]:
+        """The model matrices as a plain dict (for the gain file)."""
+        return {k: np.asarray(getattr(self, k)) for k in ("A", "B", "C", "D", "E", "Q", "R")}
+
+    def to_control(self) -> object:
+        """A python-control ``StateSpace`` of ``(A, [B E], C, [D 0])`` (``Ts`` kept)."""
+        import control  # optional dependency (dev extra)
+
+        bb = np.hstack([self.B, self.E])
+        dd = np.hstack([self.D, np.zeros((self.p, self.q))])
+        return control.ss(self.A, bb, self.C, dd, dt=0 if self.Ts is None else self.Ts)
+
+    @classmethod
+    def from_control(cls, sys: object, *, n_unknown: int = 0, **kwargs: object) -> LinearPlant:
+        """Build from a python-control ``StateSpace`` whose last ``n_unknown`` inputs are ``d``."""
+        a, b, c, d = (np.asarray(getattr(sys, k), dtype=float) for k in ("A", "B", "C", "D"))
+        m = b.shape[1] - n_unknown
+        dt = getattr(sys, "dt", 0)
+        ts = None if not dt or dt is True else float(dt)
+        if np.any(d[:, m:] != 0):
+            raise ShapeError("unknown inputs with direct feedthrough to the outputs are not supported")
+        return cls.create(A=a, B=b[:, :m], C=c, D=d[:, :m], E=b[:, m:], Ts=ts, **kwargs)  # type: ignore[arg-type]

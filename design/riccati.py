@@ -1,0 +1,179 @@
+"""Discrete algebraic Riccati equations by the extended pencil.
+
+The filtering DARE, the form every fdisyn method needs::
+
+    X = A X Aᵀ + Q − (A X Cᵀ + S)(C X Cᵀ + R)⁺ (A X Cᵀ + S)ᵀ
+    L = (A X Cᵀ + S)(C X Cᵀ + R)⁺,   A − L C  Schur stable.
+
+``R`` may be singular — the optimal unknown-input observer of seed 000 has the
+rank-``p − q`` measurement term ``(I − CH) R (I − CH)ᵀ`` and a cross term
+``S``, and the DTARS of seed 004 (Lemma 4) has ``R = 0``. Forming
+``(C X Cᵀ + R)⁻¹`` inside the algorithm would fail there, so the solution is
+computed from the deflating subspace of the extended (``2n + p``) symplectic
+pencil, which never inverts ``R`` (Arnold & Laub, Proc. IEEE 72(12), 1984;
+Van Dooren, SIAM J. Sci. Stat. Comput. 2(2), 1981). The pencil is the dual
+(``A → Aᵀ``, ``C → Bᵀ``) of the control-form pencil
+
+    λ [[I, 0, 0], [0, Aᵀ, 0], [0, −Bᵀ, 0]] − [[A, 0, B], [−Q, I, −S], [Sᵀ, 0, R]].
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+
+from fdisyn.design.linalg import as_matrix, rank_tol
+from fdisyn.runtime.errors import ExistenceError, ShapeError, SolverError
+
+__all__ = ["DareSolution", "solve_filter_dare", "dare_residual"]
+
+# Eigenvalues closer than this to the unit circle are treated as on it: a
+# generalised eigenvalue of a well-conditioned pencil is accurate to about
+# sqrt(eps) when it is (nearly) defective, and 1e-8 ≈ 45·sqrt(eps) leaves room.
+UNIT_CIRCLE_TOL = 1e-8
+
+
+@dataclass(frozen=True)
+class DareSolution:
+    """The stabilising solution of a filtering DARE and what it implies."""
+
+    X: np.ndarray
+    """Stabilising solution (the steady-state error covariance for a Kalman filter)."""
+    L: np.ndarray
+    """Gain ``(A X Cᵀ + S)(C X Cᵀ + R)⁺``."""
+    closed_loop_eigenvalues: np.ndarray
+    """Eigenvalues of ``A − L C``."""
+    residual: float
+    """Relative residual of the DARE at ``X`` (see :func:`dare_residual`)."""
+    innovation_rank: int
+    """Rank of ``C X Cᵀ + R`` (``p`` unless the problem is singular)."""
+
+
+def dare_residual(A: np.ndarray, C: np.ndarray, Q: np.ndarray, R: np.ndarray, S: np.ndarray, X: np.ndarray) -> float:
+    """``‖A X Aᵀ − X + Q − G W⁺ Gᵀ‖_F / (‖A X Aᵀ‖_F + ‖X‖_F + ‖Q‖_F)``.
+
+    ``G = A X Cᵀ + S``, ``W = C X Cᵀ + R``. Normalised by the size of the
+    terms, so round-off of a backward-stable solver gives ~1e-15.
+    """
+    g = A @ X @ C.T + S
+    w = C @ X @ C.T + R
+    res = A @ X @ A.T - X + Q - g @ np.linalg.pinv(w, rcond=_rcond(w), hermitian=True) @ g.T
+    scale = np.linalg.norm(A @ X @ A.T) + np.linalg.norm(X) + np.linalg.norm(Q)
+    return float(np.linalg.norm(res) / max(scale, np.finfo(float).tiny))
+
+
+def _rcond(w: np.ndarray) -> float:
+    s = np.linalg.norm(w, 2)
+    return rank_tol(w) / s if s > 0 else 0.0
+
+
+def solve_filter_dare(
+    A: object,
+    C: object,
+    Q: object,
+    R: object,
+    S: object | None = None,
+) -> DareSolution:
+    """Stabilising solution of the filtering DARE (see the module docstring).
+
+    Raises
+    ------
+    ShapeError
+        Inconsistent dimensions, or ``Q``/``R`` not symmetric.
+    ExistenceError
+        No stabilising solution: the pencil has eigenvalues on the unit circle
+        (an undetectable ``(C, A)`` mode or a noise-model zero on the unit
+        circle), the stable deflating subspace has the wrong dimension, or its
+        basis cannot be solved for ``X``.
+    SolverError
+        The QZ decomposition failed.
+    """
+    a = as_matrix(A, "A")
+    n = a.shape[0]
+    if a.shape != (n, n):
+        raise ShapeError(f"A must be square; got shape {a.shape}")
+    c = as_matrix(C, "C", cols=n)
+    p = c.shape[0]
+    q = as_matrix(Q, "Q", rows=n, cols=n)
+    r = as_matrix(R, "R", rows=p, cols=p)
+    s = np.zeros((n, p)) if S is None else as_matrix(S, "S", rows=n, cols=p)
+    for nm, mat in (("Q", q), ("R", r)):
+        if not np.allclose(mat, mat.T, rtol=1e-10, atol=1e-14 * max(1.0, float(np.abs(mat).max(initial=0.0)))):
+            raise ShapeError(f"{nm} must be symmetric in the DARE")
+    q = 0.5 * (q + q.T)
+    r = 0.5 * (r + r.T)
+
+    # Control-form extended pencil of the dual problem (a, b) = (Aᵀ, Cᵀ).
+    at, b = a.T, c.T
+    big = 2 * n + p
+    mm = np.zeros((big, big))
+    nn = np.zeros((big, big))
+    mm[:n, :n] = at
+    mm[:n, 2 * n :] = b
+    mm[n : 2 * n, :n] = -q
+    mm[n : 2 * n, n : 2 * n] = np.eye(n)
+    mm[n : 2 * n, 2 * n :] = -s
+    mm[2 * n :, :n] = s.T
+    mm[2 * n :, 2 * n :] = r
+    nn[:n, :n] = np.eye(n)
+    nn[n : 2 * n, n : 2 * n] = a
+    nn[2 * n :, n : 2 * n] = -b.T
+    # Balance with a diagonal similarity diag(D, D⁻¹, Dp) that keeps the
+    # symplectic structure (Benner, 1997): powers of two, so no rounding.
+    mag = np.abs(mm) + np.abs(nn)
+    np.fill_diagonal(mag, 0.0)
+    _, (sca, _) = sla.matrix_balance(mag, separate=True, permute=False)
+    lg = np.log2(sca)
+    half = np.round((lg[n : 2 * n] - lg[:n]) / 2.0)
+    sca = 2.0 ** np.concatenate([half, -half, lg[2 * n :]])
+    mm *= sca[:, None] / sca[None, :]
+    nn *= sca[:, None] / sca[None, :]
+    # Compress the last p columns away (orthogonal, so well conditioned).
+    qq, _ = np.linalg.qr(mm[:, 2 * n :], mode="complete")
+    w = qq[:, p:].T
+    m2 = w @ mm[:, : 2 * n]
+    n2 = w @ nn[:, : 2 * n]
+    try:
+        aa, bb, alpha, beta, _, z = sla.ordqz(m2, n2, sort="iuc", output="real")
+    except (ValueError, np.linalg.LinAlgError) as exc:
+        raise SolverError(f"QZ decomposition of the DARE pencil failed: {exc}") from exc
+    with np.errstate(divide="ignore", invalid="ignore"):
+        mod = np.where(np.abs(beta) > 0, np.abs(alpha) / np.abs(beta), np.inf)
+    on_circle = np.abs(mod - 1.0) < UNIT_CIRCLE_TOL
+    if np.any(on_circle):
+        raise ExistenceError(
+            "the DARE has no stabilising solution: its pencil has eigenvalue(s) on the unit circle "
+            f"(moduli {np.sort(mod[on_circle])}); a mode of (C, A) on the unit circle is undetectable "
+            "or not excited by the noise Q"
+        )
+    stable = int(np.sum(mod < 1.0))
+    if stable != n:
+        raise ExistenceError(
+            f"the DARE pencil has {stable} stable eigenvalues, expected {n}: "
+            "(C, A) is not detectable or the problem is degenerate"
+        )
+    u11 = z[:n, :n]
+    u21 = z[n:, :n]
+    cond = np.linalg.cond(u11)
+    if not np.isfinite(cond) or cond > 1.0 / (1e3 * np.finfo(float).eps):
+        raise ExistenceError(
+            f"the stable deflating subspace cannot be solved for X (cond(U11) = {cond:.3g}); "
+            "the DARE has no stabilising solution"
+        )
+    x = np.linalg.solve(u11.T, u21.T).T
+    x *= sca[:n, None] * sca[None, :n]  # undo the balancing: X = D X̂ D
+    x = 0.5 * (x + x.T)
+    g = a @ x @ c.T + s
+    wmat = c @ x @ c.T + r
+    wpinv = np.linalg.pinv(wmat, rcond=_rcond(wmat), hermitian=True)
+    gain = g @ wpinv
+    ev = np.linalg.eigvals(a - gain @ c)
+    return DareSolution(
+        X=x,
+        L=gain,
+        closed_loop_eigenvalues=ev,
+        residual=dare_residual(a, c, q, r, s, x),
+        innovation_rank=int(np.linalg.matrix_rank(wmat, tol=rank_tol(wmat))),
+    )

@@ -1,0 +1,69 @@
+"""Exact sampling of continuous-time linear systems.
+
+``zoh`` is the step-invariant (zero-order-hold) discretisation; ``van_loan``
+samples continuous white noise exactly, the integral that also gives the
+norm-invariant input matrix of seed 004, Lemma 1:
+``B_J B_Jᵀ = ∫₀ʰ e^{Aτ} B Bᵀ e^{Aᵀτ} dτ``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg as sla
+
+from fdisyn.design.linalg import as_matrix
+from fdisyn.runtime.errors import ShapeError
+
+__all__ = ["zoh", "van_loan", "check_sample_time"]
+
+
+def check_sample_time(h: float, name: str = "Ts") -> float:
+    """Return ``h`` as a float, refusing non-finite or non-positive values."""
+    try:
+        hf = float(h)
+    except (TypeError, ValueError):
+        raise ShapeError(f"{name} must be a positive number of seconds; got {h!r}") from None
+    if not np.isfinite(hf) or hf <= 0.0:
+        raise ShapeError(f"{name} must be a positive, finite number of seconds; got {h!r}")
+    return hf
+
+
+def zoh(a: np.ndarray, b: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
+    """Step-invariant sampling: ``A_D = e^{A h}``, ``B_D = ∫₀ʰ e^{Aτ} dτ B``.
+
+    Computed from one matrix exponential of ``[[A, B], [0, 0]] h`` (exact up to
+    the accuracy of ``expm``; no inverse of ``A`` is needed, so singular ``A``
+    such as a free rigid-body mode is fine). Seed 004 writes ``B_D`` as
+    ``B_uD``; seed 000 needs it for its ZOH model (SEEDS.md 000, erratum (c)).
+    """
+    h = check_sample_time(h)
+    a = as_matrix(a, "A")
+    n = a.shape[0]
+    b = as_matrix(b, "B", rows=n)
+    m = b.shape[1]
+    big = np.zeros((n + m, n + m))
+    big[:n, :n] = a
+    big[:n, n:] = b
+    e = sla.expm(big * h)
+    return e[:n, :n], e[:n, n:]
+
+
+def van_loan(a: np.ndarray, w: np.ndarray, h: float) -> np.ndarray:
+    """``∫₀ʰ e^{Aτ} W e^{Aᵀτ} dτ`` by Van Loan's block exponential.
+
+    With ``W = B Bᵀ`` this is ``B_J B_Jᵀ`` of seed 004, Lemma 1; with ``W`` the
+    intensity of continuous white noise it is the covariance of the sampled
+    noise ``w_k = ∫ e^{A(h−τ)} dW`` (Van Loan, IEEE TAC 23(3), 1978).
+    """
+    h = check_sample_time(h)
+    a = as_matrix(a, "A")
+    n = a.shape[0]
+    w = as_matrix(w, "W", rows=n, cols=n)
+    big = np.zeros((2 * n, 2 * n))
+    big[:n, :n] = -a
+    big[:n, n:] = w
+    big[n:, n:] = a.T
+    e = sla.expm(big * h)
+    phi22 = e[n:, n:]  # e^{Aᵀh}
+    q = phi22.T @ e[:n, n:]
+    return 0.5 * (q + q.T)

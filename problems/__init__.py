@@ -1,0 +1,1 @@
+"""fdisyn.problems — one module per reference plant."""
