@@ -202,6 +202,26 @@ class LinearPlant:
             Q=_frozen(si[:, None] * self.Q * si[None, :]),
         )
 
+    def with_noise(self, *, Q: object | None = None, R: object | None = None) -> LinearPlant:
+        """The same plant with other noise covariances (validated like ``create``)."""
+        return LinearPlant.create(
+            A=self.A,
+            B=self.B,
+            C=self.C,
+            D=self.D,
+            E=self.E,
+            Fx=self.Fx,
+            Q=self.Q if Q is None else Q,
+            R=self.R if R is None else R,
+            Ts=self.Ts,
+            states=self.states,
+            inputs=self.inputs,
+            unknown_inputs=self.unknown_inputs,
+            outputs=self.outputs,
+            component_faults=self.component_faults,
+            units=self.units,
+        )
+
     def select_outputs(self, idx: Sequence[int]) -> LinearPlant:
         """The plant seen through a subset of its sensors (rows of ``C``, ``D``, ``R``)."""
         ii = [int(i) for i in idx]

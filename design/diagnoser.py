@@ -1,0 +1,232 @@
+"""Assemble a linear diagnoser: generators + χ² evaluators + signature decision.
+
+The result is a :class:`~fdisyn.runtime.gainfile.GainFile`, the unit that is
+written to disk and to C. Signatures are derived, not typed in: a sensor fault
+is expected to raise statistic ``j`` when its sensor is among the outputs of
+``j``'s generator, and the certificate checks that the generator is in fact
+sensitive to it (a nonzero steady-state gain from the sensor to the residual).
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import platform
+import sys
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from fdisyn.design.certificate import Certificate, Check
+from fdisyn.design.linalg import rank_tol
+from fdisyn.design.plant import LinearPlant
+from fdisyn.design.residual import ResidualGenerator
+from fdisyn.design.thresholds import chi2_threshold
+from fdisyn.runtime.errors import ExistenceError, ShapeError
+from fdisyn.runtime.gainfile import (
+    Decision,
+    Evaluator,
+    GainFile,
+    Generator,
+    StepSpec,
+    linear_state_layout,
+)
+
+__all__ = ["SensorFault", "chi2_evaluator", "linear_diagnoser", "provenance"]
+
+
+@dataclass(frozen=True)
+class SensorFault:
+    """A fault class of the decision table: the sensors it corrupts."""
+
+    name: str
+    sensors: tuple[str, ...]
+
+
+CHI2_RANK_RTOL = 1e-6
+"""Residual directions whose variance is below this fraction of the largest are
+left out of the χ² statistic. Such a direction is not driven by noise in any
+useful sense (for a plain UIO it is an exact function of the previous
+residual); dividing by its variance would make the statistic hypersensitive
+to any model error and amplify round-off in ``r`` by ``sqrt(cond Σ_r)``."""
+
+
+def chi2_evaluator(generator: int, sigma_r: np.ndarray, P_f: float, *, rank_rtol: float = CHI2_RANK_RTOL) -> Evaluator:
+    """χ² evaluator ``J = rᵀ W r`` (seed 000, eqs. (18)–(19)).
+
+    ``W`` is the pseudo-inverse of ``Σ_r`` on the eigen-directions with variance
+    above ``rank_rtol`` times the largest, and ``dof`` their number, so that
+    ``J ~ χ²(dof)`` for Gaussian ``r`` with covariance ``Σ_r``; the threshold
+    is the ``1 − P_f`` quantile.
+    """
+    s = 0.5 * (np.asarray(sigma_r, dtype=float) + np.asarray(sigma_r, dtype=float).T)
+    lam, vec = np.linalg.eigh(s)
+    top = float(lam[-1]) if lam.size else 0.0
+    keep = lam > max(rank_rtol * top, rank_tol(s))
+    dof = int(np.sum(keep))
+    if dof == 0:
+        raise ExistenceError(f"the residual of generator {generator} has zero covariance: no χ² statistic exists")
+    w = (vec[:, keep] / lam[keep]) @ vec[:, keep].T
+    return Evaluator(
+        kind="chi2",
+        generator=generator,
+        P_f=float(P_f),
+        dof=dof,
+        threshold=chi2_threshold(P_f, dof),
+        Sigma_r=s,
+        W=0.5 * (w + w.T),
+    )
+
+
+def provenance(**extra: object) -> dict[str, object]:
+    """Where a gain file came from: versions, machine, time, design options."""
+    import casadi
+    import scipy
+
+    out: dict[str, object] = {
+        "created_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+        "python": sys.version.split()[0],
+        "numpy": np.__version__,
+        "scipy": scipy.__version__,
+        "casadi": casadi.__version__,
+        "platform": platform.platform(),
+    }
+    try:
+        from importlib.metadata import version
+
+        out["fdisyn"] = version("fdisyn")
+    except Exception:  # noqa: BLE001 - an uninstalled checkout has no metadata
+        out["fdisyn"] = "unknown"
+    out.update(extra)
+    return out
+
+
+def _to_gain_generator(gen: ResidualGenerator) -> Generator:
+    ns = gen.n_state
+    lhs = np.eye(ns) - gen.Ar
+    return Generator(
+        name=gen.name,
+        outputs_used=gen.outputs_used,
+        Ar=gen.Ar,
+        Bu=gen.Bu,
+        By=gen.By,
+        Cr=gen.Cr,
+        Du=gen.Du,
+        Dy=gen.Dy,
+        Xu=np.linalg.solve(lhs, gen.Bu) if ns else gen.Bu.copy(),
+        Xy=np.linalg.solve(lhs, gen.By) if ns else gen.By.copy(),
+        method=dict(gen.method),
+    )
+
+
+def linear_diagnoser(
+    *,
+    name: str,
+    problem: str,
+    design: str,
+    plant: LinearPlant,
+    generators: Sequence[ResidualGenerator],
+    sigma_r: Sequence[np.ndarray],
+    P_f: float,
+    faults: Sequence[SensorFault],
+    certificates: Sequence[Certificate],
+    persistence: int = 1,
+    options: Mapping[str, object] | None = None,
+) -> GainFile:
+    """Build and check the gain file of a bank of linear residual generators.
+
+    ``sigma_r[i]`` is generator ``i``'s steady-state residual covariance (from
+    its design); each gets one χ² evaluator. ``faults`` name the fault classes
+    to isolate; their signatures must be nonzero and distinct.
+    """
+    if not plant.is_discrete:
+        raise ShapeError("linear_diagnoser needs the discrete plant the generators were designed on")
+    if len(sigma_r) != len(generators) or len(certificates) != len(generators):
+        raise ShapeError(f"{len(generators)} generators need as many residual covariances and certificates")
+    if int(persistence) < 1:
+        raise ShapeError(f"persistence must be a positive number of samples; got {persistence!r}")
+    gens = [_to_gain_generator(g) for g in generators]
+    evals = [chi2_evaluator(i, s, P_f) for i, s in enumerate(sigma_r)]
+    sensor_idx = {nm: i for i, nm in enumerate(plant.outputs)}
+    sig = np.zeros((len(faults), len(evals)), dtype=int)
+    for f, fault in enumerate(faults):
+        for s in fault.sensors:
+            if s not in sensor_idx:
+                raise ShapeError(f"fault {fault.name!r} names sensor {s!r}; sensors are {list(plant.outputs)}")
+        hit = {sensor_idx[s] for s in fault.sensors}
+        for j, ev in enumerate(evals):
+            sig[f, j] = int(bool(hit & set(gens[ev.generator].outputs_used)))
+    checks, sensitivity = _bank_checks(generators, evals, plant)
+    bank_cert = Certificate.of(f"{problem}/{design} bank", checks, {"min_detectable_bias": sensitivity}).require()
+    nr = sum(g.n_residual for g in gens)
+    lay = linear_state_layout(gens, len(evals))
+    step = StepSpec(
+        nu=plant.m,
+        ny=plant.p,
+        nr=nr,
+        nj=len(evals),
+        nstate=lay["total"].stop,
+        init_state=np.zeros(lay["total"].stop),
+        residual_names=tuple(f"{g.name}.{plant.outputs[j]}" for g in gens for j in g.outputs_used),
+        statistic_names=tuple(f"J_{gens[e.generator].name}" for e in evals),
+    )
+    return GainFile(
+        kind="linear",
+        name=name,
+        problem=problem,
+        design=design,
+        Ts=float(plant.Ts),  # type: ignore[arg-type]
+        inputs=plant.inputs,
+        outputs=plant.outputs,
+        faults=tuple(f.name for f in faults),
+        step=step,
+        plant=plant.matrices(),
+        generators=tuple(gens),
+        evaluators=tuple(evals),
+        decision=Decision(kind="signature_table", signatures=sig, persistence=int(persistence)),
+        certificate={
+            "passed": True,
+            "generators": [c.to_dict() for c in certificates],
+            "bank": bank_cert.to_dict(),
+        },
+        provenance=provenance(options=dict(options or {})),
+    )
+
+
+def _bank_checks(
+    generators: Sequence[ResidualGenerator], evals: Sequence[Evaluator], plant: LinearPlant
+) -> tuple[list[Check], dict[str, dict[str, float]]]:
+    """Sensitivity of every statistic to a constant bias on each sensor it reads.
+
+    The steady-state residual caused by a bias ``b`` on sensor ``s`` is
+    ``b g`` with ``g`` the DC gain column; the statistic then reads
+    ``b² gᵀ W g``, so the smallest bias that crosses the threshold on its own
+    is ``b_min = sqrt(J_th / gᵀ W g)`` (reported in the sensor's units).
+    """
+    checks: list[Check] = []
+    table: dict[str, dict[str, float]] = {}
+    for ev in evals:
+        gen = generators[ev.generator]
+        dc = gen.dc_gain_y()
+        path = np.linalg.solve(np.eye(gen.n_state) - gen.Ar, gen.By) if gen.n_state else gen.By
+        wn = max(float(np.linalg.norm(ev.W, 2)), np.finfo(float).tiny)
+        row: dict[str, float] = {}
+        for j in gen.outputs_used:
+            g = dc[:, j]
+            energy = float(g @ ev.W @ g)
+            b_min = float(np.sqrt(ev.threshold / energy)) if energy > 0 else float("inf")
+            row[plant.outputs[j]] = b_min
+            # size of the terms that make up g: a g cancelled to round-off is not a sensitivity
+            terms = float(np.linalg.norm(gen.Dy[:, j]) + np.linalg.norm(gen.Cr @ path[:, j]))
+            checks.append(
+                Check(
+                    f"{gen.name}: relative steady-state sensitivity to a bias on {plant.outputs[j]}",
+                    np.sqrt(max(energy, 0.0) / wn) / max(terms, np.finfo(float).tiny),
+                    1e-8,
+                    ">=",
+                    "a sensor in the signature table must move the statistic at steady state; "
+                    "a gain cancelled to round-off (~1e-16) means the fault is invisible",
+                )
+            )
+        table[gen.name] = row
+    return checks, table

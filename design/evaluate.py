@@ -1,0 +1,176 @@
+"""Build (design → gain file → C) and judge (Monte Carlo through the C step).
+
+Every design of a comparison sees the same simulated runs (common random
+numbers): run ``i`` of a scenario uses seed ``seed0 + i`` whatever the design,
+so differences between designs are not noise between draws.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from fdisyn.design.codegen import CodegenResult, codegen
+from fdisyn.design.metrics import ScenarioMetrics, scenario_metrics
+from fdisyn.design.problem import Batch, Problem, Scenario
+from fdisyn.runtime.compiled import CompiledDiagnoser
+from fdisyn.runtime.gainfile import GainFile, write_gain_file
+from fdisyn.runtime.reference import RunResult
+
+__all__ = ["Built", "build", "recovery_samples", "Evaluation", "evaluate", "progress_printer"]
+
+Progress = Callable[[str], None]
+
+
+def progress_printer(prefix: str) -> Progress:
+    """Progress lines on stderr (long runs must show that they are alive)."""
+
+    def say(msg: str) -> None:
+        print(f"[{prefix}] {msg}", file=sys.stderr, flush=True)
+
+    return say
+
+
+def _quiet(msg: str) -> None:
+    return None
+
+
+@dataclass(frozen=True, eq=False)
+class Built:
+    """A designed, written and compiled diagnoser."""
+
+    gain_file: GainFile
+    directory: Path
+    artifacts: CodegenResult
+    diagnoser: CompiledDiagnoser
+
+
+def build(problem: Problem, design: str, directory: str | Path, **options: Any) -> Built:
+    """Design, write ``DIR/gains.json``, generate and compile the C, load it."""
+    d = Path(directory)
+    gf = problem.design(design, **options)
+    write_gain_file(gf, d / "gains.json")
+    art = codegen(d)
+    return Built(gain_file=gf, directory=d, artifacts=art, diagnoser=CompiledDiagnoser(art.library, gf))
+
+
+def recovery_samples(gf: GainFile) -> int:
+    """Samples for a fault's transient to decay by 1e-8 in the slowest generator.
+
+    ``ceil(ln 1e-8 / ln ρ)`` with ``ρ`` the largest spectral radius of the
+    generators' ``Ar``; after that the statistics no longer carry the fault.
+    """
+    rho = max((float(np.max(np.abs(np.linalg.eigvals(g.Ar)))) for g in gf.generators if g.n_state), default=0.0)
+    if rho <= 0.0:
+        return 1
+    return max(1, math.ceil(math.log(1e-8) / math.log(rho)))
+
+
+@dataclass(frozen=True, eq=False)
+class Evaluation:
+    """Metrics per design and scenario, and one example run of each for figures."""
+
+    problem: str
+    runs: int
+    seed0: int
+    options: Mapping[str, Any]
+    metrics: Mapping[str, Mapping[str, ScenarioMetrics]]
+    examples: Mapping[str, Mapping[str, RunResult]] = field(default_factory=dict)
+    batches: Mapping[str, Batch] = field(default_factory=dict)
+    """Run 0 of each scenario (inputs, outputs, truth) for figures."""
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "problem": self.problem,
+            "runs": self.runs,
+            "seeds": [self.seed0, self.seed0 + self.runs - 1],
+            "options": dict(self.options),
+            "designs": {d: {s: m.to_dict() for s, m in per.items()} for d, per in self.metrics.items()},
+        }
+
+
+def evaluate(
+    problem: Problem,
+    built: Mapping[str, Built],
+    *,
+    runs: int,
+    seed0: int = 0,
+    scenarios: Sequence[str] | None = None,
+    chunk: int = 25,
+    progress: Progress = _quiet,
+    **options: Any,
+) -> Evaluation:
+    """Monte Carlo of every scenario through every built diagnoser's C step."""
+    if runs < 1:
+        raise ValueError(f"runs must be at least 1; got {runs}")
+    names = list(scenarios) if scenarios is not None else list(problem.scenarios)
+    metrics: dict[str, dict[str, ScenarioMetrics]] = {d: {} for d in built}
+    examples: dict[str, dict[str, RunResult]] = {d: {} for d in built}
+    batches: dict[str, Batch] = {}
+    for sname in names:
+        sc: Scenario = problem.scenario(sname)
+        acc: dict[str, dict[str, list[np.ndarray]]] = {d: {"alarm": [], "isolated": [], "J": []} for d in built}
+        nonfinite = {d: 0 for d in built}
+        t = active = None
+        for start in range(0, runs, chunk):
+            seeds = range(seed0 + start, seed0 + min(runs, start + chunk))
+            batch = problem.run(sc, seeds, **options)
+            t, active = batch.t, batch.active
+            if start == 0:
+                batches[sname] = _first_run(batch)
+            for dname, b in built.items():
+                for i in range(len(batch.seeds)):
+                    res = b.diagnoser.run(batch.U[i], batch.Y[i])
+                    acc[dname]["alarm"].append(res.alarm)
+                    acc[dname]["isolated"].append(res.isolated)
+                    acc[dname]["J"].append(res.J)
+                    nonfinite[dname] += res.nonfinite_samples
+                    if start == 0 and i == 0:
+                        examples[dname][sname] = res
+            progress(f"{sname}: {min(runs, start + chunk)}/{runs} runs")
+        assert t is not None and active is not None
+        for dname, b in built.items():
+            gf = b.gain_file
+            fidx = gf.faults.index(sc.fault) if sc.fault is not None else None
+            metrics[dname][sname] = scenario_metrics(
+                scenario=sname,
+                fault=sc.fault,
+                fault_index=fidx,
+                active=active,
+                alarm=np.stack(acc[dname]["alarm"]),
+                isolated=np.stack(acc[dname]["isolated"]),
+                J=np.stack(acc[dname]["J"]),
+                thresholds=list(gf.thresholds),
+                P_f=[e.P_f for e in gf.evaluators],
+                Ts=gf.Ts,
+                recovery=recovery_samples(gf),
+                nonfinite=nonfinite[dname],
+            )
+    return Evaluation(
+        problem=problem.name,
+        runs=runs,
+        seed0=seed0,
+        options=problem.check_options(options),
+        metrics=metrics,
+        examples=examples,
+        batches=batches,
+    )
+
+
+def _first_run(batch: Batch) -> Batch:
+    return Batch(
+        scenario=batch.scenario,
+        seeds=batch.seeds[:1],
+        t=batch.t,
+        inputs=batch.inputs,
+        outputs=batch.outputs,
+        U=batch.U[:1],
+        Y=batch.Y[:1],
+        extra={k: v[:1] for k, v in batch.extra.items()},
+    )

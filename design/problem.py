@@ -1,0 +1,149 @@
+"""What a reference problem provides to the pipeline.
+
+A problem module (``fdisyn.problems.<name>``) exposes ``PROBLEM``, a
+:class:`Problem`: its designs (each returns a certified
+:class:`~fdisyn.runtime.gainfile.GainFile`), its scenarios, a simulator that is
+vectorised over seeds, and the paper's reported results. The CLI looks
+problems up by name (:func:`get_problem`), so problems depend on the design
+code and never the other way round.
+"""
+
+from __future__ import annotations
+
+import importlib
+import pkgutil
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from fdisyn.runtime.errors import SpecError
+from fdisyn.runtime.gainfile import GainFile
+
+__all__ = ["Scenario", "Batch", "Problem", "get_problem", "problem_names"]
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A simulated situation: its length and the fault it contains.
+
+    ``fault`` is the name of the gain file's fault class the diagnoser should
+    isolate (``None`` for a fault-free run); the fault is active on
+    ``onset ≤ t < end`` (``end = None``: until the end of the run).
+    ``params`` carries the problem-specific description (fault kind, size).
+    """
+
+    name: str
+    description: str
+    duration: float
+    fault: str | None = None
+    onset: float | None = None
+    end: float | None = None
+    params: Mapping[str, Any] = field(default_factory=dict)
+
+    def active(self, t: np.ndarray) -> np.ndarray:
+        """Boolean mask of the samples where the fault is active."""
+        if self.fault is None or self.onset is None:
+            return np.zeros(t.shape, dtype=bool)
+        end = np.inf if self.end is None else self.end
+        return (t >= self.onset - 1e-9) & (t < end - 1e-9)
+
+
+@dataclass(frozen=True, eq=False)
+class Batch:
+    """Simulated runs of one scenario, stacked over seeds.
+
+    ``U`` is ``runs × N × nu``, ``Y`` is ``runs × N × ny``; ``extra`` holds
+    per-run signals worth keeping (true unknown inputs, true states).
+    """
+
+    scenario: Scenario
+    seeds: tuple[int, ...]
+    t: np.ndarray
+    inputs: tuple[str, ...]
+    outputs: tuple[str, ...]
+    U: np.ndarray
+    Y: np.ndarray
+    extra: Mapping[str, np.ndarray] = field(default_factory=dict)
+
+    @property
+    def active(self) -> np.ndarray:
+        return self.scenario.active(self.t)
+
+
+DesignFn = Callable[..., GainFile]
+SimulateFn = Callable[..., Batch]
+
+
+@dataclass(frozen=True, eq=False)
+class Problem:
+    """A reference plant with its designs, scenarios and reported results.
+
+    ``designs[name](**options)`` returns a certified gain file;
+    ``simulate(scenario, seeds, **options)`` a :class:`Batch`. ``options``
+    are problem-specific keyword settings (e.g. a parameter set), accepted
+    by both, listed in ``options`` with their defaults.
+    """
+
+    name: str
+    title: str
+    summary: str
+    designs: Mapping[str, DesignFn]
+    default_design: str
+    scenarios: Mapping[str, Scenario]
+    simulate: SimulateFn
+    options: Mapping[str, Any] = field(default_factory=dict)
+    reference: Mapping[str, Any] = field(default_factory=dict)
+    monte_carlo_runs: int = 100
+    report: Callable[..., Any] | None = None
+    """Problem-specific report sections: ``report(ctx) -> [(title, html), …]``."""
+    variants: Sequence[Mapping[str, Any]] = ()
+    """Extra report variants: ``{"label", "options", "scenarios"}`` (e.g. another parameter set)."""
+    notes: Sequence[str] = ()
+    """Modelling choices the sources left open, stated in the report."""
+
+    def design(self, name: str | None = None, **options: Any) -> GainFile:
+        key = name or self.default_design
+        if key not in self.designs:
+            raise SpecError(f"problem {self.name!r} has no design {key!r}; designs: {sorted(self.designs)}")
+        return self.designs[key](**self.check_options(options))
+
+    def scenario(self, name: str) -> Scenario:
+        if name not in self.scenarios:
+            raise SpecError(f"problem {self.name!r} has no scenario {name!r}; scenarios: {sorted(self.scenarios)}")
+        return self.scenarios[name]
+
+    def run(self, scenario: str | Scenario, seeds: Sequence[int], **options: Any) -> Batch:
+        sc = self.scenario(scenario) if isinstance(scenario, str) else scenario
+        return self.simulate(sc, tuple(int(s) for s in seeds), **self.check_options(options))
+
+    def check_options(self, options: Mapping[str, Any]) -> dict[str, Any]:
+        unknown = sorted(set(options) - set(self.options))
+        if unknown:
+            raise SpecError(f"problem {self.name!r} has no option(s) {unknown}; options: {dict(self.options)}")
+        return {**self.options, **options}
+
+
+def problem_names() -> list[str]:
+    """Names of the built-in problems (modules of :mod:`fdisyn.problems`)."""
+    pkg = importlib.import_module("fdisyn.problems")
+    names = []
+    for mod in pkgutil.iter_modules(pkg.__path__):
+        if mod.name.startswith("_"):
+            continue
+        if hasattr(importlib.import_module(f"fdisyn.problems.{mod.name}"), "PROBLEM"):
+            names.append(mod.name)
+    return sorted(names)
+
+
+def get_problem(name: str) -> Problem:
+    """The built-in problem ``name`` (error lists the valid names)."""
+    try:
+        mod = importlib.import_module(f"fdisyn.problems.{name}")
+    except ModuleNotFoundError:
+        raise SpecError(f"no built-in problem {name!r}; problems: {problem_names()}") from None
+    prob = getattr(mod, "PROBLEM", None)
+    if not isinstance(prob, Problem):
+        raise SpecError(f"fdisyn.problems.{name} is not a problem module (it has no PROBLEM); problems: {problem_names()}")
+    return prob

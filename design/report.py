@@ -1,0 +1,325 @@
+"""The HTML report of a problem: certificates, export checks, metrics, figures.
+
+``write_report`` writes ``reports/<problem>/index.html`` with PNG figures next
+to it and the gain files under ``gains/``. Problems add their own sections
+(figures in the spirit of the paper) through ``Problem.report``.
+"""
+
+from __future__ import annotations
+
+import html
+import platform
+import sys
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from fdisyn.design.codegen import CFLAGS  # noqa: E402
+from fdisyn.design.evaluate import recovery_samples  # noqa: E402
+from fdisyn.design.problem import Problem  # noqa: E402
+from fdisyn.runtime.gainfile import write_gain_file  # noqa: E402
+
+__all__ = ["ReportContext", "write_report", "table", "fmt"]
+
+_CSS = """
+body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;max-width:1150px;margin:2em auto;padding:0 1em;color:#1b1b1b;line-height:1.45}
+h1{font-size:1.6em}h2{border-bottom:1px solid #ccc;padding-bottom:.2em;margin-top:2em}h3{margin-top:1.5em}
+table{border-collapse:collapse;margin:.8em 0;font-size:.88em}th,td{border:1px solid #d0d0d0;padding:.25em .5em;text-align:right;vertical-align:top}
+th{background:#f3f3f3}td.l,th.l{text-align:left}.ok{color:#176b2c}.bad{color:#b00020;font-weight:bold}
+figure{margin:1em 0}figcaption{font-size:.88em;color:#444}code{background:#f4f4f4;padding:0 .2em}
+.small{font-size:.85em;color:#555}
+"""
+
+
+def fmt(x: Any, digits: int = 4) -> str:
+    """A number for a table: ``—`` for None, compact otherwise."""
+    if x is None:
+        return "—"
+    if isinstance(x, bool):
+        return "yes" if x else "no"
+    if isinstance(x, (int, np.integer)):
+        return str(int(x))
+    v = float(x)
+    if v == 0.0:
+        return "0"
+    if abs(v) >= 1e4 or abs(v) < 1e-3:
+        return f"{v:.{digits - 1}e}"
+    return f"{v:.{digits}g}"
+
+
+def table(header: Sequence[str], rows: Iterable[Sequence[Any]], *, left: int = 1) -> str:
+    """An HTML table; the first ``left`` columns are left-aligned text."""
+    h = "".join(f'<th class="l">{html.escape(c)}</th>' if i < left else f"<th>{html.escape(c)}</th>" for i, c in enumerate(header))
+    body = []
+    for row in rows:
+        cells = []
+        for i, c in enumerate(row):
+            text = c if isinstance(c, str) and c.startswith("<") else html.escape(c if isinstance(c, str) else fmt(c))
+            cells.append(f'<td class="l">{text}</td>' if i < left else f"<td>{text}</td>")
+        body.append("<tr>" + "".join(cells) + "</tr>")
+    return f"<table><thead><tr>{h}</tr></thead><tbody>{''.join(body)}</tbody></table>"
+
+
+@dataclass
+class ReportContext:
+    """What a problem's report hook gets: the results and a figure helper."""
+
+    problem: Problem
+    variants: Sequence[Any]
+    directory: Path
+    figures: list[str] = field(default_factory=list)
+
+    def figure(self, name: str, fig: plt.Figure, caption: str) -> str:
+        """Save ``fig`` as ``<name>.png`` next to the page; return its HTML."""
+        path = self.directory / f"{name}.png"
+        fig.savefig(path, dpi=110, bbox_inches="tight")
+        plt.close(fig)
+        self.figures.append(path.name)
+        return f'<figure><img src="{path.name}" alt="{html.escape(caption)}" style="max-width:100%"><figcaption>{html.escape(caption)}</figcaption></figure>'
+
+
+def _versions() -> str:
+    import casadi
+    import cvxpy
+    import scipy
+
+    items = [
+        ("python", sys.version.split()[0]),
+        ("numpy", np.__version__),
+        ("scipy", scipy.__version__),
+        ("casadi", casadi.__version__),
+        ("cvxpy", cvxpy.__version__),
+        ("platform", platform.platform()),
+    ]
+    return ", ".join(f"{k} {v}" for k, v in items)
+
+
+_REL = {"<=": "≤", ">=": "≥"}
+
+
+def _certificate_table(gf: Any) -> str:
+    """One row per check, one value column per generator (banks repeat their checks)."""
+    certs = gf.certificate["generators"]
+    names: list[str] = []
+    for c in certs:
+        for chk in c["checks"]:
+            if chk["name"] not in names:
+                names.append(chk["name"])
+    rows = []
+    for name in names:
+        found = [next((k for k in c["checks"] if k["name"] == name), None) for c in certs]
+        first = next(k for k in found if k is not None)
+        ok = all(k is None or k["passed"] for k in found)
+        rows.append(
+            [
+                name,
+                *(fmt(k["value"], 3) if k is not None else "—" for k in found),
+                f"{_REL[first['relation']]} {fmt(first['bound'], 3)}",
+                f'<span class="{"ok" if ok else "bad"}">{"pass" if ok else "FAIL"}</span>',
+                first["reason"],
+            ]
+        )
+    head = ["check", *(g.name for g in gf.generators), "bound", "", "reason for the bound"]
+    return table(head, rows, left=1).replace("<td>" + "reason", "<td class=\"l\">reason")
+
+
+def _designs_section(variant: Any) -> str:
+    out = []
+    rows = []
+    for d, b in variant.built.items():
+        gf = b.gain_file
+        n_checks = sum(len(c["checks"]) for c in gf.certificate["generators"]) + len(gf.certificate["bank"]["checks"])
+        info0 = gf.certificate["generators"][0].get("info", {}) if gf.certificate["generators"] else {}
+        rows.append(
+            [
+                d,
+                gf.name,
+                len(gf.generators),
+                ", ".join(str(e.dof) for e in gf.evaluators),
+                fmt(gf.evaluators[0].threshold, 6),
+                fmt(float(np.trace(gf.evaluators[0].Sigma_r)), 4),
+                fmt(info0.get("spectral_radius_F"), 4),
+                recovery_samples(gf),
+                f"{n_checks}/{n_checks}",
+            ]
+        )
+    out.append(
+        table(
+            ["design", "gain file name", "generators", "dof", "threshold J_th", "trace Σ_r (gen. 0)", "ρ(F) (gen. 0)", "recovery samples", "checks passed"],
+            rows,
+            left=2,
+        )
+    )
+    for d, b in variant.built.items():
+        gf = b.gain_file
+        out.append(f"<h4>{html.escape(d)}: certificate</h4>")
+        out.append(_certificate_table(gf))
+        bank = gf.certificate["bank"]
+        mdb = bank.get("info", {}).get("min_detectable_bias", {})
+        if mdb:
+            sensors = sorted({s for row in mdb.values() for s in row})
+            out.append(
+                '<p class="small">Smallest constant sensor bias that crosses the threshold on its own at steady state '
+                "(<code>sqrt(J_th / gᵀWg)</code>, sensor units; — : sensor not used).</p>"
+            )
+            out.append(table(["generator", *sensors], [[g, *(row.get(s) for s in sensors)] for g, row in mdb.items()]))
+    return "".join(out)
+
+
+def _export_section(variant: Any) -> str:
+    rows = []
+    for d, chk in variant.exports.items():
+        for ref, v in chk.references.items():
+            rows.append([d, ref, chk.samples, chk.nonfinite_samples, v["r"], v["J"], v["state"], "equal" if v["decisions_equal"] else "DIFFER"])
+    flags = " ".join(CFLAGS)
+    return (
+        f"<p>Each design's step was generated by CasADi, compiled with <code>{html.escape(flags)}</code>, loaded with ctypes and "
+        "compared with the CasADi function and (linear diagnosers) the independent NumPy reference built from the gain file alone. "
+        "Normwise relative differences over the check trace (with injected NaN/±inf samples):</p>"
+        + table(["design", "reference", "samples", "non-finite", "r", "J", "state", "alarm/isolated/status"], rows, left=2)
+    )
+
+
+def _metrics_section(variant: Any) -> str:
+    ev = variant.evaluation
+    designs = list(ev.metrics)
+    scen = list(next(iter(ev.metrics.values())))
+    out = [f'<p class="small">{ev.runs} runs per scenario, seeds {ev.seed0}–{ev.seed0 + ev.runs - 1}; every design sees the same runs.</p>']
+    rows = []
+    for s in scen:
+        for d in designs:
+            m = ev.metrics[d][s]
+            rows.append(
+                [
+                    s,
+                    d,
+                    m.fault or "none",
+                    m.false_alarm_rate,
+                    m.false_alarm_runs,
+                    m.missed_detection_rate,
+                    m.missed_alarm_fraction,
+                    m.detection_delay_mean_s,
+                    m.detection_delay_max_s,
+                    m.isolation_accuracy,
+                    m.first_isolation_accuracy,
+                    m.sample_isolation_accuracy,
+                ]
+            )
+    out.append(
+        table(
+            [
+                "scenario",
+                "design",
+                "fault",
+                "false-alarm rate",
+                "runs with false alarm",
+                "missed detection",
+                "missed-alarm fraction",
+                "delay mean (s)",
+                "delay max (s)",
+                "isolation acc.",
+                "first-decision acc.",
+                "sample isolation acc.",
+            ],
+            rows,
+            left=3,
+        )
+    )
+    out.append(
+        "<p class=\"small\">Definitions: false-alarm rate per fault-free sample (excluding each design's recovery window after a fault); "
+        "missed detection = runs without any alarm while the fault is active; delay from onset to the first alarm; "
+        "isolation accuracy = runs whose most frequent isolated fault during the fault is the true one.</p>"
+    )
+    rows = []
+    for d in designs:
+        m = ev.metrics[d][scen[0]]
+        gf = variant.built[d].gain_file
+        for j, rate in enumerate(m.statistic_exceedance):
+            lo, hi = m.statistic_exceedance_interval[j]
+            inside = lo <= rate <= hi
+            rows.append(
+                [
+                    d,
+                    gf.step.statistic_names[j],
+                    gf.evaluators[j].P_f,
+                    rate,
+                    f"[{fmt(lo)}, {fmt(hi)}]",
+                    f'<span class="{"ok" if inside else "bad"}">{"inside" if inside else "outside"}</span>',
+                ]
+            )
+    out.append(
+        f"<h4>χ² law on fault-free data ({html.escape(scen[0])})</h4>"
+        "<p class=\"small\">Exceedance rate of each statistic against its design false-alarm probability, with the two-sided "
+        "99.9 % binomial interval for independent samples. White residuals (minimum-variance designs) give independent samples; "
+        "coloured residuals cluster their exceedances, which widens the real spread beyond this interval.</p>"
+        + table(["design", "statistic", "P_f", "observed", "binomial 99.9 %", ""], rows, left=2)
+    )
+    return "".join(out)
+
+
+def write_report(problem: Problem, variants: Sequence[Any], directory: Path) -> Path:
+    """Write the problem's report page (and its figures and gain files)."""
+    directory.mkdir(parents=True, exist_ok=True)
+    ctx = ReportContext(problem=problem, variants=variants, directory=directory)
+    parts = [
+        f"<!doctype html><html><head><meta charset='utf-8'><title>fdisyn — {html.escape(problem.name)}</title><style>{_CSS}</style></head><body>",
+        f"<h1>{html.escape(problem.title)}</h1>",
+        f"<p>{html.escape(problem.summary)}</p>",
+        f'<p class="small">Generated by <code>fdisyn report {html.escape(problem.name)}</code> on '
+        f"{datetime.now(timezone.utc).strftime('%Y-%m-%d %H:%M UTC')}; {html.escape(_versions())}.</p>",
+    ]
+    if problem.notes:
+        parts.append("<h2>Modelling choices</h2><ul>" + "".join(f"<li>{html.escape(n)}</li>" for n in problem.notes) + "</ul>")
+    if problem.report is not None:
+        for title, body in problem.report(ctx):
+            parts.append(f"<h2>{html.escape(title)}</h2>{body}")
+    gains_dir = directory / "gains"
+    for v in variants:
+        label = "" if v.label == "default" else f" — {v.label}"
+        opts = ", ".join(f"{k} = {val!r}" for k, val in v.options.items())
+        parts.append(f"<h2>Designs and certificates{html.escape(label)}</h2>")
+        if opts:
+            parts.append(f'<p class="small">Problem options: {html.escape(opts)}.</p>')
+        parts.append(_designs_section(v))
+        parts.append(f"<h2>Generated C{html.escape(label)}</h2>{_export_section(v)}")
+        parts.append(f"<h2>Monte Carlo metrics{html.escape(label)}</h2>{_metrics_section(v)}")
+        for d, b in v.built.items():
+            write_gain_file(b.gain_file, gains_dir / f"{b.gain_file.name}.json")
+    parts.append(
+        '<p class="small">Gain files of every design are in <a href="gains/">gains/</a>; the numbers of this page in '
+        '<a href="metrics.json">metrics.json</a>.</p></body></html>'
+    )
+    page = directory / "index.html"
+    page.write_text("\n".join(parts), encoding="utf-8")
+    return page
+
+
+def timeline(ax: Any, t: np.ndarray, values: np.ndarray, labels: Sequence[str], *, threshold: float | None = None, log: bool = True) -> None:
+    """Plot statistics over time with the threshold (shared by problem hooks)."""
+    for j in range(values.shape[1]):
+        ax.plot(t, np.maximum(values[:, j], 1e-6) if log else values[:, j], lw=0.7, label=labels[j])
+    if threshold is not None:
+        ax.axhline(threshold, color="k", ls="--", lw=1.0, label=f"threshold {threshold:.4g}")
+    if log:
+        ax.set_yscale("log")
+    ax.set_xlabel("t (s)")
+    ax.grid(alpha=0.3)
+
+
+def shade(ax: Any, t: np.ndarray, active: np.ndarray, label: str = "fault active") -> None:
+    """Shade where ``active`` holds."""
+    if not np.any(active):
+        return
+    idx = np.flatnonzero(active)
+    ax.axvspan(t[idx[0]], t[idx[-1]], color="tab:red", alpha=0.08, label=label)
+
+
+Hook = Callable[[ReportContext], list[tuple[str, str]]]

@@ -1,0 +1,183 @@
+"""Simulation building blocks shared by the problems.
+
+Linear plants are simulated exactly in discrete time (the ZOH model the design
+uses), vectorised over Monte Carlo runs; each run draws its noise from its own
+seeded generator, so run ``i`` is the same whatever batch it is part of.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.signal
+
+from fdisyn.design.plant import LinearPlant
+from fdisyn.design.problem import Batch, Scenario
+from fdisyn.runtime.errors import SpecError
+
+__all__ = ["SensorFaultSpec", "apply_sensor_faults", "gauss_markov", "covariance_factor", "Signal", "simulate_linear"]
+
+SENSOR_FAULT_KINDS = ("stuck", "gain", "offset", "drift")
+
+
+@dataclass(frozen=True)
+class SensorFaultSpec:
+    """How a fault corrupts one sensor while active.
+
+    ``stuck``: the sensor reads ``value``; ``gain``: it reads ``value`` times
+    its measurement; ``offset``: ``value`` is added; ``drift``: ``value`` per
+    second is added, growing from the onset.
+    """
+
+    sensor: str
+    kind: str
+    value: float
+
+    def __post_init__(self) -> None:
+        if self.kind not in SENSOR_FAULT_KINDS:
+            raise SpecError(f"sensor fault kind {self.kind!r} is not one of {SENSOR_FAULT_KINDS}")
+
+
+def apply_sensor_faults(
+    y: np.ndarray, outputs: Sequence[str], faults: Sequence[SensorFaultSpec], *, since_onset: float = 0.0
+) -> None:
+    """Corrupt the measurements ``y`` (runs × outputs) in place."""
+    for f in faults:
+        if f.sensor not in outputs:
+            raise SpecError(f"sensor fault on {f.sensor!r}: no such output; outputs are {list(outputs)}")
+        j = list(outputs).index(f.sensor)
+        if f.kind == "stuck":
+            y[:, j] = f.value
+        elif f.kind == "gain":
+            y[:, j] *= f.value
+        elif f.kind == "offset":
+            y[:, j] += f.value
+        else:
+            y[:, j] += f.value * since_onset
+
+
+def gauss_markov(rng: np.random.Generator, n: int, a: float) -> np.ndarray:
+    """A unit-variance first-order Gauss–Markov sequence ``ζ⁺ = a ζ + √(1−a²) ε``, started stationary."""
+    eps = rng.standard_normal(n)
+    eps[1:] *= np.sqrt(1.0 - a * a)
+    return scipy.signal.lfilter([1.0], [1.0, -a], eps)
+
+
+def covariance_factor(cov: np.ndarray) -> np.ndarray:
+    """``F`` with ``F Fᵀ = cov`` for a (possibly singular) covariance."""
+    cov = 0.5 * (np.asarray(cov, dtype=float) + np.asarray(cov, dtype=float).T)
+    w, v = np.linalg.eigh(cov)
+    return v * np.sqrt(np.clip(w, 0.0, None))[None, :]
+
+
+@dataclass(frozen=True)
+class Signal:
+    """A known or unknown input signal of a TOML problem.
+
+    ``constant``: ``offset``; ``step``: ``offset`` + ``amplitude`` from ``start``;
+    ``sine``: ``offset + amplitude·sin(2πt/period)``; ``prbs``: ``offset ±
+    amplitude`` switching at random multiples of ``period`` (per run);
+    ``gauss_markov``: ``offset + amplitude·ζ`` with correlation time ``period``.
+    """
+
+    kind: str = "constant"
+    offset: float = 0.0
+    amplitude: float = 0.0
+    period: float = 1.0
+    start: float = 0.0
+
+    KINDS = ("constant", "step", "sine", "prbs", "gauss_markov")
+
+    def __post_init__(self) -> None:
+        if self.kind not in self.KINDS:
+            raise SpecError(f"signal kind {self.kind!r} is not one of {self.KINDS}")
+        if self.kind in ("sine", "prbs", "gauss_markov") and not self.period > 0:
+            raise SpecError(f"a {self.kind} signal needs a positive period, got {self.period}")
+
+    def sample(self, t: np.ndarray, rng: np.random.Generator, Ts: float) -> np.ndarray:
+        if self.kind == "constant":
+            return np.full(t.shape, self.offset)
+        if self.kind == "step":
+            return self.offset + self.amplitude * (t >= self.start)
+        if self.kind == "sine":
+            return self.offset + self.amplitude * np.sin(2 * np.pi * t / self.period)
+        if self.kind == "prbs":
+            hold = max(1, int(round(self.period / Ts)))
+            levels = rng.choice([-1.0, 1.0], size=len(t) // hold + 1)
+            return self.offset + self.amplitude * np.repeat(levels, hold)[: len(t)]
+        return self.offset + self.amplitude * gauss_markov(rng, len(t), float(np.exp(-Ts / self.period)))
+
+
+def simulate_linear(
+    plant: LinearPlant,
+    scenario: Scenario,
+    seeds: Sequence[int],
+    *,
+    x0: np.ndarray,
+    inputs: Sequence[Signal],
+    unknown_inputs: Sequence[Signal],
+    feedback: Callable[[np.ndarray, int], np.ndarray] | None = None,
+) -> Batch:
+    """Exact discrete simulation of ``plant`` over ``scenario``, vectorised over seeds.
+
+    ``x⁺ = A x + B u + E d + w``, ``y = C x + D u + v`` with ``w ~ N(0, Q)``,
+    ``v ~ N(0, R)`` (the design's covariances), the scenario's sensor faults
+    applied to ``y``. ``u`` comes from ``inputs`` or, when ``feedback`` is
+    given, from ``feedback(y_k, k)`` (runs × nu) computed on the (possibly
+    faulty) measurements — a controller closing the loop; it needs ``D = 0``.
+    """
+    if not plant.is_discrete:
+        raise SpecError("simulate_linear needs the discrete plant")
+    ts = float(plant.Ts)  # type: ignore[arg-type]
+    n = int(round(scenario.duration / ts))
+    t = np.arange(n) * ts
+    runs = len(seeds)
+    a, b, c, d, e = (np.asarray(getattr(plant, k)) for k in ("A", "B", "C", "D", "E"))
+    lq, lr = covariance_factor(plant.Q), covariance_factor(plant.R)
+    faults = [SensorFaultSpec(*f) if not isinstance(f, SensorFaultSpec) else f for f in scenario.params.get("sensor_faults", [])]
+    if feedback is not None and np.any(plant.D):
+        raise SpecError("a feedback input needs D = 0 (otherwise u and y form an algebraic loop)")
+    if len(inputs) != plant.m or len(unknown_inputs) != plant.q:
+        raise SpecError(f"simulation needs {plant.m} input and {plant.q} unknown-input signals")
+    w = np.empty((runs, n, plant.n))
+    v = np.empty((runs, n, plant.p))
+    uu = np.empty((runs, n, plant.m))
+    dd = np.empty((runs, n, plant.q))
+    for i, s in enumerate(seeds):
+        rng = np.random.default_rng(int(s))
+        w[i] = rng.standard_normal((n, plant.n)) @ lq.T
+        v[i] = rng.standard_normal((n, plant.p)) @ lr.T
+        for j, sig in enumerate(inputs):
+            uu[i, :, j] = sig.sample(t, rng, ts)
+        for j, sig in enumerate(unknown_inputs):
+            dd[i, :, j] = sig.sample(t, rng, ts)
+    active = scenario.active(t)
+    onset = scenario.onset or 0.0
+    x = np.tile(np.asarray(x0, dtype=float), (runs, 1))
+    Y = np.empty((runs, n, plant.p))
+    X = np.empty((runs, n, plant.n))
+    for k in range(n):
+        y = x @ c.T + v[:, k]
+        if feedback is None:
+            y += uu[:, k] @ d.T
+        if active[k]:
+            apply_sensor_faults(y, plant.outputs, faults, since_onset=t[k] - onset)
+        if feedback is not None:
+            uu[:, k] = feedback(y, k)
+        Y[:, k] = y
+        X[:, k] = x
+        x = x @ a.T + uu[:, k] @ b.T + dd[:, k] @ e.T + w[:, k]
+    extra = {name: X[:, :, i] for i, name in enumerate(plant.states)}
+    extra.update({name: dd[:, :, j] for j, name in enumerate(plant.unknown_inputs)})
+    return Batch(
+        scenario=scenario,
+        seeds=tuple(int(s) for s in seeds),
+        t=t,
+        inputs=plant.inputs,
+        outputs=plant.outputs,
+        U=uu,
+        Y=Y,
+        extra=extra,
+    )

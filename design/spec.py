@@ -1,0 +1,291 @@
+"""``SPEC``: a built-in problem name, or a TOML plant file describing a new problem.
+
+The TOML format (every key is validated; errors name the key)::
+
+    name = "my_plant"                 # problem name; prefixes the C API
+    title = "..."                     # optional
+
+    [signals]                         # all optional: default names x0…, u0…, d0…, y0…
+    states = ["x1", "x2"]
+    inputs = ["u"]
+    unknown_inputs = ["d"]
+    outputs = ["y1", "y2", "y3"]
+
+    [model]
+    time = "continuous"               # or "discrete"
+    Ts = 0.01                         # sample time (s); continuous models are ZOH-sampled
+    A = [[...]]                       # n × n
+    B = [[...]]                       # n × m (optional)
+    C = [[...]]                       # p × n
+    D = [[...]]                       # p × m (optional)
+    E = [[...]]                       # n × q unknown-input directions
+    Q = [[...]]                       # process noise: intensity (continuous) or covariance per sample
+    R = [[...]]                       # sensor noise covariance per sample
+    state_scale = [...]               # optional typical state magnitudes (conditioning)
+
+    [design]
+    method = "kalman_uio"             # kalman_uio | kalman_uio_paper | uio_pole_placement
+    P_f = 0.001                       # false-alarm probability per statistic and sample
+    persistence = 1                   # consecutive exceedances before a statistic alarms
+    poles = [0.5, 0.6]                # uio_pole_placement: one pole per state
+    bank = [["y1", "y2"], ["y1", "y3"]]   # one generator per group (default: all outputs)
+    faults = [{ name = "y1", sensors = ["y1"] }]   # default: one per output, merged when alike
+
+    [simulation]                      # for simulate / evaluate / report
+    duration = 100.0                  # of the fault-free scenario (s)
+    x0 = [...]                        # initial state (default 0)
+    inputs = [{ kind = "sine", amplitude = 1.0, period = 10.0 }]      # one per input
+    unknown_inputs = [{ kind = "gauss_markov", amplitude = 0.5, period = 2.0 }]
+
+    [[scenarios]]                     # faulty scenarios (a fault-free one is always added)
+    name = "y1_offset"
+    duration = 100.0
+    fault = "y1"                      # the fault class the diagnoser should isolate
+    onset = 50.0
+    end = 80.0                        # optional
+    sensor_faults = [{ sensor = "y1", kind = "offset", value = 0.5 }]   # stuck | gain | offset | drift
+
+Signal kinds: constant (offset), step (offset, amplitude, start), sine (offset,
+amplitude, period), prbs (offset, amplitude, period = hold time),
+gauss_markov (offset, amplitude, period = correlation time).
+"""
+
+from __future__ import annotations
+
+import re
+import tomllib
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from fdisyn.design.diagnoser import SensorFault, linear_diagnoser
+from fdisyn.design.plant import LinearPlant
+from fdisyn.design.problem import Batch, Problem, Scenario, get_problem
+from fdisyn.design.simulate import SensorFaultSpec, Signal, simulate_linear
+from fdisyn.design.uio import kalman_uio, pole_placement_uio
+from fdisyn.runtime.errors import FdisynError, SpecError
+from fdisyn.runtime.gainfile import GainFile
+
+__all__ = ["load_spec", "problem_from_toml", "LINEAR_METHODS", "register_method"]
+
+_IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+
+MethodFn = Callable[[LinearPlant, Mapping[str, Any]], Any]
+LINEAR_METHODS: dict[str, MethodFn] = {
+    "kalman_uio": lambda plant, o: kalman_uio(plant, variant="optimal"),
+    "kalman_uio_paper": lambda plant, o: kalman_uio(plant, variant="paper"),
+    "uio_pole_placement": lambda plant, o: pole_placement_uio(plant, poles=o["poles"]),
+}
+"""Design methods a TOML file may name: ``(sub-plant, design options) → design``
+with ``generator(name, outputs_used, n_outputs)``, ``Sigma_r`` and ``certificate``."""
+
+_DESIGN_KEYS = {"method", "P_f", "persistence", "poles", "bank", "faults"}
+
+
+def register_method(name: str, fn: MethodFn, *, keys: tuple[str, ...] = ()) -> None:
+    """Let TOML files use design method ``name`` (with extra ``[design]`` keys)."""
+    LINEAR_METHODS[name] = fn
+    _DESIGN_KEYS.update(keys)
+
+
+def load_spec(spec: str | Path) -> Problem:
+    """A built-in problem by name, or the problem a ``.toml`` file describes."""
+    s = str(spec)
+    if s.endswith(".toml") or Path(s).is_file():
+        return problem_from_toml(Path(s))
+    return get_problem(s)
+
+
+class _Section:
+    def __init__(self, doc: Mapping[str, Any], where: str, allowed: set[str]) -> None:
+        unknown = sorted(set(doc) - allowed)
+        if unknown:
+            raise SpecError(f"{where}: unknown key(s) {unknown}; allowed: {sorted(allowed)}")
+        self.doc, self.where = doc, where
+
+    def get(self, key: str, default: Any = None, *, required: bool = False) -> Any:
+        if key not in self.doc:
+            if required:
+                raise SpecError(f"{self.where}: missing key {key!r}")
+            return default
+        return self.doc[key]
+
+    def number(self, key: str, default: float | None = None, *, required: bool = False) -> float | None:
+        v = self.get(key, default, required=required)
+        if v is None:
+            return None
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise SpecError(f"{self.where}.{key} must be a number, got {v!r}")
+        return float(v)
+
+    def matrix(self, key: str, *, required: bool = False) -> np.ndarray | None:
+        v = self.get(key, None, required=required)
+        if v is None:
+            return None
+        try:
+            a = np.asarray(v, dtype=float)
+        except (TypeError, ValueError):
+            raise SpecError(f"{self.where}.{key} must be a matrix of numbers (a list of rows)") from None
+        if a.ndim == 1:
+            a = a.reshape(-1, 1) if key in ("B", "E") else a.reshape(1, -1)
+        if a.ndim != 2:
+            raise SpecError(f"{self.where}.{key} must be a matrix (a list of rows), got {a.ndim} dimensions")
+        return a
+
+
+def _signal(d: Any, where: str) -> Signal:
+    if not isinstance(d, Mapping):
+        raise SpecError(f"{where} must be a table like {{ kind = \"sine\", amplitude = 1.0, period = 10.0 }}")
+    sec = _Section(d, where, {"kind", "offset", "amplitude", "period", "start"})
+    return Signal(
+        kind=str(sec.get("kind", "constant")),
+        offset=sec.number("offset", 0.0) or 0.0,
+        amplitude=sec.number("amplitude", 0.0) or 0.0,
+        period=sec.number("period", 1.0) or 1.0,
+        start=sec.number("start", 0.0) or 0.0,
+    )
+
+
+def problem_from_toml(path: Path) -> Problem:
+    """Parse and validate a TOML plant file (format in the module docstring)."""
+    try:
+        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise SpecError(f"no plant file at {path}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise SpecError(f"{path} is not valid TOML: {exc}") from exc
+    top = _Section(doc, str(path), {"name", "title", "signals", "model", "design", "simulation", "scenarios"})
+    name = str(top.get("name", required=True))
+    if not _IDENT.match(name):
+        raise SpecError(f"{path}: name {name!r} must be an identifier (it prefixes the C API)")
+    sig = _Section(top.get("signals", {}), f"{path} [signals]", {"states", "inputs", "unknown_inputs", "outputs"})
+    mod = _Section(
+        top.get("model", required=True), f"{path} [model]", {"time", "Ts", "A", "B", "C", "D", "E", "Q", "R", "state_scale"}
+    )
+    time = mod.get("time", "continuous")
+    if time not in ("continuous", "discrete"):
+        raise SpecError(f"{path} [model].time must be 'continuous' or 'discrete', got {time!r}")
+    ts = mod.number("Ts", required=True)
+    try:
+        plant = LinearPlant.create(
+            A=mod.matrix("A", required=True),
+            B=mod.matrix("B"),
+            C=mod.matrix("C", required=True),
+            D=mod.matrix("D"),
+            E=mod.matrix("E"),
+            Q=mod.matrix("Q"),
+            R=mod.matrix("R"),
+            Ts=ts if time == "discrete" else None,
+            states=sig.get("states"),
+            inputs=sig.get("inputs"),
+            unknown_inputs=sig.get("unknown_inputs"),
+            outputs=sig.get("outputs"),
+        )
+        physical = plant if time == "discrete" else plant.discretise(ts)  # type: ignore[arg-type]
+    except FdisynError as exc:
+        raise SpecError(f"{path} [model]: {exc}") from exc
+    scale = mod.get("state_scale")
+    design_plant = physical.scaled(scale) if scale is not None else physical
+    des = _Section(top.get("design", {}), f"{path} [design]", set(_DESIGN_KEYS))
+    method = str(des.get("method", "kalman_uio"))
+    if method not in LINEAR_METHODS:
+        raise SpecError(f"{path} [design].method {method!r} is not one of {sorted(LINEAR_METHODS)}")
+    groups = des.get("bank", [list(physical.outputs)])
+    bank = []
+    for gi, g in enumerate(groups):
+        if not isinstance(g, list) or not g:
+            raise SpecError(f"{path} [design].bank[{gi}] must be a non-empty list of output names")
+        bank.append([physical.output_index(str(o)) for o in g])
+    faults = _faults(des.get("faults"), physical, bank, f"{path} [design].faults")
+    design_opts = {k: des.get(k) for k in des.doc if k not in ("method", "bank", "faults")}
+
+    def design_fn(**_: Any) -> GainFile:
+        gens, sigmas, certs = [], [], []
+        for gi, idx in enumerate(bank):
+            d = LINEAR_METHODS[method](design_plant.select_outputs(idx), design_opts)
+            gens.append(d.generator(f"g{gi}_" + "_".join(physical.outputs[i] for i in idx), idx, physical.p))
+            sigmas.append(d.Sigma_r)
+            certs.append(d.certificate)
+        return linear_diagnoser(
+            name=f"{name}_{method}",
+            problem=name,
+            design=method,
+            plant=design_plant,
+            generators=gens,
+            sigma_r=sigmas,
+            P_f=float(des.number("P_f", 1e-3) or 1e-3),
+            faults=faults,
+            certificates=certs,
+            persistence=int(des.get("persistence", 1)),
+            options={"spec": str(path), "method": method, **design_opts},
+        )
+
+    sim = _Section(top.get("simulation", {}), f"{path} [simulation]", {"duration", "x0", "inputs", "unknown_inputs"})
+    u_sigs = [_signal(s, f"{path} [simulation].inputs[{i}]") for i, s in enumerate(sim.get("inputs", []))]
+    d_sigs = [_signal(s, f"{path} [simulation].unknown_inputs[{i}]") for i, s in enumerate(sim.get("unknown_inputs", []))]
+    u_sigs += [Signal()] * (physical.m - len(u_sigs))
+    d_sigs += [Signal()] * (physical.q - len(d_sigs))
+    if len(u_sigs) != physical.m or len(d_sigs) != physical.q:
+        raise SpecError(f"{path} [simulation]: {physical.m} input and {physical.q} unknown-input signals at most")
+    x0 = np.asarray(sim.get("x0", [0.0] * physical.n), dtype=float)
+    if x0.shape != (physical.n,):
+        raise SpecError(f"{path} [simulation].x0 must have {physical.n} entries, got {x0.size}")
+    scenarios = {"fault_free": Scenario("fault_free", "No fault.", float(sim.number("duration", 100.0) or 100.0))}
+    fault_names = {f.name for f in faults}
+    for i, sd in enumerate(top.get("scenarios", [])):
+        w = f"{path} [[scenarios]][{i}]"
+        sc = _Section(sd, w, {"name", "description", "duration", "fault", "onset", "end", "sensor_faults"})
+        fname = sc.get("fault")
+        if fname is not None and fname not in fault_names:
+            raise SpecError(f"{w}.fault {fname!r} is not a fault class; classes: {sorted(fault_names)}")
+        sfs = []
+        for j, f in enumerate(sc.get("sensor_faults", [])):
+            fs = _Section(f, f"{w}.sensor_faults[{j}]", {"sensor", "kind", "value"})
+            sensor = str(fs.get("sensor", required=True))
+            physical.output_index(sensor)
+            sfs.append(SensorFaultSpec(sensor, str(fs.get("kind", required=True)), float(fs.number("value", required=True))))  # type: ignore[arg-type]
+        scen = Scenario(
+            name=str(sc.get("name", required=True)),
+            description=str(sc.get("description", "")),
+            duration=float(sc.number("duration", required=True)),  # type: ignore[arg-type]
+            fault=fname,
+            onset=sc.number("onset"),
+            end=sc.number("end"),
+            params={"sensor_faults": sfs},
+        )
+        scenarios[scen.name] = scen
+
+    def simulate(scenario: Scenario, seeds: tuple[int, ...]) -> Batch:
+        return simulate_linear(physical, scenario, seeds, x0=x0, inputs=u_sigs, unknown_inputs=d_sigs)
+
+    return Problem(
+        name=name,
+        title=str(top.get("title", name)),
+        summary=f"Plant described by {path.name}; design method {method}.",
+        designs={method: design_fn},
+        default_design=method,
+        scenarios=scenarios,
+        simulate=simulate,
+        monte_carlo_runs=50,
+    )
+
+
+def _faults(spec: Any, plant: LinearPlant, bank: list[list[int]], where: str) -> list[SensorFault]:
+    if spec is not None:
+        out = []
+        for i, f in enumerate(spec):
+            fs = _Section(f, f"{where}[{i}]", {"name", "sensors"})
+            sensors = tuple(str(s) for s in fs.get("sensors", required=True))
+            for s in sensors:
+                plant.output_index(s)
+            out.append(SensorFault(str(fs.get("name", required=True)), sensors))
+        return out
+    # one class per output; outputs the bank cannot tell apart are merged (detected, isolated as a group)
+    by_signature: dict[tuple[int, ...], list[str]] = {}
+    for j, o in enumerate(plant.outputs):
+        sig = tuple(int(j in g) for g in bank)
+        if any(sig):
+            by_signature.setdefault(sig, []).append(o)
+    return [SensorFault("|".join(names), tuple(names)) for names in by_signature.values()]

@@ -1,0 +1,567 @@
+"""The gain file: a diagnoser's versioned, self-contained description (JSON).
+
+Format ``fdisyn.gains/1``. Common fields (every diagnoser kind):
+
+``format``, ``kind``, ``name`` (a C identifier: the prefix of the generated C),
+``problem``, ``design``, ``Ts``, ``inputs``, ``outputs``, ``faults``,
+``step`` {``nu ny nr nj nstate``, ``init_state``, ``residual_names``,
+``statistic_names``}, ``certificate``, ``provenance``, ``extensions``.
+
+Linear diagnosers (``kind = "linear"``) add ``plant`` {``A B C D E Q R``: the
+discrete model the design used, in its state coordinates}, ``generators`` (the
+canonical form ``ξ⁺ = Ar ξ + Bu u + By y``, ``r = Cr ξ + Du u + Dy y`` on the
+full ``u``, ``y``, plus the equilibrium maps ``Xu = (I − Ar)⁻¹ Bu``,
+``Xy = (I − Ar)⁻¹ By`` used to start the generator at the first valid
+sample), ``evaluators`` (χ² statistics ``J = rᵀ W r``, ``W = Σ_r⁺``) and
+``decision`` (a fault signature table over the statistics).
+
+Matrices are nested lists of floats written with full round-trip precision
+(Python's ``repr``); non-finite numbers are refused on writing and reading.
+The reader validates everything and raises :class:`GainFileError` naming the
+field, what was expected and what was found.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from fdisyn.runtime.errors import GainFileError
+
+__all__ = [
+    "FORMAT",
+    "Generator",
+    "Evaluator",
+    "Decision",
+    "StepSpec",
+    "GainFile",
+    "read_gain_file",
+    "write_gain_file",
+    "linear_state_layout",
+]
+
+FORMAT = "fdisyn.gains/1"
+_FORMAT_FAMILY = "fdisyn.gains/"
+_C_IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+_MATRIX_KEYS = ("Ar", "Bu", "By", "Cr", "Du", "Dy", "Xu", "Xy")
+
+
+@dataclass(frozen=True, eq=False)
+class Generator:
+    """One residual generator in canonical form (see the module docstring)."""
+
+    name: str
+    outputs_used: tuple[int, ...]
+    Ar: np.ndarray
+    Bu: np.ndarray
+    By: np.ndarray
+    Cr: np.ndarray
+    Du: np.ndarray
+    Dy: np.ndarray
+    Xu: np.ndarray
+    Xy: np.ndarray
+    method: Mapping[str, Any] = field(default_factory=dict)
+
+    @property
+    def n_state(self) -> int:
+        return int(self.Ar.shape[0])
+
+    @property
+    def n_residual(self) -> int:
+        return int(self.Cr.shape[0])
+
+
+@dataclass(frozen=True, eq=False)
+class Evaluator:
+    """χ² statistic ``J = rᵀ W r`` of one generator, alarm when ``J > threshold``."""
+
+    kind: str
+    generator: int
+    P_f: float
+    dof: int
+    threshold: float
+    Sigma_r: np.ndarray
+    W: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class Decision:
+    """Signature-table isolation over the statistics' alarm flags.
+
+    ``signatures[f][j] = 1`` when fault ``f`` is expected to raise statistic
+    ``j``. A statistic's flag is set after ``persistence`` consecutive samples
+    with ``J > threshold`` (1: the current sample decides, the default). The
+    isolated fault is the one whose signature equals the flag pattern exactly,
+    −1 when none does.
+    """
+
+    kind: str
+    signatures: np.ndarray
+    persistence: int = 1
+
+
+@dataclass(frozen=True, eq=False)
+class StepSpec:
+    """Sizes and initial state of the step function (the C API's macros)."""
+
+    nu: int
+    ny: int
+    nr: int
+    nj: int
+    nstate: int
+    init_state: np.ndarray
+    residual_names: tuple[str, ...]
+    statistic_names: tuple[str, ...]
+
+
+@dataclass(frozen=True, eq=False)
+class GainFile:
+    """A validated gain file. Build with :func:`read_gain_file` or the design side."""
+
+    kind: str
+    name: str
+    problem: str
+    design: str
+    Ts: float
+    inputs: tuple[str, ...]
+    outputs: tuple[str, ...]
+    faults: tuple[str, ...]
+    step: StepSpec
+    plant: Mapping[str, np.ndarray] = field(default_factory=dict)
+    generators: tuple[Generator, ...] = ()
+    evaluators: tuple[Evaluator, ...] = ()
+    decision: Decision | None = None
+    certificate: Mapping[str, Any] = field(default_factory=dict)
+    provenance: Mapping[str, Any] = field(default_factory=dict)
+    extensions: Mapping[str, Any] = field(default_factory=dict)
+    format: str = FORMAT
+
+    def __post_init__(self) -> None:
+        _validate(self)
+
+    @property
+    def thresholds(self) -> np.ndarray:
+        """One threshold per statistic (linear kind; else from ``extensions``)."""
+        if self.kind == "linear":
+            return np.array([e.threshold for e in self.evaluators], dtype=float)
+        return np.asarray(self.extensions.get(self.kind, {}).get("thresholds", [math.inf] * self.step.nj), dtype=float)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON document (plain lists, floats, strings)."""
+        doc: dict[str, Any] = {
+            "format": self.format,
+            "kind": self.kind,
+            "name": self.name,
+            "problem": self.problem,
+            "design": self.design,
+            "Ts": float(self.Ts),
+            "inputs": list(self.inputs),
+            "outputs": list(self.outputs),
+            "faults": list(self.faults),
+            "step": {
+                "nu": self.step.nu,
+                "ny": self.step.ny,
+                "nr": self.step.nr,
+                "nj": self.step.nj,
+                "nstate": self.step.nstate,
+                "init_state": _plain(self.step.init_state),
+                "residual_names": list(self.step.residual_names),
+                "statistic_names": list(self.step.statistic_names),
+            },
+        }
+        if self.kind == "linear":
+            doc["plant"] = {k: _plain(v) for k, v in self.plant.items()}
+            doc["generators"] = [
+                {
+                    "name": g.name,
+                    "outputs_used": list(g.outputs_used),
+                    **{k: _plain(getattr(g, k)) for k in _MATRIX_KEYS},
+                    "method": _plain(dict(g.method)),
+                }
+                for g in self.generators
+            ]
+            doc["evaluators"] = [
+                {
+                    "kind": e.kind,
+                    "generator": e.generator,
+                    "P_f": float(e.P_f),
+                    "dof": int(e.dof),
+                    "threshold": float(e.threshold),
+                    "Sigma_r": _plain(e.Sigma_r),
+                    "W": _plain(e.W),
+                }
+                for e in self.evaluators
+            ]
+            assert self.decision is not None  # guaranteed by _validate
+            doc["decision"] = {
+                "kind": self.decision.kind,
+                "signatures": np.asarray(self.decision.signatures, dtype=int).tolist(),
+                "persistence": int(self.decision.persistence),
+            }
+        doc["certificate"] = _plain(dict(self.certificate))
+        doc["provenance"] = _plain(dict(self.provenance))
+        doc["extensions"] = _plain(dict(self.extensions))
+        return doc
+
+
+def linear_state_layout(generators: Sequence[Generator], n_statistics: int) -> dict[str, slice]:
+    """Where each part of a linear diagnoser's state vector lives.
+
+    ``xi<g>``: generator ``g``'s state; ``counters``: one persistence counter
+    per statistic; ``ready``: one flag per generator (0 until its first valid
+    sample has initialised it at equilibrium); ``nonfinite``: the number of
+    samples that held a non-finite input or output.
+    """
+    out: dict[str, slice] = {}
+    k = 0
+    for g, gen in enumerate(generators):
+        out[f"xi{g}"] = slice(k, k + gen.n_state)
+        k += gen.n_state
+    out["counters"] = slice(k, k + n_statistics)
+    k += n_statistics
+    out["ready"] = slice(k, k + len(generators))
+    k += len(generators)
+    out["nonfinite"] = slice(k, k + 1)
+    out["total"] = slice(0, k + 1)
+    return out
+
+
+# --------------------------------------------------------------------------- I/O
+def write_gain_file(gf: GainFile, path: str | Path) -> Path:
+    """Write ``gf`` as JSON (floats with full round-trip precision)."""
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        text = json.dumps(gf.to_dict(), indent=1, allow_nan=False)
+    except ValueError as exc:
+        raise GainFileError(f"gain file {gf.name!r} holds a non-finite number: {exc}") from exc
+    p.write_text(text + "\n", encoding="utf-8")
+    return p
+
+
+def read_gain_file(path: str | Path) -> GainFile:
+    """Read and validate a gain file; refuse other formats and versions."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise GainFileError(f"no gain file at {p}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise GainFileError(f"cannot read gain file {p}: {exc}") from exc
+    try:
+        doc = json.loads(text, parse_constant=_refuse_constant)
+    except json.JSONDecodeError as exc:
+        raise GainFileError(f"{p} is not valid JSON (line {exc.lineno}, column {exc.colno}): {exc.msg}") from exc
+    except ValueError as exc:
+        raise GainFileError(f"{p}: {exc}") from exc
+    return gain_file_from_dict(doc, source=str(p))
+
+
+def _refuse_constant(name: str) -> float:
+    raise ValueError(f"non-finite number {name} in a gain file")
+
+
+def gain_file_from_dict(doc: object, *, source: str = "gain file") -> GainFile:
+    """Validate a parsed JSON document and build the :class:`GainFile`."""
+    if not isinstance(doc, dict):
+        raise GainFileError(f"{source} is not an fdisyn gain file: the top level is a {type(doc).__name__}, expected an object")
+    fmt = doc.get("format")
+    if fmt is None:
+        raise GainFileError(f"{source} is not an fdisyn gain file: it has no 'format' field (expected {FORMAT!r})")
+    if not isinstance(fmt, str) or not fmt.startswith(_FORMAT_FAMILY):
+        raise GainFileError(f"{source} is not an fdisyn gain file: format {fmt!r} (expected {FORMAT!r})")
+    if fmt != FORMAT:
+        raise GainFileError(
+            f"{source} has gain file format version {fmt[len(_FORMAT_FAMILY):]!r} ({fmt!r}); "
+            f"this fdisyn reads {FORMAT!r} only"
+        )
+    r = _Reader(doc, source)
+    kind = r.string("kind")
+    step_doc = r.obj("step")
+    sr = _Reader(step_doc, f"{source}: step")
+    step = StepSpec(
+        nu=sr.integer("nu", minimum=0),
+        ny=sr.integer("ny", minimum=1),
+        nr=sr.integer("nr", minimum=0),
+        nj=sr.integer("nj", minimum=0),
+        nstate=sr.integer("nstate", minimum=1),
+        init_state=sr.vector("init_state"),
+        residual_names=sr.strings("residual_names"),
+        statistic_names=sr.strings("statistic_names"),
+    )
+    kwargs: dict[str, Any] = {}
+    if kind == "linear":
+        pl = r.obj("plant")
+        pr = _Reader(pl, f"{source}: plant")
+        kwargs["plant"] = {k: pr.matrix(k) for k in ("A", "B", "C", "D", "E", "Q", "R")}
+        gens = []
+        for i, gd in enumerate(r.array("generators")):
+            gr = _Reader(gd, f"{source}: generators[{i}]")
+            gens.append(
+                Generator(
+                    name=gr.string("name"),
+                    outputs_used=tuple(gr.integers("outputs_used")),
+                    **{k: gr.matrix(k) for k in _MATRIX_KEYS},
+                    method=gr.obj("method"),
+                )
+            )
+        kwargs["generators"] = tuple(gens)
+        evs = []
+        for i, ed in enumerate(r.array("evaluators")):
+            er = _Reader(ed, f"{source}: evaluators[{i}]")
+            evs.append(
+                Evaluator(
+                    kind=er.string("kind"),
+                    generator=er.integer("generator", minimum=0),
+                    P_f=er.number("P_f"),
+                    dof=er.integer("dof", minimum=0),
+                    threshold=er.number("threshold"),
+                    Sigma_r=er.matrix("Sigma_r"),
+                    W=er.matrix("W"),
+                )
+            )
+        kwargs["evaluators"] = tuple(evs)
+        dd = _Reader(r.obj("decision"), f"{source}: decision")
+        kwargs["decision"] = Decision(
+            kind=dd.string("kind"), signatures=dd.matrix("signatures"), persistence=dd.integer("persistence", minimum=1)
+        )
+    try:
+        return GainFile(
+            kind=kind,
+            name=r.string("name"),
+            problem=r.string("problem"),
+            design=r.string("design"),
+            Ts=r.number("Ts"),
+            inputs=r.strings("inputs"),
+            outputs=r.strings("outputs"),
+            faults=r.strings("faults"),
+            step=step,
+            certificate=r.obj("certificate"),
+            provenance=r.obj("provenance"),
+            extensions=r.obj("extensions") if "extensions" in doc else {},
+            **kwargs,
+        )
+    except GainFileError as exc:
+        raise GainFileError(f"{source}: {exc}") from None
+
+
+class _Reader:
+    """Typed field access that names the field on every failure."""
+
+    def __init__(self, doc: object, where: str) -> None:
+        if not isinstance(doc, dict):
+            raise GainFileError(f"{where}: expected an object, found {type(doc).__name__}")
+        self.doc = doc
+        self.where = where
+
+    def _get(self, key: str) -> object:
+        if key not in self.doc:
+            raise GainFileError(f"{self.where}: missing field {key!r}")
+        return self.doc[key]
+
+    def string(self, key: str) -> str:
+        v = self._get(key)
+        if not isinstance(v, str):
+            raise GainFileError(f"{self.where}: field {key!r} must be a string, found {type(v).__name__}")
+        return v
+
+    def number(self, key: str) -> float:
+        v = self._get(key)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise GainFileError(f"{self.where}: field {key!r} must be a finite number, found {v!r}")
+        return float(v)
+
+    def integer(self, key: str, *, minimum: int | None = None) -> int:
+        v = self._get(key)
+        if isinstance(v, bool) or not isinstance(v, int):
+            raise GainFileError(f"{self.where}: field {key!r} must be an integer, found {v!r}")
+        if minimum is not None and v < minimum:
+            raise GainFileError(f"{self.where}: field {key!r} must be ≥ {minimum}, found {v}")
+        return v
+
+    def obj(self, key: str) -> dict[str, Any]:
+        v = self._get(key)
+        if not isinstance(v, dict):
+            raise GainFileError(f"{self.where}: field {key!r} must be an object, found {type(v).__name__}")
+        return v
+
+    def array(self, key: str) -> list[Any]:
+        v = self._get(key)
+        if not isinstance(v, list):
+            raise GainFileError(f"{self.where}: field {key!r} must be a list, found {type(v).__name__}")
+        return v
+
+    def strings(self, key: str) -> tuple[str, ...]:
+        v = self.array(key)
+        if not all(isinstance(s, str) for s in v):
+            raise GainFileError(f"{self.where}: field {key!r} must be a list of strings")
+        return tuple(v)
+
+    def integers(self, key: str) -> list[int]:
+        v = self.array(key)
+        if not all(isinstance(s, int) and not isinstance(s, bool) for s in v):
+            raise GainFileError(f"{self.where}: field {key!r} must be a list of integers")
+        return list(v)
+
+    def vector(self, key: str) -> np.ndarray:
+        v = self.array(key)
+        try:
+            a = np.asarray(v, dtype=float)
+        except (TypeError, ValueError):
+            raise GainFileError(f"{self.where}: field {key!r} must be a list of numbers") from None
+        if a.ndim != 1 or not np.all(np.isfinite(a)):
+            raise GainFileError(f"{self.where}: field {key!r} must be a flat list of finite numbers")
+        return a
+
+    def matrix(self, key: str) -> np.ndarray:
+        v = self.array(key)
+        rows = len(v)
+        if rows and not all(isinstance(row, list) for row in v):
+            raise GainFileError(f"{self.where}: field {key!r} must be a list of rows (a matrix)")
+        widths = {len(row) for row in v}
+        if len(widths) > 1:
+            raise GainFileError(f"{self.where}: matrix {key!r} has rows of different lengths {sorted(widths)}")
+        try:
+            a = np.asarray(v, dtype=float).reshape(rows, widths.pop() if widths else 0)
+        except (TypeError, ValueError):
+            raise GainFileError(f"{self.where}: matrix {key!r} holds something that is not a number") from None
+        if not np.all(np.isfinite(a)):
+            raise GainFileError(f"{self.where}: matrix {key!r} holds a non-finite number")
+        return a
+
+
+# ----------------------------------------------------------------- validation
+def _fail(msg: str) -> None:
+    raise GainFileError(msg)
+
+
+def _shape(a: np.ndarray, where: str, shape: tuple[int, int]) -> None:
+    if a.shape != shape:
+        _fail(f"{where}: expected shape {shape}, found {a.shape}")
+
+
+def _validate(gf: GainFile) -> None:
+    if gf.format != FORMAT:
+        _fail(f"format {gf.format!r}; expected {FORMAT!r}")
+    if not _C_IDENT.match(gf.name):
+        _fail(f"name {gf.name!r} must be a C identifier (letters, digits, underscore; it prefixes the generated C API)")
+    if not math.isfinite(gf.Ts) or gf.Ts <= 0:
+        _fail(f"Ts must be a positive sample time in seconds, found {gf.Ts!r}")
+    for what, names in (("inputs", gf.inputs), ("outputs", gf.outputs), ("faults", gf.faults)):
+        if len(set(names)) != len(names):
+            _fail(f"{what} names must be unique, found {list(names)}")
+    st = gf.step
+    if st.nu != len(gf.inputs) or st.ny != len(gf.outputs):
+        _fail(f"step sizes nu={st.nu}, ny={st.ny} do not match {len(gf.inputs)} inputs and {len(gf.outputs)} outputs")
+    if st.init_state.shape != (st.nstate,):
+        _fail(f"step.init_state has {st.init_state.size} entries; nstate is {st.nstate}")
+    if len(st.residual_names) != st.nr or len(st.statistic_names) != st.nj:
+        _fail(f"step names: {len(st.residual_names)} residual and {len(st.statistic_names)} statistic names for nr={st.nr}, nj={st.nj}")
+    if gf.kind == "linear":
+        _validate_linear(gf)
+    elif gf.kind not in gf.extensions:
+        _fail(f"diagnoser kind {gf.kind!r} needs its payload in extensions[{gf.kind!r}]")
+
+
+def _validate_linear(gf: GainFile) -> None:
+    m, p = len(gf.inputs), len(gf.outputs)
+    pl = gf.plant
+    if set(pl) != {"A", "B", "C", "D", "E", "Q", "R"}:
+        _fail(f"plant must hold A, B, C, D, E, Q, R; found {sorted(pl)}")
+    n = pl["A"].shape[0]
+    for k, shape in (("A", (n, n)), ("B", (n, m)), ("C", (p, n)), ("D", (p, m)), ("Q", (n, n)), ("R", (p, p))):
+        _shape(pl[k], f"plant.{k}", shape)
+    if pl["E"].shape[0] != n:
+        _fail(f"plant.E: expected {n} rows, found {pl['E'].shape[0]}")
+    if not gf.generators:
+        _fail("a linear diagnoser needs at least one generator")
+    nr = 0
+    for i, g in enumerate(gf.generators):
+        w = f"generators[{i}] ({g.name})"
+        ns, ng = g.n_state, g.n_residual
+        for k, shape in (
+            ("Ar", (ns, ns)),
+            ("Bu", (ns, m)),
+            ("By", (ns, p)),
+            ("Cr", (ng, ns)),
+            ("Du", (ng, m)),
+            ("Dy", (ng, p)),
+            ("Xu", (ns, m)),
+            ("Xy", (ns, p)),
+        ):
+            _shape(getattr(g, k), f"{w}.{k}", shape)
+        if not g.outputs_used or any(not 0 <= j < p for j in g.outputs_used) or len(set(g.outputs_used)) != len(g.outputs_used):
+            _fail(f"{w}.outputs_used must be distinct indices in 0..{p - 1}, found {list(g.outputs_used)}")
+        unused = [j for j in range(p) if j not in g.outputs_used]
+        if unused and (np.any(g.By[:, unused]) or np.any(g.Dy[:, unused])):
+            _fail(f"{w} reads outputs {unused} that are not in outputs_used")
+        if ns:
+            rho = float(np.max(np.abs(np.linalg.eigvals(g.Ar))))
+            if not rho < 1.0:
+                _fail(f"{w}.Ar is not Schur stable (spectral radius {rho:.6g}); the generator would diverge")
+            # the equilibrium maps must solve (I − Ar) X = B: catches edited or corrupted files
+            for xk, bk in (("Xu", "Bu"), ("Xy", "By")):
+                x, b = getattr(g, xk), getattr(g, bk)
+                res = np.linalg.norm((np.eye(ns) - g.Ar) @ x - b)
+                if res > 1e-8 * (np.linalg.norm(b) + np.linalg.norm(g.Ar) * np.linalg.norm(x) + 1e-300):
+                    _fail(f"{w}.{xk} is not (I − Ar)⁻¹ {bk} (residual {res:.3g}); the file is inconsistent")
+        nr += ng
+    if len(gf.evaluators) == 0:
+        _fail("a linear diagnoser needs at least one evaluator")
+    for j, e in enumerate(gf.evaluators):
+        w = f"evaluators[{j}]"
+        if e.kind != "chi2":
+            _fail(f"{w}.kind {e.kind!r} is not supported (supported: 'chi2')")
+        if not 0 <= e.generator < len(gf.generators):
+            _fail(f"{w}.generator {e.generator} is not a generator index (0..{len(gf.generators) - 1})")
+        ng = gf.generators[e.generator].n_residual
+        _shape(e.Sigma_r, f"{w}.Sigma_r", (ng, ng))
+        _shape(e.W, f"{w}.W", (ng, ng))
+        if not 0.0 < e.P_f < 1.0:
+            _fail(f"{w}.P_f must be a probability in (0, 1), found {e.P_f}")
+        if not e.threshold > 0:
+            _fail(f"{w}.threshold must be positive, found {e.threshold}")
+    d = gf.decision
+    if d is None:
+        _fail("a linear diagnoser needs a decision")
+        return
+    if d.kind != "signature_table":
+        _fail(f"decision.kind {d.kind!r} is not supported (supported: 'signature_table')")
+    _shape(d.signatures, "decision.signatures", (len(gf.faults), len(gf.evaluators)))
+    sig = np.asarray(d.signatures)
+    if not np.all((sig == 0) | (sig == 1)):
+        _fail("decision.signatures must hold only 0 and 1")
+    rows = [tuple(r) for r in sig.astype(int)]
+    for f, row in enumerate(rows):
+        if not any(row):
+            _fail(f"decision.signatures: fault {gf.faults[f]!r} has an all-zero signature (it would be undetectable)")
+        if rows.count(row) > 1:
+            _fail(f"decision.signatures: fault {gf.faults[f]!r} shares its signature {list(row)} with another fault")
+    st = gf.step
+    lay = linear_state_layout(gf.generators, len(gf.evaluators))
+    if st.nr != nr or st.nj != len(gf.evaluators) or st.nstate != lay["total"].stop:
+        _fail(
+            f"step sizes nr={st.nr}, nj={st.nj}, nstate={st.nstate} do not match the generators "
+            f"(nr={nr}, nj={len(gf.evaluators)}, nstate={lay['total'].stop})"
+        )
+
+
+def _plain(obj: object) -> object:
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, Mapping):
+        return {str(k): _plain(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_plain(v) for v in obj]
+    if isinstance(obj, (np.floating, np.integer, np.bool_)):
+        return obj.item()
+    if isinstance(obj, complex):
+        return [obj.real, obj.imag]
+    return obj

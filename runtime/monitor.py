@@ -1,0 +1,99 @@
+"""The Monitor: stream inputs and outputs through a diagnoser, sample by sample.
+
+Typical use in a deployment script::
+
+    mon = Monitor.from_directory("build/wind_turbine/kalman_uio")
+    for u, y in stream:
+        d = mon.update(u, y)
+        if d.alarm:
+            print(d.time, "fault:", d.fault)
+
+It runs the compiled C step when the directory holds one (``fdisyn codegen``),
+else the NumPy reference of a linear gain file.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+
+from fdisyn.runtime.compiled import CompiledDiagnoser, library_path
+from fdisyn.runtime.errors import BuildError
+from fdisyn.runtime.gainfile import GainFile, read_gain_file
+from fdisyn.runtime.reference import LinearReference, RunResult
+
+__all__ = ["Verdict", "Monitor"]
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """What the diagnoser says about one sample."""
+
+    time: float
+    alarm: bool
+    isolated: int
+    fault: str | None
+    """Name of the isolated fault (``None``: no alarm, or detected but not isolated)."""
+    J: np.ndarray
+    r: np.ndarray
+    skipped: bool
+    """The sample held a non-finite value and was skipped where it mattered."""
+
+
+class Monitor:
+    """Runs one diagnoser over a stream; keeps its state and counts bad samples."""
+
+    def __init__(self, gf: GainFile, *, library: str | Path | None = None, backend: Literal["auto", "compiled", "reference"] = "auto") -> None:
+        self.gf = gf
+        if backend == "reference" or (backend == "auto" and library is None):
+            self.impl: CompiledDiagnoser | LinearReference = LinearReference(gf)
+        else:
+            if library is None:
+                raise BuildError("backend='compiled' needs the path of the compiled library")
+            self.impl = CompiledDiagnoser(library, gf)
+        self.backend = "reference" if isinstance(self.impl, LinearReference) else "compiled"
+        self.reset()
+
+    @classmethod
+    def from_directory(cls, directory: str | Path, *, backend: Literal["auto", "compiled", "reference"] = "auto") -> Monitor:
+        """Load ``DIR/gains.json`` and, if present, ``DIR/lib<name>.so``."""
+        d = Path(directory)
+        gf = read_gain_file(d / "gains.json")
+        lib = library_path(d, gf)
+        if backend == "compiled" or (backend == "auto" and lib.exists()):
+            return cls(gf, library=lib, backend="compiled")
+        return cls(gf, backend="reference")
+
+    def reset(self) -> None:
+        """Back to the initial state (as after ``<prefix>_init``)."""
+        self.state = self.impl.init_state()
+        self.samples = 0
+        self.skipped_samples = 0
+
+    def update(self, u: np.ndarray, y: np.ndarray) -> Verdict:
+        """Process one sample."""
+        out = self.impl.step(self.state, np.asarray(u, dtype=float), np.asarray(y, dtype=float))
+        t = self.samples * self.gf.Ts
+        self.samples += 1
+        self.skipped_samples += out.status
+        iso = int(out.isolated)
+        return Verdict(
+            time=t,
+            alarm=bool(out.alarm),
+            isolated=iso,
+            fault=self.gf.faults[iso] if iso >= 0 else None,
+            J=out.J,
+            r=out.r,
+            skipped=bool(out.status),
+        )
+
+    def run(self, U: np.ndarray, Y: np.ndarray) -> RunResult:
+        """Process a whole block of samples, continuing from the current state."""
+        res = self.impl.run(U, Y, state=self.state)
+        self.state = res.state
+        self.samples += len(res.alarm)
+        self.skipped_samples += res.nonfinite_samples
+        return res

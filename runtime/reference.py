@@ -1,0 +1,141 @@
+"""NumPy reference step of a linear diagnoser, built from its gain file alone.
+
+It defines the semantics the generated C must reproduce (and is checked
+against it in the tests). Per sample ``k``, for each generator ``g``:
+
+1. ``u`` and the outputs ``g`` uses must be finite; otherwise the sample is
+   skipped for ``g``: its state and persistence counters stay unchanged, its
+   residual and statistic are reported as 0 and it raises no alarm.
+2. At ``g``'s first valid sample its state starts at the equilibrium of the
+   current input/output, ``ξ = Xu u + Xy y`` (so a plant already running in
+   steady state produces no start-up transient).
+3. ``r = Cr ξ + Du u + Dy y``;  ``ξ⁺ = Ar ξ + Bu u + By y``.
+
+Then each statistic ``J_j = r_gᵀ W_j r_g``; its persistence counter counts
+consecutive samples with ``J_j > threshold_j`` (reset by a sample below); its
+flag is set when the counter reaches ``persistence``. ``alarm`` is any flag;
+``isolated`` the fault whose signature equals the flag pattern, else −1.
+``status`` is 1 when any input or output of the sample was non-finite, and
+the state keeps a running count of such samples.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from fdisyn.runtime.errors import ShapeError
+from fdisyn.runtime.gainfile import GainFile, linear_state_layout
+
+__all__ = ["StepOutput", "RunResult", "LinearReference"]
+
+
+@dataclass(frozen=True)
+class StepOutput:
+    r: np.ndarray
+    J: np.ndarray
+    alarm: int
+    isolated: int
+    status: int
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """A diagnoser's outputs over a trace (one row per sample)."""
+
+    r: np.ndarray
+    J: np.ndarray
+    alarm: np.ndarray
+    isolated: np.ndarray
+    status: np.ndarray
+    state: np.ndarray
+    """State after the last sample."""
+
+    @property
+    def nonfinite_samples(self) -> int:
+        return int(np.sum(self.status == 1))
+
+
+class LinearReference:
+    """The reference implementation of a ``kind = "linear"`` gain file."""
+
+    def __init__(self, gf: GainFile) -> None:
+        if gf.kind != "linear":
+            raise ShapeError(f"the NumPy reference implements linear diagnosers; this gain file is of kind {gf.kind!r}")
+        self.gf = gf
+        self.layout = linear_state_layout(gf.generators, len(gf.evaluators))
+        self.thresholds = gf.thresholds
+        assert gf.decision is not None
+        self.signatures = np.asarray(gf.decision.signatures, dtype=int)
+        self.persistence = int(gf.decision.persistence)
+        offsets = np.cumsum([0] + [g.n_residual for g in gf.generators])
+        self.r_slices = [slice(int(offsets[i]), int(offsets[i + 1])) for i in range(len(gf.generators))]
+
+    def init_state(self) -> np.ndarray:
+        return self.gf.step.init_state.copy()
+
+    def step(self, state: np.ndarray, u: np.ndarray, y: np.ndarray) -> StepOutput:
+        """Advance ``state`` in place by one sample and return the outputs."""
+        gf, lay = self.gf, self.layout
+        u = np.asarray(u, dtype=float).reshape(-1)
+        y = np.asarray(y, dtype=float).reshape(-1)
+        if u.shape != (gf.step.nu,) or y.shape != (gf.step.ny,):
+            raise ShapeError(f"step expects u of length {gf.step.nu} and y of length {gf.step.ny}; got {u.size} and {y.size}")
+        fin_u, fin_y = np.isfinite(u), np.isfinite(y)
+        us = np.where(fin_u, u, 0.0)
+        ys = np.where(fin_y, y, 0.0)
+        r = np.zeros(gf.step.nr)
+        jv = np.zeros(gf.step.nj)
+        valid = np.zeros(len(gf.generators), dtype=bool)
+        ready = state[lay["ready"]]
+        for g, gen in enumerate(gf.generators):
+            ok = bool(np.all(fin_u) and np.all(fin_y[list(gen.outputs_used)]))
+            valid[g] = ok
+            if not ok:
+                continue
+            sl = lay[f"xi{g}"]
+            xi = state[sl]
+            if ready[g] == 0.0:
+                xi = gen.Xu @ us + gen.Xy @ ys
+                ready[g] = 1.0
+            r[self.r_slices[g]] = gen.Cr @ xi + gen.Du @ us + gen.Dy @ ys
+            state[sl] = gen.Ar @ xi + gen.Bu @ us + gen.By @ ys
+        state[lay["ready"]] = ready
+        counters = state[lay["counters"]]
+        flags = np.zeros(gf.step.nj, dtype=int)
+        for j, ev in enumerate(gf.evaluators):
+            if not valid[ev.generator]:
+                continue
+            rg = r[self.r_slices[ev.generator]]
+            jv[j] = rg @ ev.W @ rg
+            counters[j] = counters[j] + 1.0 if jv[j] > self.thresholds[j] else 0.0
+            flags[j] = int(counters[j] >= self.persistence)
+        state[lay["counters"]] = counters
+        bad = not (np.all(fin_u) and np.all(fin_y))
+        if bad:
+            state[lay["nonfinite"]] += 1.0
+        match = np.flatnonzero(np.all(self.signatures == flags[None, :], axis=1))
+        return StepOutput(
+            r=r,
+            J=jv,
+            alarm=int(np.any(flags)),
+            isolated=int(match[0]) if match.size else -1,
+            status=int(bad),
+        )
+
+    def run(self, U: np.ndarray, Y: np.ndarray, state: np.ndarray | None = None) -> RunResult:
+        """Run over a trace: ``U`` is ``N × nu``, ``Y`` is ``N × ny``."""
+        U = np.asarray(U, dtype=float).reshape(len(Y), -1) if self.gf.step.nu else np.zeros((len(Y), 0))
+        Y = np.asarray(Y, dtype=float)
+        n = Y.shape[0]
+        st = self.init_state() if state is None else np.array(state, dtype=float)
+        out_r = np.zeros((n, self.gf.step.nr))
+        out_j = np.zeros((n, self.gf.step.nj))
+        out_a = np.zeros(n, dtype=int)
+        out_i = np.zeros(n, dtype=int)
+        out_s = np.zeros(n, dtype=int)
+        for k in range(n):
+            o = self.step(st, U[k], Y[k])
+            out_r[k], out_j[k], out_a[k], out_i[k], out_s[k] = o.r, o.J, o.alarm, o.isolated, o.status
+        return RunResult(r=out_r, J=out_j, alarm=out_a, isolated=out_i, status=out_s, state=st)
