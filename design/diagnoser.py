@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from fdisyn.design.certificate import Certificate, Check
-from fdisyn.design.linalg import rank_tol
+from fdisyn.design.linalg import rank_tol, transfer_size
 from fdisyn.design.plant import LinearPlant
 from fdisyn.design.residual import ResidualGenerator
 from fdisyn.design.thresholds import chi2_threshold
@@ -195,37 +195,37 @@ def linear_diagnoser(
 
 def _bank_checks(
     generators: Sequence[ResidualGenerator], evals: Sequence[Evaluator], plant: LinearPlant
-) -> tuple[list[Check], dict[str, dict[str, float]]]:
-    """Sensitivity of every statistic to a constant bias on each sensor it reads.
+) -> tuple[list[Check], dict[str, dict[str, float | None]]]:
+    """Every sensor of the signature table must reach the statistic; how well, at steady state.
 
-    The steady-state residual caused by a bias ``b`` on sensor ``s`` is
-    ``b g`` with ``g`` the DC gain column; the statistic then reads
-    ``b² gᵀ W g``, so the smallest bias that crosses the threshold on its own
-    is ``b_min = sqrt(J_th / gᵀ W g)`` (reported in the sensor's units).
+    Check: the transfer from an additive fault on sensor ``s`` to the residual
+    (``Ar, By[:, s], Cr, Dy[:, s]``) is not identically zero (normalised Markov
+    parameters above round-off). Information: the smallest constant bias that
+    crosses the threshold on its own at steady state, ``b_min = sqrt(J_th / gᵀ W g)``
+    with ``g`` the DC gain column (∞ when a bias is invisible at steady state,
+    e.g. on a sensor of an integrating state: only its onset transient shows;
+    reported as ``None``).
     """
     checks: list[Check] = []
-    table: dict[str, dict[str, float]] = {}
+    table: dict[str, dict[str, float | None]] = {}
     for ev in evals:
         gen = generators[ev.generator]
         dc = gen.dc_gain_y()
-        path = np.linalg.solve(np.eye(gen.n_state) - gen.Ar, gen.By) if gen.n_state else gen.By
-        wn = max(float(np.linalg.norm(ev.W, 2)), np.finfo(float).tiny)
-        row: dict[str, float] = {}
+        row: dict[str, float | None] = {}
         for j in gen.outputs_used:
             g = dc[:, j]
             energy = float(g @ ev.W @ g)
-            b_min = float(np.sqrt(ev.threshold / energy)) if energy > 0 else float("inf")
-            row[plant.outputs[j]] = b_min
-            # size of the terms that make up g: a g cancelled to round-off is not a sensitivity
-            terms = float(np.linalg.norm(gen.Dy[:, j]) + np.linalg.norm(gen.Cr @ path[:, j]))
+            scale = float(np.linalg.norm(gen.Dy[:, j]) + np.linalg.norm(gen.Cr) * np.linalg.norm(gen.By[:, j]))
+            visible = energy > 1e-20 * scale**2 * np.linalg.norm(ev.W, 2)  # a DC gain cancelled to round-off
+            row[plant.outputs[j]] = float(np.sqrt(ev.threshold / energy)) if visible else None
             checks.append(
                 Check(
-                    f"{gen.name}: relative steady-state sensitivity to a bias on {plant.outputs[j]}",
-                    np.sqrt(max(energy, 0.0) / wn) / max(terms, np.finfo(float).tiny),
+                    f"{gen.name}: sensor {plant.outputs[j]} reaches the residual",
+                    transfer_size(gen.Ar, gen.By[:, [j]], gen.Cr, gen.Dy[:, [j]]),
                     1e-8,
                     ">=",
-                    "a sensor in the signature table must move the statistic at steady state; "
-                    "a gain cancelled to round-off (~1e-16) means the fault is invisible",
+                    "a sensor in the signature table must move the residual; a transfer cancelled to round-off "
+                    "(~1e-16) would make its faults invisible",
                 )
             )
         table[gen.name] = row

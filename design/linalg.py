@@ -18,11 +18,12 @@ __all__ = [
     "check_shape",
     "rank",
     "rank_tol",
-    "orth",
     "dlyap",
     "spectral_radius",
     "markov_parameters",
     "rel_diff",
+    "transfer_size",
+    "undetectable_modes",
 ]
 
 
@@ -88,14 +89,6 @@ def rank(a: np.ndarray) -> int:
     return int(np.sum(s > rank_tol(a)))
 
 
-def orth(a: np.ndarray) -> np.ndarray:
-    """Orthonormal basis of ``range(a)`` with :func:`rank_tol`."""
-    if a.size == 0:
-        return np.zeros((a.shape[0], 0))
-    u, s, _ = np.linalg.svd(a, full_matrices=False)
-    return u[:, : int(np.sum(s > rank_tol(a)))]
-
-
 def dlyap(a: np.ndarray, q: np.ndarray) -> np.ndarray:
     """Solve ``X = A X Aᵀ + Q`` (discrete Lyapunov) and symmetrise the result.
 
@@ -126,6 +119,26 @@ def markov_parameters(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray
     return out
 
 
+def transfer_size(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray) -> float:
+    """Largest normalised Markov parameter of ``(A, B, C, D)``: zero iff the transfer is zero.
+
+    ``max(‖D‖/(‖C‖‖B‖ + ‖D‖), max_k ‖C A^k B‖ / (‖C‖ ‖A‖^k ‖B‖))`` over
+    ``k ≤ n`` (Cayley–Hamilton). Independent of units and of order ``eps`` for
+    a transfer that cancels exactly in exact arithmetic.
+    """
+    tiny = np.finfo(float).tiny
+    if b.shape[1] == 0 or c.shape[0] == 0:
+        return 0.0
+    nc, nb = float(np.linalg.norm(c, 2)), float(np.linalg.norm(b, 2))
+    na = max(float(np.linalg.norm(a, 2)), tiny)
+    params = markov_parameters(a, b, c, d, a.shape[0] + 2)
+    nd = float(np.linalg.norm(d, 2))
+    worst = nd / max(nc * nb + nd, tiny)
+    for k, mk in enumerate(params[1:]):
+        worst = max(worst, float(np.linalg.norm(mk, 2)) / max(nc * nb * na**k, tiny))
+    return worst
+
+
 def rel_diff(a: np.ndarray, b: np.ndarray) -> float:
     """Normwise relative difference ``‖a − b‖_F / max(‖b‖_F, tiny)``."""
     a = np.asarray(a, dtype=float)
@@ -137,3 +150,21 @@ def rel_diff(a: np.ndarray, b: np.ndarray) -> float:
 def block_diag(blocks: Sequence[np.ndarray]) -> np.ndarray:
     """Block-diagonal matrix of possibly empty blocks."""
     return sla.block_diag(*blocks) if blocks else np.zeros((0, 0))
+
+
+def undetectable_modes(a: np.ndarray, c: np.ndarray, *, margin: float = 1e-10) -> list[complex]:
+    """Eigenvalues ``λ`` of ``A`` with ``|λ| ≥ 1 − margin`` that ``C`` cannot see (PBH test).
+
+    ``(C, A)`` is detectable iff the list is empty: ``rank [λI − A; C] = n`` for
+    every such ``λ``. The rank decision allows 1000× the SVD round-off.
+    """
+    n = a.shape[0]
+    out = []
+    for lam in np.linalg.eigvals(a):
+        if abs(lam) < 1.0 - margin:
+            continue
+        pbh = np.vstack([lam * np.eye(n) - a, np.asarray(c, dtype=complex)])
+        s = np.linalg.svd(pbh, compute_uv=False)
+        if s[-1] <= max(pbh.shape) * np.finfo(float).eps * s[0] * 1e3:
+            out.append(complex(lam))
+    return out

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from fdisyn.design.linalg import as_matrix, markov_parameters
+from fdisyn.design.linalg import transfer_size
 from fdisyn.design.plant import LinearPlant
 from fdisyn.runtime.errors import ShapeError
 
@@ -117,15 +117,6 @@ class InternalForm:
         decoupled, and of order ``eps`` for an exactly decoupled generator
         computed in floating point, independently of the units of the plant.
         """
-        b = as_matrix(getattr(self, "B" + channel), "B" + channel)
+        b = getattr(self, "B" + channel)
         d = self.Du if channel == "u" else (self.Ds if channel == "s" else np.zeros((self.C.shape[0], b.shape[1])))
-        if b.shape[1] == 0:
-            return 0.0
-        nc, nb = np.linalg.norm(self.C, 2), np.linalg.norm(b, 2)
-        na = max(np.linalg.norm(self.A, 2), np.finfo(float).tiny)
-        dim = self.A.shape[0]
-        params = markov_parameters(self.A, b, self.C, d, dim + 2)
-        worst = float(np.linalg.norm(params[0], 2)) / max(nc * nb + np.linalg.norm(d, 2), np.finfo(float).tiny)
-        for k, mk in enumerate(params[1:]):
-            worst = max(worst, float(np.linalg.norm(mk, 2)) / max(nc * nb * na**k, np.finfo(float).tiny))
-        return worst
+        return transfer_size(self.A, b, self.C, d)

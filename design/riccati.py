@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 
-from fdisyn.design.linalg import as_matrix, rank_tol
+from fdisyn.design.linalg import as_matrix, rank_tol, undetectable_modes
 from fdisyn.runtime.errors import ExistenceError, ShapeError, SolverError
 
 __all__ = ["DareSolution", "solve_filter_dare", "dare_residual"]
@@ -104,6 +104,12 @@ def solve_filter_dare(
             raise ShapeError(f"{nm} must be symmetric in the DARE")
     q = 0.5 * (q + q.T)
     r = 0.5 * (r + r.T)
+    bad = undetectable_modes(a, c)
+    if bad:
+        raise ExistenceError(
+            f"the DARE has no stabilising solution: (C, A) is not detectable (mode λ = {bad[0]:.6g}, "
+            f"|λ| = {abs(bad[0]):.6g}, is invisible in the measurements)"
+        )
 
     # Control-form extended pencil of the dual problem (a, b) = (Aᵀ, Cᵀ).
     at, b = a.T, c.T

@@ -79,35 +79,37 @@ def linear_step_function(gf: GainFile) -> ca.Function:
     ys = ca.if_else(fin_y, y, 0)
     all_u = _all(fin_u)
     nxt = ca.SX(state)
-    r_parts = []
-    valid = []
+    assert gf.decision is not None
+    persistence = float(gf.decision.persistence)
+    r_parts, j_parts, flags = [], [ca.SX(0)] * len(gf.evaluators), [ca.SX(0)] * len(gf.evaluators)
+    overflow = ca.SX(0)
     for g, gen in enumerate(gf.generators):
-        ok = ca.logic_and(all_u, _all(ca.vertcat(*[fin_y[j] for j in gen.outputs_used])))
-        valid.append(ok)
+        inputs_ok = ca.logic_and(all_u, _all(ca.vertcat(*[fin_y[j] for j in gen.outputs_used])))
         sl = lay[f"xi{g}"]
         ready = state[lay["ready"].start + g]
         xi_eq = ca.mtimes(_const(gen.Xu), us) + ca.mtimes(_const(gen.Xy), ys)
         xi = ca.if_else(ready == 0, xi_eq, state[sl.start : sl.stop])
         r_g = ca.mtimes(_const(gen.Cr), xi) + ca.mtimes(_const(gen.Du), us) + ca.mtimes(_const(gen.Dy), ys)
         xi_next = ca.mtimes(_const(gen.Ar), xi) + ca.mtimes(_const(gen.Bu), us) + ca.mtimes(_const(gen.By), ys)
+        evs = [j for j, ev in enumerate(gf.evaluators) if ev.generator == g]
+        j_g = {j: ca.mtimes([r_g.T, _const(gf.evaluators[j].W), r_g]) for j in evs}
+        # a finite but absurd value can overflow: the sample is then skipped like a non-finite one
+        results_ok = _all(finite(ca.vertcat(r_g, xi_next, *j_g.values())))
+        ok = ca.logic_and(inputs_ok, results_ok)
+        overflow = ca.logic_or(overflow, ca.logic_and(inputs_ok, 1 - results_ok))
         nxt[sl.start : sl.stop] = ca.if_else(ok, xi_next, state[sl.start : sl.stop])
-        nxt[lay["ready"].start + g] = ca.if_else(ok, 1, ready)
+        # after an overflow the generator restarts at its next valid sample
+        nxt[lay["ready"].start + g] = ca.if_else(ok, 1, ca.if_else(inputs_ok, 0, ready))
         r_parts.append(ca.if_else(ok, r_g, 0))
+        for j in evs:
+            jj = ca.if_else(ok, j_g[j], 0)
+            c = state[lay["counters"].start + j]
+            c_next = ca.if_else(ok, ca.if_else(jj > gf.evaluators[j].threshold, c + 1, 0), c)
+            nxt[lay["counters"].start + j] = c_next
+            flags[j] = ca.logic_and(ok, c_next >= persistence)
+            j_parts[j] = jj
     r = ca.vertcat(*r_parts)
-    offsets = np.cumsum([0] + [g.n_residual for g in gf.generators])
-    assert gf.decision is not None
-    persistence = float(gf.decision.persistence)
-    j_parts, flags = [], []
-    for j, ev in enumerate(gf.evaluators):
-        g = ev.generator
-        rg = r[int(offsets[g]) : int(offsets[g + 1])]
-        jj = ca.if_else(valid[g], ca.mtimes([rg.T, _const(ev.W), rg]), 0)
-        c = state[lay["counters"].start + j]
-        c_next = ca.if_else(valid[g], ca.if_else(jj > ev.threshold, c + 1, 0), c)
-        nxt[lay["counters"].start + j] = c_next
-        flags.append(ca.logic_and(valid[g], c_next >= persistence))
-        j_parts.append(jj)
-    bad = 1 - ca.logic_and(all_u, _all(fin_y))
+    bad = ca.logic_or(overflow, 1 - ca.logic_and(all_u, _all(fin_y)))
     nxt[lay["nonfinite"].start] = state[lay["nonfinite"].start] + bad
     alarm = ca.SX(0)
     for fl in flags:

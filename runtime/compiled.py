@@ -54,7 +54,7 @@ class CompiledDiagnoser:
         self._init.restype = None
         self._step.argtypes = [_D, _D, _D, _D, _D, _I, _I]
         self._step.restype = ctypes.c_int
-        self._run.argtypes = [_D, ctypes.c_long, _D, _D, _D, _D, _I, _I]
+        self._run.argtypes = [_D, ctypes.c_long, _D, _D, _D, _D, _I, _I, _I]
         self._run.restype = ctypes.c_long
         dims = (ctypes.c_int * 6)()
         dims_fn.argtypes = [ctypes.POINTER(ctypes.c_int * 6)]
@@ -121,8 +121,10 @@ class CompiledDiagnoser:
         alarm = np.zeros(n, dtype=np.intc)
         iso = np.zeros(n, dtype=np.intc)
         u_buf = U if st.nu else np.zeros((n, 1))
-        rc = self._run(_ptr(s, _D), n, _ptr(u_buf, _D), _ptr(Y, _D), _ptr(r, _D), _ptr(jj, _D), _ptr(alarm, _I), _ptr(iso, _I))
+        status = np.zeros(n, dtype=np.intc)
+        rc = self._run(
+            _ptr(s, _D), n, _ptr(u_buf, _D), _ptr(Y, _D), _ptr(r, _D), _ptr(jj, _D), _ptr(alarm, _I), _ptr(iso, _I), _ptr(status, _I)
+        )
         if rc < 0:
             raise BuildError(f"the compiled step of {self.gf.name!r} reported an internal error")
-        status = (~(np.all(np.isfinite(U), axis=1) & np.all(np.isfinite(Y), axis=1))).astype(int)
-        return RunResult(r=r, J=jj, alarm=alarm.astype(int), isolated=iso.astype(int), status=status, state=s)
+        return RunResult(r=r, J=jj, alarm=alarm.astype(int), isolated=iso.astype(int), status=status.astype(int), state=s)

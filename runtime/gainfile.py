@@ -485,6 +485,8 @@ def _validate_linear(gf: GainFile) -> None:
     nr = 0
     for i, g in enumerate(gf.generators):
         w = f"generators[{i}] ({g.name})"
+        if g.Ar.shape[0] != g.Ar.shape[1]:
+            _fail(f"{w}.Ar must be square (the generator's state matrix), found shape {g.Ar.shape}")
         ns, ng = g.n_state, g.n_residual
         for k, shape in (
             ("Ar", (ns, ns)),

@@ -3,9 +3,12 @@
 It defines the semantics the generated C must reproduce (and is checked
 against it in the tests). Per sample ``k``, for each generator ``g``:
 
-1. ``u`` and the outputs ``g`` uses must be finite; otherwise the sample is
-   skipped for ``g``: its state and persistence counters stay unchanged, its
-   residual and statistic are reported as 0 and it raises no alarm.
+1. ``u`` and the outputs ``g`` uses must be finite, and so must ``g``'s new
+   state, residual and statistics (a finite but absurd value may overflow);
+   otherwise the sample is skipped for ``g``: its state and persistence
+   counters stay unchanged, its residual and statistics are reported as 0 and
+   it raises no alarm. After an overflow ``g`` restarts at its next valid
+   sample (rule 2), so one absurd value cannot leave it stuck.
 2. At ``g``'s first valid sample its state starts at the equilibrium of the
    current input/output, ``ξ = Xu u + Xy y`` (so a plant already running in
    steady state produces no start-up transient).
@@ -15,8 +18,9 @@ Then each statistic ``J_j = r_gᵀ W_j r_g``; its persistence counter counts
 consecutive samples with ``J_j > threshold_j`` (reset by a sample below); its
 flag is set when the counter reaches ``persistence``. ``alarm`` is any flag;
 ``isolated`` the fault whose signature equals the flag pattern, else −1.
-``status`` is 1 when any input or output of the sample was non-finite, and
-the state keeps a running count of such samples.
+``status`` is 1 when any input or output of the sample was non-finite or a
+generator skipped it on overflow; the state keeps a running count of such
+samples.
 """
 
 from __future__ import annotations
@@ -87,32 +91,34 @@ class LinearReference:
         ys = np.where(fin_y, y, 0.0)
         r = np.zeros(gf.step.nr)
         jv = np.zeros(gf.step.nj)
-        valid = np.zeros(len(gf.generators), dtype=bool)
         ready = state[lay["ready"]]
-        for g, gen in enumerate(gf.generators):
-            ok = bool(np.all(fin_u) and np.all(fin_y[list(gen.outputs_used)]))
-            valid[g] = ok
-            if not ok:
-                continue
-            sl = lay[f"xi{g}"]
-            xi = state[sl]
-            if ready[g] == 0.0:
-                xi = gen.Xu @ us + gen.Xy @ ys
-                ready[g] = 1.0
-            r[self.r_slices[g]] = gen.Cr @ xi + gen.Du @ us + gen.Dy @ ys
-            state[sl] = gen.Ar @ xi + gen.Bu @ us + gen.By @ ys
-        state[lay["ready"]] = ready
         counters = state[lay["counters"]]
         flags = np.zeros(gf.step.nj, dtype=int)
-        for j, ev in enumerate(gf.evaluators):
-            if not valid[ev.generator]:
+        overflow = False
+        for g, gen in enumerate(gf.generators):
+            if not (np.all(fin_u) and np.all(fin_y[list(gen.outputs_used)])):
                 continue
-            rg = r[self.r_slices[ev.generator]]
-            jv[j] = rg @ ev.W @ rg
-            counters[j] = counters[j] + 1.0 if jv[j] > self.thresholds[j] else 0.0
-            flags[j] = int(counters[j] >= self.persistence)
+            sl = lay[f"xi{g}"]
+            xi = gen.Xu @ us + gen.Xy @ ys if ready[g] == 0.0 else state[sl]
+            with np.errstate(over="ignore", invalid="ignore"):
+                rg = gen.Cr @ xi + gen.Du @ us + gen.Dy @ ys
+                xi_next = gen.Ar @ xi + gen.Bu @ us + gen.By @ ys
+                jg = {j: float(rg @ ev.W @ rg) for j, ev in enumerate(gf.evaluators) if ev.generator == g}
+            # a finite but absurd value can overflow: the sample is then skipped like a non-finite one
+            if not (np.all(np.isfinite(rg)) and np.all(np.isfinite(xi_next)) and np.all(np.isfinite(list(jg.values())))):
+                overflow = True
+                ready[g] = 0.0  # restart at the next valid sample: the state may hold an absurd value
+                continue
+            ready[g] = 1.0
+            r[self.r_slices[g]] = rg
+            state[sl] = xi_next
+            for j, value in jg.items():
+                jv[j] = value
+                counters[j] = counters[j] + 1.0 if value > self.thresholds[j] else 0.0
+                flags[j] = int(counters[j] >= self.persistence)
+        state[lay["ready"]] = ready
         state[lay["counters"]] = counters
-        bad = not (np.all(fin_u) and np.all(fin_y))
+        bad = overflow or not (np.all(fin_u) and np.all(fin_y))
         if bad:
             state[lay["nonfinite"]] += 1.0
         match = np.flatnonzero(np.all(self.signatures == flags[None, :], axis=1))

@@ -1,0 +1,129 @@
+"""The command line end to end, in-process (``fdisyn.design.cli.main``)."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fdisyn.design.cli import main
+from fdisyn.runtime.gainfile import read_gain_file
+
+DATA = Path(__file__).parents[1] / "data"
+
+
+def test_built_in_problem_design_codegen_simulate_replay(tmp_path, capsys):
+    d = tmp_path / "wt"
+    assert main(["design", "wind_turbine", "--out", str(d)]) == 0
+    gf = read_gain_file(d / "gains.json")
+    assert gf.name == "wind_turbine_kalman_uio" and gf.design == "kalman_uio"
+    assert main(["codegen", str(d)]) == 0
+    for rel in ("c/wind_turbine_kalman_uio.h", "c/wind_turbine_kalman_uio.c", "c/replay.c", "libwind_turbine_kalman_uio.so", "replay"):
+        assert (d / rel).exists(), rel
+    trace = tmp_path / "trace.csv"
+    assert main(["simulate", "wind_turbine", "--scenario", "benchmark_stuck", "--seed", "7", "--out", str(trace)]) == 0
+    header = trace.read_text().splitlines()[0].split(",")
+    assert header[:6] == ["t", "tau_g", "omega_r_m1", "omega_r_m2", "omega_g_m1", "omega_g_m2"]
+    assert "fault_active" in header and "tau_r" in header
+    assert main(["replay", str(d), str(trace), str(tmp_path / "py.csv")]) == 0
+    subprocess.run([str(d / "replay"), str(trace), str(tmp_path / "c.csv")], check=True, capture_output=True)
+    assert (tmp_path / "py.csv").read_bytes() == (tmp_path / "c.csv").read_bytes()
+    out = np.genfromtxt(tmp_path / "py.csv", delimiter=",", names=True)
+    active = out["t"] >= 100.0
+    assert np.mean(out["isolated"][active & (out["t"] < 200)] == gf.faults.index("omega_r_m1")) > 0.9
+
+
+@pytest.mark.parametrize("design", ["kalman_uio_paper", "uio_pole_placement"])
+def test_other_designs_by_name(tmp_path, design):
+    assert main(["design", "wind_turbine", "--design", design, "--out", str(tmp_path)]) == 0
+    assert read_gain_file(tmp_path / "gains.json").design == design
+
+
+def test_problem_options(tmp_path):
+    assert main(["design", "wind_turbine", "--out", str(tmp_path), "--option", "parameters=paper", "--option", "P_f=0.001"]) == 0
+    gf = read_gain_file(tmp_path / "gains.json")
+    assert gf.name == "wind_turbine_paper_kalman_uio" and gf.evaluators[0].P_f == 0.001
+
+
+def test_evaluate_writes_metrics(tmp_path):
+    out = tmp_path / "m.json"
+    assert main(["evaluate", "wind_turbine", "--design", "kalman_uio", "--runs", "2", "--out", str(out), "--workdir", str(tmp_path / "b")]) == 0
+    doc = json.loads(out.read_text())
+    m = doc["designs"]["kalman_uio"]["benchmark_stuck"]
+    for key in ("false_alarm_rate", "missed_detection_rate", "detection_delay_mean_s", "detection_delay_max_samples", "isolation_accuracy"):
+        assert key in m
+    assert m["missed_detection_rate"] == 0.0 and doc["runs"] == 2
+
+
+def test_toml_plant_through_the_whole_pipeline(tmp_path):
+    spec = str(DATA / "dc_motor.toml")
+    d = tmp_path / "motor"
+    assert main(["design", spec, "--out", str(d)]) == 0
+    gf = read_gain_file(d / "gains.json")
+    assert gf.name == "dc_motor_kalman_uio" and gf.outputs == ("i_meas", "w_meas", "theta_meas")
+    assert set(gf.faults) == {"i_meas", "w_meas", "theta_meas"}  # a bank of pairs tells every sensor apart
+    assert main(["codegen", str(d)]) == 0
+    trace = tmp_path / "t.csv"
+    assert main(["simulate", spec, "--scenario", "speed_sensor_offset", "--seed", "1", "--out", str(trace)]) == 0
+    assert main(["replay", str(d), str(trace), str(tmp_path / "o.csv")]) == 0
+    out = np.genfromtxt(tmp_path / "o.csv", delimiter=",", names=True)
+    late = out["t"] > 5.5
+    assert np.mean(out["isolated"][late] == gf.faults.index("w_meas")) > 0.9
+    quiet = (out["t"] > 1.0) & (out["t"] < 5.0)  # after the sine input's first period, before the fault
+    assert np.mean(out["alarm"][quiet]) < 0.002  # 2 statistics at P_f = 1e-4: ~2e-4 expected
+
+
+def test_bad_toml_key_is_named(tmp_path, capsys):
+    bad = tmp_path / "bad.toml"
+    bad.write_text((DATA / "dc_motor.toml").read_text().replace("method =", "metod ="))
+    assert main(["design", str(bad), "--out", str(tmp_path / "x")]) == 2
+    err = capsys.readouterr().err
+    assert "unknown key(s) ['metod']" in err and "[design]" in err
+
+
+def test_toml_rank_condition_failure_is_reported(tmp_path, capsys):
+    bad = tmp_path / "bad.toml"
+    text = (DATA / "dc_motor.toml").read_text().replace('E = [[0.0], [-1000.0], [0.0]]', 'E = [[0.0], [0.0], [0.0]]')
+    bad.write_text(text)
+    assert main(["design", str(bad), "--out", str(tmp_path / "x")]) == 2
+    assert "rank(E) = 0 but E has q = 1" in capsys.readouterr().err
+
+
+def test_unknown_problem_lists_the_problems(capsys):
+    assert main(["design", "windturbine", "--out", "/nonexistent"]) == 2
+    assert "no built-in problem 'windturbine'; problems: ['wind_turbine'" in capsys.readouterr().err
+
+
+def test_codegen_refuses_a_gain_file_of_another_version(tmp_path, capsys):
+    assert main(["design", "wind_turbine", "--out", str(tmp_path)]) == 0
+    p = tmp_path / "gains.json"
+    doc = json.loads(p.read_text())
+    doc["format"] = "fdisyn.gains/7"
+    p.write_text(json.dumps(doc))
+    assert main(["codegen", str(tmp_path)]) == 2
+    assert "format version '7'" in capsys.readouterr().err
+
+
+def test_replay_reports_a_missing_column(tmp_path, capsys):
+    assert main(["design", "wind_turbine", "--out", str(tmp_path)]) == 0
+    assert main(["codegen", str(tmp_path)]) == 0
+    p = tmp_path / "in.csv"
+    p.write_text("t,tau_g,omega_r_m1\n0,1,1\n")
+    assert main(["replay", str(tmp_path), str(p), str(tmp_path / "o.csv")]) == 2
+    assert "no column 'omega_r_m2' (the output column)" in capsys.readouterr().err
+
+
+def test_reproduce_end_to_end(tmp_path):
+    # the main job, with one Monte Carlo run per scenario to keep the suite short
+    assert main(["reproduce", "wind_turbine", "--runs", "1", "--reports", str(tmp_path / "r"), "--workdir", str(tmp_path / "b")]) == 0
+    page = tmp_path / "r" / "wind_turbine" / "index.html"
+    text = page.read_text()
+    for fig in ("fig1_residuals_benchmark.png", "fig2_paper_F1_benchmark.png", "fig3_paper_F2_benchmark.png"):
+        assert fig in text and (page.parent / fig).exists()
+    metrics = json.loads((page.parent / "metrics.json").read_text())
+    assert [v["label"] for v in metrics["variants"]] == ["default", "paper parameter set", "persistence 3"]
+    assert all(c["passed"] for v in metrics["variants"] for c in v["exports"].values())
+    assert (page.parent / "gains" / "wind_turbine_kalman_uio.json").exists()

@@ -1,0 +1,168 @@
+"""Generated C: compiled with the contract's flags, loaded and compared numerically."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+
+import numpy as np
+import pytest
+
+from fdisyn.design.codegen import CFLAGS
+from fdisyn.design.pipeline import EXPORT_TOL, check_export
+from fdisyn.runtime.compiled import CompiledDiagnoser
+from fdisyn.runtime.errors import BuildError
+from fdisyn.runtime.gainfile import read_gain_file
+from fdisyn.runtime.reference import LinearReference
+from fdisyn.runtime.trace import Trace, read_trace, write_replay_csv, write_trace
+
+
+def _with_bad_samples(U, Y):
+    U, Y = U.copy(), Y.copy()
+    Y[100, 0], Y[200, 2], Y[300, :] = np.nan, np.inf, -np.inf
+    U[400, 0] = np.nan
+    return U, Y
+
+
+def test_flags_are_the_contract():
+    assert CFLAGS == ("-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-pedantic")
+
+
+def test_c_agrees_with_both_python_references_on_1e4_samples(wt_built, wt_trace):
+    _, U, Y = wt_trace
+    U, Y = _with_bad_samples(U, Y)
+    chk = check_export(wt_built, U, Y)
+    assert chk.samples == 10_000 and chk.nonfinite_samples == 4
+    for ref, v in chk.references.items():
+        # normwise relative: C and NumPy sum in different orders; residuals are ~0.1 differences of ~150
+        assert max(v["r"], v["J"], v["state"]) <= EXPORT_TOL, (ref, v)
+        assert v["decisions_equal"], ref
+    res = wt_built.diagnoser.run(U, Y)
+    assert res.alarm[-3000:].mean() > 0.9  # the stuck sensor (from 100 s) is detected in this window
+    assert np.all(np.isfinite(res.r)) and np.all(np.isfinite(res.J))
+
+
+def test_per_sample_calls_equal_the_batch_call(wt_built, wt_trace):
+    _, U, Y = wt_trace
+    cd = wt_built.diagnoser
+    batch = cd.run(U[:500], Y[:500])
+    s = cd.init_state()
+    for k in range(500):
+        o = cd.step(s, U[k], Y[k])
+        assert np.array_equal(o.r, batch.r[k]) and o.isolated == batch.isolated[k]
+    assert np.array_equal(s, batch.state)
+
+
+def test_instances_run_side_by_side(wt_built, wt_trace):
+    # no hidden global state: interleaving two streams gives the results of running them apart
+    _, U, Y = wt_trace
+    cd = wt_built.diagnoser
+    a, b = cd.init_state(), cd.init_state()
+    alone = cd.run(U[:300], Y[:300] + 1.0)
+    for k in range(300):
+        cd.step(b, U[k], Y[k])
+        cd.step(a, U[k], Y[k] + 1.0)
+    assert np.array_equal(a, alone.state)
+
+
+def test_header_has_the_contract_api(wt_built):
+    gf = wt_built.gain_file
+    h = (wt_built.artifacts.c_dir / f"{gf.name}.h").read_text()
+    P = gf.name.upper()
+    for macro, value in (("NU", 1), ("NY", 4), ("NR", 8), ("NJ", 4), ("NSTATE", gf.step.nstate)):
+        assert re.search(rf"#define {P}_{macro} {value}\b", h), macro
+    assert f"void {gf.name}_init(double *state);" in h
+    assert re.search(rf"int {gf.name}_step\(double \*state, const double \*u, const double \*y,\s+double \*r, double \*J, int \*alarm, int \*isolated\);", h)
+
+
+def test_library_has_no_allocation_and_no_writable_globals(wt_built):
+    src = "".join(p.read_text() for p in wt_built.artifacts.c_dir.glob(f"{wt_built.gain_file.name}*.c"))
+    assert not re.search(r"\b(malloc|calloc|realloc|free)\s*\(", src)
+    table = subprocess.run(["objdump", "-t", str(wt_built.artifacts.library)], capture_output=True, text=True, check=True).stdout
+    # writable storage lives in .data/.bss; const tables of pointers sit in .data.rel.ro (read-only after relocation)
+    ours = [ln for ln in table.splitlines() if wt_built.gain_file.name in ln and re.search(r"\s\.(data|bss)\s", ln)]
+    assert ours == []
+
+
+def test_replay_program_and_python_replay_write_identical_bytes(wt_built, wt_trace, tmp_path):
+    t, U, Y = wt_trace
+    U, Y = _with_bad_samples(U[:2000], Y[:2000])
+    gf = wt_built.gain_file
+    trace_in = write_trace(Trace(t=t[:2000], inputs=gf.inputs, outputs=gf.outputs, U=U, Y=Y, extra={"note": np.zeros(2000)}), tmp_path / "in.csv")
+    proc = subprocess.run([str(wt_built.artifacts.replay), str(trace_in), str(tmp_path / "c.csv")], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    assert "2000 samples, 4 with non-finite values skipped" in proc.stderr
+    tr = read_trace(trace_in, inputs=gf.inputs, outputs=gf.outputs)
+    write_replay_csv(tmp_path / "py.csv", tr.t, wt_built.diagnoser.run(tr.U, tr.Y))
+    assert (tmp_path / "c.csv").read_bytes() == (tmp_path / "py.csv").read_bytes()
+    head = (tmp_path / "c.csv").read_text().splitlines()[0]
+    assert head == "t,alarm,isolated,J0,J1,J2,J3," + ",".join(f"r{i}" for i in range(8))
+
+
+def test_replay_program_names_a_missing_column(wt_built, tmp_path):
+    p = tmp_path / "in.csv"
+    p.write_text("t,tau_g,omega_r_m1,omega_r_m2,omega_g_m1\n0,1,1,1,1\n")
+    proc = subprocess.run([str(wt_built.artifacts.replay), str(p), str(tmp_path / "o.csv")], capture_output=True, text=True)
+    assert proc.returncode == 2
+    assert "no column 'omega_g_m2' (output 3)" in proc.stderr
+
+
+def test_replay_program_parses_like_python(wt_built, tmp_path):
+    # odd fields: blanks, quotes, hex, text, empty — both sides must read the same numbers
+    p = tmp_path / "in.csv"
+    rows = ['t,tau_g,omega_r_m1,omega_r_m2,omega_g_m1,omega_g_m2', '0, 1e4 ,"1.6",1.6,152,0x1.3p7', '0.01,1e4,abc,1.6,,152', '0.02,1e4,1.6,1.6,152,152']
+    p.write_text("\n".join(rows) + "\n")
+    subprocess.run([str(wt_built.artifacts.replay), str(p), str(tmp_path / "c.csv")], check=True, capture_output=True)
+    gf = wt_built.gain_file
+    tr = read_trace(p, inputs=gf.inputs, outputs=gf.outputs)
+    write_replay_csv(tmp_path / "py.csv", tr.t, wt_built.diagnoser.run(tr.U, tr.Y))
+    assert (tmp_path / "c.csv").read_bytes() == (tmp_path / "py.csv").read_bytes()
+
+
+def test_a_library_built_for_another_gain_file_is_refused(wt_built, tmp_path):
+    gf = read_gain_file(wt_built.directory / "gains.json")
+    doc = gf.to_dict()
+    doc["generators"] = doc["generators"][:3]
+    doc["evaluators"] = doc["evaluators"][:3]
+    doc["decision"]["signatures"] = [[1, 1, 0], [0, 0, 1], [1, 0, 1], [0, 1, 0]]
+    doc["faults"] = doc["faults"][:4]
+    doc["step"]["nr"], doc["step"]["nj"] = 6, 3
+    doc["step"]["statistic_names"] = doc["step"]["statistic_names"][:3]
+    doc["step"]["residual_names"] = doc["step"]["residual_names"][:6]
+    doc["step"]["nstate"] = 3 * 3 + 3 + 3 + 1
+    doc["step"]["init_state"] = [0.0] * 16
+    from fdisyn.runtime.gainfile import gain_file_from_dict
+
+    other = gain_file_from_dict(doc)
+    with pytest.raises(BuildError, match=r"was built for sizes .* = \(1, 4, 8, 4, 21, 8\), but the gain file says \(1, 4, 6, 3, 16, 4\)"):
+        CompiledDiagnoser(wt_built.artifacts.library, other)
+
+
+def test_absurd_but_finite_values_never_produce_nan(wt_built, wt_trace):
+    # 1e300 readings overflow the generators: such samples are skipped and counted, never NaN
+    _, U, Y = wt_trace
+    U, Y = U[:600].copy(), Y[:600].copy()
+    rng = np.random.default_rng(0)
+    rows = rng.choice(600, size=60, replace=False)
+    Y[rows, rng.integers(0, 4, size=60)] = rng.choice([1e300, -1e300, 1e308, np.nan, np.inf], size=60)
+    U[rows[:10], 0] = 1e300
+    results = [impl.run(U, Y) for impl in (wt_built.diagnoser, LinearReference(wt_built.gain_file))]
+    for res in results:
+        assert np.all(np.isfinite(res.r)) and np.all(np.isfinite(res.J)) and np.all(np.isfinite(res.state))
+        assert res.status[rows[10:]].all()  # bad outputs: skipped at once
+    c, ref = results
+    assert np.array_equal(c.status, ref.status)
+    assert np.array_equal(c.alarm, ref.alarm) and np.array_equal(c.isolated, ref.isolated)
+    np.testing.assert_allclose(c.state, ref.state, rtol=1e-12)
+
+
+def test_one_absurd_input_does_not_leave_the_bank_stuck(wt_built, wt_trace):
+    # u = 1e300 is accepted (its residual is finite) but fills the states with ~1e295; the next sample
+    # overflows, the generators restart at the following one and the statistics are normal again
+    _, U, Y = wt_trace
+    U, Y = U[:400].copy(), Y[:400]
+    U[200, 0] = 1e300
+    for impl in (wt_built.diagnoser, LinearReference(wt_built.gain_file)):
+        res = impl.run(U, Y)
+        assert res.status[201] == 1 and res.status[203:].sum() == 0
+        assert res.J[210:].max() < 60  # back to χ²(1) values (the 1 − 1e-14 quantile is ~60)

@@ -1,0 +1,219 @@
+"""Unknown-input observers (seed 000): existence, decoupling, optimality, the paper's erratum."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.linalg
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from fdisyn.design.linalg import dlyap
+from fdisyn.design.plant import LinearPlant
+from fdisyn.design.uio import GAIN_TOL, kalman_uio, pole_placement_uio, uio_error_covariance, uio_structure
+from fdisyn.runtime.errors import ExistenceError, ShapeError
+from tests.helpers import random_plant
+
+SEEDS = st.integers(0, 2**31 - 1)
+
+
+def _trace(plant, st_, gain):
+    return float(np.trace(uio_error_covariance(st_, gain, np.asarray(plant.Q), np.asarray(plant.R), np.asarray(plant.C))[0]))
+
+
+def test_rank_condition_is_named():
+    # E enters only through a state the outputs cannot see: C E = 0
+    plant = LinearPlant.create(A=0.5 * np.eye(3), C=[[1, 0, 0], [0, 1, 0]], E=[[0], [0], [1]], Ts=1.0)
+    with pytest.raises(ExistenceError, match=r"rank\(C E\) = 0 ≠ rank\(E\) = 1"):
+        uio_structure(plant)
+
+
+def test_dependent_unknown_inputs_are_named():
+    plant = LinearPlant.create(A=0.5 * np.eye(3), C=np.eye(3), E=[[1, 2], [0, 0], [1, 2]], Ts=1.0)
+    with pytest.raises(ExistenceError, match=r"rank\(E\) = 1 but E has q = 2"):
+        uio_structure(plant)
+
+
+def test_no_residual_left_is_named():
+    plant = LinearPlant.create(A=0.5 * np.eye(2), C=[[1.0, 0.0]], E=[[1.0], [0.0]], Ts=1.0)
+    with pytest.raises(ExistenceError, match="p − q = 0"):
+        uio_structure(plant)
+
+
+def test_undetectable_pair_is_named():
+    # the unstable second state is neither measured nor coupled to what is measured
+    a = np.diag([0.5, 1.2, 0.3])
+    plant = LinearPlant.create(A=a, C=[[1, 0, 0], [0, 0, 1]], E=[[1], [0], [0]], Ts=1.0)
+    with pytest.raises(ExistenceError, match=r"\(C, A1\) is not detectable: the mode λ = 1.2"):
+        uio_structure(plant)
+
+
+def test_continuous_plant_is_refused():
+    plant = LinearPlant.create(A=-np.eye(2), C=np.eye(2), E=[[1.0], [0.0]])
+    with pytest.raises(ShapeError, match="discrete"):
+        kalman_uio(plant)
+
+
+@settings(max_examples=25, derandomize=True, deadline=None)
+@given(SEEDS)
+def test_structure_identities(seed):
+    plant = random_plant(seed)
+    s = uio_structure(plant)
+    e, c = np.asarray(plant.E), np.asarray(plant.C)
+    # M C E = I, T E = 0, Cbar projects: round-off level times cond(C E)
+    np.testing.assert_allclose(s.M @ c @ e, np.eye(plant.q), atol=1e-10)
+    np.testing.assert_allclose(s.T @ e, 0, atol=1e-10 * np.abs(e).max())
+    np.testing.assert_allclose(s.Cbar @ s.Cbar, s.Cbar, atol=1e-10)
+
+
+@settings(max_examples=25, derandomize=True, deadline=None)
+@given(SEEDS)
+def test_optimal_gain_certificate_on_random_plants(seed):
+    plant = random_plant(seed)
+    d = kalman_uio(plant)
+    assert d.certificate.passed  # includes NLP vs DARE ≤ 1e-8 and decoupling
+    gain_check = next(c for c in d.certificate.checks if c.name.startswith("gain: NLP"))
+    assert gain_check.value <= GAIN_TOL
+
+
+@settings(max_examples=15, derandomize=True, deadline=None)
+@given(SEEDS)
+def test_optimal_gain_matches_scipy_on_the_full_singular_problem(seed):
+    # an independent route: SciPy's solver on the unreduced DARE with cross term and singular R
+    plant = random_plant(seed)
+    d = kalman_uio(plant)
+    s = d.structure
+    q, r, c = np.asarray(plant.Q), np.asarray(plant.R), np.asarray(plant.C)
+    qbar = s.T @ q @ s.T.T + s.A1 @ s.H @ r @ s.H.T @ s.A1.T
+    rbar = s.Cbar @ r @ s.Cbar.T
+    sx = -s.A1 @ s.H @ r @ s.Cbar.T
+    try:
+        x = scipy.linalg.solve_discrete_are(s.A1.T, c.T, qbar, rbar, s=sx)
+    except (np.linalg.LinAlgError, ValueError):
+        return  # the unreduced pencil is degenerate for this plant; the reduced route is the robust one
+    gain = (s.A1 @ x @ c.T + sx) @ np.linalg.pinv(c @ x @ c.T + rbar, rcond=1e-10)
+    # same optimum on the part of L that acts on the residual (L on null(Σ_r) multiplies a zero signal)
+    uc = scipy.linalg.orth(s.Cbar)
+    np.testing.assert_allclose(gain @ uc, d.L @ uc, rtol=1e-6, atol=1e-8 * np.abs(d.L).max())
+    assert _trace(plant, s, gain) == pytest.approx(float(np.trace(d.Sigma)), rel=1e-8)
+
+
+@settings(max_examples=20, derandomize=True, deadline=None)
+@given(SEEDS, st.integers(0, 2**31 - 1))
+def test_no_nearby_gain_is_better(seed, direction_seed):
+    # optimality over all n × p gains (not only the reduced ones): any stabilising perturbation costs trace
+    plant = random_plant(seed)
+    d = kalman_uio(plant)
+    s = d.structure
+    rng = np.random.default_rng(direction_seed)
+    best = float(np.trace(d.Sigma))
+    for scale in (1e-4, 1e-2, 1e-1):
+        delta = rng.standard_normal(d.L.shape)
+        delta *= scale * np.linalg.norm(d.L) / np.linalg.norm(delta)
+        f = s.A1 - (d.L + delta) @ plant.C
+        if max(abs(np.linalg.eigvals(f))) >= 1:
+            continue
+        # second-order growth: a rise below 1e-12 relative would be round-off, never a decrease beyond it
+        assert _trace(plant, s, d.L + delta) >= best * (1 - 1e-12)
+
+
+@settings(max_examples=15, derandomize=True, deadline=None)
+@given(SEEDS)
+def test_paper_gain_is_never_better_than_the_optimum(seed):
+    plant = random_plant(seed)
+    opt, pap = kalman_uio(plant), kalman_uio(plant, variant="paper")
+    # both traces are exact Lyapunov solutions: the optimum can only be undercut by round-off
+    assert float(np.trace(pap.Sigma)) >= float(np.trace(opt.Sigma)) * (1 - 1e-10)
+
+
+def test_isotropic_noise_removes_the_cross_term_but_not_the_paper_suboptimality():
+    # SEEDS.md 000: with R = σ² I and the Moore–Penrose M, S = −A1 H R (I − CH)ᵀ = 0 ...
+    base = random_plant(11, n=4, p=3, q=1)
+    iso = base.with_noise(R=0.3 * np.eye(3))
+    s = kalman_uio(iso).structure
+    np.testing.assert_allclose(s.A1 @ s.H @ iso.R @ s.Cbar.T, 0, atol=1e-12)
+    # ... but the paper's covariance step still optimises another quantity: a measurable excess
+    opt, pap = kalman_uio(iso), kalman_uio(iso, variant="paper")
+    assert float(np.trace(pap.Sigma)) / float(np.trace(opt.Sigma)) - 1 > 1e-6
+    aniso = base.with_noise(R=np.diag([0.05, 1.0, 3.0]))
+    excess = float(np.trace(kalman_uio(aniso, variant="paper").Sigma)) / float(np.trace(kalman_uio(aniso).Sigma)) - 1
+    assert excess > 1e-3
+
+
+def test_error_covariance_matches_a_direct_simulation_of_the_observer():
+    # Σ_r from the Lyapunov equation against the sample covariance of simulated residuals
+    plant = random_plant(5, n=3, p=2, q=1, radius=0.9)
+    d = kalman_uio(plant)
+    gen = d.generator("g", range(plant.p), plant.p)
+    rng = np.random.default_rng(0)
+    n_samples = 200_000
+    a, b, c, e = (np.asarray(getattr(plant, k)) for k in ("A", "B", "C", "E"))
+    lq, lr = np.linalg.cholesky(plant.Q), np.linalg.cholesky(plant.R)
+    x = np.zeros(plant.n)
+    xi = np.zeros(gen.n_state)
+    rs = np.empty((n_samples, plant.p))
+    for k in range(n_samples):
+        u = rng.standard_normal(2)
+        dist = 5.0 * np.sin(0.01 * k) + rng.standard_normal(plant.q) * 3  # arbitrary unknown input
+        y = c @ x + lr @ rng.standard_normal(plant.p)
+        rs[k] = gen.Cr @ xi + gen.Du @ u + gen.Dy @ y
+        xi = gen.Ar @ xi + gen.Bu @ u + gen.By @ y
+        x = a @ x + b @ u + e @ dist + lq @ rng.standard_normal(plant.n)
+    emp = np.cov(rs[1000:].T)
+    # the sample covariance of 2·10⁵ white samples is within a few % (≈ 5/sqrt(N) relative per entry)
+    np.testing.assert_allclose(emp, d.Sigma_r, rtol=0.03, atol=0.03 * np.abs(d.Sigma_r).max())
+
+
+def test_residual_ignores_the_unknown_input_exactly():
+    plant = random_plant(8, n=4, p=3, q=1)
+    d = kalman_uio(plant)
+    gen = d.generator("g", range(plant.p), plant.p)
+    rng = np.random.default_rng(1)
+    a, b, c, e = (np.asarray(getattr(plant, k)) for k in ("A", "B", "C", "E"))
+    n_steps = 300
+    u = rng.standard_normal((n_steps, 2))
+    runs = []
+    for scale in (0.0, 1e3):
+        dist = scale * rng.standard_normal((n_steps, plant.q))
+        x, xi, out = np.zeros(plant.n), np.zeros(gen.n_state), []
+        for k in range(n_steps):
+            y = c @ x
+            out.append(gen.Cr @ xi + gen.Du @ u[k] + gen.Dy @ y)
+            xi = gen.Ar @ xi + gen.Bu @ u[k] + gen.By @ y
+            x = a @ x + b @ u[k] + e @ dist[k]
+        runs.append(np.array(out))
+    # a disturbance of size 1e3 moves the residual by round-off only (the plant may be unstable: relative to |x|)
+    assert np.max(np.abs(runs[1] - runs[0])) <= 1e-9 * max(1.0, np.max(np.abs(runs[1])))
+
+
+def test_pole_placement_assigns_the_poles():
+    plant = random_plant(2, n=3, p=2, q=1)
+    d = pole_placement_uio(plant, poles=[0.1, 0.2, 0.3])
+    np.testing.assert_allclose(np.sort(np.linalg.eigvals(d.F).real), [0.1, 0.2, 0.3], atol=1e-8)
+    with pytest.raises(ShapeError, match="inside the unit circle"):
+        pole_placement_uio(plant, poles=[0.1, 0.2, 1.2])
+    with pytest.raises(ShapeError, match="expected 3 poles"):
+        pole_placement_uio(plant, poles=[0.1, 0.2])
+
+
+def test_optimal_residual_is_white_and_pole_placement_is_not():
+    plant = random_plant(5, n=3, p=2, q=1, radius=0.9)
+    for design, white in ((kalman_uio(plant), True), (pole_placement_uio(plant, poles=[0.8, 0.85, 0.9]), False)):
+        # lag-1 covariance of the residual: F-driven for a non-optimal gain, zero for the innovation
+        st_ = design.structure
+        c, r = np.asarray(plant.C), np.asarray(plant.R)
+        k = st_.A1 @ st_.H + design.L @ st_.Cbar
+        lag1 = c @ (design.F @ design.Sigma @ c.T - k @ r @ st_.Cbar.T)
+        size = np.abs(design.Sigma_r).max()
+        if white:
+            assert np.abs(lag1).max() <= 1e-9 * size
+        else:
+            assert np.abs(lag1).max() > 1e-3 * size
+
+
+def test_lyapunov_helper_is_exact():
+    rng = np.random.default_rng(3)
+    a = 0.5 * rng.standard_normal((4, 4)) / 2
+    q = np.eye(4)
+    x = dlyap(a, q)
+    np.testing.assert_allclose(a @ x @ a.T + q, x, atol=1e-13)
