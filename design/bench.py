@@ -79,14 +79,14 @@ def run_bench(problems: list[Problem], *, out: Path, workdir: Path) -> Path:
             say(f"{d}: C loop {c_ns:.1f} ns/step; timing the Python-side calls")
             cd = b.diagnoser
             st = cd.init_state()
-            ctypes_ns = _per_call(lambda k: cd.step(st, U[k], Y[k]), 2000)
+            ctypes_ns = _per_call(lambda k, cd=cd, st=st, U=U, Y=Y: cd.step(st, U[k], Y[k]), 2000)
             t0 = time.perf_counter()
             cd.run(U, Y)
             ctypes_run_ns = (time.perf_counter() - t0) / len(Y) * 1e9
             fn = step_function(gf)
             cst = [gf.step.init_state.copy()]
 
-            def casadi_call(k: int) -> None:
+            def casadi_call(k: int, fn=fn, cst=cst, U=U, Y=Y) -> None:  # noqa: ANN001 - bound loop values
                 cst[0] = np.asarray(fn(cst[0], U[k], Y[k])[0]).ravel()
 
             casadi_ns = _per_call(casadi_call, 500)
@@ -94,7 +94,7 @@ def run_bench(problems: list[Problem], *, out: Path, workdir: Path) -> Path:
             if gf.kind == "linear":
                 ref = LinearReference(gf)
                 rst = ref.init_state()
-                numpy_ns = _per_call(lambda k: ref.step(rst, U[k], Y[k]), 2000)
+                numpy_ns = _per_call(lambda k, ref=ref, rst=rst, U=U, Y=Y: ref.step(rst, U[k], Y[k]), 2000)
             rows.append((prob.name, d, gf.step, c_ns, ctypes_run_ns, ctypes_ns, casadi_ns, numpy_ns))
     m = machine_description()
     lines = [

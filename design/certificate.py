@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 from fdisyn.runtime.errors import CertificateError
+from fdisyn.runtime.gainfile import to_jsonable
 
 __all__ = ["Check", "Certificate"]
 
@@ -79,20 +80,5 @@ class Certificate:
             "subject": self.subject,
             "passed": self.passed,
             "checks": [c.to_dict() for c in self.checks],
-            "info": _plain(self.info),
+            "info": to_jsonable(self.info),
         }
-
-
-def _plain(obj: object) -> object:
-    """Numbers, strings, lists and dicts only (numpy scalars/arrays converted)."""
-    import numpy as np
-
-    if isinstance(obj, Mapping):
-        return {str(k): _plain(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_plain(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return _plain(obj.tolist())
-    if isinstance(obj, (np.floating, np.integer, np.bool_)):
-        return obj.item()
-    return obj

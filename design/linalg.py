@@ -16,6 +16,8 @@ from fdisyn.runtime.errors import ShapeError
 __all__ = [
     "as_matrix",
     "check_shape",
+    "as_square",
+    "as_symmetric",
     "rank",
     "rank_tol",
     "dlyap",
@@ -55,6 +57,33 @@ def as_matrix(value: object, name: str, *, rows: int | None = None, cols: int | 
     if not np.all(np.isfinite(a)):
         bad = tuple(int(i) for i in np.argwhere(~np.isfinite(a))[0])
         raise ShapeError(f"{name} contains a non-finite entry at index {bad}: {a[bad]!r}")
+    return a
+
+
+def as_square(value: object, name: str) -> np.ndarray:
+    """A finite square matrix (a state matrix), or :class:`ShapeError` naming it."""
+    a = as_matrix(value, name)
+    if a.shape[0] != a.shape[1]:
+        raise ShapeError(f"{name} must be square; got shape {a.shape}")
+    return a
+
+
+def as_symmetric(value: object, name: str, n: int, *, psd: bool = False) -> np.ndarray:
+    """A symmetric ``n × n`` matrix (symmetrised), optionally positive semidefinite.
+
+    Symmetry is tested to 1e-10 relative (a covariance computed in floating
+    point is symmetric to round-off); PSD allows eigenvalues down to
+    −1e-12 times the largest.
+    """
+    a = as_matrix(value, name, rows=n, cols=n)
+    scale = max(1.0, float(np.abs(a).max(initial=0.0)))
+    if not np.allclose(a, a.T, rtol=0.0, atol=1e-10 * scale):
+        raise ShapeError(f"{name} must be symmetric; max |{name} − {name}ᵀ| = {np.max(np.abs(a - a.T)):.3g}")
+    a = 0.5 * (a + a.T)
+    if psd and n:
+        ev = np.linalg.eigvalsh(a)
+        if ev[0] < -1e-12 * max(1.0, float(np.max(np.abs(ev)))):
+            raise ShapeError(f"{name} must be positive semidefinite (a covariance); smallest eigenvalue {ev[0]:.3g}")
     return a
 
 

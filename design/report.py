@@ -10,7 +10,7 @@ from __future__ import annotations
 import html
 import platform
 import sys
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
@@ -291,7 +291,7 @@ def write_report(problem: Problem, variants: Sequence[Any], directory: Path) -> 
         parts.append(_designs_section(v))
         parts.append(f"<h2>Generated C{html.escape(label)}</h2>{_export_section(v)}")
         parts.append(f"<h2>Monte Carlo metrics{html.escape(label)}</h2>{_metrics_section(v)}")
-        for d, b in v.built.items():
+        for b in v.built.values():
             write_gain_file(b.gain_file, gains_dir / f"{b.gain_file.name}.json")
     parts.append(
         '<p class="small">Gain files of every design are in <a href="gains/">gains/</a>; the numbers of this page in '
@@ -321,5 +321,3 @@ def shade(ax: Any, t: np.ndarray, active: np.ndarray, label: str = "fault active
     idx = np.flatnonzero(active)
     ax.axvspan(t[idx[0]], t[idx[-1]], color="tab:red", alpha=0.08, label=label)
 
-
-Hook = Callable[[ReportContext], list[tuple[str, str]]]

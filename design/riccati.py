@@ -24,8 +24,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 
-from fdisyn.design.linalg import as_matrix, rank_tol, undetectable_modes
-from fdisyn.runtime.errors import ExistenceError, ShapeError, SolverError
+from fdisyn.design.linalg import as_matrix, as_square, as_symmetric, rank_tol, undetectable_modes
+from fdisyn.runtime.errors import ExistenceError, SolverError
 
 __all__ = ["DareSolution", "solve_filter_dare", "dare_residual"]
 
@@ -90,20 +90,13 @@ def solve_filter_dare(
     SolverError
         The QZ decomposition failed.
     """
-    a = as_matrix(A, "A")
+    a = as_square(A, "A")
     n = a.shape[0]
-    if a.shape != (n, n):
-        raise ShapeError(f"A must be square; got shape {a.shape}")
     c = as_matrix(C, "C", cols=n)
     p = c.shape[0]
-    q = as_matrix(Q, "Q", rows=n, cols=n)
-    r = as_matrix(R, "R", rows=p, cols=p)
+    q = as_symmetric(Q, "Q", n)
+    r = as_symmetric(R, "R", p)
     s = np.zeros((n, p)) if S is None else as_matrix(S, "S", rows=n, cols=p)
-    for nm, mat in (("Q", q), ("R", r)):
-        if not np.allclose(mat, mat.T, rtol=1e-10, atol=1e-14 * max(1.0, float(np.abs(mat).max(initial=0.0)))):
-            raise ShapeError(f"{nm} must be symmetric in the DARE")
-    q = 0.5 * (q + q.T)
-    r = 0.5 * (r + r.T)
     bad = undetectable_modes(a, c)
     if bad:
         raise ExistenceError(

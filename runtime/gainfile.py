@@ -45,6 +45,7 @@ __all__ = [
     "read_gain_file",
     "write_gain_file",
     "linear_state_layout",
+    "to_jsonable",
 ]
 
 FORMAT = "fdisyn.gains/1"
@@ -171,19 +172,19 @@ class GainFile:
                 "nr": self.step.nr,
                 "nj": self.step.nj,
                 "nstate": self.step.nstate,
-                "init_state": _plain(self.step.init_state),
+                "init_state": to_jsonable(self.step.init_state),
                 "residual_names": list(self.step.residual_names),
                 "statistic_names": list(self.step.statistic_names),
             },
         }
         if self.kind == "linear":
-            doc["plant"] = {k: _plain(v) for k, v in self.plant.items()}
+            doc["plant"] = {k: to_jsonable(v) for k, v in self.plant.items()}
             doc["generators"] = [
                 {
                     "name": g.name,
                     "outputs_used": list(g.outputs_used),
-                    **{k: _plain(getattr(g, k)) for k in _MATRIX_KEYS},
-                    "method": _plain(dict(g.method)),
+                    **{k: to_jsonable(getattr(g, k)) for k in _MATRIX_KEYS},
+                    "method": to_jsonable(dict(g.method)),
                 }
                 for g in self.generators
             ]
@@ -194,8 +195,8 @@ class GainFile:
                     "P_f": float(e.P_f),
                     "dof": int(e.dof),
                     "threshold": float(e.threshold),
-                    "Sigma_r": _plain(e.Sigma_r),
-                    "W": _plain(e.W),
+                    "Sigma_r": to_jsonable(e.Sigma_r),
+                    "W": to_jsonable(e.W),
                 }
                 for e in self.evaluators
             ]
@@ -205,9 +206,9 @@ class GainFile:
                 "signatures": np.asarray(self.decision.signatures, dtype=int).tolist(),
                 "persistence": int(self.decision.persistence),
             }
-        doc["certificate"] = _plain(dict(self.certificate))
-        doc["provenance"] = _plain(dict(self.provenance))
-        doc["extensions"] = _plain(dict(self.extensions))
+        doc["certificate"] = to_jsonable(dict(self.certificate))
+        doc["provenance"] = to_jsonable(dict(self.provenance))
+        doc["extensions"] = to_jsonable(dict(self.extensions))
         return doc
 
 
@@ -555,13 +556,14 @@ def _validate_linear(gf: GainFile) -> None:
         )
 
 
-def _plain(obj: object) -> object:
+def to_jsonable(obj: object) -> object:
+    """Numbers, strings, lists and dicts only (NumPy scalars/arrays and complex numbers converted)."""
     if isinstance(obj, np.ndarray):
         return obj.tolist()
     if isinstance(obj, Mapping):
-        return {str(k): _plain(v) for k, v in obj.items()}
+        return {str(k): to_jsonable(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
-        return [_plain(v) for v in obj]
+        return [to_jsonable(v) for v in obj]
     if isinstance(obj, (np.floating, np.integer, np.bool_)):
         return obj.item()
     if isinstance(obj, complex):

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from fdisyn.runtime.errors import TraceError
+from fdisyn.runtime.reference import RunResult
 
 __all__ = ["Trace", "read_trace", "write_trace", "parse_field", "write_replay_csv"]
 
@@ -136,14 +137,11 @@ def write_trace(trace: Trace, path: str | Path) -> Path:
     return p
 
 
-def write_replay_csv(path: str | Path, t: np.ndarray, result: object) -> Path:
+def write_replay_csv(path: str | Path, t: np.ndarray, result: RunResult) -> Path:
     """The replay output CSV (same bytes as the C replay program writes)."""
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
-    r = np.asarray(getattr(result, "r"))
-    jj = np.asarray(getattr(result, "J"))
-    alarm = np.asarray(getattr(result, "alarm"))
-    iso = np.asarray(getattr(result, "isolated"))
+    r, jj, alarm, iso = result.r, result.J, result.alarm, result.isolated
     head = ["t", "alarm", "isolated", *(f"J{i}" for i in range(jj.shape[1])), *(f"r{i}" for i in range(r.shape[1]))]
     with p.open("w", encoding="utf-8", newline="\n") as fh:
         fh.write(",".join(head) + "\n")
