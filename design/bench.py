@@ -46,7 +46,7 @@ def machine_description() -> dict[str, str]:
         "compiler": cc[0] if cc else "unknown",
         "python": sys.version.split()[0],
         "numpy": np.__version__,
-        "casadi": ca.__version__,
+        "casadi": str(getattr(ca, "__version__", "unknown")),
     }
 
 
@@ -114,8 +114,8 @@ def run_bench(problems: list[Problem], *, out: Path, workdir: Path) -> Path:
         "| problem | design | nu/ny/nr/nj/nstate | C loop | ctypes, whole trace | ctypes, per sample | CasADi Function | NumPy reference | NumPy / C |",
         "|---|---|---|---:|---:|---:|---:|---:|---:|",
     ]
-    for name, d, st, c_ns, run_ns, ct_ns, cas_ns, np_ns in rows:
-        dims = f"{st.nu}/{st.ny}/{st.nr}/{st.nj}/{st.nstate}"
+    for name, d, spec, c_ns, run_ns, ct_ns, cas_ns, np_ns in rows:
+        dims = f"{spec.nu}/{spec.ny}/{spec.nr}/{spec.nj}/{spec.nstate}"
         np_s = f"{np_ns:,.0f}" if np_ns is not None else "—"
         ratio = f"{np_ns / c_ns:,.0f}×" if np_ns is not None else "—"
         lines.append(f"| {name} | {d} | {dims} | {c_ns:,.1f} | {run_ns:,.1f} | {ct_ns:,.0f} | {cas_ns:,.0f} | {np_s} | {ratio} |")

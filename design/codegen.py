@@ -20,6 +20,7 @@ import shutil
 import subprocess
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -102,7 +103,7 @@ def generate_sources(gf: GainFile, c_dir: str | Path, *, step: ca.Function | Non
     c_dir = Path(c_dir)
     c_dir.mkdir(parents=True, exist_ok=True)
     fn = step if step is not None else step_function(gf)
-    ins = fn.sx_in() if fn.is_a("SXFunction") else fn.mx_in()
+    ins: list[Any] = list(fn.sx_in() if fn.is_a("SXFunction") else fn.mx_in())
     named = ca.Function(f"{gf.name}_casadi_step", ins, fn.call(ins), list(fn.name_in()), list(fn.name_out()))
     # the generated header carries the <f>_SZ_* work-size macros the wrapper uses
     cg = ca.CodeGenerator(f"{gf.name}_casadi.c", {"with_header": True, "with_export": False, "verbose": False})

@@ -88,7 +88,7 @@ def provenance(**extra: object) -> dict[str, object]:
         "python": sys.version.split()[0],
         "numpy": np.__version__,
         "scipy": scipy.__version__,
-        "casadi": casadi.__version__,
+        "casadi": str(getattr(casadi, "__version__", "unknown")),
         "platform": platform.platform(),
     }
     try:

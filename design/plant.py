@@ -101,11 +101,11 @@ class LinearPlant:
         n = a.shape[0]
         c = as_matrix(C, "C", cols=n)
         p = c.shape[0]
-        b = np.zeros((n, 0)) if B is None else as_matrix(B, "B", rows=n, cols=None if np.ndim(B) == 2 else 1)
+        b = np.zeros((n, 0)) if B is None else as_matrix(B, "B", rows=n, cols=None if np.ndim(np.asarray(B)) == 2 else 1)
         m = b.shape[1]
         d = np.zeros((p, m)) if D is None else as_matrix(D, "D", rows=p, cols=m)
-        e = np.zeros((n, 0)) if E is None else as_matrix(E, "E", rows=n, cols=None if np.ndim(E) == 2 else 1)
-        fx = np.zeros((n, 0)) if Fx is None else as_matrix(Fx, "Fx", rows=n, cols=None if np.ndim(Fx) == 2 else 1)
+        e = np.zeros((n, 0)) if E is None else as_matrix(E, "E", rows=n, cols=None if np.ndim(np.asarray(E)) == 2 else 1)
+        fx = np.zeros((n, 0)) if Fx is None else as_matrix(Fx, "Fx", rows=n, cols=None if np.ndim(np.asarray(Fx)) == 2 else 1)
         q = np.zeros((n, n)) if Q is None else as_symmetric(Q, "Q", n, psd=True)
         r = np.zeros((p, p)) if R is None else as_symmetric(R, "R", p, psd=True)
         ts = None if Ts is None else check_sample_time(Ts)

@@ -95,7 +95,7 @@ def _versions() -> str:
         ("python", sys.version.split()[0]),
         ("numpy", np.__version__),
         ("scipy", scipy.__version__),
-        ("casadi", casadi.__version__),
+        ("casadi", str(getattr(casadi, "__version__", "unknown"))),
         ("cvxpy", cvxpy.__version__),
         ("platform", platform.platform()),
     ]

@@ -65,7 +65,7 @@ def dare_residual(A: np.ndarray, C: np.ndarray, Q: np.ndarray, R: np.ndarray, S:
 
 
 def _rcond(w: np.ndarray) -> float:
-    s = np.linalg.norm(w, 2)
+    s = float(np.linalg.norm(w, 2))
     return rank_tol(w) / s if s > 0 else 0.0
 
 

@@ -32,9 +32,9 @@ Gains:
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
 import casadi as ca
 import numpy as np
@@ -321,7 +321,7 @@ def _finish(
     method: str,
     variant: str,
     checks: list[Check],
-    info: dict[str, object],
+    info: Mapping[str, object],
 ) -> UIODesign:
     """Exact covariances, the common checks (stability, Lyapunov, decoupling) and the design."""
     c = np.asarray(plant.C)
@@ -399,8 +399,8 @@ def kalman_uio(plant: LinearPlant, *, variant: Literal["optimal", "paper"] = "op
             Check("DARE residual", ptruth.residual, RESIDUAL_TOL, "<=", "backward-stable generalised Schur solver"),
         ]
         sig_opt, _ = uio_error_covariance(st, l_truth, q, r, c)
-        info = {"trace_Sigma_optimal": float(np.trace(sig_opt)), "recursion_distance_after_iterations": distance}
-        return _finish(plant, st, paper, "kalman_uio", "paper", checks, info)
+        paper_info: dict[str, object] = {"trace_Sigma_optimal": float(np.trace(sig_opt)), "recursion_distance_after_iterations": distance}
+        return _finish(plant, st, paper, "kalman_uio", "paper", checks, paper_info)
     if variant != "optimal":
         raise ValueError(f"variant must be 'optimal' or 'paper'; got {variant!r}")
     l_red0 = red.V.T @ paper @ red.Uc
@@ -427,7 +427,7 @@ def kalman_uio(plant: LinearPlant, *, variant: Literal["optimal", "paper"] = "op
             "the residual scales with the gain error (≤ 1e-8) times cond(Σ_r)",
         ),
     ]
-    info = {
+    info: dict[str, object] = {
         "nlp_iterations": stats["iter_count"],
         "nlp_status": stats["return_status"],
         "dare_residual": truth.residual,
@@ -511,7 +511,7 @@ def _nlp_gain(red: ReducedProblem, lt0: np.ndarray) -> tuple[np.ndarray, dict[st
     x = ca.vertcat(ca.vec(lt), tri)
     x0 = np.concatenate([lt0.reshape(-1, order="F"), start])
     lbx = np.concatenate([np.full(n * nr, -np.inf), lower_bounds])
-    opts = {
+    opts: dict[str, Any] = {
         "print_time": False,
         "ipopt.print_level": 0,
         "ipopt.sb": "yes",

@@ -21,7 +21,7 @@ by their operating magnitudes for the design.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -281,8 +281,8 @@ def _bank_design(
     )
 
 
-def _designs() -> dict[str, object]:
-    def make(name: str):  # noqa: ANN202
+def _designs() -> dict[str, Callable[..., GainFile]]:
+    def make(name: str) -> Callable[..., GainFile]:
         def build(*, parameters: str = "benchmark", **kw: object) -> GainFile:
             return _bank_design(name, parameters=parameters, **kw)  # type: ignore[arg-type]
 
@@ -409,9 +409,9 @@ def _report(ctx: ReportContext) -> list[tuple[str, str]]:
         if "fault_free" in bt:
             t = bt["fault_free"].t
             fig, ax = plt.subplots(figsize=(9, 3.2))
-            for d, style in (("uio_pole_placement", dict(color="tab:gray", lw=0.6)), ("kalman_uio", dict(color="tab:blue", lw=0.6))):
+            for d, color in (("uio_pole_placement", "tab:gray"), ("kalman_uio", "tab:blue")):
                 if d in ex:
-                    ax.plot(t, ex[d]["fault_free"].r[:, 0], label=f"{d}: r (omega_r_m1 component)", **style)
+                    ax.plot(t, ex[d]["fault_free"].r[:, 0], color=color, lw=0.6, label=f"{d}: r (omega_r_m1 component)")
             ax.set_xlim(50, 60)
             ax.set_xlabel("t (s)")
             ax.set_ylabel("residual (rad/s)")
