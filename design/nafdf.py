@@ -77,10 +77,15 @@ healthy plant (seed 001 assumes faults are infrequent). A WSSR alarm ends an
 unfinished learning phase: with at least ``N2`` samples their statistics are
 used, otherwise they are discarded and learning restarts after the episode —
 learning on through an episode would take a faulty plant as nominal. Window statistics (2.7) over ``θ̂(t−1..t−N2)`` and
-``d_i = σ²_i1/σ²_i0 − ln(σ²_i1/σ²_i2) − 1``, evaluated only while the NF has
-converged since its last (re)initialisation (the paper's reason for ``T1``:
-the transient after an NF reset moves every estimate). ``d_i > W1`` for
-``T1`` consecutive samples isolates parameter ``i``; class 2 (severe) if also
+``d_i = σ²_i1/σ²_i0 − ln(σ²_i1/σ²_i2) − 1``, evaluated (and reported)
+whenever the NF has converged since its last (re)initialisation (the paper's
+reason for ``T1``: the transient after an NF reset moves every estimate).
+Isolation follows detection, as in the paper's run (alarm at 712, NF reset,
+isolation at 1000): ``d_i > W1`` for ``T1`` consecutive samples isolates
+parameter ``i`` only within ``N2 + 2·T1`` samples after an alarm episode
+closed. Without this gate the converged NF, which forgets, wanders, and the
+spread ``σ̂²_i0`` of ``N1`` strongly autocorrelated samples underestimates
+that wander: a long healthy run would eventually be "isolated". class 2 (severe) if also
 ``d_i > W2`` throughout, else 1; fault size (2.8)
 ``Δ_i = θ̂_i(τ + T1) − μ̂_i0`` at that sample. Class, size and the
 ``isolated`` output (the first parameter isolated; lowest index on a tie)
@@ -307,9 +312,16 @@ def wssr_threshold_table(
 
 @dataclass(frozen=True)
 class StateLayout:
-    """Named blocks of the diagnoser state vector; matrices stored column-major (CasADi's order)."""
+    """Named blocks of the diagnoser state vector; matrices stored column-major (CasADi's order).
+
+    ``scalars`` names the blocks that are counters or flags (unpacked as ``float``);
+    every other block with one column unpacks as a 1-D array, even of length one.
+    """
 
     entries: tuple[tuple[str, int, int], ...]
+    scalars: frozenset[str] = frozenset()
+    matrices: frozenset[str] = frozenset()
+    """Blocks that unpack as 2-D arrays whatever their size (covariances, sensitivities, windows)."""
 
     @property
     def size(self) -> int:
@@ -330,9 +342,9 @@ class StateLayout:
         out: dict[str, np.ndarray | float] = {}
         for name, (k, r, c) in self.offsets().items():
             block = v[k : k + r * c]
-            if r * c == 1 and (r, c) == (1, 1):
+            if name in self.scalars:
                 out[name] = float(block[0])
-            elif c == 1:
+            elif c == 1 and name not in self.matrices:
                 out[name] = block.copy()
             else:
                 out[name] = block.reshape((r, c), order="F").copy()
@@ -361,9 +373,9 @@ class StateLayout:
     def component_names(self) -> list[str]:
         out = []
         for name, r, c in self.entries:
-            if r * c == 1:
+            if name in self.scalars:
                 out.append(name)
-            elif c == 1:
+            elif c == 1 and name not in self.matrices:
                 out.extend(f"{name}[{i}]" for i in range(r))
             else:
                 out.extend(f"{name}[{i},{j}]" for j in range(c) for i in range(r))
@@ -372,8 +384,7 @@ class StateLayout:
 
 def _layout(n: int, l: int, window: int, n2: int) -> StateLayout:  # noqa: E741
     one = (1, 1)
-    return StateLayout(
-        (
+    entries = (
             ("ekf_x", n, 1),
             ("ekf_P", n, n),
             ("ekf_theta", l, 1),
@@ -400,14 +411,38 @@ def _layout(n: int, l: int, window: int, n2: int) -> StateLayout:  # noqa: E741
             ("fault_size", l, 1),
             ("isolated", *one),
             ("episode_open", *one),
+            ("diagnosis_left", *one),
             ("samples", *one),
             ("skipped", *one),
             ("alarm_resets", *one),
             ("ekf_reparameterisations", *one),
             ("ekf_divergence_resets", *one),
             ("nf_divergence_resets", *one),
-        )
     )
+    return StateLayout(entries, _SCALAR_BLOCKS, frozenset({"ekf_P", "nf_P", "nf_R", "nf_W", "theta_window"}))
+
+
+# Counters and flags of the state (every other block is a vector or matrix, whatever its size).
+_SCALAR_BLOCKS = frozenset(
+    {
+        "wssr_count",
+        "nf_gain",
+        "nf_forgetting",
+        "nf_age",
+        "nf_converged",
+        "nominal_count",
+        "nominal_frozen",
+        "isolated",
+        "episode_open",
+        "diagnosis_left",
+        "samples",
+        "skipped",
+        "alarm_resets",
+        "ekf_reparameterisations",
+        "ekf_divergence_resets",
+        "nf_divergence_resets",
+    }
+)
 
 
 # --------------------------------------------------------------------------- SX helpers
@@ -587,6 +622,12 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
     conv = ca.logic_or(conv_old, ca.logic_and(full, ca.logic_and(settled, explains)))
     conv = ca.logic_and(conv, nf_ok)
 
+    # EKF re-parameterisation: the NF converges inside an open alarm episode (block 4)
+    episode = old["episode_open"]
+    reparam = ca.logic_and(ca.logic_and(conv, ca.logic_not(conv_old)), ca.logic_and(episode, nf_ok))
+    # isolation follows detection: the classifier may decide for a limited time after the episode closes
+    diag_left = _select(reparam, float(_diagnosis_samples(s)), old["diagnosis_left"])
+
     # ---- block 3: modified Bayes classifier (eqs. (2.6)–(2.8)) ---------------------------
     n1 = old["nominal_count"]
     nominal_ready = ca.logic_or(n1 >= s.nominal_samples, old["nominal_frozen"])
@@ -603,8 +644,9 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
         di = var1 / var0[i] - ca.log(var1 / var2) - 1.0  # eq. (2.7)
         di = _select(_all_finite(di), di, _D_OVERFLOW)
         di = _select(armed, di, 0.0)
-        c1 = _select(ca.logic_and(armed, di > s.W1), old["count_w1"][i] + 1, 0.0)
-        c2 = _select(ca.logic_and(armed, di > s.W2), old["count_w2"][i] + 1, 0.0)
+        deciding = ca.logic_and(armed, diag_left > 0)
+        c1 = _select(ca.logic_and(deciding, di > s.W1), old["count_w1"][i] + 1, 0.0)
+        c2 = _select(ca.logic_and(deciding, di > s.W2), old["count_w2"][i] + 1, 0.0)
         latch = ca.logic_and(old["fault_class"][i] == 0, c1 >= s.T1)
         cls_i = _select(latch, _select(c2 >= s.T1, 2.0, 1.0), old["fault_class"][i])
         size_i = _select(latch, th_new[i] - mu0[i], old["fault_size"][i])  # eq. (2.8)
@@ -627,8 +669,6 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
     m2_next = old["nominal_m2"] + delta * (th_new - mean_next)
 
     # ---- block 4: mutual re-initialisation ------------------------------------------------
-    episode = old["episode_open"]
-    reparam = ca.logic_and(ca.logic_and(conv, ca.logic_not(conv_old)), ca.logic_and(episode, nf_ok))
     alarm_reset = ca.logic_and(alarm, ca.logic_not(episode))
     nf_reset = ca.logic_or(alarm_reset, ca.logic_not(nf_ok))
     episode_next = _select(reparam, 0.0, _select(alarm_reset, 1.0, episode))
@@ -674,6 +714,7 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
     new["fault_size"] = ca.vertcat(*size_new)
     new["isolated"] = isolated
     new["episode_open"] = episode_next
+    new["diagnosis_left"] = _select(nf_reset, 0.0, ca.fmax(diag_left - 1, 0.0))
     new["samples"] = old["samples"] + 1
     new["alarm_resets"] = old["alarm_resets"] + alarm_reset
     new["ekf_reparameterisations"] = old["ekf_reparameterisations"] + reparam
@@ -724,6 +765,15 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
         ["state_next", "r", "J", "alarm", "isolated", "status"],
     )
     return fun, lay
+
+
+def _diagnosis_samples(s: NafdfSettings) -> int:
+    """How long after an episode closes the classifier may isolate: ``N2 + 2·T1`` samples.
+
+    The NF has just converged on a fresh window, so a real jump shows as ``d_i > W1`` at once and
+    isolates after ``T1`` samples; the margin of ``N2 + T1`` covers a slower crossing.
+    """
+    return s.classifier_window + 2 * s.T1
 
 
 def _sanitise(v: ca.SX) -> ca.SX:
@@ -802,6 +852,7 @@ class NafdfDesign:
             "fault_size": np.zeros(l),
             "isolated": -1.0,
             "episode_open": 0.0,
+            "diagnosis_left": 0.0,
         }
         for c in ("samples", "skipped", "alarm_resets", "ekf_reparameterisations", "ekf_divergence_resets", "nf_divergence_resets"):
             blocks[c] = 0.0

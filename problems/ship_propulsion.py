@@ -190,7 +190,7 @@ def design(*, false_alarm_probability: float = 1e-4, window: int = 10) -> NafdfD
       ``W2 = 350``, ``T1 = 50``.
     * WSSR window ``N = 10`` and ``P_f = 1e-4`` per sample: the paper's
       ``β0 = 0.01`` cannot be a threshold on (2.4) as printed, whose H0 mean
-      is 1, so the threshold is the χ² quantile ``χ²_{1−P_f}(10)/10 = 3.56``.
+      is ``p = 1`` (it would alarm on almost every sample), so the threshold is the χ² quantile ``χ²_{1−P_f}(10)/10 = 3.56``.
     * ``λ∞ = 0.99`` (a memory of ~100 samples): the NF estimate is then a
       stationary process once converged, so the spread over ``N1`` samples
       (2.6) measures the same thing as the spread of a re-converged estimate,
@@ -229,27 +229,34 @@ def design(*, false_alarm_probability: float = 1e-4, window: int = 10) -> NafdfD
 def run_metrics(dsg: NafdfDesign, scen: Scenario, out: Mapping[str, np.ndarray] | None = None) -> dict[str, object]:
     """Detection, isolation, fault size and re-tracking of one run (``out`` from ``dsg.run`` or recomputed)."""
     res = dict(out) if out is not None else dsg.run(u=scen.u, y=scen.y)
-    alarm, iso, J = res["alarm"], res["isolated"], res["J"]
+    alarm, iso, J, states = res["alarm"], res["isolated"], res["J"], res["state"]
     jn = list(dsg.J_names)
-    states = [dsg.unpack_state(s) for s in res["state"]]
+    off = dsg.layout.offsets()
+
+    def column(name: str) -> np.ndarray:
+        return states[:, off[name][0]]
+
+    def events(name: str) -> list[int]:
+        c = np.concatenate([[0.0], column(name)])
+        return [int(t) for t in np.flatnonzero(np.diff(c) > 0)]
+
     tf = scen.fault_time
     before = alarm if tf is None else alarm[:tf]
     onsets = np.flatnonzero(np.diff(np.concatenate([[0.0], before])) > 0)
-    reparam = [t for t in range(1, len(states)) if states[t]["ekf_reparameterisations"] > states[t - 1]["ekf_reparameterisations"]]
-    resets = [t for t in range(1, len(states)) if states[t]["alarm_resets"] > states[t - 1]["alarm_resets"]]
+    reparam = events("ekf_reparameterisations")
+    last = dsg.unpack_state(states[-1])
     m: dict[str, object] = {
         "scenario": scen.name,
         "samples": int(len(alarm)),
         "false_alarm_samples": int(before.sum()),
         "false_alarm_episodes": int(onsets.size),
-        "nf_resets": resets,
+        "nf_resets": events("alarm_resets"),
         "ekf_reparameterisations": reparam,
-        "divergence_resets": int(states[-1]["ekf_divergence_resets"] + states[-1]["nf_divergence_resets"]),
+        "divergence_resets": int(last["ekf_divergence_resets"] + last["nf_divergence_resets"]),
     }
     first_iso = np.flatnonzero(iso >= 0)
     m["isolated"] = None if not first_iso.size else dsg.fault_names[int(iso[first_iso[0]])]
     m["isolation_time"] = None if not first_iso.size else int(first_iso[0])
-    last = states[-1]
     m["fault_class"] = {q: int(last["fault_class"][i]) for i, q in enumerate(dsg.fault_names)}
     m["fault_size"] = {q: float(J[-1, jn.index(f"fault_size_{q}")]) for q in dsg.fault_names}
     m["nf_theta_final"] = {q: float(last["nf_theta"][i]) for i, q in enumerate(dsg.fault_names)}
@@ -262,7 +269,9 @@ def run_metrics(dsg: NafdfDesign, scen: Scenario, out: Mapping[str, np.ndarray] 
         if after:
             t_r = after[0]
             m["ekf_reparameterisation_time"] = t_r
-            m["nf_theta_at_reparameterisation"] = {q: float(states[t_r]["ekf_theta"][i]) for i, q in enumerate(dsg.fault_names)}
+            m["nf_theta_at_reparameterisation"] = {
+                q: float(dsg.unpack_state(states[t_r])["ekf_theta"][i]) for i, q in enumerate(dsg.fault_names)
+            }
             # re-tracking: the re-parameterised EKF's innovations are back to the noise level
             tail = res["r"][t_r + dsg.settings.window :, 0]
             m["ekf_innovation_rms_after"] = float(np.sqrt(np.mean(tail**2))) if tail.size else None
