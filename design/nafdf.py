@@ -118,35 +118,55 @@ Block 4 — mutual re-initialisation.
 * *Skipped samples*: a non-finite ``u`` or ``y`` (tested as ``|v| < inf``
   with ``if_else``, which survives code generation) leaves the state unchanged
   except the ``skipped`` counter, raises no alarm and returns ``status = 1``.
+
+Step contract (shared with the linear diagnosers). Inputs ``state[nstate]``,
+``u[m]``, ``y[p]``; outputs ``state_next``, ``r[2p]``, ``J[3 + 4l + 2]``,
+``alarm`` (the WSSR decision of this sample, 0/1), ``isolated`` (−1, or the
+index of the first isolated parameter in ``plant.parameters``, which are the
+fault names), ``status`` (0 processed, 1 skipped). All dense column vectors.
+
+* ``r = [γ (EKF innovation, one per output: ekf_innovation_<y>),
+  ε (NF innovation: nf_innovation_<y>)]``.
+* ``J = [wssr (L(t)), wssr_threshold, ekf_nis (γᵀV0⁻¹γ), theta_hat_<θ>…,
+  d_<θ>…, fault_class_<θ>… (0/1/2, latched), fault_size_<θ>… (latched),
+  nf_converged, diverged]``.
+* ``state`` blocks in order (matrices column-major; see :class:`StateLayout`):
+  ``ekf_x[n], ekf_P[n×n], ekf_theta[l], wssr_buffer[N], wssr_count,
+  nf_x[n], nf_P[n×n], nf_theta[l], nf_R[l×l], nf_W[n×l], nf_gain (a),
+  nf_forgetting (λ), nf_age, nf_converged, theta_window[l×N2]
+  (column j = θ̂(t−1−j)), nis_window[N2], nominal_count, nominal_mean[l],
+  nominal_m2[l], nominal_frozen, count_w1[l], count_w2[l], fault_class[l],
+  fault_size[l], isolated, episode_open, diagnosis_left, samples, skipped,
+  alarm_resets, ekf_reparameterisations, ekf_divergence_resets,
+  nf_divergence_resets``.
 """
 
 from __future__ import annotations
 
 import json
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Any, Literal
 
 import casadi as ca
 import numpy as np
 import scipy.stats
-
 from fdisyn.design.certificate import Certificate, Check
 from fdisyn.design.nonlinear import NonlinearPlant
 from fdisyn.runtime.errors import GainFileError, ShapeError, SpecError
 
 __all__ = [
-    "NafdfSettings",
-    "NafdfDesign",
-    "StateLayout",
-    "nafdf",
-    "wssr_threshold_table",
-    "nafdf_payload",
-    "nafdf_from_payload",
-    "step_from_payload",
     "PAYLOAD_FORMAT",
     "PAYLOAD_VERSION",
+    "NafdfDesign",
+    "NafdfSettings",
+    "StateLayout",
+    "nafdf",
+    "nafdf_from_payload",
+    "nafdf_payload",
+    "step_from_payload",
+    "wssr_threshold_table",
 ]
 
 PAYLOAD_FORMAT = "fdisyn.nafdf"
@@ -213,31 +233,34 @@ class NafdfSettings:
         return out
 
     @classmethod
-    def from_dict(cls, d: Mapping[str, object], *, n: int, l: int) -> NafdfSettings:  # noqa: E741
+    def from_dict(cls, d: Mapping[str, Any], *, n: int, l: int) -> NafdfSettings:
         def bound(key: str, inf: float) -> np.ndarray:
-            return np.array([inf if z is None else float(z) for z in d[key]], dtype=float)  # type: ignore[union-attr]
+            return np.array([inf if z is None else float(z) for z in d[key]], dtype=float)
 
+        rule = d["threshold_rule"]
+        if rule not in ("chi2", "beta0"):
+            raise GainFileError(f"settings.threshold_rule is {rule!r}; expected 'chi2' or 'beta0'")
         return cls(
             x0=_ro(np.array(d["x0"], dtype=float)),
             P0=_ro(np.array(d["P0"], dtype=float).reshape(n, n)),
             theta0=_ro(np.array(d["theta0"], dtype=float)),
             R0=_ro(np.array(d["R0"], dtype=float).reshape(l, l)),
-            window=int(d["window"]),  # type: ignore[arg-type]
-            threshold_rule=str(d["threshold_rule"]),  # type: ignore[arg-type]
-            false_alarm_probability=float(d["false_alarm_probability"]),  # type: ignore[arg-type]
-            beta0=None if d["beta0"] is None else float(d["beta0"]),  # type: ignore[arg-type]
-            forgetting_initial=float(d["forgetting_initial"]),  # type: ignore[arg-type]
-            forgetting_rate=float(d["forgetting_rate"]),  # type: ignore[arg-type]
-            forgetting_final=float(d["forgetting_final"]),  # type: ignore[arg-type]
+            window=int(d["window"]),
+            threshold_rule=rule,
+            false_alarm_probability=float(d["false_alarm_probability"]),
+            beta0=None if d["beta0"] is None else float(d["beta0"]),
+            forgetting_initial=float(d["forgetting_initial"]),
+            forgetting_rate=float(d["forgetting_rate"]),
+            forgetting_final=float(d["forgetting_final"]),
             theta_lower=_ro(bound("theta_lower", -np.inf)),
             theta_upper=_ro(bound("theta_upper", np.inf)),
-            nominal_samples=int(d["nominal_samples"]),  # type: ignore[arg-type]
-            classifier_window=int(d["classifier_window"]),  # type: ignore[arg-type]
-            W1=float(d["W1"]),  # type: ignore[arg-type]
-            W2=float(d["W2"]),  # type: ignore[arg-type]
-            T1=int(d["T1"]),  # type: ignore[arg-type]
+            nominal_samples=int(d["nominal_samples"]),
+            classifier_window=int(d["classifier_window"]),
+            W1=float(d["W1"]),
+            W2=float(d["W2"]),
+            T1=int(d["T1"]),
             convergence_tolerance=_ro(np.array(d["convergence_tolerance"], dtype=float)),
-            convergence_level=float(d["convergence_level"]),  # type: ignore[arg-type]
+            convergence_level=float(d["convergence_level"]),
         )
 
 
@@ -382,7 +405,7 @@ class StateLayout:
         return out
 
 
-def _layout(n: int, l: int, window: int, n2: int) -> StateLayout:  # noqa: E741
+def _layout(n: int, l: int, window: int, n2: int) -> StateLayout:
     one = (1, 1)
     entries = (
             ("ekf_x", n, 1),
@@ -523,7 +546,7 @@ def _psd_ok(p: ca.SX) -> ca.SX:
     return ca.logic_and(_all_finite(p), _positive(d))
 
 
-def _select(cond: ca.SX, a: ca.SX, b: ca.SX) -> ca.SX:
+def _select(cond: ca.SX, a: ca.SX | ca.DM | float, b: ca.SX | ca.DM | float) -> ca.SX:
     """Entry-wise ``cond ? a : b`` (a true conditional in C: NaN in the other branch cannot leak)."""
     return ca.if_else(cond, ca.SX(a), ca.SX(b))
 
@@ -532,7 +555,7 @@ def _select(cond: ca.SX, a: ca.SX, b: ca.SX) -> ca.SX:
 
 
 def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray, name: str) -> tuple[ca.Function, StateLayout]:
-    n, m, p, l = plant.n, plant.m, plant.p, plant.l  # noqa: E741
+    n, m, p, l = plant.n, plant.m, plant.p, plant.l
     N, N2 = s.window, s.classifier_window
     lay = _layout(n, l, N, N2)
     D = plant.derivatives()
@@ -824,7 +847,7 @@ class NafdfDesign:
     def init_state(self) -> np.ndarray:
         """The state of a freshly (re-)initialised diagnoser (the C side's ``_init``)."""
         s, pl = self.settings, self.plant
-        n, l = pl.n, pl.l  # noqa: E741
+        n, l = pl.n, pl.l
         blocks: dict[str, object] = {
             "ekf_x": s.x0,
             "ekf_P": s.P0,
@@ -920,7 +943,7 @@ def nafdf(
     finite at the initial state, threshold table monotone) and refuses to
     exist if it fails.
     """
-    n, l, p = plant.n, plant.l, plant.p  # noqa: E741
+    n, l, p = plant.n, plant.l, plant.p
     th_nom = np.asarray(plant.theta_nominal)
     if threshold_rule not in ("chi2", "beta0"):
         raise SpecError(f"threshold_rule must be 'chi2' or 'beta0'; got {threshold_rule!r}")
@@ -1103,7 +1126,7 @@ def nafdf_payload(design: NafdfDesign) -> dict[str, object]:
         "format": PAYLOAD_FORMAT,
         "version": PAYLOAD_VERSION,
         "name": design.name,
-        "casadi_version": ca.__version__,
+        "casadi_version": ca.CasadiMeta.version(),
         "plant": {
             "states": list(pl.states),
             "inputs": list(pl.inputs),
@@ -1144,7 +1167,7 @@ def nafdf_from_payload(payload: Mapping[str, object]) -> NafdfDesign:
     except (KeyError, RuntimeError) as exc:
         raise GainFileError(
             f"payload model cannot be read (written by CasADi {payload.get('casadi_version')}, "
-            f"this is {ca.__version__}): {exc}"
+            f"this is {ca.CasadiMeta.version()}): {exc}"
         ) from None
     plant = NonlinearPlant.create(
         f=f,
@@ -1162,7 +1185,8 @@ def nafdf_from_payload(payload: Mapping[str, object]) -> NafdfDesign:
     )
     settings = NafdfSettings.from_dict(payload["settings"], n=plant.n, l=plant.l)  # type: ignore[arg-type]
     design = _design(plant, settings, name=str(payload["name"]), thresholds=np.array(payload["wssr_thresholds"], dtype=float))
-    if [list(e) for e in design.layout.entries] != [list(e) for e in payload["state_layout"]]:  # type: ignore[union-attr]
+    stored = payload.get("state_layout")
+    if not isinstance(stored, list) or [list(e) for e in design.layout.entries] != [list(e) for e in stored]:
         raise GainFileError("payload state layout does not match the rebuilt step's layout")
     return design
 

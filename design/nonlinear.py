@@ -36,12 +36,11 @@ from dataclasses import dataclass, field
 
 import casadi as ca
 import numpy as np
-
 from fdisyn.design.linalg import as_matrix
 from fdisyn.design.sampling import check_sample_time
 from fdisyn.runtime.errors import NominalValueError, NonDifferentiableError, ShapeError, SpecError
 
-__all__ = ["NonlinearPlant", "NONDIFFERENTIABLE_OPERATIONS", "SMOOTH_FUNCTIONS"]
+__all__ = ["NONDIFFERENTIABLE_OPERATIONS", "SMOOTH_FUNCTIONS", "NonlinearPlant"]
 
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
@@ -451,7 +450,7 @@ class NonlinearPlant:
         return len(self.outputs)
 
     @property
-    def l(self) -> int:  # noqa: E743 — the paper's letter for dim θ
+    def l(self) -> int:
         return len(self.parameters)
 
     # derivatives ------------------------------------------------------------

@@ -29,26 +29,26 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
-
 from fdisyn.design.nafdf import NafdfDesign, nafdf
 from fdisyn.design.nonlinear import NonlinearPlant
 from fdisyn.runtime.errors import SpecError
 
 __all__ = [
+    "FAULT_TIME",
     "NOMINAL",
     "PAPER",
-    "FAULT_TIME",
-    "plant",
-    "input_signal",
     "Scenario",
+    "design",
+    "input_signal",
+    "monte_carlo",
+    "plant",
+    "reproduce_paper",
+    "run_metrics",
     "scenario",
     "standard_scenarios",
-    "design",
-    "run_metrics",
-    "reproduce_paper",
-    "monte_carlo",
 ]
 
 NOMINAL: Mapping[str, float] = {"a": -0.58, "b": 0.2}
@@ -138,14 +138,15 @@ def scenario(
         raise SpecError(f"scale names unknown parameters {unknown}; parameters are {list(pl.parameters)}")
     T = int(length)
     theta = np.tile(pl.theta_nominal, (T, 1))
-    faulty = tuple(k for k in pl.parameters if k in sc and sc[k] != 1.0) if fault_time is not None else ()
+    tf = None if fault_time is None else int(fault_time)
+    faulty = tuple(k for k in pl.parameters if k in sc and sc[k] != 1.0) if tf is not None else ()
     sizes: dict[str, float] = {}
-    if faulty:
-        if not 0 < int(fault_time) < T:  # type: ignore[arg-type]
+    if faulty and tf is not None:
+        if not 0 < tf < T:
             raise SpecError(f"fault_time must lie inside the record (0, {T}); got {fault_time}")
         for k in faulty:
             i = pl.parameters.index(k)
-            theta[int(fault_time) :, i] = sc[k] * pl.theta_nominal[i]  # type: ignore[arg-type]
+            theta[tf:, i] = sc[k] * pl.theta_nominal[i]
             sizes[k] = float((sc[k] - 1.0) * pl.theta_nominal[i])
     u = input_signal(T)
     x, y = pl.simulate(x0=[X0], u=u, theta=theta, rng=np.random.default_rng(seed))
@@ -156,7 +157,7 @@ def scenario(
         x=x,
         y=y,
         theta=theta,
-        fault_time=int(fault_time) if faulty else None,  # type: ignore[arg-type]
+        fault_time=tf if faulty else None,
         faulty=faulty,
         fault_size=sizes,
     )
@@ -226,7 +227,7 @@ def design(*, false_alarm_probability: float = 1e-4, window: int = 10) -> NafdfD
     )
 
 
-def run_metrics(dsg: NafdfDesign, scen: Scenario, out: Mapping[str, np.ndarray] | None = None) -> dict[str, object]:
+def run_metrics(dsg: NafdfDesign, scen: Scenario, out: Mapping[str, np.ndarray] | None = None) -> dict[str, Any]:
     """Detection, isolation, fault size and re-tracking of one run (``out`` from ``dsg.run`` or recomputed)."""
     res = dict(out) if out is not None else dsg.run(u=scen.u, y=scen.y)
     alarm, iso, J, states = res["alarm"], res["isolated"], res["J"], res["state"]
@@ -245,9 +246,9 @@ def run_metrics(dsg: NafdfDesign, scen: Scenario, out: Mapping[str, np.ndarray] 
     onsets = np.flatnonzero(np.diff(np.concatenate([[0.0], before])) > 0)
     reparam = events("ekf_reparameterisations")
     last = dsg.unpack_state(states[-1])
-    m: dict[str, object] = {
+    m: dict[str, Any] = {
         "scenario": scen.name,
-        "samples": int(len(alarm)),
+        "samples": len(alarm),
         "false_alarm_samples": int(before.sum()),
         "false_alarm_episodes": int(onsets.size),
         "nf_resets": events("alarm_resets"),
@@ -279,7 +280,7 @@ def run_metrics(dsg: NafdfDesign, scen: Scenario, out: Mapping[str, np.ndarray] 
     return m
 
 
-def reproduce_paper(*, seed: int = 1, length: int = 2000) -> dict[str, object]:
+def reproduce_paper(*, seed: int = 1, length: int = 2000) -> dict[str, Any]:
     """The paper's scenario (``a → a0/2`` at 701) through the recommended design, beside the paper's numbers."""
     dsg = design()
     scen = scenario(length=length, scale={"a": 0.5}, seed=seed, name="paper_a_half")
@@ -311,9 +312,9 @@ def monte_carlo(
     for sd in seeds:
         ff = scenario(length=fault_free_length, fault_time=None, seed=10_000 + int(sd), name="fault_free")
         mff = run_metrics(dsg, ff)
-        ff_alarm_samples += int(mff["false_alarm_samples"])  # type: ignore[arg-type]
-        ff_episodes.append(int(mff["false_alarm_episodes"]))  # type: ignore[arg-type]
-        ff_samples += int(mff["samples"])  # type: ignore[arg-type]
+        ff_alarm_samples += int(mff["false_alarm_samples"])
+        ff_episodes.append(int(mff["false_alarm_episodes"]))
+        ff_samples += int(mff["samples"])
         ff_wrong_isolations += int(mff["isolated"] is not None)
         for j, (nm, sc) in enumerate(faults):
             scen = scenario(length=length, scale=sc, seed=1_000_000 * (j + 1) + int(sd), name=nm)
@@ -324,7 +325,7 @@ def monte_carlo(
             rec["iso_time"].append(m["isolation_time"])
             iso = m["isolated"]
             rec["size_err"].append(
-                None if iso is None or iso not in scen.fault_size else float(m["fault_size"][iso] - scen.fault_size[iso])  # type: ignore[index]
+                None if iso is None or iso not in scen.fault_size else float(m["fault_size"][iso] - scen.fault_size[iso])
             )
     summary: dict[str, object] = {
         "seeds": len(seeds),

@@ -38,23 +38,22 @@ from collections.abc import Mapping
 
 import casadi as ca
 import numpy as np
-
 from fdisyn.design.nafdf import NafdfDesign, nafdf
 from fdisyn.design.nonlinear import NonlinearPlant
 from fdisyn.design.sampling import zoh
 
 __all__ = [
     "BENCHMARK",
-    "TS",
-    "ETA_NOMINAL",
     "ETA_FAULTY",
+    "ETA_NOMINAL",
+    "TS",
     "continuous_matrices",
-    "zoh_matrices",
-    "plant",
-    "operating_point",
-    "input_signal",
-    "scenario",
     "design",
+    "input_signal",
+    "operating_point",
+    "plant",
+    "scenario",
+    "zoh_matrices",
 ]
 
 BENCHMARK: Mapping[str, float] = {

@@ -8,15 +8,14 @@ import casadi as ca
 import numpy as np
 import pytest
 import scipy.stats
-from hypothesis import given, settings
-from hypothesis import strategies as st
-
 from fdisyn.design.linalg import rel_diff
 from fdisyn.design.nafdf import nafdf, nafdf_from_payload, nafdf_payload, step_from_payload, wssr_threshold_table
 from fdisyn.design.nonlinear import NonlinearPlant
 from fdisyn.design.riccati import solve_filter_dare
 from fdisyn.problems import ship_propulsion as sp
 from fdisyn.runtime.errors import GainFileError, SpecError
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 NEVER_ALARM = dict(threshold_rule="beta0", beta0=1e300)  # the WSSR can never exceed it: filters run undisturbed
 

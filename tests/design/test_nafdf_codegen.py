@@ -6,7 +6,6 @@ import time
 
 import numpy as np
 import pytest
-
 from fdisyn.problems import ship_propulsion as sp
 from fdisyn.problems import wind_turbine_efficiency as wt
 

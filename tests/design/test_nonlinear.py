@@ -5,11 +5,10 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
-
 from fdisyn.design.nonlinear import NonlinearPlant
 from fdisyn.runtime.errors import NominalValueError, NonDifferentiableError, ShapeError, SpecError
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 SHIP = dict(
     states=["x"],
