@@ -943,7 +943,7 @@ def nafdf(
     finite at the initial state, threshold table monotone) and refuses to
     exist if it fails.
     """
-    n, l, p = plant.n, plant.l, plant.p
+    n, l = plant.n, plant.l  # noqa: E741 — the paper's letter for dim θ
     th_nom = np.asarray(plant.theta_nominal)
     if threshold_rule not in ("chi2", "beta0"):
         raise SpecError(f"threshold_rule must be 'chi2' or 'beta0'; got {threshold_rule!r}")
