@@ -308,7 +308,9 @@ def monte_carlo(
     ff_episodes = []
     ff_wrong_isolations = 0
     ff_samples = 0
-    per_fault: dict[str, dict[str, list]] = {nm: {"delay": [], "isolated": [], "size_err": [], "iso_time": []} for nm, _ in faults}
+    per_fault: dict[str, dict[str, list]] = {
+        nm: {"delay": [], "isolated": [], "size_err": [], "iso_time": [], "classes_exact": []} for nm, _ in faults
+    }
     for sd in seeds:
         ff = scenario(length=fault_free_length, fault_time=None, seed=10_000 + int(sd), name="fault_free")
         mff = run_metrics(dsg, ff)
@@ -323,6 +325,8 @@ def monte_carlo(
             rec["delay"].append(m.get("detection_delay"))
             rec["isolated"].append(m["isolated"])
             rec["iso_time"].append(m["isolation_time"])
+            # every jumping parameter classified (class ≥ 1) and no other one
+            rec["classes_exact"].append(all((m["fault_class"][q] > 0) == (q in scen.faulty) for q in dsg.fault_names))
             iso = m["isolated"]
             rec["size_err"].append(
                 None if iso is None or iso not in scen.fault_size else float(m["fault_size"][iso] - scen.fault_size[iso])
@@ -355,6 +359,7 @@ def monte_carlo(
             "isolated_wrong": int(sum(i is not None and i not in truth for i in iso)),
             "not_isolated": int(sum(i is None for i in iso)),
             "isolation_time_median": float(np.median(iso_t)) if iso_t.size else None,
+            "all_classes_correct": int(sum(rec["classes_exact"])),
             "size_error_mean": float(errs.mean()) if errs.size else None,
             "size_error_sd": float(errs.std(ddof=1)) if errs.size > 1 else None,
             "size_error_abs_95": float(np.quantile(np.abs(errs), 0.95)) if errs.size else None,
