@@ -134,6 +134,7 @@ def test_wssr_fault_free_law_is_chi_square() -> None:
 
 def test_threshold_table_rules() -> None:
     chi = wssr_threshold_table(window=5, n_outputs=2, rule="chi2", false_alarm_probability=1e-3, beta0=None)
+    # rtol 1e-15: the same SciPy quantile divided by k, so equal up to the division's rounding
     np.testing.assert_allclose(chi, [scipy.stats.chi2.isf(1e-3, 2 * k) / k for k in range(1, 6)], rtol=1e-15)
     assert np.all(np.diff(chi) < 0)  # averaging more samples narrows the law
     beta = wssr_threshold_table(window=5, n_outputs=2, rule="beta0", false_alarm_probability=0.5, beta0=0.01)
@@ -213,6 +214,7 @@ def test_wild_finite_data_never_produce_nan(ship_design, data) -> None:
     for s in out["state"]:
         blk = ship_design.unpack_state(s)
         for key in ("ekf_P", "nf_P"):
+            # PSD up to the step's own acceptance shift (1e-12·max diag) plus eigvalsh round-off
             assert np.min(np.linalg.eigvalsh(blk[key])) >= -1e-9 * max(1.0, np.max(np.abs(blk[key])))
         assert np.min(np.linalg.eigvalsh(blk["nf_R"])) > 0
 

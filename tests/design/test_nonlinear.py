@@ -55,6 +55,7 @@ def test_ship_model_values() -> None:
     pl = NonlinearPlant.from_expressions(**SHIP)
     lin = pl.linearise(x=[1.0], u=[2.0])
     # eq. (3.1) at x = 1, u = 2: f = 0.1 a + 1 + 0.2 b; ∂f/∂x = 1 + 0.2 a x; ∂f/∂θ = [0.1 x², 0.1 u]
+    # rtol 1e-15: a handful of roundings of O(1) numbers, as in the reference expression itself
     np.testing.assert_allclose(lin["f"], [[0.1 * -0.58 + 1 + 0.2 * 0.2]], rtol=1e-15)
     np.testing.assert_allclose(lin["F_x"], [[1 + 0.2 * -0.58]], rtol=1e-15)
     np.testing.assert_allclose(lin["F_theta"], [[0.1, 0.2]], rtol=1e-15)
@@ -174,7 +175,7 @@ def test_simulation_follows_the_model_and_the_time_convention() -> None:
     for k in range(T - 1):
         a, b = theta[k]
         ref.append(0.1 * a * ref[-1] ** 2 + ref[-1] + 0.1 * b * u[k, 0])
-    np.testing.assert_allclose(x[:, 0], ref, rtol=1e-14)
+    np.testing.assert_allclose(x[:, 0], ref, rtol=1e-14)  # same recursion; CasADi may order the sum differently
     assert y.shape == (T, 1)
     # the noise is e ~ N(0, 0.01): 50 samples have sd within a factor 2 of 0.1 (chance < 1e-9 otherwise)
     assert 0.05 < float(np.std(y[:, 0] - x[:, 0])) < 0.2

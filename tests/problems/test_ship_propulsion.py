@@ -28,7 +28,7 @@ def test_scenario_time_convention() -> None:
     # Q1 = 0: x(702) is the first state the new a changes
     a, b = sc.theta[701]
     x701 = sc.x[701, 0]
-    assert sc.x[702, 0] == pytest.approx(0.1 * a * x701**2 + x701 + 0.1 * b * sc.u[701, 0], rel=1e-14)
+    assert sc.x[702, 0] == pytest.approx(0.1 * a * x701**2 + x701 + 0.1 * b * sc.u[701, 0], rel=1e-14)  # same formula
     free = sp.scenario(length=100, fault_time=None, seed=0)
     assert free.faulty == () and free.fault_time is None
 
