@@ -267,7 +267,7 @@ def test_isolation_and_fault_size_stay_latched(ship_design, ship_paper_run) -> N
 
 def test_payload_round_trip_rebuilds_the_identical_step(ship_design, ship_paper_run) -> None:
     """JSON text → rebuilt step: identical outputs bit for bit, and identical generated C."""
-    text = json.dumps(nafdf_payload(ship_design))
+    text = json.dumps(nafdf_payload(ship_design), allow_nan=False)  # strict JSON: no inf/NaN tokens
     payload = json.loads(text)
     rebuilt = nafdf_from_payload(payload)
     scen, out = ship_paper_run
@@ -288,5 +288,15 @@ def test_wind_turbine_payload_round_trip() -> None:
     from fdisyn.problems import wind_turbine_efficiency as wt
 
     dsg = wt.design()
-    rebuilt = nafdf_from_payload(json.loads(json.dumps(nafdf_payload(dsg))))
+    rebuilt = nafdf_from_payload(json.loads(json.dumps(nafdf_payload(dsg), allow_nan=False)))
+    assert rebuilt.step.serialize() == dsg.step.serialize()
+
+
+def test_payload_with_unbounded_parameters_and_the_beta0_rule() -> None:
+    dsg = nafdf(sp.plant(), x0=[0.0], P0=100.0, threshold_rule="beta0", beta0=0.01)
+    payload = json.loads(json.dumps(nafdf_payload(dsg), allow_nan=False))
+    assert payload["settings"]["theta_lower"] == [None, None]  # −inf has no JSON token
+    rebuilt = nafdf_from_payload(payload)
+    assert np.all(np.isneginf(rebuilt.settings.theta_lower))
+    np.testing.assert_array_equal(rebuilt.thresholds, dsg.thresholds)
     assert rebuilt.step.serialize() == dsg.step.serialize()
