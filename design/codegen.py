@@ -58,6 +58,8 @@ def compiler() -> str:
 
 
 def _c_double(x: float) -> str:
+    if np.isinf(x):
+        return "INFINITY" if x > 0 else "-INFINITY"
     s = repr(float(x))
     return s if any(ch in s for ch in ".eEn") else s + ".0"
 

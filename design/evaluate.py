@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 import sys
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -65,7 +65,10 @@ def recovery_samples(gf: GainFile) -> int:
 
     ``ceil(ln 1e-8 / ln ρ)`` with ``ρ`` the largest spectral radius of the
     generators' ``Ar``; after that the statistics no longer carry the fault.
+    Other kinds state theirs in ``extensions[kind]["recovery_samples"]``.
     """
+    if gf.kind != "linear":
+        return int(gf.extensions.get(gf.kind, {}).get("recovery_samples", 0))
     rho = max((float(np.max(np.abs(np.linalg.eigvals(g.Ar)))) for g in gf.generators if g.n_state), default=0.0)
     if rho <= 0.0:
         return 1
@@ -137,21 +140,26 @@ def evaluate(
         assert t is not None and active is not None
         for dname, b in built.items():
             gf = b.gain_file
-            fidx = gf.faults.index(sc.fault) if sc.fault is not None else None
-            metrics[dname][sname] = scenario_metrics(
+            # a fault outside the gain file's classes (e.g. two parameters at once) has no single index
+            fidx = gf.faults.index(sc.fault) if sc.fault in gf.faults else None
+            stacked = {k: np.stack(v) for k, v in acc[dname].items()}
+            m = scenario_metrics(
                 scenario=sname,
                 fault=sc.fault,
                 fault_index=fidx,
                 active=active,
-                alarm=np.stack(acc[dname]["alarm"]),
-                isolated=np.stack(acc[dname]["isolated"]),
-                J=np.stack(acc[dname]["J"]),
+                alarm=stacked["alarm"],
+                isolated=stacked["isolated"],
+                J=stacked["J"],
                 thresholds=list(gf.thresholds),
                 P_f=[e.P_f for e in gf.evaluators],
                 Ts=gf.Ts,
                 recovery=recovery_samples(gf),
                 nonfinite=nonfinite[dname],
             )
+            if problem.extra_metrics is not None:
+                m = replace(m, extra=dict(problem.extra_metrics(sc, gf, stacked)))
+            metrics[dname][sname] = m
     return Evaluation(
         problem=problem.name,
         runs=runs,

@@ -29,8 +29,9 @@ statistic exceedance
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from dataclasses import asdict, dataclass
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass, field
+from typing import Any
 
 import numpy as np
 import scipy.stats
@@ -67,6 +68,8 @@ class ScenarioMetrics:
     statistic_exceedance_interval: list[tuple[float, float]]
     fault_free_samples: int
     nonfinite_samples: int
+    extra: Mapping[str, Any] = field(default_factory=dict)
+    """Problem-specific figures (``Problem.extra_metrics``)."""
 
     def to_dict(self) -> dict[str, object]:
         return asdict(self)

@@ -102,6 +102,10 @@ class Problem:
     """Extra report variants: ``{"label", "options", "scenarios"}`` (e.g. another parameter set)."""
     notes: Sequence[str] = ()
     """Modelling choices the sources left open, stated in the report."""
+    extra_metrics: Callable[..., Mapping[str, Any]] | None = None
+    """Problem-specific Monte Carlo figures of one scenario:
+    ``extra_metrics(scenario, gain_file, runs)`` with ``runs`` holding the stacked
+    per-run outputs (``alarm``, ``isolated``: runs × N; ``J``: runs × N × nj)."""
 
     def design(self, name: str | None = None, **options: Any) -> GainFile:
         key = name or self.default_design

@@ -107,7 +107,8 @@ _REL = {"<=": "≤", ">=": "≥"}
 
 def _certificate_table(gf: Any) -> str:
     """One row per check, one value column per generator (banks repeat their checks)."""
-    certs = gf.certificate["generators"]
+    linear = gf.kind == "linear"
+    certs = gf.certificate["generators"] if linear else [gf.certificate[gf.kind]]
     names: list[str] = []
     for c in certs:
         for chk in c["checks"]:
@@ -127,11 +128,13 @@ def _certificate_table(gf: Any) -> str:
                 first["reason"],
             ]
         )
-    head = ["check", *(g.name for g in gf.generators), "bound", "", "reason for the bound"]
+    head = ["check", *((g.name for g in gf.generators) if linear else [gf.design]), "bound", "", "reason for the bound"]
     return table(head, rows, left=1).replace("<td>" + "reason", "<td class=\"l\">reason")
 
 
 def _designs_section(variant: Any) -> str:
+    if any(b.gain_file.kind != "linear" for b in variant.built.values()):
+        return _other_designs_section(variant)
     out = []
     rows = []
     for d, b in variant.built.items():
@@ -171,6 +174,20 @@ def _designs_section(variant: Any) -> str:
                 "(<code>sqrt(J_th / gᵀWg)</code>, sensor units; — : sensor not used).</p>"
             )
             out.append(table(["generator", *sensors], [[g, *(row.get(s) for s in sensors)] for g, row in mdb.items()]))
+    return "".join(out)
+
+
+def _other_designs_section(variant: Any) -> str:
+    out = []
+    for d, b in variant.built.items():
+        gf = b.gain_file
+        st = gf.step
+        out.append(
+            f"<h4>{html.escape(d)} ({html.escape(gf.kind)}, gain file {html.escape(gf.name)})</h4>"
+            f'<p class="small">{st.nu} inputs, {st.ny} outputs, {st.nr} residual components, {st.nj} statistics, '
+            f"a state vector of {st.nstate} numbers; faults: {html.escape(', '.join(gf.faults))}.</p>"
+        )
+        out.append(_certificate_table(gf))
     return "".join(out)
 
 
@@ -238,6 +255,12 @@ def _metrics_section(variant: Any) -> str:
         "missed detection = runs without any alarm while the fault is active; delay from onset to the first alarm; "
         "isolation accuracy = runs whose most frequent isolated fault during the fault is the true one.</p>"
     )
+    extra_keys = sorted({k for d in designs for s in scen for k in ev.metrics[d][s].extra})
+    if extra_keys:
+        rows = [[s, d, *(ev.metrics[d][s].extra.get(k) for k in extra_keys)] for s in scen for d in designs]
+        out.append("<h4>Problem-specific figures</h4>" + table(["scenario", "design", *extra_keys], rows, left=2))
+    if any(variant.built[d].gain_file.kind != "linear" for d in designs):
+        return "".join(out)
     rows = []
     for d in designs:
         m = ev.metrics[d][scen[0]]

@@ -16,6 +16,7 @@ Other diagnoser kinds register a builder with :func:`register_step_builder`.
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Callable
 
 import casadi as ca
@@ -30,6 +31,8 @@ STEP_INPUTS = ("state", "u", "y")
 STEP_OUTPUTS = ("state_next", "r", "J", "alarm", "isolated", "status")
 
 _BUILDERS: dict[str, Callable[[GainFile], ca.Function]] = {}
+_BUILDER_MODULES = {"nafdf": "fdisyn.design.nafdf"}
+"""Kinds whose builder registers itself when its module is imported (on demand)."""
 
 
 def register_step_builder(kind: str, builder: Callable[[GainFile], ca.Function]) -> None:
@@ -39,6 +42,8 @@ def register_step_builder(kind: str, builder: Callable[[GainFile], ca.Function])
 
 def step_function(gf: GainFile) -> ca.Function:
     """The CasADi step of any diagnoser kind, built from its gain file alone."""
+    if gf.kind not in _BUILDERS and gf.kind in _BUILDER_MODULES:
+        importlib.import_module(_BUILDER_MODULES[gf.kind])
     try:
         builder = _BUILDERS[gf.kind]
     except KeyError:

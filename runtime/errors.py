@@ -56,3 +56,23 @@ class SpecError(FdisynError, ValueError):
 
 class BuildError(FdisynError, OSError):
     """Compiling or loading generated C failed."""
+
+
+class NominalValueError(SpecError):
+    """A model parameter has no (finite) nominal value.
+
+    The nonlinear adaptive fault-detection filter (seed 001) runs its EKF on
+    the nominal model, so every parameter ``θ_i`` needs one. The message names
+    the parameters without a value and the ones that were given.
+    """
+
+
+class NonDifferentiableError(SpecError):
+    """A model expression uses an operation without a derivative everywhere.
+
+    Every Jacobian and parameter sensitivity of a nonlinear plant comes from
+    automatic differentiation; ``abs``, ``min``/``max``, comparisons,
+    ``floor``, ``if_else`` and the like have kinks or jumps where the
+    linearisation is undefined. The message names the operation and where it
+    occurs.
+    """

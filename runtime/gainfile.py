@@ -149,10 +149,15 @@ class GainFile:
 
     @property
     def thresholds(self) -> np.ndarray:
-        """One threshold per statistic (linear kind; else from ``extensions``)."""
+        """One alarm threshold per statistic; ``inf`` where a statistic has no fixed one.
+
+        Linear kind: the evaluators' χ² thresholds. Other kinds list theirs in
+        ``extensions[kind]["thresholds"]`` (``null`` for none).
+        """
         if self.kind == "linear":
             return np.array([e.threshold for e in self.evaluators], dtype=float)
-        return np.asarray(self.extensions.get(self.kind, {}).get("thresholds", [math.inf] * self.step.nj), dtype=float)
+        listed = self.extensions.get(self.kind, {}).get("thresholds") or [None] * self.step.nj
+        return np.array([math.inf if v is None else float(v) for v in listed], dtype=float)
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON document (plain lists, floats, strings)."""

@@ -94,7 +94,8 @@ def test_toml_rank_condition_failure_is_reported(tmp_path, capsys):
 
 def test_unknown_problem_lists_the_problems(capsys):
     assert main(["design", "windturbine", "--out", "/nonexistent"]) == 2
-    assert "no built-in problem 'windturbine'; problems: ['wind_turbine'" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "no built-in problem 'windturbine'; problems: [" in err and "'wind_turbine'" in err
 
 
 def test_codegen_refuses_a_gain_file_of_another_version(tmp_path, capsys):

@@ -1,0 +1,598 @@
+"""Ship propulsion (seed 001, section 3, eq. (3.1)): a parameter-jump plant for the NAFDF.
+
+    x(t+1) = 0.1 a x(t)² + x(t) + 0.1 b u(t) + v(t),     v ~ N(0, Q1), Q1 = 0
+    y(t)   = x(t) + e(t),                                 e ~ N(0, Q2), Q2 = 0.01
+
+``a`` is the hull resistance (nominal ``a0 = −0.58``), ``b`` the engine
+efficiency (``b0 = 0.2``); ``x(0) = 0``. Signals: input ``u``, output ``y``;
+parameters (and the gain file's faults) ``a`` and ``b``. The paper's fault:
+``a → a0/2`` from ``t = 701``.
+
+Time convention: row ``k`` of a scenario's parameter trajectory is the
+parameter of the transition ``x(k) → x(k+1)``; a fault "at ``t_f``" acts
+from that transition on, so ``y(t_f + 1)`` is the first measurement it
+changes. The diagnoser's step at sample ``k`` takes ``(u(k), y(k))``; the
+detection delay is ``(first alarm at or after t_f) − t_f``.
+
+The input (the paper does not give one): a square wave between ``u = 1`` and
+``u = 9`` with period 50 samples (25 high, 25 low), starting high. It is
+persistently exciting of every order below 50 in the sense of Ljung (its
+spectrum has lines at all odd harmonics of 1/50), it keeps ``x > 0`` where
+the model is stable (``∂f/∂x = 1 + 0.2 a x < 1``), and its swing between
+``x ≈ 0.42`` and ``x ≈ 1.25`` decorrelates the regressors ``x²`` (of ``a``)
+and ``u`` (of ``b``): over 500 samples the Cramér–Rao bound is
+``sd(â) ≈ 0.009``, ``sd(b̂) ≈ 0.003`` (correlation −0.9), against
+``0.026``/``0.008`` (correlation −0.97) for a sum of two sines around 2.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from fdisyn.design.nafdf import NafdfDesign, nafdf, nafdf_gain_file
+from fdisyn.design.nonlinear import NonlinearPlant
+from fdisyn.design.problem import Batch, Problem
+from fdisyn.design.problem import Scenario as PipelineScenario
+from fdisyn.design.report import ReportContext, plt, shade, table, timeline
+from fdisyn.runtime.errors import SpecError
+from fdisyn.runtime.gainfile import GainFile
+
+__all__ = [
+    "PROBLEM",
+    "FAULT_TIME",
+    "NOMINAL",
+    "PAPER",
+    "Record",
+    "design",
+    "input_signal",
+    "monte_carlo",
+    "plant",
+    "reproduce_paper",
+    "run_metrics",
+    "scenario",
+    "standard_scenarios",
+]
+
+NOMINAL: Mapping[str, float] = {"a": -0.58, "b": 0.2}
+"""Nominal parameters ``a0``, ``b0`` (seed 001, section 3)."""
+
+FAULT_TIME = 701
+"""The paper's fault time: ``a → a0/2`` from ``t = 701``."""
+
+PAPER: Mapping[str, object] = {
+    "detection_time": 712,
+    "nf_reset_time": 712,
+    "ekf_reset_time": 1000,
+    "isolation_time": 1000,
+    "isolated": "a",
+    "nf_estimates_at_ekf_reset": {"a": -0.291023, "b": 0.1985612},
+    "fault_size_a": 0.2891,
+    "true_fault_size_a": 0.29,
+    "beta0": 0.01,
+    "W1": 50.0,
+    "W2": 350.0,
+    "T1": 50,
+}
+"""What seed 001 reports for its fault scenario (section 3, figs. 3–4)."""
+
+# The paper's filter initialisation (section 3).
+X0 = 0.0
+THETA0_HAT = (0.0, 0.0)
+P0 = 100.0
+R0 = ((100.0, 5.0), (5.0, 10.0))
+
+
+def plant() -> NonlinearPlant:
+    """Eq. (3.1) as a :class:`NonlinearPlant`, built from expression strings."""
+    return NonlinearPlant.from_expressions(
+        states=["x"],
+        inputs=["u"],
+        outputs=["y"],
+        parameters=["a", "b"],
+        nominal=dict(NOMINAL),
+        f={"x": "0.1*a*x^2 + x + 0.1*b*u"},
+        h={"y": "x"},
+        Q1=0.0,
+        Q2=0.01,
+    )
+
+
+def input_signal(length: int, *, low: float = 1.0, high: float = 9.0, period: int = 50) -> np.ndarray:
+    """The documented persistently exciting input (module docstring), shape ``(length, 1)``."""
+    k = np.arange(int(length))
+    return np.where((k % period) < period // 2, high, low).astype(float)[:, None]
+
+
+@dataclass(frozen=True, eq=False)
+class Record:
+    """One simulated run: inputs, true states and parameters, measurements and the fault."""
+
+    name: str
+    u: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+    theta: np.ndarray
+    """True parameters per transition, shape ``(T, 2)``."""
+    fault_time: int | None
+    faulty: tuple[str, ...]
+    """Names of the parameters that jump (empty: fault-free)."""
+    fault_size: Mapping[str, float]
+    """``θ_faulty − θ_nominal`` per jumping parameter."""
+
+
+def scenario(
+    *,
+    length: int = 2000,
+    fault_time: int | None = FAULT_TIME,
+    scale: Mapping[str, float] | None = None,
+    seed: int,
+    name: str | None = None,
+) -> Record:
+    """Simulate eq. (3.1) with parameter jumps ``θ_i → scale_i · θ_i0`` from ``fault_time``.
+
+    ``scale=None`` or ``{}`` (or ``fault_time=None``) is the fault-free run;
+    the paper's scenario is ``scale={"a": 0.5}``.
+    """
+    pl = plant()
+    sc = dict(scale or {})
+    unknown = sorted(set(sc) - set(pl.parameters))
+    if unknown:
+        raise SpecError(f"scale names unknown parameters {unknown}; parameters are {list(pl.parameters)}")
+    T = int(length)
+    theta = np.tile(pl.theta_nominal, (T, 1))
+    tf = None if fault_time is None else int(fault_time)
+    faulty = tuple(k for k in pl.parameters if k in sc and sc[k] != 1.0) if tf is not None else ()
+    sizes: dict[str, float] = {}
+    if faulty and tf is not None:
+        if not 0 < tf < T:
+            raise SpecError(f"fault_time must lie inside the record (0, {T}); got {fault_time}")
+        for k in faulty:
+            i = pl.parameters.index(k)
+            theta[tf:, i] = sc[k] * pl.theta_nominal[i]
+            sizes[k] = float((sc[k] - 1.0) * pl.theta_nominal[i])
+    u = input_signal(T)
+    x, y = pl.simulate(x0=[X0], u=u, theta=theta, rng=np.random.default_rng(seed))
+    label = name or ("fault_free" if not faulty else "+".join(f"{k}x{sc[k]:g}" for k in faulty))
+    return Record(
+        name=label,
+        u=u,
+        x=x,
+        y=y,
+        theta=theta,
+        fault_time=tf if faulty else None,
+        faulty=faulty,
+        fault_size=sizes,
+    )
+
+
+STANDARD_FAULTS: Sequence[tuple[str, Mapping[str, float]]] = (
+    ("paper_a_half", {"a": 0.5}),
+    ("a_x0.7", {"a": 0.7}),
+    ("a_x1.5", {"a": 1.5}),
+    ("b_x0.5", {"b": 0.5}),
+    ("b_x0.7", {"b": 0.7}),
+    ("b_x1.5", {"b": 1.5}),
+    ("both_a0.5_b0.7", {"a": 0.5, "b": 0.7}),
+    ("both_a1.5_b1.5", {"a": 1.5, "b": 1.5}),
+)
+"""Fault scenarios beyond the paper's: jumps in ``a``, in ``b`` and in both, of several sizes."""
+
+
+def standard_scenarios(*, seed: int, length: int = 2000, fault_free_length: int = 10_000) -> list[Record]:
+    """The paper's scenario, the other faults of :data:`STANDARD_FAULTS`, and a long fault-free run."""
+    out = [scenario(length=length, scale=sc, seed=seed + i, name=nm) for i, (nm, sc) in enumerate(STANDARD_FAULTS)]
+    out.append(scenario(length=fault_free_length, fault_time=None, seed=seed + len(STANDARD_FAULTS), name="fault_free"))
+    return out
+
+
+def design(*, false_alarm_probability: float = 1e-4, window: int = 10) -> NafdfDesign:
+    """The recommended NAFDF for this plant (every number below is a documented choice).
+
+    * The paper's initialisation: ``x̂(0) = 0``, ``θ̂(0) = [0, 0]``,
+      ``P(0) = 100``, ``R(0) = [[100, 5], [5, 10]]``; ``W1 = 50``,
+      ``W2 = 350``, ``T1 = 50``.
+    * WSSR window ``N = 10`` and ``P_f = 1e-4`` per sample: the paper's
+      ``β0 = 0.01`` cannot be a threshold on (2.4) as printed, whose H0 mean
+      is ``p = 1`` (it would alarm on almost every sample), so the threshold is the χ² quantile ``χ²_{1−P_f}(10)/10 = 3.56``.
+    * ``λ∞ = 0.99`` (a memory of ~100 samples): the NF estimate is then a
+      stationary process once converged, so the spread over ``N1`` samples
+      (2.6) measures the same thing as the spread of a re-converged estimate,
+      which is what the classifier (2.7) compares; with ``a(t) ~ 1/t`` the
+      nominal spread would shrink forever and every re-estimate would look
+      like a fault.
+    * ``N1 = 300`` (three memory lengths of the NF, so that ``σ̂²_0`` is the
+      stationary spread, not a short-term one; the NF first converges after
+      150–330 samples, so learning ends before the fault at 701), ``N2 = 50``;
+      convergence: range of ``â`` over 50 samples
+      ≤ 0.03 and of ``b̂`` ≤ 0.01 (5 % of the nominal values, ~2 standard
+      deviations of the converged estimate).
+    * Parameter box ``a ∈ [−10, 0]`` (a resistance), ``b ∈ [0, 10]`` (an
+      efficiency): the projection of the RPE step.
+    """
+    return nafdf(
+        plant(),
+        x0=[X0],
+        P0=P0,
+        theta0=THETA0_HAT,
+        R0=R0,
+        window=window,
+        false_alarm_probability=false_alarm_probability,
+        forgetting_final=0.99,
+        theta_lower=[-10.0, 0.0],
+        theta_upper=[0.0, 10.0],
+        nominal_samples=300,
+        classifier_window=50,
+        W1=50.0,
+        W2=350.0,
+        T1=50,
+        convergence_tolerance=[0.03, 0.01],
+    )
+
+
+def run_metrics(dsg: NafdfDesign, scen: Record, out: Mapping[str, np.ndarray] | None = None) -> dict[str, Any]:
+    """Detection, isolation, fault size and re-tracking of one run (``out`` from ``dsg.run`` or recomputed)."""
+    res = dict(out) if out is not None else dsg.run(u=scen.u, y=scen.y)
+    alarm, iso, J, states = res["alarm"], res["isolated"], res["J"], res["state"]
+    jn = list(dsg.J_names)
+    off = dsg.layout.offsets()
+
+    def column(name: str) -> np.ndarray:
+        return states[:, off[name][0]]
+
+    def events(name: str) -> list[int]:
+        c = np.concatenate([[0.0], column(name)])
+        return [int(t) for t in np.flatnonzero(np.diff(c) > 0)]
+
+    tf = scen.fault_time
+    before = alarm if tf is None else alarm[:tf]
+    onsets = np.flatnonzero(np.diff(np.concatenate([[0.0], before])) > 0)
+    reparam = events("ekf_reparameterisations")
+    last = dsg.unpack_state(states[-1])
+    m: dict[str, Any] = {
+        "scenario": scen.name,
+        "samples": len(alarm),
+        "false_alarm_samples": int(before.sum()),
+        "false_alarm_episodes": int(onsets.size),
+        "nf_resets": events("alarm_resets"),
+        "ekf_reparameterisations": reparam,
+        "divergence_resets": int(last["ekf_divergence_resets"] + last["nf_divergence_resets"]),
+    }
+    first_iso = np.flatnonzero(iso >= 0)
+    m["isolated"] = None if not first_iso.size else dsg.fault_names[int(iso[first_iso[0]])]
+    m["isolation_time"] = None if not first_iso.size else int(first_iso[0])
+    m["fault_class"] = {q: int(np.atleast_1d(last["fault_class"])[i]) for i, q in enumerate(dsg.fault_names)}
+    m["fault_size"] = {q: float(J[-1, jn.index(f"fault_size_{q}")]) for q in dsg.fault_names}
+    m["nf_theta_final"] = {q: float(np.atleast_1d(last["nf_theta"])[i]) for i, q in enumerate(dsg.fault_names)}
+    m["ekf_theta_final"] = {q: float(np.atleast_1d(last["ekf_theta"])[i]) for i, q in enumerate(dsg.fault_names)}
+    if tf is not None:
+        det = np.flatnonzero(alarm[tf:])
+        m["detection_time"] = None if not det.size else int(tf + det[0])
+        m["detection_delay"] = None if not det.size else int(det[0])
+        after = [t for t in reparam if t >= tf]
+        if after:
+            t_r = after[0]
+            m["ekf_reparameterisation_time"] = t_r
+            m["nf_theta_at_reparameterisation"] = {
+                q: float(np.atleast_1d(dsg.unpack_state(states[t_r])["ekf_theta"])[i]) for i, q in enumerate(dsg.fault_names)
+            }
+            # re-tracking: the re-parameterised EKF's innovations are back to the noise level
+            tail = res["r"][t_r + dsg.settings.window :, 0]
+            m["ekf_innovation_rms_after"] = float(np.sqrt(np.mean(tail**2))) if tail.size else None
+            m["wssr_alarm_fraction_after"] = float(np.mean(alarm[t_r + 1 :])) if t_r + 1 < len(alarm) else None
+    return m
+
+
+def reproduce_paper(*, seed: int = 1, length: int = 2000) -> dict[str, Any]:
+    """The paper's scenario (``a → a0/2`` at 701) through the recommended design, beside the paper's numbers."""
+    dsg = design()
+    scen = scenario(length=length, scale={"a": 0.5}, seed=seed, name="paper_a_half")
+    m = run_metrics(dsg, scen)
+    m["true_fault_size"] = dict(scen.fault_size)
+    m["paper"] = dict(PAPER)
+    return m
+
+
+def monte_carlo(
+    *,
+    seeds: Sequence[int] = tuple(range(100)),
+    fault_free_length: int = 20_000,
+    length: int = 2000,
+    faults: Sequence[tuple[str, Mapping[str, float]]] = STANDARD_FAULTS,
+) -> dict[str, object]:
+    """Monte Carlo over ``seeds``: false alarms, detection delays, isolation accuracy, fault-size error.
+
+    For each seed: one fault-free run of ``fault_free_length`` samples and one
+    run per fault of ``faults`` (fault at :data:`FAULT_TIME`). Returns per-fault
+    and fault-free summaries (distributions as sorted lists and quantiles).
+    """
+    dsg = design()
+    ff_alarm_samples = 0
+    ff_episodes = []
+    ff_wrong_isolations = 0
+    ff_samples = 0
+    per_fault: dict[str, dict[str, list]] = {
+        nm: {"delay": [], "isolated": [], "size_err": [], "iso_time": [], "classes_exact": []} for nm, _ in faults
+    }
+    for sd in seeds:
+        ff = scenario(length=fault_free_length, fault_time=None, seed=10_000 + int(sd), name="fault_free")
+        mff = run_metrics(dsg, ff)
+        ff_alarm_samples += int(mff["false_alarm_samples"])
+        ff_episodes.append(int(mff["false_alarm_episodes"]))
+        ff_samples += int(mff["samples"])
+        ff_wrong_isolations += int(mff["isolated"] is not None)
+        for j, (nm, sc) in enumerate(faults):
+            scen = scenario(length=length, scale=sc, seed=1_000_000 * (j + 1) + int(sd), name=nm)
+            m = run_metrics(dsg, scen)
+            rec = per_fault[nm]
+            rec["delay"].append(m.get("detection_delay"))
+            rec["isolated"].append(m["isolated"])
+            rec["iso_time"].append(m["isolation_time"])
+            # every jumping parameter classified (class ≥ 1) and no other one
+            rec["classes_exact"].append(all((m["fault_class"][q] > 0) == (q in scen.faulty) for q in dsg.fault_names))
+            iso = m["isolated"]
+            rec["size_err"].append(
+                None if iso is None or iso not in scen.fault_size else float(m["fault_size"][iso] - scen.fault_size[iso])
+            )
+    summary: dict[str, object] = {
+        "seeds": len(seeds),
+        "fault_free": {
+            "samples": ff_samples,
+            "alarm_sample_rate": ff_alarm_samples / max(ff_samples, 1),
+            "false_alarm_episodes_per_10k": 1e4 * sum(ff_episodes) / max(ff_samples, 1),
+            "runs_without_false_alarm": int(sum(e == 0 for e in ff_episodes)),
+            "runs_with_an_isolation": ff_wrong_isolations,
+            "false_alarm_probability_design": dsg.settings.false_alarm_probability,
+        },
+    }
+    faults_out: dict[str, object] = {}
+    for nm, sc in faults:
+        rec = per_fault[nm]
+        delays = np.array([d for d in rec["delay"] if d is not None], dtype=float)
+        truth = sorted(k for k, v in sc.items() if v != 1.0)
+        iso = rec["isolated"]
+        errs = np.array([e for e in rec["size_err"] if e is not None], dtype=float)
+        iso_t = np.array([t for t in rec["iso_time"] if t is not None], dtype=float)
+        faults_out[nm] = {
+            "scale": dict(sc),
+            "detected": int(delays.size),
+            "delay_quantiles_5_50_95": np.quantile(delays, [0.05, 0.5, 0.95]).tolist() if delays.size else None,
+            "delay_mean": float(delays.mean()) if delays.size else None,
+            "isolated_correct": int(sum(i in truth for i in iso)),
+            "isolated_wrong": int(sum(i is not None and i not in truth for i in iso)),
+            "not_isolated": int(sum(i is None for i in iso)),
+            "isolation_time_median": float(np.median(iso_t)) if iso_t.size else None,
+            "all_classes_correct": int(sum(rec["classes_exact"])),
+            "size_error_mean": float(errs.mean()) if errs.size else None,
+            "size_error_sd": float(errs.std(ddof=1)) if errs.size > 1 else None,
+            "size_error_abs_95": float(np.quantile(np.abs(errs), 0.95)) if errs.size else None,
+        }
+    summary["faults"] = faults_out
+    return summary
+
+
+# --------------------------------------------------------------------------- the pipeline's problem
+
+RECORD_LENGTH = 2000
+"""Samples of a faulty run (the paper plots 0–2000)."""
+FAULT_FREE_LENGTH = 20_000
+"""Samples of the long fault-free run used for false alarms."""
+
+
+def _pipeline_scenarios() -> dict[str, PipelineScenario]:
+    out = {
+        "fault_free": PipelineScenario(
+            "fault_free", f"No fault, {FAULT_FREE_LENGTH} samples: false alarms and wrong isolations.", float(FAULT_FREE_LENGTH)
+        )
+    }
+    for nm, sc in STANDARD_FAULTS:
+        jumping = [k for k, v in sc.items() if v != 1.0]
+        what = ", ".join(f"{k} → {v:g}·{k}0" for k, v in sc.items())
+        paper = " (the paper's fault)" if nm == "paper_a_half" else ""
+        out[nm] = PipelineScenario(
+            nm,
+            f"{what} from t = {FAULT_TIME}{paper}.",
+            float(RECORD_LENGTH),
+            fault="+".join(jumping),
+            onset=float(FAULT_TIME),
+            params={"scale": dict(sc)},
+        )
+    return out
+
+
+def _simulate(sc: PipelineScenario, seeds: Sequence[int], **_options: object) -> Batch:
+    """Eq. (3.1) for each seed (the documented square-wave input), stacked for the pipeline."""
+    recs = [
+        scenario(
+            length=int(sc.duration),
+            fault_time=FAULT_TIME if sc.fault else None,
+            scale=sc.params.get("scale"),
+            seed=int(s),
+            name=sc.name,
+        )
+        for s in seeds
+    ]
+    theta = np.stack([r.theta for r in recs])
+    return Batch(
+        scenario=sc,
+        seeds=tuple(int(s) for s in seeds),
+        t=np.arange(int(sc.duration), dtype=float),
+        inputs=("u",),
+        outputs=("y",),
+        U=np.stack([r.u for r in recs]),
+        Y=np.stack([r.y for r in recs]),
+        extra={"x": np.stack([r.x[:, 0] for r in recs]), "a": theta[:, :, 0], "b": theta[:, :, 1]},
+    )
+
+
+def _gain_file(*, P_f: float = 1e-4, window: int = 10, **_options: object) -> GainFile:
+    return nafdf_gain_file(
+        design(false_alarm_probability=P_f, window=window),
+        problem="ship_propulsion",
+        options={"P_f": P_f, "window": window},
+    )
+
+
+def _extra_metrics(sc: PipelineScenario, gf: GainFile, runs: Mapping[str, np.ndarray]) -> dict[str, float | None]:
+    """Fault-size error, parameter classes, isolation time; wrong isolations when fault-free."""
+    names = list(gf.step.statistic_names)
+    jj, iso, alarm = runs["J"], runs["isolated"], runs["alarm"]
+    last = jj[:, -1, :]
+    if not sc.fault:
+        onsets = np.sum(np.diff(alarm, axis=1, prepend=0) > 0)
+        return {
+            "runs with an isolation": float(np.mean(np.any(iso >= 0, axis=1))),
+            "alarm episodes per 10k samples": float(1e4 * onsets / alarm.size),
+        }
+    scale = dict(sc.params["scale"])
+    jumping = [q for q, v in scale.items() if v != 1.0]
+    out: dict[str, float | None] = {}
+    classes = np.stack([last[:, names.index(f"fault_class_{q}")] for q in gf.faults], axis=1)
+    exact = np.all((classes > 0) == np.array([q in jumping for q in gf.faults])[None, :], axis=1)
+    out["all parameter classes correct"] = float(np.mean(exact))
+    onset = int(sc.onset or 0)
+    first = [int(np.argmax(row[onset:] >= 0)) if np.any(row[onset:] >= 0) else None for row in iso]
+    found = [f for f in first if f is not None]
+    out["isolation delay median (samples)"] = float(np.median(found)) if found else None
+    for q in jumping:
+        true = (scale[q] - 1.0) * NOMINAL[q]
+        sel = last[:, names.index(f"fault_class_{q}")] > 0
+        err = last[sel, names.index(f"fault_size_{q}")] - true
+        out[f"size error {q}: mean"] = float(err.mean()) if err.size else None
+        out[f"size error {q}: sd"] = float(err.std(ddof=1)) if err.size > 1 else None
+    return out
+
+
+def _report(ctx: ReportContext) -> list[tuple[str, str]]:
+    """The paper's numbers beside fdisyn's (seeds 1–3), and figures of run 0 of the paper's fault."""
+    dsg = design()
+    rows = []
+    for seed in (1, 2, 3):
+        m = reproduce_paper(seed=seed)
+        theta = m.get("nf_theta_at_reparameterisation") or {}
+        rows.append(
+            [
+                f"seed {seed}",
+                m.get("detection_time"),
+                m.get("ekf_reparameterisation_time"),
+                theta.get("a"),
+                theta.get("b"),
+                f"{m['isolated']} at {m['isolation_time']}" if m["isolated"] else "none",
+                m["fault_size"]["a"],
+                m.get("ekf_innovation_rms_after"),
+            ]
+        )
+    paper_row = [
+        "paper",
+        PAPER["detection_time"],
+        PAPER["ekf_reset_time"],
+        PAPER["nf_estimates_at_ekf_reset"]["a"],  # type: ignore[index]
+        PAPER["nf_estimates_at_ekf_reset"]["b"],  # type: ignore[index]
+        f"{PAPER['isolated']} at {PAPER['isolation_time']}",
+        PAPER["fault_size_a"],
+        None,
+    ]
+    head = ["run", "detection", "EKF re-parameterised", "â then", "b̂ then", "isolated", "Δâ (true 0.29)", "EKF innovation rms after"]
+    sections = [
+        (
+            "The paper's fault (a → a0/2 at t = 701) beside fdisyn",
+            "<p>Three seeds through the recommended design (CasADi reference); the Monte Carlo below runs the "
+            "generated C.</p>" + table(head, [paper_row, *rows], left=1),
+        )
+    ]
+    v = ctx.variants[0]
+    ex, bt = v.evaluation.examples.get("nafdf", {}), v.evaluation.batches
+    if "paper_a_half" in ex and "paper_a_half" in bt:
+        res, b = ex["paper_a_half"], bt["paper_a_half"]
+        names = list(v.built["nafdf"].gain_file.step.statistic_names)
+        col = {nm: res.J[:, i] for i, nm in enumerate(names)}
+        t = b.t
+        fig, axes = plt.subplots(3, 1, figsize=(9, 7.5), sharex=True)
+        ax = axes[0]
+        for q, color in (("a", "tab:blue"), ("b", "tab:orange")):
+            ax.plot(t, col[f"theta_hat_{q}"], color=color, lw=0.8, label=f"NF estimate of {q}")
+            ax.plot(t, b.extra[q][0], color=color, ls="--", lw=1.0, label=f"true {q}")
+        ax.set_ylim(-0.8, 0.4)
+        ax.legend(loc="lower right", fontsize=7, ncol=2)
+        ax.set_ylabel("parameter")
+        ax.grid(alpha=0.3)
+        timeline(axes[1], t, np.column_stack([col["wssr"]]), ["WSSR L(t)"])
+        axes[1].plot(t, col["wssr_threshold"], "k--", lw=0.8, label="threshold")
+        shade(axes[1], t, b.active)
+        axes[1].legend(loc="upper left", fontsize=7)
+        axes[1].set_xlabel("")
+        axes[1].set_ylabel("WSSR")
+        timeline(axes[2], t, np.column_stack([col["d_a"], col["d_b"]]), ["d_a", "d_b"])
+        axes[2].axhline(dsg.settings.W1, color="k", ls=":", lw=0.8, label="W1")
+        axes[2].axhline(dsg.settings.W2, color="k", ls="--", lw=0.8, label="W2")
+        axes[2].legend(loc="upper left", fontsize=7, ncol=4)
+        axes[2].set_ylabel("Bayes distance")
+        sections.append(
+            (
+                "Figures — the paper's fault",
+                ctx.figure(
+                    "nafdf_paper_fault",
+                    fig,
+                    "Run 0 of the paper's scenario through the generated C: the NF's parameter estimates against the "
+                    "truth (re-tracking after the reset), the WSSR statistic against its χ² threshold, and the "
+                    "classifier's distances against W1 and W2 (cf. seed 001, figs. 2–4).",
+                ),
+            )
+        )
+    return sections
+
+
+NOTES = (
+    "Input u (not given in the paper): a square wave between 1 and 9 with period 50 samples; over 500 samples its "
+    "Cramér–Rao standard deviations are 0.009 for a and 0.003 for b (a sum of two sines gives 0.026 and 0.008).",
+    "WSSR threshold: χ²_{1−P_f}(k·p)/k with k the samples in the window (exact while it refills), P_f = 1e-4 per "
+    "sample, window N = 10. The paper's β0 = 0.01 cannot be a threshold on (2.4) as printed: its fault-free mean is "
+    "p = 1, so it would alarm almost every sample; it remains available as the rule 'beta0'.",
+    "EKF: measurement update then prediction through f, Joseph-form covariance. All Jacobians and parameter "
+    "sensitivities come from CasADi AD.",
+    "NF (2.5) as a recursive prediction-error filter: Φ = (H_t W + ∂h/∂θ)ᵀ with the sensitivity recursion "
+    "W⁺ = (F_t − K H_t) W + ∂f/∂θ − K ∂h/∂θ (the ∂K/∂θ term dropped); a(t) the Ljung–Söderström gain "
+    "a/(a + λ) with forgetting growing from 0.95 to λ∞ = 0.99 (memory ~100 samples); β(t) = a(t) (Gauss–Newton "
+    "step); B_x = [(F_t − K H_t) W − K ∂h/∂θ]·Δθ̂; θ̂ projected onto a ∈ [−10, 0], b ∈ [0, 10].",
+    "λ∞ = 0.99 rather than a(t) ~ 1/t: with 1/t the nominal spread learned in (2.6) keeps shrinking while a "
+    "re-converged estimate starts fresh, so every re-estimate would look like a fault in (2.7).",
+    "NF converged: at least N2 = 50 updates since its reset, the range of â over 50 samples ≤ 0.03 and of b̂ ≤ 0.01, "
+    "and its own innovations passing a χ²(N2·p) test at 1e-3; it stays converged until the next reset.",
+    "Mutual re-initialisation: a WSSR alarm (outside an open alarm episode) resets the NF to θ̂(0), P(0), R(0); when "
+    "the NF converges inside the episode the EKF takes its θ̂, its state estimate (beyond the paper, which sets the "
+    "parameters and P(0) only) and P(0); the WSSR window is cleared and the episode closed.",
+    "Nominal statistics (2.6) from the first N1 = 300 converged fault-free samples; the classifier (2.7) with "
+    "N2 = 50, W1 = 50, W2 = 350, T1 = 50 isolates only within N2 + 2·T1 samples after an EKF re-parameterisation "
+    "(isolation follows a detection): without that gate a healthy run occasionally latched a false isolation.",
+    "After isolation the isolated index and the estimated fault sizes stay latched until the diagnoser is "
+    "re-initialised; 'isolated' reports the first parameter isolated (the lower index on a tie); a fault in both "
+    "parameters shows through the per-parameter classes among the statistics.",
+    "Time is counted in samples (Ts = 1). The alarm marks a detection episode: once the EKF has been "
+    "re-parameterised it fits the faulty plant and the alarm stops by design, so the generic 'missed-alarm "
+    "fraction' and 'sample isolation accuracy' columns do not apply to this diagnoser; detection, the latched "
+    "isolation and the fault-size error are its figures.",
+)
+
+PROBLEM = Problem(
+    name="ship_propulsion",
+    title="Ship propulsion: the nonlinear adaptive fault detection filter (NAFDF)",
+    summary=(
+        "An EKF with a WSSR detector, a recursive prediction-error joint state/parameter filter, a modified Bayes "
+        "classifier and their mutual re-initialisation, all derivatives by CasADi AD, exported as one C step "
+        "(seed 001, Zhou, Xi & Zhang). Plant x⁺ = 0.1 a x² + x + 0.1 b u + v, y = x + e; faults are jumps of the "
+        "hull resistance a and the engine efficiency b."
+    ),
+    designs={"nafdf": _gain_file},
+    default_design="nafdf",
+    scenarios=_pipeline_scenarios(),
+    simulate=_simulate,
+    options={"P_f": 1e-4, "window": 10},
+    reference=dict(PAPER),
+    monte_carlo_runs=100,
+    report=_report,
+    notes=NOTES,
+    extra_metrics=_extra_metrics,
+)

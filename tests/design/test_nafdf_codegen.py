@@ -1,0 +1,76 @@
+"""The NAFDF step as generated C: strict compilation, and C ≡ CasADi over long faulty runs."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+from fdisyn.problems import ship_propulsion as sp
+from fdisyn.problems import wind_turbine_efficiency as wt
+
+KEYS = ("state", "r", "J", "alarm", "isolated", "status")
+
+
+def max_scaled_gap(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> float:
+    """max |a − b| / max(1, |b|) over every output of every sample."""
+    return max(float(np.max(np.abs(a[k] - b[k]) / np.maximum(1.0, np.abs(b[k])))) for k in KEYS)
+
+
+@pytest.fixture(scope="module")
+def ship():
+    return sp.design()
+
+
+def test_ship_c_step_equals_casadi_over_a_5000_step_faulty_run(ship, c_compiler) -> None:
+    """C and the CasADi Function agree to ≤ 1e-10 (the issue's contract) over 5000 samples with the
+    paper's fault, a second fault in b, and non-finite samples. Both evaluate the same operation
+    sequence in IEEE double (no fast-math, no FMA contraction at -O2 on x86-64), so only libm's
+    log may differ, by an ulp, in the classifier statistic."""
+    T = 5000
+    scen = sp.scenario(length=T, scale={"a": 0.5}, seed=7)
+    theta = scen.theta.copy()
+    theta[3000:, 1] = 0.1  # b halves at 3000: a second episode after the first one is closed
+    x, y = sp.plant().simulate(x0=[0.0], u=scen.u, theta=theta, rng=np.random.default_rng(7))
+    y[[100, 1500, 2500], 0] = [np.nan, np.inf, -np.inf]
+    u = scen.u.copy()
+    u[2000, 0] = np.nan
+    ref = ship.run(u=u, y=y)
+    cstep = c_compiler(ship.step)
+    t0 = time.perf_counter()
+    got = cstep.run(state=ship.init_state(), u=u, y=y)
+    per_step = (time.perf_counter() - t0) / T
+    assert max_scaled_gap(got, ref) <= 1e-10
+    # the run exercised what it claims to: skips, an isolation, both re-initialisations
+    assert got["status"].sum() == 4
+    last = ship.unpack_state(got["state"][-1])
+    assert last["alarm_resets"] >= 2 and last["ekf_reparameterisations"] >= 2
+    assert np.any(got["isolated"] == 0)
+    print(f"\nship NAFDF C step: {per_step * 1e6:.2f} µs/sample ({cstep.c_bytes / 1024:.0f} KiB of C)")
+
+
+def test_wind_turbine_efficiency_fault_in_c(c_compiler) -> None:
+    """The second plant through the same code path, in C: the η 0.97 → 0.92 jump is detected within
+    a second, isolated as η, and its size estimated to 0.005 (10 % of the jump; the converged η̂
+    spreads by ~4e-4); C equals CasADi (≤ 1e-10) on the first 1200 samples."""
+    dsg = wt.design()
+    sc = wt.scenario(length=9000, fault_time=4000, seed=3)
+    cstep = c_compiler(dsg.step)
+    t0 = time.perf_counter()
+    got = cstep.run(state=dsg.init_state(), u=sc["u"], y=sc["y"])
+    per_step = (time.perf_counter() - t0) / sc["y"].shape[0]
+    head = dsg.run(u=sc["u"][:1200], y=sc["y"][:1200])
+    assert max_scaled_gap({k: got[k][:1200] for k in KEYS}, head) <= 1e-10
+    alarm = got["alarm"]
+    assert not np.any(alarm[:4000]), "false alarm before the fault"
+    delay = int(np.flatnonzero(alarm[4000:])[0])
+    assert delay <= 100
+    iso = np.flatnonzero(got["isolated"] >= 0)
+    assert iso.size and got["isolated"][iso[0]] == 0
+    jn = list(dsg.J_names)
+    size = got["J"][-1, jn.index("fault_size_eta")]
+    assert abs(size - (wt.ETA_FAULTY - wt.ETA_NOMINAL)) <= 0.005
+    last = dsg.unpack_state(got["state"][-1])
+    assert abs(last["ekf_theta"][0] - wt.ETA_FAULTY) <= 0.005  # the EKF was re-parameterised to the new η
+    print(f"\nwind-turbine NAFDF C step: {per_step * 1e6:.2f} µs/sample, detection delay {delay} samples, "
+          f"isolated at {iso[0]}, size {size:.4f} ({cstep.c_bytes / 1024:.0f} KiB of C)")

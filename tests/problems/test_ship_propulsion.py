@@ -1,0 +1,137 @@
+"""Ship propulsion (seed 001, section 3): the paper's scenario and the other faults, reproduced."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from fdisyn.problems import ship_propulsion as sp
+
+
+@pytest.fixture(scope="module")
+def design():
+    return sp.design()
+
+
+def test_input_is_the_documented_square_wave() -> None:
+    u = sp.input_signal(200)[:, 0]
+    assert set(np.unique(u)) == {1.0, 9.0}
+    assert np.all(u[:25] == 9.0) and np.all(u[25:50] == 1.0)
+    np.testing.assert_array_equal(u[:150], u[50:200])  # period 50
+
+
+def test_scenario_time_convention() -> None:
+    sc = sp.scenario(length=800, scale={"a": 0.5}, seed=0)
+    assert sc.faulty == ("a",) and sc.fault_size == {"a": pytest.approx(0.29)}
+    np.testing.assert_array_equal(sc.theta[:701, 0], -0.58)
+    np.testing.assert_array_equal(sc.theta[701:, 0], -0.29)
+    np.testing.assert_array_equal(sc.theta[:, 1], 0.2)
+    # Q1 = 0: x(702) is the first state the new a changes
+    a, b = sc.theta[701]
+    x701 = sc.x[701, 0]
+    assert sc.x[702, 0] == pytest.approx(0.1 * a * x701**2 + x701 + 0.1 * b * sc.u[701, 0], rel=1e-14)  # same formula
+    free = sp.scenario(length=100, fault_time=None, seed=0)
+    assert free.faulty == () and free.fault_time is None
+
+
+def test_paper_scenario_is_reproduced(design) -> None:
+    """a → a0/2 at 701 (paper: detected 712, NF reset 712, EKF reset and isolation of a at 1000,
+    Δâ = 0.2891 vs 0.29). Bounds: delay ≤ 20 (the Monte Carlo 95 % quantile is ~11); size within
+    0.05 (≈ 4.5 standard deviations of the Monte Carlo size error, 0.011); b never classified."""
+    m = sp.reproduce_paper(seed=1)
+    assert 1 <= m["detection_delay"] <= 20
+    assert m["nf_resets"][0] == m["detection_time"]
+    assert m["isolated"] == "a" and m["fault_class"]["b"] == 0
+    assert 701 < m["ekf_reparameterisation_time"] <= m["isolation_time"] <= 1300
+    assert abs(m["fault_size"]["a"] - 0.29) <= 0.05
+    # re-tracking: the re-parameterised EKF's innovations are back at the noise level σ_e = 0.1
+    assert abs(m["nf_theta_at_reparameterisation"]["a"] + 0.29) <= 0.05
+    assert m["ekf_innovation_rms_after"] == pytest.approx(0.1, rel=0.1)  # 1000 samples: sd of the rms ≈ 2 %
+    assert m["wssr_alarm_fraction_after"] < 0.01
+
+
+@pytest.mark.parametrize(
+    "scale, expect",
+    [({"b": 0.5}, "b"), ({"a": 1.5}, "a"), ({"b": 1.5}, "b"), ({"a": 0.5, "b": 0.7}, "a")],
+)
+def test_other_faults_are_isolated(design, scale, expect) -> None:
+    """Faults in b, in a the other way, and in both: the right parameter is isolated (for both, the
+    lower index, and both classes are latched), with the size within 0.05 (a) / 0.02 (b) —
+    ~4 Monte Carlo standard deviations of the size error."""
+    sc = sp.scenario(length=2500, scale=scale, seed=21)
+    m = sp.run_metrics(design, sc)
+    assert m["detection_delay"] is not None and m["detection_delay"] <= 60
+    assert m["isolated"] == expect
+    for name, size in sc.fault_size.items():
+        assert m["fault_class"][name] >= 1
+        assert abs(m["fault_size"][name] - size) <= (0.05 if name == "a" else 0.02)
+    for name in set(design.fault_names) - set(sc.faulty):
+        assert m["fault_class"][name] == 0
+
+
+def test_fault_free_run_isolates_nothing(design) -> None:
+    sc = sp.scenario(length=10_000, fault_time=None, seed=5)
+    m = sp.run_metrics(design, sc)
+    assert m["isolated"] is None
+    assert all(v == 0 for v in m["fault_class"].values())
+    # P_f = 1e-4 per sample: over 10^4 samples more than 5 alarm episodes has probability < 1e-3
+    assert m["false_alarm_episodes"] <= 5
+
+
+def test_small_monte_carlo_of_the_paper_scenario(design) -> None:
+    """20 seeds (the full ≥ 100-seed study is `monte_carlo`, reported in the notes): at least 18
+    correct isolations of a and none of b (the 100-seed rate is ~99 %)."""
+    res = sp.monte_carlo(seeds=range(20), fault_free_length=2000, faults=[("paper", {"a": 0.5})])
+    paper = res["faults"]["paper"]
+    assert paper["detected"] == 20
+    assert paper["isolated_correct"] >= 18 and paper["isolated_wrong"] == 0
+    assert res["fault_free"]["runs_with_an_isolation"] == 0
+
+
+# ------------------------------------------------------------------ through the pipeline (gain file → C)
+
+
+@pytest.fixture(scope="module")
+def ship_built(tmp_path_factory):
+    from fdisyn.design.evaluate import build
+    from fdisyn.problems.ship_propulsion import PROBLEM
+
+    return build(PROBLEM, "nafdf", tmp_path_factory.mktemp("ship") / "nafdf")
+
+
+def test_gain_file_round_trip_rebuilds_the_same_step(ship_built):
+    from fdisyn.runtime.gainfile import read_gain_file
+
+    gf = read_gain_file(ship_built.directory / "gains.json")
+    assert gf.kind == "nafdf" and gf.faults == ("a", "b") and gf.inputs == ("u",) and gf.outputs == ("y",)
+    assert gf.to_dict() == ship_built.gain_file.to_dict()
+    assert np.isinf(gf.thresholds[list(gf.step.statistic_names).index("theta_hat_a")])
+
+
+def test_compiled_step_equals_casadi_over_a_5000_step_faulty_run(ship_built):
+    from fdisyn.design.pipeline import check_export
+    from fdisyn.problems.ship_propulsion import PROBLEM
+
+    b = PROBLEM.run("both_a0.5_b0.7", [4])
+    U = np.tile(b.U[0], (3, 1))[:5000]
+    Y = np.tile(b.Y[0], (3, 1))[:5000].copy()
+    Y[[100, 2500, 4000], 0] = [np.nan, np.inf, -np.inf]
+    chk = check_export(ship_built, U, Y)
+    v = chk.references["casadi"]
+    # the same SX graph compiled: agreement to round-off of a different evaluation order (issue bound 1e-10)
+    assert max(v["r"], v["J"], v["state"]) <= 1e-10 and v["decisions_equal"]
+    assert chk.nonfinite_samples == 3
+
+
+def test_replay_through_the_command_line(ship_built, tmp_path):
+    import subprocess
+
+    from fdisyn.design.cli import main
+
+    trace = tmp_path / "t.csv"
+    assert main(["simulate", "ship_propulsion", "--scenario", "paper_a_half", "--seed", "1", "--out", str(trace)]) == 0
+    assert main(["replay", str(ship_built.directory), str(trace), str(tmp_path / "py.csv")]) == 0
+    subprocess.run([str(ship_built.artifacts.replay), str(trace), str(tmp_path / "c.csv")], check=True, capture_output=True)
+    assert (tmp_path / "py.csv").read_bytes() == (tmp_path / "c.csv").read_bytes()
+    out = np.genfromtxt(tmp_path / "py.csv", delimiter=",", names=True)
+    assert out["isolated"][-1] == 0  # 'a', latched
+    assert np.all(out["isolated"][:701] == -1)

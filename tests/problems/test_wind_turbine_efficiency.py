@@ -1,0 +1,49 @@
+"""Wind-turbine drive train with η as the parameter: the exact ZOH as an SX expression."""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+import pytest
+from fdisyn.design.sampling import zoh
+from fdisyn.problems import wind_turbine_efficiency as wt
+
+
+@pytest.mark.parametrize("eta", [0.5, 0.92, 0.97, 1.2])
+def test_symbolic_zoh_equals_scipy_expm(eta: float) -> None:
+    """The Taylor/squaring exponential in SX equals scipy's expm-based ZOH to 1e-14 relative
+    (its truncation error is < 1e-19; what remains is the round-off of either method)."""
+    ad, bd = (np.array(ca.evalf(v)) for v in wt.zoh_matrices(eta))
+    a, b = (np.array(ca.evalf(v)) for v in wt.continuous_matrices(eta))
+    ad_ref, bd_ref = zoh(a, b, wt.TS)
+    np.testing.assert_allclose(ad, ad_ref, rtol=1e-14, atol=1e-14 * np.max(np.abs(ad_ref)))
+    for j in range(2):  # the input columns differ by 6 decades: compare each on its own scale
+        np.testing.assert_allclose(bd[:, j], bd_ref[:, j], rtol=1e-12, atol=1e-14 * np.max(np.abs(bd_ref[:, j])))
+
+
+def test_benchmark_modes() -> None:
+    """SEEDS.md 000: eigenvalues ≈ −0.0072 and −0.055 ± 28.16j (the 4.5 Hz torsional mode)."""
+    a, _ = (np.array(ca.evalf(v)) for v in wt.continuous_matrices(wt.ETA_NOMINAL))
+    ev = np.sort_complex(np.linalg.eigvals(a))
+    # tolerances: half a unit in the last digit SEEDS.md prints
+    np.testing.assert_allclose(ev.real, [-0.05496, -0.05496, -0.00724], atol=5e-5)
+    np.testing.assert_allclose(np.abs(ev.imag), [28.1633, 28.1633, 0.0], atol=5e-4)
+
+
+def test_operating_point_is_an_equilibrium() -> None:
+    pl = wt.plant()
+    x0, u0 = wt.operating_point()
+    step = np.array(pl.f(x0, u0, wt.ETA_NOMINAL)).reshape(-1) - x0
+    assert np.max(np.abs(step) / np.maximum(np.abs(x0), 1e-3)) < 1e-12  # round-off of A_d x + B_d u
+
+
+def test_eta_sensitivity_is_automatic_differentiation() -> None:
+    """∂f/∂η from AD through the series equals a central difference (step 1e-6, error ~1e-12)."""
+    pl = wt.plant()
+    x0, u0 = wt.operating_point()
+    lin = pl.linearise(x=x0, u=u0, theta=[0.95])
+    h = 1e-6
+    fd = (np.array(pl.f(x0, u0, 0.95 + h)) - np.array(pl.f(x0, u0, 0.95 - h))).reshape(-1) / (2 * h)
+    # the difference's round-off is eps·|f_i|/h: 3e-8 on ω_g (|f| = 152, entry 0.4 → rtol 1e-6) and
+    # 4e-10 on ω_r (|f| = 1.6, entry 3.5e-6 → atol 1e-9)
+    np.testing.assert_allclose(lin["F_theta"].reshape(-1), fd, rtol=1e-6, atol=1e-9)
