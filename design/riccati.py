@@ -27,7 +27,7 @@ import scipy.linalg as sla
 from fdisyn.design.linalg import as_matrix, rank_tol
 from fdisyn.runtime.errors import ExistenceError, ShapeError, SolverError
 
-__all__ = ["DareSolution", "solve_filter_dare", "dare_residual"]
+__all__ = ["DareSolution", "solve_filter_dare", "dare_residual", "dare_pencil_eigenvalues"]
 
 # Eigenvalues closer than this to the unit circle are treated as on it: a
 # generalised eigenvalue of a well-conditioned pencil is accurate to about
@@ -69,6 +69,43 @@ def _rcond(w: np.ndarray) -> float:
     return rank_tol(w) / s if s > 0 else 0.0
 
 
+def _reduced_pencil(a: np.ndarray, c: np.ndarray, q: np.ndarray, r: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The balanced, column-compressed ``2n × 2n`` pencil ``(m2, n2)`` and its scaling."""
+    n = a.shape[0]
+    p = c.shape[0]
+    # Control-form extended pencil of the dual problem (a, b) = (Aᵀ, Cᵀ).
+    at, b = a.T, c.T
+    big = 2 * n + p
+    mm = np.zeros((big, big))
+    nn = np.zeros((big, big))
+    mm[:n, :n] = at
+    mm[:n, 2 * n :] = b
+    mm[n : 2 * n, :n] = -q
+    mm[n : 2 * n, n : 2 * n] = np.eye(n)
+    mm[n : 2 * n, 2 * n :] = -s
+    mm[2 * n :, :n] = s.T
+    mm[2 * n :, 2 * n :] = r
+    nn[:n, :n] = np.eye(n)
+    nn[n : 2 * n, n : 2 * n] = a
+    nn[2 * n :, n : 2 * n] = -b.T
+    # Balance with a diagonal similarity diag(D, D⁻¹, Dp) that keeps the
+    # symplectic structure (Benner, 1997): powers of two, so no rounding.
+    mag = np.abs(mm) + np.abs(nn)
+    np.fill_diagonal(mag, 0.0)
+    _, (sca, _) = sla.matrix_balance(mag, separate=True, permute=False)
+    lg = np.log2(sca)
+    half = np.round((lg[n : 2 * n] - lg[:n]) / 2.0)
+    sca = 2.0 ** np.concatenate([half, -half, lg[2 * n :]])
+    mm *= sca[:, None] / sca[None, :]
+    nn *= sca[:, None] / sca[None, :]
+    # Compress the last p columns away (orthogonal, so well conditioned).
+    qq, _ = np.linalg.qr(mm[:, 2 * n :], mode="complete")
+    w = qq[:, p:].T
+    m2 = w @ mm[:, : 2 * n]
+    n2 = w @ nn[:, : 2 * n]
+    return m2, n2, sca
+
+
 def solve_filter_dare(
     A: object,
     C: object,
@@ -105,36 +142,7 @@ def solve_filter_dare(
     q = 0.5 * (q + q.T)
     r = 0.5 * (r + r.T)
 
-    # Control-form extended pencil of the dual problem (a, b) = (Aᵀ, Cᵀ).
-    at, b = a.T, c.T
-    big = 2 * n + p
-    mm = np.zeros((big, big))
-    nn = np.zeros((big, big))
-    mm[:n, :n] = at
-    mm[:n, 2 * n :] = b
-    mm[n : 2 * n, :n] = -q
-    mm[n : 2 * n, n : 2 * n] = np.eye(n)
-    mm[n : 2 * n, 2 * n :] = -s
-    mm[2 * n :, :n] = s.T
-    mm[2 * n :, 2 * n :] = r
-    nn[:n, :n] = np.eye(n)
-    nn[n : 2 * n, n : 2 * n] = a
-    nn[2 * n :, n : 2 * n] = -b.T
-    # Balance with a diagonal similarity diag(D, D⁻¹, Dp) that keeps the
-    # symplectic structure (Benner, 1997): powers of two, so no rounding.
-    mag = np.abs(mm) + np.abs(nn)
-    np.fill_diagonal(mag, 0.0)
-    _, (sca, _) = sla.matrix_balance(mag, separate=True, permute=False)
-    lg = np.log2(sca)
-    half = np.round((lg[n : 2 * n] - lg[:n]) / 2.0)
-    sca = 2.0 ** np.concatenate([half, -half, lg[2 * n :]])
-    mm *= sca[:, None] / sca[None, :]
-    nn *= sca[:, None] / sca[None, :]
-    # Compress the last p columns away (orthogonal, so well conditioned).
-    qq, _ = np.linalg.qr(mm[:, 2 * n :], mode="complete")
-    w = qq[:, p:].T
-    m2 = w @ mm[:, : 2 * n]
-    n2 = w @ nn[:, : 2 * n]
+    m2, n2, sca = _reduced_pencil(a, c, q, r, s)
     try:
         aa, bb, alpha, beta, _, z = sla.ordqz(m2, n2, sort="iuc", output="real")
     except (ValueError, np.linalg.LinAlgError) as exc:
@@ -177,3 +185,29 @@ def solve_filter_dare(
         residual=dare_residual(a, c, q, r, s, x),
         innovation_rank=int(np.linalg.matrix_rank(wmat, tol=rank_tol(wmat))),
     )
+
+
+def dare_pencil_eigenvalues(A: object, C: object, Q: object, R: object, S: object | None = None) -> np.ndarray:
+    """Generalised eigenvalues of the (compressed) extended pencil of the filtering DARE.
+
+    They come in pairs ``(λ, 1/λ̄)``; the stabilising solution exists iff none
+    lies on the unit circle (and the stable deflating subspace is a graph).
+    Eigenvalues on the circle are the unit-circle zeros of the spectral density
+    ``Φ(z) = [C (zI − A)⁻¹, I] [[Q, S], [Sᵀ, R]] [·]~`` — for ``Q = B Bᵀ``,
+    ``R = D Dᵀ``, ``S = B Dᵀ`` the invariant zeros of ``(A, B, C, D)`` and its
+    uncontrollable modes on the circle — and undetectable modes of ``(C, A)``
+    on the circle. Infinite eigenvalues are returned as ``inf``.
+    """
+    a = as_matrix(A, "A")
+    n = a.shape[0]
+    if a.shape != (n, n):
+        raise ShapeError(f"A must be square; got shape {a.shape}")
+    c = as_matrix(C, "C", cols=n)
+    p = c.shape[0]
+    q = as_matrix(Q, "Q", rows=n, cols=n)
+    r = as_matrix(R, "R", rows=p, cols=p)
+    s = np.zeros((n, p)) if S is None else as_matrix(S, "S", rows=n, cols=p)
+    m2, n2, _ = _reduced_pencil(a, c, 0.5 * (q + q.T), 0.5 * (r + r.T), s)
+    alpha, beta = sla.eigvals(m2, n2, homogeneous_eigvals=True)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(np.abs(beta) > 0, alpha / np.where(beta == 0, 1, beta), np.inf)
