@@ -31,14 +31,20 @@ from fdisyn.design.sampled_data import (
     simulate_sampled_data,
     solve_dtars,
 )
-from fdisyn.runtime.errors import ExistenceError, ShapeError
+from fdisyn.design.lmi import random_plant
+from fdisyn.runtime.errors import CertificateError, ExistenceError, ShapeError
 
 # Grid of frequencies (rad/sample) for transfer-function identities.
 W_TEST = np.array([0.0, 0.3, 1.1, 2.0, math.pi])
 
 
-def _random_plant(rng: np.random.Generator, *, n: int, p: int, q: int = 1, h: float = 0.5, stable: bool = True):
-    """Continuous plant with eigenvalues −U(0.3, 2) (± j U(0.1, 1.5)) in a basis of cond ≤ 4."""
+def _random_plant(rng: np.random.Generator, *, n: int, p: int, q: int | None = None, h: float = 0.5, stable: bool = True):
+    """Continuous plant with eigenvalues −U(0.3, 2) (± j U(0.1, 1.5)) in a basis of cond ≤ 4.
+
+    ``q = n`` disturbances by default: κ = cond(C X Cᵀ) stays ≲ 1e6 (with one
+    disturbance it reaches 1e10 and beyond, see the κ test).
+    """
+    q = n if q is None else q
     blocks, k = [], 0
     while k < n:
         s = rng.uniform(0.3, 2.0) * (1 if stable or k else -0.2)
@@ -96,7 +102,7 @@ def test_lemma1_rank_deficient_gramian_gives_fewer_columns() -> None:
 def test_lemma1_h2_is_the_continuous_h2_norm(n: int, p: int, h: float, seed: int) -> None:
     """``Σ_k A_D^k W A_Dᵀ^k = ∫₀^∞ e^{At}BBᵀe^{Aᵀt}dt``, so ``‖G_J‖₂ = ‖G‖_H2`` of the continuous plant (slycot)."""
     pl = _random_plant(np.random.default_rng(seed), n=n, p=p, h=h)
-    ref = control.norm(control.ss(pl.A, pl.Bd, pl.C, np.zeros((p, 1))), 2)
+    ref = control.norm(control.ss(pl.A, pl.Bd, pl.C, np.zeros((p, pl.Bd.shape[1]))), 2)
     assert abs(h2_norm(pl.G_d()) - ref) <= 1e-9 * ref  # two Lyapunov solves, ~1e-13 each
 
 
@@ -442,6 +448,28 @@ def test_generator_canonical_form_and_monte_carlo_whiteness(paper_plant: Sampled
     dc = ob.G_rpsi().freqresp(np.array([0.0]))[0].real @ pl.C @ np.linalg.solve(np.eye(2) - pl.A_D, pl.B_fD[:, 0]) * 10.0
     assert np.max(np.abs(clean[-1] - dc)) <= 1e-12 * np.linalg.norm(dc)
     assert np.linalg.norm(dc) > 9.0  # ≈ 9.6: nine standard deviations of the unit-covariance residual
+
+
+def test_nearly_rank_deficient_disturbance_is_refused_by_the_certificate() -> None:
+    """One disturbance, four outputs, h = 0.5: W_d's eigenvalues span ~14 decades (κ ≈ 5e14)."""
+    pl = random_plant(n=4, p=4, q=1, rng=np.random.default_rng(10))
+    with pytest.raises(CertificateError, match=r"κ = cond\(Nᵀ N\), N Nᵀ = C X Cᵀ = [0-9.e+]+ \(must be <= 1e\+10"):
+        optimal_diagnostic_observer(plant=pl)
+
+
+def test_one_disturbance_plants_within_the_kappa_limit_are_certified() -> None:
+    """q = 1 < p = n = 3: κ from 1e3 to beyond 1e10; the κ-scaled certificate passes where κ ≤ 1e10."""
+    kappas = []
+    for seed in range(6):
+        pl = random_plant(n=3, p=3, q=1, rng=np.random.default_rng(seed))
+        try:
+            ob = optimal_diagnostic_observer(plant=pl)
+        except CertificateError as exc:
+            assert "κ = cond" in str(exc)  # only the κ limit may refuse these
+            continue
+        assert ob.certificate.passed
+        kappas.append(ob.factorisation.dtars.kappa)
+    assert len(kappas) >= 3 and max(kappas) > 1e6
 
 
 def test_unstable_plant_is_designed_through_the_error_form() -> None:
