@@ -371,8 +371,12 @@ def _h2_observer_gain(
     gain by ~1e-9 relative.
     """
     n, p_ = a.shape[0], c.shape[0]
-    # Scale the noise to unit size: the optimal gain is invariant to it.
+    # Scale the noise to unit size and balance the state coordinates: the
+    # optimal gain minimises Σ in the PSD order, so it is invariant to both
+    # (L → T⁻¹ L); only the conditioning of P improves.
     sc = max(float(np.linalg.norm(bd, 2)), np.finfo(float).tiny)
+    t, ti = _balancing(a, bd / sc, c) if spectral_radius(a) < 1.0 else (np.eye(n), np.eye(n))
+    a, c, bd = ti @ a @ t, c @ t, ti @ bd
     bq = np.hstack([bd / sc, math.sqrt(reg) * np.eye(n)])
     pv = cp.Variable((n, n), symmetric=True)
     z = cp.Variable((n, p_))
@@ -394,7 +398,7 @@ def _h2_observer_gain(
         meaning={"infeasible": "no gain stabilises A − LC: (A_D, C) is not detectable"},
         accept_inaccurate=accept_inaccurate,
     )
-    gain = np.linalg.solve(pv.value, z.value)
+    gain = t @ np.linalg.solve(pv.value, z.value)
     return gain, stats
 
 
@@ -583,11 +587,12 @@ def lmi_diagnostic_observer(
     stats: list[SdpStats] = []
     # Regular case: a negligible regulariser. Singular case (normal rank of
     # G_d below p): the exact optimum has P = Σ⁻¹ unbounded, so no solver
-    # reaches it; 1e-6 bounds cond(P) by ~1e6 and an inaccurate status is
-    # accepted, because the gain is only a starting point there and the
-    # design is re-verified independently (F Schur, J by sweep).
+    # reaches it; 1e-6 bounds cond(P) by ~1e6 (the gain is only a starting
+    # point there; the design is re-verified independently).
     singular = normal_rank(gd.A, gd.B, gd.C, gd.D) < plant.p
-    gain, st = _h2_observer_gain(a, c, gd.B, reg=1e-6 if singular else 1e-9, accept_inaccurate=singular)
+    # "Almost solved" is accepted in the regular case as well: the gain is
+    # checked (F Schur) and the design re-evaluated; the status is recorded.
+    gain, st = _h2_observer_gain(a, c, gd.B, reg=1e-6 if singular else 1e-9, accept_inaccurate=True)
     stats.append(st)
     al = a - gain @ c
     if spectral_radius(al) >= 1.0:
@@ -767,11 +772,13 @@ def random_plant(*, n: int, p: int, rng: np.random.Generator, q: int = 1, h: flo
 def sdp_timings(*, sizes: Sequence[int] = (2, 4, 8, 16), seed: int = 0) -> list[TimingRow]:
     """Measure SDP solve times for the norm LMIs and the design, per state dimension.
 
-    For each ``n``: a :func:`random_plant` with ``p = n`` outputs (so that
-    ``η = "-"`` is meaningful) and ``q = n`` disturbances (so that κ stays
-    moderate at n = 16), the H∞/H2/H₋ LMIs of ``G_dJ`` and the full design
-    (:func:`lmi_diagnostic_observer`, ``η = "-"``). Times are not asserted
-    anywhere; they are reported.
+    For each ``n``: a :func:`random_plant` with ``p = n`` outputs and ``q = n``
+    disturbances (so that κ stays moderate at n = 16), the H∞/H2/H₋ LMIs of
+    ``G_dJ`` and the full design (:func:`lmi_diagnostic_observer`,
+    ``η = "inf"``: the observer-gain SDP plus the peak-following post-filter
+    SDPs). ``η = "-"`` is not timed: with a scalar fault the lifted fault
+    channel is nearly rank one at n ≥ 8 (J*₋ ~ 1e7) and the SDP is ill posed.
+    Times are not asserted anywhere; they are reported.
     """
     rng = np.random.default_rng(seed)
     rows = []
@@ -784,7 +791,7 @@ def sdp_timings(*, sizes: Sequence[int] = (2, 4, 8, 16), seed: int = 0) -> list[
         h2 = h2_norm_lmi(gd)
         hm = hminus_index_lmi(gd.transpose())
         t0 = time.perf_counter()
-        des = lmi_diagnostic_observer(plant=pl, eta="-")
+        des = lmi_diagnostic_observer(plant=pl, eta="inf")
         dw = time.perf_counter() - t0
         rows.append(
             TimingRow(
