@@ -28,8 +28,8 @@ from fdisyn.design.sampled_data import ETAS, SampledDataPlant, optimal_diagnosti
 from fdisyn.runtime.errors import ExistenceError, SolverError
 
 # The issue's contract: LMI norms agree with the independent evaluation to
-# 1e-6 relative (Clarabel at gap/feasibility 1e-9 on problems scaled to O(1)
-# typically gives 1e-9).
+# 1e-6 relative (Clarabel at 1e-11, falling back to 1e-9, on problems scaled
+# to O(1): measured ≤ 4e-11 for H∞/H2 over 60 random systems).
 NORM_AGREE = 1e-6
 # The issue's contract for the design: J within 1 % of Theorem 1's optimum.
 DESIGN_AGREE = 1e-2
@@ -49,7 +49,8 @@ def test_lmi_norms_match_sweep_and_slycot(n: int, m: int, p: int, seed: int) -> 
     tall = sys if p >= m else sys.transpose()
     hm_ref = hminus_index(tall).value
     hm = hminus_index_lmi(tall).value
-    # Absolute floor: an H₋ index can be ~0 (a zero near the circle); 1e-6 of ‖G‖∞.
+    # An H₋ index is accurate to ~1e-10·‖G‖∞ absolute, so relative to itself only
+    # while it is not tiny (a zero near the circle); hence 1e-6 of max(‖G‖₋, ‖G‖∞).
     assert abs(hm - hm_ref) <= NORM_AGREE * max(hm_ref, hi)
 
 
@@ -110,7 +111,7 @@ class _FakeProblem:
         (cp.INFEASIBLE_INACCURATE, False, r"status infeasible \(inaccurate\).*MEANING-I"),
         (cp.UNBOUNDED, False, r"status unbounded after 7 .*MEANING-U"),
         (cp.UNBOUNDED_INACCURATE, False, r"status unbounded \(inaccurate\).*MEANING-U"),
-        (cp.OPTIMAL_INACCURATE, False, r"status optimal \(inaccurate\).*accept_inaccurate=True"),
+        (cp.OPTIMAL_INACCURATE, False, r"status optimal \(inaccurate\).*reduced tolerances were met"),
         (cp.USER_LIMIT, False, r"status user_limit .*did not finish"),
         (None, True, r"Clarabel failed \(numerical trouble\); status: solver_error. Try rescaling"),
     ],
@@ -190,6 +191,18 @@ def test_lmi_design_with_a_band_limited_fault_measure(paper_plant: SampledDataPl
     des = lmi_diagnostic_observer(plant=paper_plant, eta="-", band=band)
     assert des.J_star is not None
     assert abs(des.J["-"] / des.J_star["-"] - 1.0) <= 1e-6
+
+
+def test_lmi_design_of_an_unstable_plant() -> None:
+    """A_D unstable: J is evaluated on the error form; still within 1 % of Theorem 1."""
+    rng = np.random.default_rng(5)
+    pl = SampledDataPlant.create(
+        A=[[0.4, 1.0], [0.0, -1.0]], Bu=[[0.0], [1.0]], Bd=rng.standard_normal((2, 2)), Bf=[[1.0], [0.5]], C=np.eye(2), h=0.5
+    )
+    opt = optimal_diagnostic_observer(plant=pl)
+    for eta in ("inf", "2"):
+        des = lmi_diagnostic_observer(plant=pl, eta=eta)
+        assert 0.0 - 1e-9 <= des.J[eta] / opt.J_star[eta] - 1.0 <= DESIGN_AGREE
 
 
 def test_hminus_design_needs_enough_outputs() -> None:
