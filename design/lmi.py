@@ -246,6 +246,14 @@ def _solve_once(
     raise error
 
 
+def _val(x: cp.Variable | cp.Problem) -> np.ndarray:
+    """The solved value of a variable (or a problem's optimal value) as an array."""
+    v = x.value
+    if v is None:
+        raise SolverError("internal: the SDP reported success but left a variable without a value")
+    return np.asarray(v, dtype=float)
+
+
 def _sym(m: cp.Expression) -> cp.Expression:
     """Symmetric (Hermitian) part, so cvxpy accepts the expression in an LMI."""
     return 0.5 * (m + m.H)
@@ -311,8 +319,8 @@ def _kyp_lhs(a: np.ndarray, b: np.ndarray, band: tuple[float, float] | None, *, 
     if real:
         p = cp.Variable((n, n), symmetric=True)
         q = cp.Variable((n, n), symmetric=True)
-        e = math.cos(theta_c)
-        mid = cp.bmat([[p, e * q], [e * q, -p - 2.0 * math.cos(theta_w) * q]])
+        sign = math.cos(theta_c)  # e^{jθc} = ±1
+        mid = cp.bmat([[p, sign * q], [sign * q, -p - 2.0 * math.cos(theta_w) * q]])
     else:
         p = cp.Variable((n, n), hermitian=True)
         q = cp.Variable((n, n), hermitian=True)
@@ -348,7 +356,7 @@ def hinf_norm_lmi(sys: DiscreteLTI) -> SdpResult:
         settings=_NORM_LADDER,
         meaning={"infeasible": "no γ bounds the gain: A has an eigenvalue on or outside the unit circle"},
     )
-    return SdpResult(s * math.sqrt(max(float(t.value), 0.0)), stats)
+    return SdpResult(s * math.sqrt(max(float(_val(t)), 0.0)), stats)
 
 
 def hinf_bound_lmi(sys: DiscreteLTI, *, gamma: float) -> SdpResult:
@@ -399,7 +407,7 @@ def h2_norm_lmi(sys: DiscreteLTI) -> SdpResult:
         settings=_NORM_LADDER,
         meaning={"infeasible": "no X dominates the Gramian: A is not Schur stable"},
     )
-    return SdpResult(s * math.sqrt(max(float(prob.value), 0.0)), stats)
+    return SdpResult(s * math.sqrt(max(float(_val(prob)), 0.0)), stats)
 
 
 def hminus_index_lmi(sys: DiscreteLTI, *, band: tuple[float, float] | None = None) -> SdpResult:
@@ -434,7 +442,7 @@ def hminus_index_lmi(sys: DiscreteLTI, *, band: tuple[float, float] | None = Non
                 f"try [0, {hi:.4g}] or [{lo:.4g}, π] (real multipliers), or the sweep norms.hminus_index"
             ) from exc
         raise
-    return SdpResult(s * math.sqrt(max(float(t.value), 0.0)), stats)
+    return SdpResult(s * math.sqrt(max(float(_val(t)), 0.0)), stats)
 
 
 # ---------------------------------------------------------------------------
@@ -479,7 +487,7 @@ def _h2_observer_gain(
         meaning={"infeasible": "no gain stabilises A − LC: (A_D, C) is not detectable"},
         accept_inaccurate=accept_inaccurate,
     )
-    gain = t @ np.linalg.solve(pv.value, z.value)
+    gain = t @ np.linalg.solve(_val(pv), _val(z))
     return gain, stats
 
 
@@ -557,8 +565,8 @@ def _postfilter(
     )
     # Π = VᵀV: a PSD factor gives V (any U V, U orthogonal, gives the same J).
     # Normalise so that ‖V G_ed‖∞ ≈ 1, as Theorem 1's co-inner design has.
-    g = math.sqrt(max(float(g2.value), 0.0))
-    v = psd_factor(_psd_part(pi.value), "Π").T
+    g = math.sqrt(max(float(_val(g2)), 0.0))
+    v = psd_factor(_psd_part(_val(pi)), "Π").T
     if g > 0:
         v = v / g
     # Channels were scaled by 1/sd and 1/sf: J = ‖V G_ed‖ / ‖V G_ef‖ ≤ γ sd / sf.
@@ -726,10 +734,11 @@ def lmi_diagnostic_observer(
         fac = co_inner_outer(A=gd.A, B=gd.B, C=gd.C, D=gd.D)
         mt, npi = fac.dtars.M.T, fac.dtars.N_pinv
         k_sys = DiscreteLTI(A=a + mt @ c, B=gf.B, C=npi @ c, D=np.zeros((npi.shape[0], gf.n_in)))
-        j_star: dict[str, float] | None = {}
+        stars: dict[str, float] = {}
         for e in ETAS:
             kn = system_norm(k_sys, eta=e, band=band if e != "2" else None)
-            j_star[e] = 1.0 / kn if kn > 0 else math.inf
+            stars[e] = 1.0 / kn if kn > 0 else math.inf
+        j_star: dict[str, float] | None = stars
         fac_rank = fac.dtars.rank
     except (ExistenceError, SolverError) as exc:
         j_star, fac_rank = None, None

@@ -185,9 +185,9 @@ class SampledDataPlant:
         n = a.shape[0]
         if a.shape != (n, n):
             raise ShapeError(f"A must be square; got shape {a.shape}")
-        bu = as_matrix(Bu, "Bu", rows=n, cols=None if np.ndim(Bu) == 2 else 1)
-        bd = as_matrix(Bd, "Bd", rows=n, cols=None if np.ndim(Bd) == 2 else 1)
-        bf = as_matrix(Bf, "Bf", rows=n, cols=None if np.ndim(Bf) == 2 else 1)
+        bu = as_matrix(Bu, "Bu", rows=n, cols=None if np.ndim(np.asarray(Bu)) == 2 else 1)
+        bd = as_matrix(Bd, "Bd", rows=n, cols=None if np.ndim(np.asarray(Bd)) == 2 else 1)
+        bf = as_matrix(Bf, "Bf", rows=n, cols=None if np.ndim(np.asarray(Bf)) == 2 else 1)
         c = as_matrix(C, "C", cols=n)
         ad, held = zoh(a, np.hstack([bu, bd, bf]), h)
         m, q = bu.shape[1], bd.shape[1]
@@ -395,12 +395,12 @@ def simulate_sampled_data(
     continuous white noise of intensity ``intensity`` (default ``I``), sampled
     exactly by :func:`sampled_disturbance`.
     """
-    vv = as_matrix(v, "v", cols=plant.m if np.ndim(v) == 2 else 1)
+    vv = as_matrix(v, "v", cols=plant.m if np.ndim(np.asarray(v)) == 2 else 1)
     if vv.shape[1] != plant.m:
         raise ShapeError(f"v has {vv.shape[1]} columns; the plant has m = {plant.m} inputs")
     steps = vv.shape[0]
     nf = plant.Bf.shape[1]
-    ff = np.zeros((steps, nf)) if f is None else as_matrix(f, "f", rows=steps, cols=nf if np.ndim(f) == 2 else 1)
+    ff = np.zeros((steps, nf)) if f is None else as_matrix(f, "f", rows=steps, cols=nf if np.ndim(np.asarray(f)) == 2 else 1)
     if ff.shape != (steps, nf):
         raise ShapeError(f"f has shape {ff.shape}; expected ({steps}, {nf})")
     x = np.zeros(plant.n) if x0 is None else as_matrix(x0, "x0", rows=plant.n, cols=1)[:, 0]
@@ -476,7 +476,7 @@ def _explain_no_solution(
     zeros, uncontrollable = [], []
     for z in on:
         s = np.linalg.svd(np.hstack([z * np.eye(n) - a, b]).astype(complex), compute_uv=False)
-        if s[-1] <= 1e3 * n * np.finfo(float).eps * max(s[0], 1.0):
+        if float(s[-1]) <= 1e3 * n * np.finfo(float).eps * max(float(s[0]), 1.0):
             uncontrollable.append(z)
         else:
             zeros.append(z)
@@ -636,7 +636,8 @@ class CoInnerOuter:
         """
         gi, x = self.G_i, self.dtars.X
         e1 = gi.C @ x @ gi.C.T + gi.D @ gi.D.T - np.eye(gi.n_out)
-        e2 = (gi.A @ x @ gi.C.T + gi.B @ gi.D.T) / max(np.linalg.norm(x) * max(np.linalg.norm(gi.C), 1e-300), 1e-300)
+        scale = float(np.linalg.norm(x)) * max(float(np.linalg.norm(gi.C)), 1e-300)
+        e2 = (gi.A @ x @ gi.C.T + gi.B @ gi.D.T) / max(scale, 1e-300)
         return float(max(np.linalg.norm(e1), np.linalg.norm(e2)))
 
 
