@@ -25,7 +25,10 @@ __all__ = [
     "markov_parameters",
     "rel_diff",
     "transfer_size",
-    "undetectable_modes",
+    "block_diag",
+    "psd_factor",
+    "normal_rank",
+    "unobservable_modes",
 ]
 
 
@@ -181,19 +184,71 @@ def block_diag(blocks: Sequence[np.ndarray]) -> np.ndarray:
     return sla.block_diag(*blocks) if blocks else np.zeros((0, 0))
 
 
-def undetectable_modes(a: np.ndarray, c: np.ndarray, *, margin: float = 1e-10) -> list[complex]:
-    """Eigenvalues ``λ`` of ``A`` with ``|λ| ≥ 1 − margin`` that ``C`` cannot see (PBH test).
+def psd_factor(w: np.ndarray, name: str = "W") -> np.ndarray:
+    """Full-column-rank factor ``B`` with ``B Bᵀ = W`` for a PSD matrix ``W``.
 
-    ``(C, A)`` is detectable iff the list is empty: ``rank [λI − A; C] = n`` for
-    every such ``λ``. The rank decision allows 1000× the SVD round-off.
+    ``B = U_r diag(√λ_r)`` from the eigendecomposition ``W = U Λ Uᵀ``, keeping
+    the ``r`` eigenvalues above :func:`rank_tol`-style round-off
+    (``n·eps·λ_max``), so ``B`` is ``n × r`` with orthogonal columns. Every
+    other factor with ``r`` columns is ``B U`` for an orthogonal ``U``. A
+    rank-deficient ``W`` (an uncontrollable mode) gives fewer columns rather
+    than zero columns, which matters for the H₋ index: zero input columns
+    would make it zero. Eigenvalues below ``−n·eps·λ_max`` mean ``W`` is not
+    PSD and raise :class:`ShapeError`.
+    """
+    n = as_square(w, name).shape[0]
+    if n == 0:
+        return np.zeros((0, 0))
+    lam, u = np.linalg.eigh(as_symmetric(w, name, n))
+    tol = n * np.finfo(float).eps * max(float(lam[-1]), 0.0)
+    if lam[0] < -tol * 1e3:
+        raise ShapeError(f"{name} must be positive semidefinite; smallest eigenvalue {lam[0]:.3g} (largest {lam[-1]:.3g})")
+    keep = lam > tol
+    # Largest eigenvalue first; fix each column's sign (largest entry positive)
+    # so that the factor is a deterministic function of W.
+    lam, u = lam[keep][::-1], u[:, keep][:, ::-1]
+    idx = np.argmax(np.abs(u), axis=0)
+    u = u * np.sign(u[idx, np.arange(u.shape[1])])[None, :]
+    return u * np.sqrt(lam)[None, :]
+
+
+def normal_rank(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray) -> int:
+    """Normal rank of ``G(z) = C (zI − A)⁻¹ B + D``.
+
+    ``rank [[A − zI, B], [C, D]] = n + rank G(z)`` for every ``z`` that is not
+    a pole; the maximum over a few fixed points off the unit circle and off the
+    real axis is the normal rank (a rank drop at all of them at once would
+    need every point to be an invariant zero, and a finite zero set cannot
+    contain them all). Rank tolerance: :func:`rank_tol` of the Rosenbrock matrix.
     """
     n = a.shape[0]
-    out = []
+    best = 0
+    for z in (1.37 * np.exp(0.61j), 0.53 * np.exp(2.29j), 2.11 * np.exp(-1.13j)):
+        ros = np.block([[a - z * np.eye(n), b], [c, d]]).astype(complex)
+        s = np.linalg.svd(ros, compute_uv=False)
+        tol = max(ros.shape) * np.finfo(float).eps * (s[0] if s.size else 0.0) * 1e2
+        best = max(best, int(np.sum(s > tol)) - n)
+    return best
+
+
+def unobservable_modes(a: np.ndarray, c: np.ndarray, *, region: str) -> list[complex]:
+    """Eigenvalues of ``A`` in ``region`` that are unobservable from ``C`` (PBH test).
+
+    ``region`` is ``"unstable-continuous"`` (``Re λ ≥ 0``), ``"unstable-discrete"``
+    (``|λ| ≥ 1``) or ``"all"``. A mode is unobservable when
+    ``[λI − A; C]`` loses rank; the smallest singular value is compared with
+    ``1e3·max(shape)·eps·σ_max`` (a rank decision with three digits of margin
+    over backward-stable round-off).
+    """
+    n = a.shape[0]
+    out: list[complex] = []
     for lam in np.linalg.eigvals(a):
-        if abs(lam) < 1.0 - margin:
+        if region == "unstable-continuous" and lam.real < -1e-10 * max(1.0, abs(lam)):
             continue
-        pbh = np.vstack([lam * np.eye(n) - a, np.asarray(c, dtype=complex)])
+        if region == "unstable-discrete" and abs(lam) < 1.0 - 1e-10:
+            continue
+        pbh = np.vstack([lam * np.eye(n) - a, c.astype(complex)])
         s = np.linalg.svd(pbh, compute_uv=False)
-        if s[-1] <= max(pbh.shape) * np.finfo(float).eps * s[0] * 1e3:
+        if s[-1] <= 1e3 * max(pbh.shape) * np.finfo(float).eps * max(s[0], np.finfo(float).tiny):
             out.append(complex(lam))
     return out

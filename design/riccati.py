@@ -24,10 +24,10 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as sla
 
-from fdisyn.design.linalg import as_matrix, as_square, as_symmetric, rank_tol, undetectable_modes
+from fdisyn.design.linalg import as_matrix, as_square, as_symmetric, rank_tol, unobservable_modes
 from fdisyn.runtime.errors import ExistenceError, SolverError
 
-__all__ = ["DareSolution", "solve_filter_dare", "dare_residual"]
+__all__ = ["DareSolution", "solve_filter_dare", "dare_residual", "dare_pencil_eigenvalues"]
 
 # Eigenvalues closer than this to the unit circle are treated as on it: a
 # generalised eigenvalue of a well-conditioned pencil is accurate to about
@@ -69,41 +69,10 @@ def _rcond(w: np.ndarray) -> float:
     return rank_tol(w) / s if s > 0 else 0.0
 
 
-def solve_filter_dare(
-    A: object,
-    C: object,
-    Q: object,
-    R: object,
-    S: object | None = None,
-) -> DareSolution:
-    """Stabilising solution of the filtering DARE (see the module docstring).
-
-    Raises
-    ------
-    ShapeError
-        Inconsistent dimensions, or ``Q``/``R`` not symmetric.
-    ExistenceError
-        No stabilising solution: the pencil has eigenvalues on the unit circle
-        (an undetectable ``(C, A)`` mode or a noise-model zero on the unit
-        circle), the stable deflating subspace has the wrong dimension, or its
-        basis cannot be solved for ``X``.
-    SolverError
-        The QZ decomposition failed.
-    """
-    a = as_square(A, "A")
+def _reduced_pencil(a: np.ndarray, c: np.ndarray, q: np.ndarray, r: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The balanced, column-compressed ``2n × 2n`` pencil ``(m2, n2)`` and its scaling."""
     n = a.shape[0]
-    c = as_matrix(C, "C", cols=n)
     p = c.shape[0]
-    q = as_symmetric(Q, "Q", n)
-    r = as_symmetric(R, "R", p)
-    s = np.zeros((n, p)) if S is None else as_matrix(S, "S", rows=n, cols=p)
-    bad = undetectable_modes(a, c)
-    if bad:
-        raise ExistenceError(
-            f"the DARE has no stabilising solution: (C, A) is not detectable (mode λ = {bad[0]:.6g}, "
-            f"|λ| = {abs(bad[0]):.6g}, is invisible in the measurements)"
-        )
-
     # Control-form extended pencil of the dual problem (a, b) = (Aᵀ, Cᵀ).
     at, b = a.T, c.T
     big = 2 * n + p
@@ -134,6 +103,45 @@ def solve_filter_dare(
     w = qq[:, p:].T
     m2 = w @ mm[:, : 2 * n]
     n2 = w @ nn[:, : 2 * n]
+    return m2, n2, sca
+
+
+def solve_filter_dare(
+    A: object,
+    C: object,
+    Q: object,
+    R: object,
+    S: object | None = None,
+) -> DareSolution:
+    """Stabilising solution of the filtering DARE (see the module docstring).
+
+    Raises
+    ------
+    ShapeError
+        Inconsistent dimensions, or ``Q``/``R`` not symmetric.
+    ExistenceError
+        No stabilising solution: the pencil has eigenvalues on the unit circle
+        (an undetectable ``(C, A)`` mode or a noise-model zero on the unit
+        circle), the stable deflating subspace has the wrong dimension, or its
+        basis cannot be solved for ``X``.
+    SolverError
+        The QZ decomposition failed.
+    """
+    a = as_square(A, "A")
+    n = a.shape[0]
+    c = as_matrix(C, "C", cols=n)
+    p = c.shape[0]
+    q = as_symmetric(Q, "Q", n)
+    r = as_symmetric(R, "R", p)
+    s = np.zeros((n, p)) if S is None else as_matrix(S, "S", rows=n, cols=p)
+    bad = unobservable_modes(a, c, region="unstable-discrete")
+    if bad:
+        raise ExistenceError(
+            f"the DARE has no stabilising solution: (C, A) is not detectable (mode λ = {bad[0]:.6g}, "
+            f"|λ| = {abs(bad[0]):.6g}, is invisible in the measurements)"
+        )
+
+    m2, n2, sca = _reduced_pencil(a, c, q, r, s)
     try:
         aa, bb, alpha, beta, _, z = sla.ordqz(m2, n2, sort="iuc", output="real")
     except (ValueError, np.linalg.LinAlgError) as exc:
@@ -176,3 +184,27 @@ def solve_filter_dare(
         residual=dare_residual(a, c, q, r, s, x),
         innovation_rank=int(np.linalg.matrix_rank(wmat, tol=rank_tol(wmat))),
     )
+
+
+def dare_pencil_eigenvalues(A: object, C: object, Q: object, R: object, S: object | None = None) -> np.ndarray:
+    """Generalised eigenvalues of the (compressed) extended pencil of the filtering DARE.
+
+    They come in pairs ``(λ, 1/λ̄)``; the stabilising solution exists iff none
+    lies on the unit circle (and the stable deflating subspace is a graph).
+    Eigenvalues on the circle are the unit-circle zeros of the spectral density
+    ``Φ(z) = [C (zI − A)⁻¹, I] [[Q, S], [Sᵀ, R]] [·]~`` — for ``Q = B Bᵀ``,
+    ``R = D Dᵀ``, ``S = B Dᵀ`` the invariant zeros of ``(A, B, C, D)`` and its
+    uncontrollable modes on the circle — and undetectable modes of ``(C, A)``
+    on the circle. Infinite eigenvalues are returned as ``inf``.
+    """
+    a = as_square(A, "A")
+    n = a.shape[0]
+    c = as_matrix(C, "C", cols=n)
+    p = c.shape[0]
+    q = as_symmetric(Q, "Q", n)
+    r = as_symmetric(R, "R", p)
+    s = np.zeros((n, p)) if S is None else as_matrix(S, "S", rows=n, cols=p)
+    m2, n2, _ = _reduced_pencil(a, c, q, r, s)
+    alpha, beta = sla.eigvals(m2, n2, homogeneous_eigvals=True)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(np.abs(beta) > 0, alpha / np.where(beta == 0, 1, beta), np.inf)

@@ -13,11 +13,12 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.signal
 
+from fdisyn.design.linalg import psd_factor
 from fdisyn.design.plant import LinearPlant
 from fdisyn.design.problem import Batch, Scenario
 from fdisyn.runtime.errors import SpecError
 
-__all__ = ["SensorFaultSpec", "apply_sensor_faults", "gauss_markov", "covariance_factor", "Signal", "simulate_linear"]
+__all__ = ["SensorFaultSpec", "apply_sensor_faults", "gauss_markov", "Signal", "simulate_linear"]
 
 SENSOR_FAULT_KINDS = ("stuck", "gain", "offset", "drift")
 
@@ -63,13 +64,6 @@ def gauss_markov(rng: np.random.Generator, n: int, a: float) -> np.ndarray:
     eps = rng.standard_normal(n)
     eps[1:] *= np.sqrt(1.0 - a * a)
     return scipy.signal.lfilter([1.0], [1.0, -a], eps)
-
-
-def covariance_factor(cov: np.ndarray) -> np.ndarray:
-    """``F`` with ``F Fᵀ = cov`` for a (possibly singular) covariance."""
-    cov = 0.5 * (np.asarray(cov, dtype=float) + np.asarray(cov, dtype=float).T)
-    w, v = np.linalg.eigh(cov)
-    return v * np.sqrt(np.clip(w, 0.0, None))[None, :]
 
 
 @dataclass(frozen=True)
@@ -135,7 +129,7 @@ def simulate_linear(
     t = np.arange(n) * ts
     runs = len(seeds)
     a, b, c, d, e = (np.asarray(getattr(plant, k)) for k in ("A", "B", "C", "D", "E"))
-    lq, lr = covariance_factor(plant.Q), covariance_factor(plant.R)
+    lq, lr = psd_factor(plant.Q, "Q"), psd_factor(plant.R, "R")
     faults = [SensorFaultSpec(*f) if not isinstance(f, SensorFaultSpec) else f for f in scenario.params.get("sensor_faults", [])]
     if feedback is not None and np.any(plant.D):
         raise SpecError("a feedback input needs D = 0 (otherwise u and y form an algebraic loop)")
@@ -147,8 +141,8 @@ def simulate_linear(
     dd = np.empty((runs, n, plant.q))
     for i, s in enumerate(seeds):
         rng = np.random.default_rng(int(s))
-        w[i] = rng.standard_normal((n, plant.n)) @ lq.T
-        v[i] = rng.standard_normal((n, plant.p)) @ lr.T
+        w[i] = rng.standard_normal((n, lq.shape[1])) @ lq.T
+        v[i] = rng.standard_normal((n, lr.shape[1])) @ lr.T
         for j, sig in enumerate(inputs):
             uu[i, :, j] = sig.sample(t, rng, ts)
         for j, sig in enumerate(unknown_inputs):

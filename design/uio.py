@@ -41,7 +41,7 @@ import numpy as np
 import scipy.signal
 
 from fdisyn.design.certificate import Certificate, Check
-from fdisyn.design.linalg import dlyap, rank, rel_diff, spectral_radius, undetectable_modes
+from fdisyn.design.linalg import dlyap, rank, rel_diff, spectral_radius, unobservable_modes
 from fdisyn.design.plant import LinearPlant
 from fdisyn.design.residual import ResidualGenerator
 from fdisyn.design.riccati import solve_filter_dare
@@ -130,7 +130,7 @@ def uio_structure(plant: LinearPlant) -> UIOStructure:
 
 
 def _check_detectable(a1: np.ndarray, c: np.ndarray, plant: LinearPlant) -> None:
-    bad = undetectable_modes(a1, c)
+    bad = unobservable_modes(a1, c, region="unstable-discrete")
     if bad:
         lam = bad[0]
         raise ExistenceError(

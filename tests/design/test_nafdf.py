@@ -216,7 +216,8 @@ def test_wild_finite_data_never_produce_nan(ship_design, data) -> None:
         for key in ("ekf_P", "nf_P"):
             # PSD up to the step's own acceptance shift (1e-12·max diag) plus eigvalsh round-off
             assert np.min(np.linalg.eigvalsh(blk[key])) >= -1e-9 * max(1.0, np.max(np.abs(blk[key])))
-        assert np.min(np.linalg.eigvalsh(blk["nf_R"])) > 0
+        # R is PD in exact arithmetic; data near 1e300 can push cond(R) past 1/eps (eigvalsh then returns 0)
+        assert np.min(np.linalg.eigvalsh(blk["nf_R"])) >= -1e-9 * max(1.0, np.max(np.abs(blk["nf_R"])))
 
 
 @pytest.mark.parametrize(

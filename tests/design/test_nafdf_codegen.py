@@ -1,13 +1,16 @@
-"""The NAFDF step as generated C: strict compilation, and C ≡ CasADi over long faulty runs."""
+"""The NAFDF step through the pipeline's C path (gain file → codegen → ctypes): C ≡ CasADi."""
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
+
+from fdisyn.design.codegen import codegen
+from fdisyn.design.nafdf import NafdfDesign, nafdf_gain_file
 from fdisyn.problems import ship_propulsion as sp
 from fdisyn.problems import wind_turbine_efficiency as wt
+from fdisyn.runtime.compiled import CompiledDiagnoser
+from fdisyn.runtime.gainfile import write_gain_file
 
 KEYS = ("state", "r", "J", "alarm", "isolated", "status")
 
@@ -17,12 +20,28 @@ def max_scaled_gap(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> float:
     return max(float(np.max(np.abs(a[k] - b[k]) / np.maximum(1.0, np.abs(b[k])))) for k in KEYS)
 
 
+def compiled(dsg: NafdfDesign, problem: str, directory) -> CompiledDiagnoser:  # noqa: ANN001 - a path
+    gf = nafdf_gain_file(dsg, problem=problem)
+    write_gain_file(gf, directory / "gains.json")
+    return CompiledDiagnoser(codegen(directory).library, gf)
+
+
+def c_run(cd: CompiledDiagnoser, u: np.ndarray, y: np.ndarray) -> dict[str, np.ndarray]:
+    """Per-sample C calls, keeping the state after each step (what ``NafdfDesign.run`` returns)."""
+    s = cd.init_state()
+    rows = []
+    for k in range(y.shape[0]):
+        o = cd.step(s, u[k], y[k])
+        rows.append((s.copy(), o.r, o.J, o.alarm, o.isolated, o.status))
+    return {key: np.array([row[i] for row in rows], dtype=float) for i, key in enumerate(KEYS)}
+
+
 @pytest.fixture(scope="module")
 def ship():
     return sp.design()
 
 
-def test_ship_c_step_equals_casadi_over_a_5000_step_faulty_run(ship, c_compiler) -> None:
+def test_ship_c_step_equals_casadi_over_a_5000_step_faulty_run(ship, tmp_path) -> None:
     """C and the CasADi Function agree to ≤ 1e-10 (the issue's contract) over 5000 samples with the
     paper's fault, a second fault in b, and non-finite samples. Both evaluate the same operation
     sequence in IEEE double (no fast-math, no FMA contraction at -O2 on x86-64), so only libm's
@@ -36,41 +55,33 @@ def test_ship_c_step_equals_casadi_over_a_5000_step_faulty_run(ship, c_compiler)
     u = scen.u.copy()
     u[2000, 0] = np.nan
     ref = ship.run(u=u, y=y)
-    cstep = c_compiler(ship.step)
-    t0 = time.perf_counter()
-    got = cstep.run(state=ship.init_state(), u=u, y=y)
-    per_step = (time.perf_counter() - t0) / T
+    got = c_run(compiled(ship, "ship_propulsion", tmp_path), u, y)
     assert max_scaled_gap(got, ref) <= 1e-10
     # the run exercised what it claims to: skips, an isolation, both re-initialisations
     assert got["status"].sum() == 4
     last = ship.unpack_state(got["state"][-1])
     assert last["alarm_resets"] >= 2 and last["ekf_reparameterisations"] >= 2
     assert np.any(got["isolated"] == 0)
-    print(f"\nship NAFDF C step: {per_step * 1e6:.2f} µs/sample ({cstep.c_bytes / 1024:.0f} KiB of C)")
 
 
-def test_wind_turbine_efficiency_fault_in_c(c_compiler) -> None:
+def test_wind_turbine_efficiency_fault_in_c(tmp_path) -> None:
     """The second plant through the same code path, in C: the η 0.97 → 0.92 jump is detected within
     a second, isolated as η, and its size estimated to 0.005 (10 % of the jump; the converged η̂
     spreads by ~4e-4); C equals CasADi (≤ 1e-10) on the first 1200 samples."""
     dsg = wt.design()
     sc = wt.scenario(length=9000, fault_time=4000, seed=3)
-    cstep = c_compiler(dsg.step)
-    t0 = time.perf_counter()
-    got = cstep.run(state=dsg.init_state(), u=sc["u"], y=sc["y"])
-    per_step = (time.perf_counter() - t0) / sc["y"].shape[0]
+    cd = compiled(dsg, "wind_turbine_efficiency", tmp_path)
     head = dsg.run(u=sc["u"][:1200], y=sc["y"][:1200])
-    assert max_scaled_gap({k: got[k][:1200] for k in KEYS}, head) <= 1e-10
-    alarm = got["alarm"]
+    assert max_scaled_gap(c_run(cd, sc["u"][:1200], sc["y"][:1200]), head) <= 1e-10
+    got = cd.run(sc["u"], sc["y"])
+    alarm = got.alarm
     assert not np.any(alarm[:4000]), "false alarm before the fault"
     delay = int(np.flatnonzero(alarm[4000:])[0])
     assert delay <= 100
-    iso = np.flatnonzero(got["isolated"] >= 0)
-    assert iso.size and got["isolated"][iso[0]] == 0
+    iso = np.flatnonzero(got.isolated >= 0)
+    assert iso.size and got.isolated[iso[0]] == 0
     jn = list(dsg.J_names)
-    size = got["J"][-1, jn.index("fault_size_eta")]
+    size = got.J[-1, jn.index("fault_size_eta")]
     assert abs(size - (wt.ETA_FAULTY - wt.ETA_NOMINAL)) <= 0.005
-    last = dsg.unpack_state(got["state"][-1])
+    last = dsg.unpack_state(got.state)
     assert abs(last["ekf_theta"][0] - wt.ETA_FAULTY) <= 0.005  # the EKF was re-parameterised to the new η
-    print(f"\nwind-turbine NAFDF C step: {per_step * 1e6:.2f} µs/sample, detection delay {delay} samples, "
-          f"isolated at {iso[0]}, size {size:.4f} ({cstep.c_bytes / 1024:.0f} KiB of C)")
