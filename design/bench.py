@@ -19,7 +19,6 @@ from pathlib import Path
 
 import casadi as ca
 import numpy as np
-
 from fdisyn.design.codegen import CFLAGS, compile_bench, compiler
 from fdisyn.design.evaluate import build, progress_printer
 from fdisyn.design.problem import Problem

@@ -27,7 +27,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-
 from fdisyn.runtime.errors import FdisynError, SpecError
 
 __all__ = ["main"]

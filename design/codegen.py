@@ -23,9 +23,8 @@ from pathlib import Path
 from typing import Any
 
 import casadi as ca
-import numpy as np
-
 import fdisyn.runtime
+import numpy as np
 from fdisyn.design.step import step_function
 from fdisyn.runtime.errors import BuildError
 from fdisyn.runtime.gainfile import FORMAT, GainFile, read_gain_file

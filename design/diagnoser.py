@@ -16,11 +16,10 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-
 from fdisyn.design.certificate import Certificate, Check
 from fdisyn.design.linalg import rank_tol, transfer_size
 from fdisyn.design.plant import LinearPlant
-from fdisyn.design.residual import ResidualGenerator
+from fdisyn.design.residual import dc_gain_y
 from fdisyn.design.thresholds import chi2_threshold
 from fdisyn.runtime.errors import ExistenceError, ShapeError
 from fdisyn.runtime.gainfile import (
@@ -101,31 +100,13 @@ def provenance(**extra: object) -> dict[str, object]:
     return out
 
 
-def _to_gain_generator(gen: ResidualGenerator) -> Generator:
-    ns = gen.n_state
-    lhs = np.eye(ns) - gen.Ar
-    return Generator(
-        name=gen.name,
-        outputs_used=gen.outputs_used,
-        Ar=gen.Ar,
-        Bu=gen.Bu,
-        By=gen.By,
-        Cr=gen.Cr,
-        Du=gen.Du,
-        Dy=gen.Dy,
-        Xu=np.linalg.solve(lhs, gen.Bu) if ns else gen.Bu.copy(),
-        Xy=np.linalg.solve(lhs, gen.By) if ns else gen.By.copy(),
-        method=dict(gen.method),
-    )
-
-
 def linear_diagnoser(
     *,
     name: str,
     problem: str,
     design: str,
     plant: LinearPlant,
-    generators: Sequence[ResidualGenerator],
+    generators: Sequence[Generator],
     sigma_r: Sequence[np.ndarray],
     P_f: float,
     faults: Sequence[SensorFault],
@@ -145,7 +126,7 @@ def linear_diagnoser(
         raise ShapeError(f"{len(generators)} generators need as many residual covariances and certificates")
     if int(persistence) < 1:
         raise ShapeError(f"persistence must be a positive number of samples; got {persistence!r}")
-    gens = [_to_gain_generator(g) for g in generators]
+    gens = list(generators)
     evals = [chi2_evaluator(i, s, P_f) for i, s in enumerate(sigma_r)]
     sensor_idx = {nm: i for i, nm in enumerate(plant.outputs)}
     sig = np.zeros((len(faults), len(evals)), dtype=int)
@@ -194,7 +175,7 @@ def linear_diagnoser(
 
 
 def _bank_checks(
-    generators: Sequence[ResidualGenerator], evals: Sequence[Evaluator], plant: LinearPlant
+    generators: Sequence[Generator], evals: Sequence[Evaluator], plant: LinearPlant
 ) -> tuple[list[Check], dict[str, dict[str, float | None]]]:
     """Every sensor of the signature table must reach the statistic; how well, at steady state.
 
@@ -210,7 +191,7 @@ def _bank_checks(
     table: dict[str, dict[str, float | None]] = {}
     for ev in evals:
         gen = generators[ev.generator]
-        dc = gen.dc_gain_y()
+        dc = dc_gain_y(gen)
         row: dict[str, float | None] = {}
         for j in gen.outputs_used:
             g = dc[:, j]

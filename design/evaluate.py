@@ -15,7 +15,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-
 from fdisyn.design.codegen import CodegenResult, codegen
 from fdisyn.design.metrics import ScenarioMetrics, scenario_metrics
 from fdisyn.design.problem import Batch, Problem, Scenario

@@ -10,7 +10,6 @@ from collections.abc import Sequence
 
 import numpy as np
 import scipy.linalg as sla
-
 from fdisyn.runtime.errors import ShapeError
 
 __all__ = [

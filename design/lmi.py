@@ -71,12 +71,9 @@ from typing import Literal
 
 import cvxpy as cp
 import numpy as np
-import scipy.linalg as sla
-
 from fdisyn.design.certificate import Certificate, Check
 from fdisyn.design.linalg import normal_rank, psd_factor, spectral_radius
 from fdisyn.design.norms import DiscreteLTI, Eta, check_band, gramian, hinf_norm, system_norm
-from fdisyn.design.residual import ResidualGenerator
 from fdisyn.design.sampled_data import (
     ETAS,
     SampledDataPlant,
@@ -85,9 +82,11 @@ from fdisyn.design.sampled_data import (
     co_inner_outer,
     error_performance,
     performance,
+    random_sampled_data_plant,
     residual_dynamics,
 )
 from fdisyn.runtime.errors import ExistenceError, ShapeError, SolverError
+from fdisyn.runtime.gainfile import Generator
 
 __all__ = [
     "SdpStats",
@@ -97,7 +96,6 @@ __all__ = [
     "hminus_index_lmi",
     "hinf_bound_lmi",
     "LmiObserver",
-    "random_plant",
     "lmi_diagnostic_observer",
     "sdp_timings",
     "TimingRow",
@@ -628,7 +626,7 @@ class LmiObserver:
     def G_rpsi(self) -> DiscreteLTI:
         return residual_dynamics(F=self.F, L=self.L, W=self.W, V=self.V)
 
-    def generator(self, *, name: str = "sampled_data_observer_lmi") -> ResidualGenerator:
+    def generator(self, *, name: str = "sampled_data_observer_lmi") -> Generator:
         """Canonical form ``Ar = F, Bu = E, By = L, Cr = −W, Du = −Q, Dy = V``."""
         return canonical_generator(
             name=name,
@@ -830,44 +828,10 @@ class TimingRow:
     design_sdps: int
 
 
-def random_plant(*, n: int, p: int, rng: np.random.Generator, q: int = 1, h: float = 0.5) -> SampledDataPlant:
-    """A stable continuous plant with ``n`` states, ``p`` outputs, 1 input, ``q`` disturbances, 1 fault.
-
-    With ``q = 1`` the lifted disturbance barely excites some directions within
-    a sample and κ = cond(C X Cᵀ) can pass 1e10 already at ``n = p = 3``;
-    ``q = n`` keeps it moderate (≤ ~1e6 at n = 16 in the timing runs).
-
-    Eigenvalues ``−U(0.2, 2)`` or ``−U(0.2, 2) ± j·U(0.1, 2)`` in a random
-    basis of condition ≤ 4; with ``|Im λ| < 2`` and ``h = 0.5`` the sampling is
-    never pathological (that needs ``h·|Im(λ_i − λ_j)| = 2πk``).
-    """
-    blocks, k = [], 0
-    while k < n:
-        if n - k >= 2 and rng.random() < 0.5:
-            s, w = rng.uniform(0.2, 2.0), rng.uniform(0.1, 2.0)
-            blocks.append(np.array([[-s, w], [-w, -s]]))
-            k += 2
-        else:
-            blocks.append(np.array([[-rng.uniform(0.2, 2.0)]]))
-            k += 1
-    a0 = sla.block_diag(*blocks)
-    basis, _ = np.linalg.qr(rng.standard_normal((n, n)))
-    t = basis @ np.diag(rng.uniform(0.5, 2.0, n))
-    a = t @ a0 @ np.linalg.inv(t)
-    return SampledDataPlant.create(
-        A=a,
-        Bu=rng.standard_normal((n, 1)),
-        Bd=rng.standard_normal((n, q)),
-        Bf=rng.standard_normal((n, 1)),
-        C=rng.standard_normal((p, n)),
-        h=h,
-    )
-
-
 def sdp_timings(*, sizes: Sequence[int] = (2, 4, 8, 16), seed: int = 0) -> list[TimingRow]:
     """Measure SDP solve times for the norm LMIs and the design, per state dimension.
 
-    For each ``n``: a :func:`random_plant` with ``p = n`` outputs and ``q = n``
+    For each ``n``: a :func:`~fdisyn.design.sampled_data.random_sampled_data_plant` with ``p = n`` outputs and ``q = n``
     disturbances (so that κ stays moderate at n = 16), the H∞/H2/H₋ LMIs of
     ``G_dJ`` and the full design (:func:`lmi_diagnostic_observer`,
     ``η = "inf"``: the observer-gain SDP plus the peak-following post-filter
@@ -878,7 +842,7 @@ def sdp_timings(*, sizes: Sequence[int] = (2, 4, 8, 16), seed: int = 0) -> list[
     rng = np.random.default_rng(seed)
     rows = []
     for n in sizes:
-        pl = random_plant(n=int(n), p=int(n), q=int(n), rng=rng)
+        pl = random_sampled_data_plant(n=int(n), p=int(n), q=int(n), rng=rng)
         gd = pl.G_d()
         t0 = time.perf_counter()
         hi = hinf_norm_lmi(gd)

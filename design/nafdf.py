@@ -154,10 +154,10 @@ import numpy as np
 import scipy.stats
 from fdisyn.design.certificate import Certificate, Check
 from fdisyn.design.diagnoser import provenance
-from fdisyn.design.step import register_step_builder
-from fdisyn.runtime.gainfile import GainFile, StepSpec
 from fdisyn.design.nonlinear import NonlinearPlant
+from fdisyn.design.step import register_step_builder
 from fdisyn.runtime.errors import GainFileError, ShapeError, SpecError
+from fdisyn.runtime.gainfile import GainFile, StepSpec
 
 __all__ = [
     "PAYLOAD_FORMAT",

@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 from fdisyn.design.linalg import as_matrix
+from fdisyn.design.plant import frozen_array, identifier_names
 from fdisyn.design.sampling import check_sample_time
 from fdisyn.runtime.errors import NominalValueError, NonDifferentiableError, ShapeError, SpecError
 
@@ -114,22 +115,10 @@ _NONSMOOTH_NAMES = frozenset(
 
 
 def _names(given: Sequence[str], what: str, *, allow_empty: bool = False) -> tuple[str, ...]:
-    names = tuple(str(g) for g in given)
+    names = identifier_names(given, what)
     if not names and not allow_empty:
         raise ShapeError(f"{what} names: expected at least one name, got none")
-    for nm in names:
-        if not _NAME.match(nm):
-            raise ShapeError(f"{what} name {nm!r} is not an identifier (letters, digits, underscore; no leading digit)")
-    if len(set(names)) != len(names):
-        dup = sorted({n for n in names if names.count(n) > 1})
-        raise ShapeError(f"{what} names must be unique; repeated: {dup}")
     return names
-
-
-def _frozen(a: np.ndarray) -> np.ndarray:
-    a = np.array(a, dtype=float, copy=True)
-    a.setflags(write=False)
-    return a
 
 
 def _covariance(value: object, name: str, size: int, *, definite: bool) -> np.ndarray:
@@ -347,9 +336,9 @@ class NonlinearPlant:
             inputs=inp,
             outputs=out,
             parameters=par,
-            theta_nominal=_frozen(theta),
-            Q1=_frozen(q1),
-            Q2=_frozen(q2),
+            theta_nominal=frozen_array(theta),
+            Q1=frozen_array(q1),
+            Q2=frozen_array(q2),
             Ts=None if Ts is None else check_sample_time(Ts),
             expressions=None if expressions is None else dict(expressions),
             units=dict(units or {}),

@@ -38,7 +38,6 @@ from typing import Literal
 
 import numpy as np
 import scipy.optimize as sopt
-
 from fdisyn.design.linalg import as_matrix, spectral_radius
 from fdisyn.runtime.errors import ExistenceError, ShapeError
 

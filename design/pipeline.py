@@ -19,7 +19,6 @@ from typing import Any
 
 import casadi as ca
 import numpy as np
-
 from fdisyn.design.evaluate import Built, Evaluation, build, evaluate, progress_printer
 from fdisyn.design.problem import Problem
 from fdisyn.design.step import step_function

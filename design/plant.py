@@ -20,21 +20,21 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-
 from fdisyn.design.linalg import as_matrix, as_square, as_symmetric
 from fdisyn.design.sampling import check_sample_time, van_loan, zoh
 from fdisyn.runtime.errors import ShapeError
 
-__all__ = ["LinearPlant"]
+__all__ = ["LinearPlant", "identifier_names", "frozen_array"]
 
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
 
-def _names(given: Sequence[str] | None, count: int, prefix: str, what: str) -> tuple[str, ...]:
+def identifier_names(given: Sequence[str] | None, what: str, *, count: int | None = None, prefix: str = "") -> tuple[str, ...]:
+    """Signal names: identifiers, unique, ``count`` of them (``None`` given: ``prefix0…``)."""
     if given is None:
-        return tuple(f"{prefix}{i}" for i in range(count))
+        return tuple(f"{prefix}{i}" for i in range(count or 0))
     names = tuple(str(g) for g in given)
-    if len(names) != count:
+    if count is not None and len(names) != count:
         raise ShapeError(f"{what} names: expected {count} names to match the matrices, got {len(names)}: {list(names)}")
     for nm in names:
         if not _NAME.match(nm):
@@ -45,10 +45,11 @@ def _names(given: Sequence[str] | None, count: int, prefix: str, what: str) -> t
     return names
 
 
-def _frozen(a: np.ndarray) -> np.ndarray:
-    a = np.array(a, dtype=float, copy=True)
-    a.setflags(write=False)
-    return a
+def frozen_array(a: object) -> np.ndarray:
+    """A read-only float copy (designs are immutable)."""
+    out = np.array(a, dtype=float, copy=True)
+    out.setflags(write=False)
+    return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -110,20 +111,20 @@ class LinearPlant:
         r = np.zeros((p, p)) if R is None else as_symmetric(R, "R", p, psd=True)
         ts = None if Ts is None else check_sample_time(Ts)
         return cls(
-            A=_frozen(a),
-            B=_frozen(b),
-            C=_frozen(c),
-            D=_frozen(d),
-            E=_frozen(e),
-            Fx=_frozen(fx),
-            Q=_frozen(q),
-            R=_frozen(r),
+            A=frozen_array(a),
+            B=frozen_array(b),
+            C=frozen_array(c),
+            D=frozen_array(d),
+            E=frozen_array(e),
+            Fx=frozen_array(fx),
+            Q=frozen_array(q),
+            R=frozen_array(r),
             Ts=ts,
-            states=_names(states, n, "x", "state"),
-            inputs=_names(inputs, m, "u", "input"),
-            unknown_inputs=_names(unknown_inputs, e.shape[1], "d", "unknown input"),
-            outputs=_names(outputs, p, "y", "output"),
-            component_faults=_names(component_faults, fx.shape[1], "f", "component fault"),
+            states=identifier_names(states, "state", count=n, prefix="x"),
+            inputs=identifier_names(inputs, "input", count=m, prefix="u"),
+            unknown_inputs=identifier_names(unknown_inputs, "unknown input", count=e.shape[1], prefix="d"),
+            outputs=identifier_names(outputs, "output", count=p, prefix="y"),
+            component_faults=identifier_names(component_faults, "component fault", count=fx.shape[1], prefix="f"),
             units=dict(units or {}),
         )
 
@@ -165,11 +166,11 @@ class LinearPlant:
         m, q = self.m, self.q
         return replace(
             self,
-            A=_frozen(ad),
-            B=_frozen(bd_all[:, :m]),
-            E=_frozen(bd_all[:, m : m + q]),
-            Fx=_frozen(bd_all[:, m + q :]),
-            Q=_frozen(van_loan(self.A, self.Q, ts)),
+            A=frozen_array(ad),
+            B=frozen_array(bd_all[:, :m]),
+            E=frozen_array(bd_all[:, m : m + q]),
+            Fx=frozen_array(bd_all[:, m + q :]),
+            Q=frozen_array(van_loan(self.A, self.Q, ts)),
             Ts=ts,
         )
 
@@ -186,12 +187,12 @@ class LinearPlant:
         si = 1.0 / s
         return replace(
             self,
-            A=_frozen(si[:, None] * self.A * s[None, :]),
-            B=_frozen(si[:, None] * self.B),
-            C=_frozen(self.C * s[None, :]),
-            E=_frozen(si[:, None] * self.E),
-            Fx=_frozen(si[:, None] * self.Fx),
-            Q=_frozen(si[:, None] * self.Q * si[None, :]),
+            A=frozen_array(si[:, None] * self.A * s[None, :]),
+            B=frozen_array(si[:, None] * self.B),
+            C=frozen_array(self.C * s[None, :]),
+            E=frozen_array(si[:, None] * self.E),
+            Fx=frozen_array(si[:, None] * self.Fx),
+            Q=frozen_array(si[:, None] * self.Q * si[None, :]),
         )
 
     def with_noise(self, *, Q: object | None = None, R: object | None = None) -> LinearPlant:
@@ -222,9 +223,9 @@ class LinearPlant:
                 raise ShapeError(f"output index {i} out of range 0..{self.p - 1}")
         return replace(
             self,
-            C=_frozen(self.C[ii, :]),
-            D=_frozen(self.D[ii, :]),
-            R=_frozen(self.R[np.ix_(ii, ii)]),
+            C=frozen_array(self.C[ii, :]),
+            D=frozen_array(self.D[ii, :]),
+            R=frozen_array(self.R[np.ix_(ii, ii)]),
             outputs=tuple(self.outputs[i] for i in ii),
         )
 

@@ -17,7 +17,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-
 from fdisyn.runtime.errors import SpecError
 from fdisyn.runtime.gainfile import GainFile
 

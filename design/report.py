@@ -21,7 +21,6 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-
 from fdisyn.design.codegen import CFLAGS  # noqa: E402
 from fdisyn.design.evaluate import recovery_samples  # noqa: E402
 from fdisyn.design.problem import Problem  # noqa: E402

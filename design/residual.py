@@ -1,7 +1,8 @@
-"""The canonical residual generator and its internal form.
+"""The canonical residual generator connected to its plant (the internal form).
 
 Every linear method in fdisyn reduces to one discrete LTI form on the full
-input and output vectors (ARCHITECTURE.md)::
+input and output vectors (ARCHITECTURE.md), held by
+:class:`fdisyn.runtime.gainfile.Generator`::
 
     ξ(k+1) = Ar ξ(k) + Bu u(k) + By y(k)
     r(k)   = Cr ξ(k) + Du u(k) + Dy y(k)
@@ -14,82 +15,15 @@ identically zero.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
-
-from fdisyn.design.linalg import transfer_size
+from fdisyn.design.linalg import dlyap, spectral_radius, transfer_size
 from fdisyn.design.plant import LinearPlant
-from fdisyn.runtime.errors import ShapeError
+from fdisyn.runtime.errors import ExistenceError, ShapeError
+from fdisyn.runtime.gainfile import Generator
 
-__all__ = ["ResidualGenerator", "InternalForm"]
-
-
-@dataclass(frozen=True, eq=False)
-class ResidualGenerator:
-    """``ξ⁺ = Ar ξ + Bu u + By y``, ``r = Cr ξ + Du u + Dy y`` on the full ``u``, ``y``."""
-
-    name: str
-    outputs_used: tuple[int, ...]
-    Ar: np.ndarray
-    Bu: np.ndarray
-    By: np.ndarray
-    Cr: np.ndarray
-    Du: np.ndarray
-    Dy: np.ndarray
-    method: Mapping[str, object] = field(default_factory=dict)
-    """The method's name and the paper's matrices by their letters (for the gain file)."""
-
-    def __post_init__(self) -> None:
-        ns = self.Ar.shape[0]
-        nr = self.Cr.shape[0]
-        m = self.Bu.shape[1]
-        p = self.By.shape[1]
-        for nm, mat, shape in (
-            ("Ar", self.Ar, (ns, ns)),
-            ("Bu", self.Bu, (ns, m)),
-            ("By", self.By, (ns, p)),
-            ("Cr", self.Cr, (nr, ns)),
-            ("Du", self.Du, (nr, m)),
-            ("Dy", self.Dy, (nr, p)),
-        ):
-            if mat.shape != shape:
-                raise ShapeError(f"generator {self.name!r}: {nm} has shape {mat.shape}; expected {shape}")
-        unused = [j for j in range(p) if j not in self.outputs_used]
-        if unused and (np.any(self.By[:, unused]) or np.any(self.Dy[:, unused])):
-            raise ShapeError(f"generator {self.name!r} reads outputs {unused} that are not in outputs_used")
-
-    @property
-    def n_state(self) -> int:
-        return self.Ar.shape[0]
-
-    @property
-    def n_residual(self) -> int:
-        return self.Cr.shape[0]
-
-    def internal_form(self, plant: LinearPlant) -> InternalForm:
-        """The generator connected to ``plant`` (discrete, same ``u``/``y``)."""
-        if plant.p != self.By.shape[1] or plant.m != self.Bu.shape[1]:
-            raise ShapeError(
-                f"generator {self.name!r} is for {self.Bu.shape[1]} inputs/{self.By.shape[1]} outputs; "
-                f"the plant has {plant.m}/{plant.p}"
-            )
-        n, ns = plant.n, self.n_state
-        a = np.block([[plant.A, np.zeros((n, ns))], [self.By @ plant.C, self.Ar]])
-        c = np.hstack([self.Dy @ plant.C, self.Cr])
-        bu = np.vstack([plant.B, self.Bu + self.By @ plant.D])
-        du = self.Du + self.Dy @ plant.D
-        bd = np.vstack([plant.E, np.zeros((ns, plant.q))])
-        bf = np.vstack([plant.Fx, np.zeros((ns, plant.Fx.shape[1]))])
-        # additive sensor faults y = C x + D u + f_y enter like a second y input
-        bs = np.vstack([np.zeros((n, plant.p)), self.By])
-        return InternalForm(A=a, C=c, Bu=bu, Du=du, Bd=bd, Bf=bf, Bs=bs, Ds=self.Dy.copy())
-
-    def dc_gain_y(self) -> np.ndarray:
-        """Steady-state gain from ``y`` to ``r``: ``Dy + Cr (I − Ar)⁻¹ By``."""
-        ns = self.n_state
-        return self.Dy + self.Cr @ np.linalg.solve(np.eye(ns) - self.Ar, self.By)
+__all__ = ["InternalForm", "internal_form", "dc_gain_y", "residual_covariance"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -110,13 +44,55 @@ class InternalForm:
     Ds: np.ndarray
 
     def coupling(self, channel: str) -> float:
-        """Largest normalised Markov parameter from ``channel`` to ``r``.
-
-        ``max_k ‖C A^k B‖ / (‖C‖ ‖A‖^k ‖B‖)`` over ``k < dim + 1`` together
-        with ``‖D‖ / (‖C‖ ‖B‖ + ‖D‖)``: zero exactly when the channel is
-        decoupled, and of order ``eps`` for an exactly decoupled generator
-        computed in floating point, independently of the units of the plant.
-        """
+        """Largest normalised Markov parameter from ``channel`` to ``r``
+        (:func:`fdisyn.design.linalg.transfer_size`): zero exactly when the
+        channel is decoupled, of order ``eps`` for an exactly decoupled
+        generator computed in floating point, independently of units."""
         b = getattr(self, "B" + channel)
         d = self.Du if channel == "u" else (self.Ds if channel == "s" else np.zeros((self.C.shape[0], b.shape[1])))
         return transfer_size(self.A, b, self.C, d)
+
+
+def internal_form(gen: Generator, plant: LinearPlant) -> InternalForm:
+    """``gen`` connected to ``plant`` (discrete, the same ``u`` and ``y``)."""
+    if plant.p != gen.By.shape[1] or plant.m != gen.Bu.shape[1]:
+        raise ShapeError(
+            f"generator {gen.name!r} is for {gen.Bu.shape[1]} inputs/{gen.By.shape[1]} outputs; the plant has {plant.m}/{plant.p}"
+        )
+    n, ns = plant.n, gen.n_state
+    a = np.block([[plant.A, np.zeros((n, ns))], [gen.By @ plant.C, gen.Ar]])
+    c = np.hstack([gen.Dy @ plant.C, gen.Cr])
+    bu = np.vstack([plant.B, gen.Bu + gen.By @ plant.D])
+    du = gen.Du + gen.Dy @ plant.D
+    bd = np.vstack([plant.E, np.zeros((ns, plant.q))])
+    bf = np.vstack([plant.Fx, np.zeros((ns, plant.Fx.shape[1]))])
+    # additive sensor faults y = C x + D u + f_y enter like a second y input
+    bs = np.vstack([np.zeros((n, plant.p)), gen.By])
+    return InternalForm(A=a, C=c, Bu=bu, Du=du, Bd=bd, Bf=bf, Bs=bs, Ds=gen.Dy.copy())
+
+
+def dc_gain_y(gen: Generator) -> np.ndarray:
+    """Steady-state gain from ``y`` to ``r``: ``Dy + Cr (I − Ar)⁻¹ By``."""
+    return gen.Dy + gen.Cr @ np.linalg.solve(np.eye(gen.n_state) - gen.Ar, gen.By) if gen.n_state else gen.Dy.copy()
+
+
+def residual_covariance(gen: Generator, plant: LinearPlant) -> np.ndarray:
+    """Steady-state covariance of ``r`` under the plant's noise ``w ~ N(0, Q)``, ``v ~ N(0, R)``.
+
+    From the internal form: ``Σ = A_i Σ A_iᵀ + B_w Q B_wᵀ + B_v R B_vᵀ`` with
+    ``B_w = [I; 0]``, ``B_v = [0; By]``; then ``Σ_r = C_i Σ C_iᵀ + Dy R Dyᵀ``
+    (``v(k)`` is independent of the state at ``k``). Needs a stable internal
+    form, i.e. a stable plant; designs of unstable plants state their own.
+    """
+    form = internal_form(gen, plant)
+    if spectral_radius(form.A) >= 1.0:
+        raise ExistenceError(
+            f"the plant with generator {gen.name!r} has no stationary residual covariance (internal form spectral radius "
+            f"{spectral_radius(form.A):.6g}); use the design's own covariance"
+        )
+    n, ns = plant.n, gen.n_state
+    bw = np.vstack([np.eye(n), np.zeros((ns, n))])
+    bv = np.vstack([np.zeros((n, plant.p)), gen.By])
+    sig = dlyap(form.A, bw @ plant.Q @ bw.T + bv @ plant.R @ bv.T)
+    s = form.C @ sig @ form.C.T + gen.Dy @ plant.R @ gen.Dy.T
+    return 0.5 * (s + s.T)

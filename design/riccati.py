@@ -23,7 +23,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg as sla
-
 from fdisyn.design.linalg import as_matrix, as_square, as_symmetric, rank_tol, unobservable_modes
 from fdisyn.runtime.errors import ExistenceError, SolverError
 
@@ -106,6 +105,16 @@ def _reduced_pencil(a: np.ndarray, c: np.ndarray, q: np.ndarray, r: np.ndarray, 
     return m2, n2, sca
 
 
+def _dare_data(A: object, C: object, Q: object, R: object, S: object | None) -> tuple[np.ndarray, ...]:
+    """Validated ``(A, C, Q, R, S)`` of a filtering DARE (errors name the matrix)."""
+    a = as_square(A, "A")
+    n = a.shape[0]
+    c = as_matrix(C, "C", cols=n)
+    p = c.shape[0]
+    s = np.zeros((n, p)) if S is None else as_matrix(S, "S", rows=n, cols=p)
+    return a, c, as_symmetric(Q, "Q", n), as_symmetric(R, "R", p), s
+
+
 def solve_filter_dare(
     A: object,
     C: object,
@@ -127,13 +136,8 @@ def solve_filter_dare(
     SolverError
         The QZ decomposition failed.
     """
-    a = as_square(A, "A")
+    a, c, q, r, s = _dare_data(A, C, Q, R, S)
     n = a.shape[0]
-    c = as_matrix(C, "C", cols=n)
-    p = c.shape[0]
-    q = as_symmetric(Q, "Q", n)
-    r = as_symmetric(R, "R", p)
-    s = np.zeros((n, p)) if S is None else as_matrix(S, "S", rows=n, cols=p)
     bad = unobservable_modes(a, c, region="unstable-discrete")
     if bad:
         raise ExistenceError(
@@ -197,13 +201,7 @@ def dare_pencil_eigenvalues(A: object, C: object, Q: object, R: object, S: objec
     uncontrollable modes on the circle — and undetectable modes of ``(C, A)``
     on the circle. Infinite eigenvalues are returned as ``inf``.
     """
-    a = as_square(A, "A")
-    n = a.shape[0]
-    c = as_matrix(C, "C", cols=n)
-    p = c.shape[0]
-    q = as_symmetric(Q, "Q", n)
-    r = as_symmetric(R, "R", p)
-    s = np.zeros((n, p)) if S is None else as_matrix(S, "S", rows=n, cols=p)
+    a, c, q, r, s = _dare_data(A, C, Q, R, S)
     m2, n2, _ = _reduced_pencil(a, c, q, r, s)
     alpha, beta = sla.eigvals(m2, n2, homogeneous_eigvals=True)
     with np.errstate(divide="ignore", invalid="ignore"):

@@ -55,7 +55,6 @@ from typing import Literal
 
 import numpy as np
 import scipy.linalg as sla
-
 from fdisyn.design.certificate import Certificate, Check
 from fdisyn.design.linalg import (
     as_matrix,
@@ -67,12 +66,14 @@ from fdisyn.design.linalg import (
 )
 from fdisyn.design.norms import DiscreteLTI, Eta, hinf_norm, hminus_index, series, system_norm
 from fdisyn.design.plant import LinearPlant
-from fdisyn.design.residual import ResidualGenerator
+from fdisyn.design.residual import internal_form
 from fdisyn.design.riccati import dare_pencil_eigenvalues, solve_filter_dare
 from fdisyn.design.sampling import check_sample_time, van_loan, zoh
 from fdisyn.runtime.errors import ExistenceError, ShapeError, SolverError
+from fdisyn.runtime.gainfile import Generator
 
 __all__ = [
+    "random_sampled_data_plant",
     "SampledDataPlant",
     "norm_invariant_discretisation",
     "check_sampling",
@@ -751,7 +752,7 @@ class DiagnosticObserver:
         """``G_rψ = (F, L, −W, V)``."""
         return residual_dynamics(F=self.F, L=self.L, W=self.W, V=self.V)
 
-    def generator(self, *, name: str = "sampled_data_observer") -> ResidualGenerator:
+    def generator(self, *, name: str = "sampled_data_observer") -> Generator:
         """Canonical form ``Ar = F, Bu = E, By = L, Cr = −W, Du = −Q, Dy = V`` (ARCHITECTURE.md)."""
         dt = self.factorisation.dtars
         method = {"name": "sampled_data_observer", "design": self.design, "T": self.T, "X": dt.X, "M": dt.M, "N": dt.N}
@@ -771,13 +772,13 @@ def canonical_generator(
     Q: np.ndarray,
     h: float,
     method: Mapping[str, object] | None = None,
-) -> ResidualGenerator:
+) -> Generator:
     """Eq. (6) in canonical form: ``Ar = F, Bu = E, By = L, Cr = −W, Du = −Q, Dy = V``."""
     meta: dict[str, object] = {"name": "sampled_data_observer", **(method or {})}
     meta.update({"F": F, "E": E, "L": L, "W": W, "V": V, "Q": Q, "h": h})
-    return ResidualGenerator(
+    return Generator.from_canonical(
         name=name,
-        outputs_used=tuple(range(L.shape[1])),
+        outputs_used=range(L.shape[1]),
         Ar=np.array(F, dtype=float),
         Bu=np.array(E, dtype=float),
         By=np.array(L, dtype=float),
@@ -979,7 +980,7 @@ def optimal_diagnostic_observer(
     checks.append(
         Check(
             "internal form coupling u → r",
-            gen.internal_form(dplant).coupling("u"),
+            internal_form(gen, dplant).coupling("u"),
             DECOUPLING_TOL,
             "<=",
             "r must not depend on the known input v (Corollary 1); exact up to round-off",
@@ -1045,4 +1046,41 @@ def optimal_diagnostic_observer(
         J_star=j_star,
         certificate=cert,
         info=info,
+    )
+
+
+def random_sampled_data_plant(
+    *, n: int, p: int, rng: np.random.Generator, q: int = 1, h: float = 0.5, stable: bool = True
+) -> SampledDataPlant:
+    """A random continuous plant with ``n`` states, ``p`` outputs, 1 input, ``q`` disturbances, 1 fault.
+
+    With ``q = 1`` the lifted disturbance barely excites some directions within
+    a sample and κ = cond(C X Cᵀ) can pass 1e10 already at ``n = p = 3``;
+    ``q = n`` keeps it moderate (≤ ~1e6 at n = 16 in the timing runs).
+
+    Eigenvalues ``−U(0.3, 2)`` or ``−U(0.3, 2) ± j·U(0.1, 1.5)`` in a random
+    basis of condition ≤ 4; with ``|Im λ| < 1.5`` and ``h = 0.5`` the sampling is
+    never pathological (that needs ``h·|Im(λ_i − λ_j)| = 2πk``).
+    ``stable=False`` makes the first mode unstable (real part ``+U(0.06, 0.4)``).
+    """
+    blocks, k = [], 0
+    while k < n:
+        s = rng.uniform(0.3, 2.0) * (1 if stable or k else -0.2)
+        if n - k >= 2 and rng.random() < 0.5:
+            w = rng.uniform(0.1, 1.5)
+            blocks.append(np.array([[-s, w], [-w, -s]]))
+            k += 2
+        else:
+            blocks.append(np.array([[-s]]))
+            k += 1
+    qm, _ = np.linalg.qr(rng.standard_normal((n, n)))
+    t = qm @ np.diag(rng.uniform(0.5, 2.0, n))
+    a = t @ sla.block_diag(*blocks) @ np.linalg.inv(t)
+    return SampledDataPlant.create(
+        A=a,
+        Bu=rng.standard_normal((n, 1)),
+        Bd=rng.standard_normal((n, q)),
+        Bf=rng.standard_normal((n, 1)),
+        C=rng.standard_normal((p, n)),
+        h=h,
     )

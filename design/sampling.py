@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.linalg as sla
-
 from fdisyn.design.linalg import as_matrix
 from fdisyn.runtime.errors import ShapeError
 

@@ -12,7 +12,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.signal
-
 from fdisyn.design.linalg import psd_factor
 from fdisyn.design.plant import LinearPlant
 from fdisyn.design.problem import Batch, Scenario

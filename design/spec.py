@@ -59,7 +59,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-
 from fdisyn.design.diagnoser import SensorFault, linear_diagnoser
 from fdisyn.design.plant import LinearPlant
 from fdisyn.design.problem import Batch, Problem, Scenario, get_problem

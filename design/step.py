@@ -21,7 +21,6 @@ from collections.abc import Callable
 
 import casadi as ca
 import numpy as np
-
 from fdisyn.runtime.errors import GainFileError
 from fdisyn.runtime.gainfile import GainFile, linear_state_layout
 

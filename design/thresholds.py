@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import scipy.stats
-
 from fdisyn.runtime.errors import ShapeError
 
 __all__ = ["chi2_threshold"]

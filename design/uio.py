@@ -39,13 +39,13 @@ from typing import Any, Literal
 import casadi as ca
 import numpy as np
 import scipy.signal
-
 from fdisyn.design.certificate import Certificate, Check
 from fdisyn.design.linalg import dlyap, rank, rel_diff, spectral_radius, unobservable_modes
 from fdisyn.design.plant import LinearPlant
-from fdisyn.design.residual import ResidualGenerator
+from fdisyn.design.residual import internal_form
 from fdisyn.design.riccati import solve_filter_dare
 from fdisyn.runtime.errors import ExistenceError, ShapeError, SolverError
+from fdisyn.runtime.gainfile import Generator
 
 __all__ = [
     "UIOStructure",
@@ -241,7 +241,7 @@ class UIODesign:
     variant: str
     certificate: Certificate
 
-    def generator(self, name: str, outputs_used: Sequence[int], n_outputs: int) -> ResidualGenerator:
+    def generator(self, name: str, outputs_used: Sequence[int], n_outputs: int) -> Generator:
         """The canonical form on the full output vector of ``n_outputs`` sensors.
 
         ``Ar = F``, ``Bu = G − K D``, ``By = K``, ``Cr = −C``, ``Du = −(I − CH) D``,
@@ -260,7 +260,7 @@ def _canonical(
     name: str,
     outputs_used: Sequence[int],
     n_outputs: int,
-) -> ResidualGenerator:
+) -> Generator:
     idx = list(outputs_used)
     if len(idx) != pl.p:
         raise ShapeError(f"outputs_used has {len(idx)} entries; the designed plant has {pl.p} outputs")
@@ -272,9 +272,9 @@ def _canonical(
     dy = np.zeros((pl.p, n_outputs))
     dy[:, idx] = st.Cbar
     matrices = {"F": f, "G": st.G, "K": k, "H": st.H, "T": st.T, "L": L, "M": st.M, "Sigma": sigma}
-    return ResidualGenerator(
+    return Generator.from_canonical(
         name=name,
-        outputs_used=tuple(idx),
+        outputs_used=idx,
         Ar=f.copy(),
         Bu=st.G - k @ d,
         By=by,
@@ -294,8 +294,8 @@ def _common_checks(plant: LinearPlant, st: UIOStructure, f: np.ndarray) -> list[
     ]
 
 
-def _decoupling_checks(design_plant: LinearPlant, gen: ResidualGenerator) -> list[Check]:
-    internal = gen.internal_form(design_plant)
+def _decoupling_checks(design_plant: LinearPlant, gen: Generator) -> list[Check]:
+    internal = internal_form(gen, design_plant)
     return [
         Check(
             "internal form coupling u → r",

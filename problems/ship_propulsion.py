@@ -32,7 +32,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-
 from fdisyn.design.nafdf import NafdfDesign, nafdf, nafdf_gain_file
 from fdisyn.design.nonlinear import NonlinearPlant
 from fdisyn.design.problem import Batch, Problem

@@ -25,7 +25,6 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-
 from fdisyn.design.diagnoser import SensorFault, linear_diagnoser
 from fdisyn.design.plant import LinearPlant
 from fdisyn.design.problem import Batch, Problem, Scenario

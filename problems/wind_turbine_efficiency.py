@@ -38,7 +38,6 @@ from collections.abc import Mapping, Sequence
 
 import casadi as ca
 import numpy as np
-
 from fdisyn.design.nafdf import NafdfDesign, nafdf, nafdf_gain_file
 from fdisyn.design.nonlinear import NonlinearPlant
 from fdisyn.design.problem import Batch, Problem

@@ -11,7 +11,6 @@ import ctypes
 from pathlib import Path
 
 import numpy as np
-
 from fdisyn.runtime.errors import BuildError, ShapeError
 from fdisyn.runtime.gainfile import GainFile
 from fdisyn.runtime.reference import RunResult, StepOutput

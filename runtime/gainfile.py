@@ -32,7 +32,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-
 from fdisyn.runtime.errors import GainFileError
 
 __all__ = [
@@ -69,6 +68,63 @@ class Generator:
     Xu: np.ndarray
     Xy: np.ndarray
     method: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        w = f"generator {self.name!r}"
+        if self.Ar.ndim != 2 or self.Ar.shape[0] != self.Ar.shape[1]:
+            _fail(f"{w}.Ar must be square (the generator's state matrix), found shape {self.Ar.shape}")
+        ns, ng, m, p = self.Ar.shape[0], self.Cr.shape[0], self.Bu.shape[1], self.By.shape[1]
+        for k, shape in (
+            ("Bu", (ns, m)),
+            ("By", (ns, p)),
+            ("Cr", (ng, ns)),
+            ("Du", (ng, m)),
+            ("Dy", (ng, p)),
+            ("Xu", (ns, m)),
+            ("Xy", (ns, p)),
+        ):
+            _shape(getattr(self, k), f"{w}.{k}", shape)
+        if not self.outputs_used or any(not 0 <= j < p for j in self.outputs_used) or len(set(self.outputs_used)) != len(self.outputs_used):
+            _fail(f"{w}.outputs_used must be distinct indices in 0..{p - 1}, found {list(self.outputs_used)}")
+        unused = [j for j in range(p) if j not in self.outputs_used]
+        if unused and (np.any(self.By[:, unused]) or np.any(self.Dy[:, unused])):
+            _fail(f"{w} reads outputs {unused} that are not in outputs_used")
+
+    @classmethod
+    def from_canonical(
+        cls,
+        *,
+        name: str,
+        outputs_used: Sequence[int],
+        Ar: np.ndarray,
+        Bu: np.ndarray,
+        By: np.ndarray,
+        Cr: np.ndarray,
+        Du: np.ndarray,
+        Dy: np.ndarray,
+        method: Mapping[str, Any] | None = None,
+    ) -> Generator:
+        """A generator from its canonical matrices; the equilibrium maps are computed.
+
+        ``Xu = (I − Ar)⁻¹ Bu``, ``Xy = (I − Ar)⁻¹ By``: the state a generator
+        settles to under constant ``u``, ``y`` (it starts there, see the runtime).
+        """
+        ar = np.array(Ar, dtype=float)
+        lhs = np.eye(ar.shape[0]) - ar
+        bu, by = np.array(Bu, dtype=float), np.array(By, dtype=float)
+        return cls(
+            name=name,
+            outputs_used=tuple(int(j) for j in outputs_used),
+            Ar=ar,
+            Bu=bu,
+            By=by,
+            Cr=np.array(Cr, dtype=float),
+            Du=np.array(Du, dtype=float),
+            Dy=np.array(Dy, dtype=float),
+            Xu=np.linalg.solve(lhs, bu) if ar.size else bu.copy(),
+            Xy=np.linalg.solve(lhs, by) if ar.size else by.copy(),
+            method=dict(method or {}),
+        )
 
     @property
     def n_state(self) -> int:
@@ -310,14 +366,17 @@ def gain_file_from_dict(doc: object, *, source: str = "gain file") -> GainFile:
         gens = []
         for i, gd in enumerate(r.array("generators")):
             gr = _Reader(gd, f"{source}: generators[{i}]")
-            gens.append(
-                Generator(
-                    name=gr.string("name"),
-                    outputs_used=tuple(gr.integers("outputs_used")),
-                    **{k: gr.matrix(k) for k in _MATRIX_KEYS},
-                    method=gr.obj("method"),
+            try:
+                gens.append(
+                    Generator(
+                        name=gr.string("name"),
+                        outputs_used=tuple(gr.integers("outputs_used")),
+                        **{k: gr.matrix(k) for k in _MATRIX_KEYS},
+                        method=gr.obj("method"),
+                    )
                 )
-            )
+            except GainFileError as exc:
+                raise GainFileError(f"{source}: generators[{i}]: {exc}") from None
         kwargs["generators"] = tuple(gens)
         evs = []
         for i, ed in enumerate(r.array("evaluators")):
@@ -491,25 +550,9 @@ def _validate_linear(gf: GainFile) -> None:
     nr = 0
     for i, g in enumerate(gf.generators):
         w = f"generators[{i}] ({g.name})"
-        if g.Ar.shape[0] != g.Ar.shape[1]:
-            _fail(f"{w}.Ar must be square (the generator's state matrix), found shape {g.Ar.shape}")
-        ns, ng = g.n_state, g.n_residual
-        for k, shape in (
-            ("Ar", (ns, ns)),
-            ("Bu", (ns, m)),
-            ("By", (ns, p)),
-            ("Cr", (ng, ns)),
-            ("Du", (ng, m)),
-            ("Dy", (ng, p)),
-            ("Xu", (ns, m)),
-            ("Xy", (ns, p)),
-        ):
-            _shape(getattr(g, k), f"{w}.{k}", shape)
-        if not g.outputs_used or any(not 0 <= j < p for j in g.outputs_used) or len(set(g.outputs_used)) != len(g.outputs_used):
-            _fail(f"{w}.outputs_used must be distinct indices in 0..{p - 1}, found {list(g.outputs_used)}")
-        unused = [j for j in range(p) if j not in g.outputs_used]
-        if unused and (np.any(g.By[:, unused]) or np.any(g.Dy[:, unused])):
-            _fail(f"{w} reads outputs {unused} that are not in outputs_used")
+        ns = g.n_state
+        if g.Bu.shape[1] != m or g.By.shape[1] != p:
+            _fail(f"{w} is for {g.Bu.shape[1]} inputs and {g.By.shape[1]} outputs; the file has {m} and {p}")
         if ns:
             rho = float(np.max(np.abs(np.linalg.eigvals(g.Ar))))
             if not rho < 1.0:
@@ -520,7 +563,7 @@ def _validate_linear(gf: GainFile) -> None:
                 res = np.linalg.norm((np.eye(ns) - g.Ar) @ x - b)
                 if res > 1e-8 * (np.linalg.norm(b) + np.linalg.norm(g.Ar) * np.linalg.norm(x) + 1e-300):
                     _fail(f"{w}.{xk} is not (I − Ar)⁻¹ {bk} (residual {res:.3g}); the file is inconsistent")
-        nr += ng
+        nr += g.n_residual
     if len(gf.evaluators) == 0:
         _fail("a linear diagnoser needs at least one evaluator")
     for j, e in enumerate(gf.evaluators):

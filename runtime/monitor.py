@@ -19,7 +19,6 @@ from pathlib import Path
 from typing import Literal
 
 import numpy as np
-
 from fdisyn.runtime.compiled import CompiledDiagnoser, library_path
 from fdisyn.runtime.errors import BuildError
 from fdisyn.runtime.gainfile import GainFile, read_gain_file

@@ -28,7 +28,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-
 from fdisyn.runtime.errors import ShapeError
 from fdisyn.runtime.gainfile import GainFile, linear_state_layout
 

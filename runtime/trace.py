@@ -17,7 +17,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-
 from fdisyn.runtime.errors import TraceError
 from fdisyn.runtime.reference import RunResult
 

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import numpy as np
-
 from fdisyn.design.norms import DiscreteLTI
 from fdisyn.design.plant import LinearPlant
 

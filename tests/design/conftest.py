@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import pytest
-
 from fdisyn.design.sampled_data import SampledDataPlant
+
 from tests.helpers import PAPER
 
 

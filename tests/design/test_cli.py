@@ -8,7 +8,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from fdisyn.design.cli import main
 from fdisyn.runtime.gainfile import read_gain_file
 

@@ -7,7 +7,6 @@ import subprocess
 
 import numpy as np
 import pytest
-
 from fdisyn.design.codegen import CFLAGS
 from fdisyn.design.pipeline import EXPORT_TOL, check_export
 from fdisyn.runtime.compiled import CompiledDiagnoser

@@ -4,11 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
-
 from fdisyn.design.linalg import normal_rank, psd_factor, unobservable_modes
 from fdisyn.runtime.errors import ShapeError
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 
 @settings(derandomize=True, max_examples=30, deadline=None)

@@ -9,10 +9,6 @@ import control
 import cvxpy as cp
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
-
-from tests.helpers import random_stable
 from fdisyn.design import lmi
 from fdisyn.design.lmi import (
     h2_norm_lmi,
@@ -20,12 +16,16 @@ from fdisyn.design.lmi import (
     hinf_norm_lmi,
     hminus_index_lmi,
     lmi_diagnostic_observer,
-    random_plant,
     sdp_timings,
 )
 from fdisyn.design.norms import DiscreteLTI, h2_norm, hinf_norm, hminus_index
-from fdisyn.design.sampled_data import ETAS, SampledDataPlant, optimal_diagnostic_observer
+from fdisyn.design.residual import internal_form
+from fdisyn.design.sampled_data import ETAS, SampledDataPlant, optimal_diagnostic_observer, random_sampled_data_plant
 from fdisyn.runtime.errors import ExistenceError, SolverError
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from tests.helpers import random_stable
 
 # The issue's contract: LMI norms agree with the independent evaluation to
 # 1e-6 relative (Clarabel at 1e-11, falling back to 1e-9, on problems scaled
@@ -157,7 +157,7 @@ def test_lmi_design_reaches_theorem1_on_the_paper_example(paper_plant: SampledDa
 def test_lmi_design_reaches_theorem1_on_random_plants(n: int, seed: int) -> None:
     """p = n outputs so that all three η are finite (‖·‖₋ needs p ≥ rank B_fJ = n);
     q = n disturbances keep κ moderate (one disturbance drives κ past 1e10)."""
-    pl = random_plant(n=n, p=n, q=n, rng=np.random.default_rng(seed))
+    pl = random_sampled_data_plant(n=n, p=n, q=n, rng=np.random.default_rng(seed))
     opt = optimal_diagnostic_observer(plant=pl)
     for eta in ETAS:
         des = lmi_diagnostic_observer(plant=pl, eta=eta)
@@ -206,7 +206,7 @@ def test_lmi_design_of_an_unstable_plant() -> None:
 
 
 def test_hminus_design_needs_enough_outputs() -> None:
-    pl = random_plant(n=3, p=2, rng=np.random.default_rng(0))
+    pl = random_sampled_data_plant(n=3, p=2, rng=np.random.default_rng(0))
     with pytest.raises(ExistenceError, match=r"‖G_rψ G_f‖₋ = 0 for every generator: the fault channel has 3 inputs"):
         lmi_diagnostic_observer(plant=pl, eta="-")
 
@@ -215,7 +215,7 @@ def test_lmi_generator_is_in_canonical_form_and_decoupled_from_u(paper_plant: Sa
     des = lmi_diagnostic_observer(plant=paper_plant, eta="2")
     gen = des.generator()
     assert np.array_equal(gen.Ar, des.F) and np.array_equal(gen.Cr, -des.W) and np.array_equal(gen.Dy, des.V)
-    assert gen.internal_form(paper_plant.discrete_plant()).coupling("u") <= 1e-12
+    assert internal_form(gen, paper_plant.discrete_plant()).coupling("u") <= 1e-12
 
 
 def test_sdp_timings_report_positive_times() -> None:

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from fdisyn.design.codegen import codegen
 from fdisyn.design.nafdf import NafdfDesign, nafdf_gain_file
 from fdisyn.problems import ship_propulsion as sp

@@ -7,10 +7,6 @@ import math
 import control
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
-
-from tests.helpers import random_stable
 from fdisyn.design.norms import (
     DiscreteLTI,
     h2_norm,
@@ -21,6 +17,10 @@ from fdisyn.design.norms import (
     system_norm,
 )
 from fdisyn.runtime.errors import ExistenceError, ShapeError
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from tests.helpers import random_stable
 
 # slycot's ab13dd run at tol = 1e-12 and the sweep are both accurate to
 # ~1e-12; 1e-9 relative leaves margin for lightly damped systems (radius 0.97).

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from fdisyn.design.linalg import markov_parameters
 from fdisyn.design.plant import LinearPlant
 from fdisyn.runtime.errors import ShapeError

@@ -5,11 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.linalg
-from hypothesis import given, settings
-from hypothesis import strategies as st
-
 from fdisyn.design.riccati import dare_residual, solve_filter_dare
 from fdisyn.runtime.errors import ExistenceError
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 
 def test_scalar_closed_form():

@@ -9,13 +9,10 @@ import numpy as np
 import pytest
 import scipy.integrate as sint
 import scipy.linalg as sla
-from hypothesis import given, settings
-from hypothesis import strategies as st
-
-from tests.helpers import PAPER, PAPER_GAINS
 from fdisyn.design.linalg import spectral_radius
 from fdisyn.design.norms import DiscreteLTI, h2_norm, hinf_norm, system_norm
 from fdisyn.design.plant import LinearPlant
+from fdisyn.design.residual import internal_form
 from fdisyn.design.riccati import solve_filter_dare
 from fdisyn.design.sampled_data import (
     ETAS,
@@ -26,46 +23,20 @@ from fdisyn.design.sampled_data import (
     norm_invariant_discretisation,
     optimal_diagnostic_observer,
     performance,
+    random_sampled_data_plant,
     residual_dynamics,
     sampled_disturbance,
     simulate_sampled_data,
     solve_dtars,
 )
-from fdisyn.design.lmi import random_plant
 from fdisyn.runtime.errors import CertificateError, ExistenceError, ShapeError
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from tests.helpers import PAPER, PAPER_GAINS
 
 # Grid of frequencies (rad/sample) for transfer-function identities.
 W_TEST = np.array([0.0, 0.3, 1.1, 2.0, math.pi])
-
-
-def _random_plant(rng: np.random.Generator, *, n: int, p: int, q: int | None = None, h: float = 0.5, stable: bool = True):
-    """Continuous plant with eigenvalues −U(0.3, 2) (± j U(0.1, 1.5)) in a basis of cond ≤ 4.
-
-    ``q = n`` disturbances by default: κ = cond(C X Cᵀ) stays ≲ 1e6 (with one
-    disturbance it reaches 1e10 and beyond, see the κ test).
-    """
-    q = n if q is None else q
-    blocks, k = [], 0
-    while k < n:
-        s = rng.uniform(0.3, 2.0) * (1 if stable or k else -0.2)
-        if n - k >= 2 and rng.random() < 0.5:
-            w = rng.uniform(0.1, 1.5)
-            blocks.append(np.array([[-s, w], [-w, -s]]))
-            k += 2
-        else:
-            blocks.append(np.array([[-s]]))
-            k += 1
-    qm, _ = np.linalg.qr(rng.standard_normal((n, n)))
-    t = qm @ np.diag(rng.uniform(0.5, 2.0, n))
-    a = t @ sla.block_diag(*blocks) @ np.linalg.inv(t)
-    return SampledDataPlant.create(
-        A=a,
-        Bu=rng.standard_normal((n, 1)),
-        Bd=rng.standard_normal((n, q)),
-        Bf=rng.standard_normal((n, 1)),
-        C=rng.standard_normal((p, n)),
-        h=h,
-    )
 
 
 # ---------------------------------------------------------------------------
@@ -101,7 +72,7 @@ def test_lemma1_rank_deficient_gramian_gives_fewer_columns() -> None:
 @given(n=st.integers(1, 4), p=st.integers(1, 2), h=st.floats(0.1, 2.0), seed=st.integers(0, 2**16))
 def test_lemma1_h2_is_the_continuous_h2_norm(n: int, p: int, h: float, seed: int) -> None:
     """``Σ_k A_D^k W A_Dᵀ^k = ∫₀^∞ e^{At}BBᵀe^{Aᵀt}dt``, so ``‖G_J‖₂ = ‖G‖_H2`` of the continuous plant (slycot)."""
-    pl = _random_plant(np.random.default_rng(seed), n=n, p=p, h=h)
+    pl = random_sampled_data_plant(rng=np.random.default_rng(seed), n=n, p=p, q=n, h=h)
     ref = control.norm(control.ss(pl.A, pl.Bd, pl.C, np.zeros((p, pl.Bd.shape[1]))), 2)
     assert abs(h2_norm(pl.G_d()) - ref) <= 1e-9 * ref  # two Lyapunov solves, ~1e-13 each
 
@@ -351,7 +322,7 @@ def test_theorem1_any_order_any_basis(n: int, p: int, extra: int, seed: int, uns
     """Order ``s = n + extra``, random Schur ``A_d``, ``Y``, ``T_t``: certified, and the same ``G_rψ``."""
     rng = np.random.default_rng(seed)
     p = min(p, n)
-    pl = _random_plant(rng, n=n, p=p, stable=not unstable)
+    pl = random_sampled_data_plant(rng=rng, n=n, p=p, q=n, stable=not unstable)
     base = optimal_diagnostic_observer(plant=pl)
     if extra:
         a_d = rng.standard_normal((extra, extra))
@@ -398,7 +369,7 @@ def test_eq21_solves_eq29_and_the_printed_exponent_does_not() -> None:
 def test_theorem1_is_a_lower_bound_over_random_observers(seed: int, n: int) -> None:
     """Any stable Luenberger observer (random ``L``, ``V``) has ``J_η ≥ J*_η``."""
     rng = np.random.default_rng(seed)
-    pl = _random_plant(rng, n=n, p=n)
+    pl = random_sampled_data_plant(rng=rng, n=n, p=n, q=n)
     ob = optimal_diagnostic_observer(plant=pl)
     for _ in range(3):
         gain = control.place(pl.A_D.T, pl.C.T, rng.uniform(-0.9, 0.9, n)).T
@@ -419,7 +390,7 @@ def test_generator_canonical_form_and_monte_carlo_whiteness(paper_plant: Sampled
     gen = ob.generator()
     assert np.array_equal(gen.Ar, ob.F) and np.array_equal(gen.By, ob.L) and np.array_equal(gen.Bu, ob.E)
     assert np.array_equal(gen.Cr, -ob.W) and np.array_equal(gen.Dy, ob.V) and np.array_equal(gen.Du, -ob.Q)
-    internal = gen.internal_form(pl.discrete_plant())
+    internal = internal_form(gen, pl.discrete_plant())
     assert internal.coupling("u") <= 1e-12
 
     def run(v: np.ndarray, f: np.ndarray | None, intensity: np.ndarray | None, seed: int) -> np.ndarray:
@@ -452,7 +423,7 @@ def test_generator_canonical_form_and_monte_carlo_whiteness(paper_plant: Sampled
 
 def test_nearly_rank_deficient_disturbance_is_refused_by_the_certificate() -> None:
     """One disturbance, four outputs, h = 0.5: W_d's eigenvalues span ~14 decades (κ ≈ 5e14)."""
-    pl = random_plant(n=4, p=4, q=1, rng=np.random.default_rng(10))
+    pl = random_sampled_data_plant(n=4, p=4, q=1, rng=np.random.default_rng(10))
     with pytest.raises(CertificateError, match=r"κ = cond\(Nᵀ N\), N Nᵀ = C X Cᵀ = [0-9.e+]+ \(must be <= 1e\+10"):
         optimal_diagnostic_observer(plant=pl)
 
@@ -461,7 +432,7 @@ def test_one_disturbance_plants_within_the_kappa_limit_are_certified() -> None:
     """q = 1 < p = n = 3: κ from 1e3 to beyond 1e10; the κ-scaled certificate passes where κ ≤ 1e10."""
     kappas = []
     for seed in range(6):
-        pl = random_plant(n=3, p=3, q=1, rng=np.random.default_rng(seed))
+        pl = random_sampled_data_plant(n=3, p=3, q=1, rng=np.random.default_rng(seed))
         try:
             ob = optimal_diagnostic_observer(plant=pl)
         except CertificateError as exc:
@@ -473,7 +444,7 @@ def test_one_disturbance_plants_within_the_kappa_limit_are_certified() -> None:
 
 
 def test_unstable_plant_is_designed_through_the_error_form() -> None:
-    pl = _random_plant(np.random.default_rng(8), n=3, p=2, stable=False)
+    pl = random_sampled_data_plant(rng=np.random.default_rng(8), n=3, p=2, q=3, stable=False)
     assert spectral_radius(pl.A_D) > 1.0
     ob = optimal_diagnostic_observer(plant=pl)
     assert ob.certificate.passed and spectral_radius(ob.F) < 1.0

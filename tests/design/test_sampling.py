@@ -7,12 +7,11 @@ import pytest
 import scipy.integrate
 import scipy.linalg
 import scipy.signal
-from hypothesis import given, settings
-from hypothesis import strategies as st
-
 from fdisyn.design.plant import LinearPlant
 from fdisyn.design.sampling import van_loan, zoh
 from fdisyn.runtime.errors import ShapeError
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 
 def test_zoh_scalar_closed_form():

@@ -13,7 +13,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.stats
-
 from fdisyn.design.evaluate import build
 from fdisyn.design.metrics import binomial_interval
 from fdisyn.problems.wind_turbine import PROBLEM

@@ -5,13 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.linalg
-from hypothesis import given, settings
-from hypothesis import strategies as st
-
 from fdisyn.design.linalg import dlyap
 from fdisyn.design.plant import LinearPlant
 from fdisyn.design.uio import GAIN_TOL, kalman_uio, pole_placement_uio, uio_error_covariance, uio_structure
 from fdisyn.runtime.errors import ExistenceError, ShapeError
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
 from tests.helpers import random_plant
 
 SEEDS = st.integers(0, 2**31 - 1)

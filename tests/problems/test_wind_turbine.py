@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from fdisyn.design.evaluate import build, evaluate
 from fdisyn.problems.wind_turbine import PARAMETER_SETS, PROBLEM, continuous_model, design_model, discrete_model, operating_point
 

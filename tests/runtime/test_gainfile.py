@@ -6,7 +6,6 @@ import json
 
 import numpy as np
 import pytest
-
 from fdisyn.runtime.errors import GainFileError
 from fdisyn.runtime.gainfile import FORMAT, read_gain_file, write_gain_file
 
@@ -81,8 +80,8 @@ def test_missing_file_is_named(tmp_path):
     ("edit", "message"),
     [
         (lambda d: d.pop("faults"), "missing field 'faults'"),
-        (lambda d: d["generators"][0].__setitem__("Ar", [[0.5, 0.0]]), r"generators\[0\] \(uio_r_m1_g_m1\).Ar must be square .* found shape \(1, 2\)"),
-        (lambda d: d["generators"][0].__setitem__("By", [[0.5, 0.0]]), r"generators\[0\] \(uio_r_m1_g_m1\).By: expected shape \(3, 4\), found \(1, 2\)"),
+        (lambda d: d["generators"][0].__setitem__("Ar", [[0.5, 0.0]]), r"generators\[0\]: generator 'uio_r_m1_g_m1'.Ar must be square .* found shape \(1, 2\)"),
+        (lambda d: d["generators"][0].__setitem__("By", [[0.5, 0.0]]), r"generators\[0\]: generator 'uio_r_m1_g_m1'.By: expected shape \(3, 2\), found \(1, 2\)"),
         (lambda d: d["generators"][1]["By"][0].__setitem__(0, "x"), "holds something that is not a number"),
         (lambda d: d.__setitem__("name", "wind-turbine"), "must be a C identifier"),
         (lambda d: d["generators"][0].__setitem__("Ar", [[1.5, 0, 0], [0, 0, 0], [0, 0, 0]]), "not Schur stable"),

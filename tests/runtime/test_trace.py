@@ -6,7 +6,6 @@ import math
 
 import numpy as np
 import pytest
-
 from fdisyn.runtime.errors import TraceError
 from fdisyn.runtime.trace import Trace, parse_field, read_trace, write_trace
 
