@@ -19,7 +19,7 @@ import numpy as np
 from fdisyn.design.certificate import Certificate, Check
 from fdisyn.design.linalg import rank_tol, transfer_size
 from fdisyn.design.plant import LinearPlant
-from fdisyn.design.residual import dc_gain_y
+from fdisyn.design.residual import dc_gain_y, internal_form
 from fdisyn.design.thresholds import chi2_threshold
 from fdisyn.runtime.errors import ExistenceError, ShapeError
 from fdisyn.runtime.gainfile import (
@@ -31,15 +31,20 @@ from fdisyn.runtime.gainfile import (
     linear_state_layout,
 )
 
-__all__ = ["SensorFault", "chi2_evaluator", "linear_diagnoser", "provenance"]
+__all__ = ["FaultClass", "chi2_evaluator", "default_fault_classes", "linear_diagnoser", "provenance"]
 
 
 @dataclass(frozen=True)
-class SensorFault:
-    """A fault class of the decision table: the sensors it corrupts."""
+class FaultClass:
+    """A fault class of the decision table: the sensors and component faults it corrupts.
+
+    ``sensors`` name plant outputs (additive sensor faults); ``components``
+    name plant component faults (the columns of ``Fx``).
+    """
 
     name: str
-    sensors: tuple[str, ...]
+    sensors: tuple[str, ...] = ()
+    components: tuple[str, ...] = ()
 
 
 CHI2_RANK_RTOL = 1e-6
@@ -109,7 +114,7 @@ def linear_diagnoser(
     generators: Sequence[Generator],
     sigma_r: Sequence[np.ndarray],
     P_f: float,
-    faults: Sequence[SensorFault],
+    faults: Sequence[FaultClass],
     certificates: Sequence[Certificate],
     persistence: int = 1,
     options: Mapping[str, object] | None = None,
@@ -128,15 +133,7 @@ def linear_diagnoser(
         raise ShapeError(f"persistence must be a positive number of samples; got {persistence!r}")
     gens = list(generators)
     evals = [chi2_evaluator(i, s, P_f) for i, s in enumerate(sigma_r)]
-    sensor_idx = {nm: i for i, nm in enumerate(plant.outputs)}
-    sig = np.zeros((len(faults), len(evals)), dtype=int)
-    for f, fault in enumerate(faults):
-        for s in fault.sensors:
-            if s not in sensor_idx:
-                raise ShapeError(f"fault {fault.name!r} names sensor {s!r}; sensors are {list(plant.outputs)}")
-        hit = {sensor_idx[s] for s in fault.sensors}
-        for j, ev in enumerate(evals):
-            sig[f, j] = int(bool(hit & set(gens[ev.generator].outputs_used)))
+    sig = np.array([[_expected(fault, gens[ev.generator], plant) for ev in evals] for fault in faults], dtype=int)
     checks, sensitivity = _bank_checks(generators, evals, plant)
     bank_cert = Certificate.of(f"{problem}/{design} bank", checks, {"min_detectable_bias": sensitivity}).require()
     nr = sum(g.n_residual for g in gens)
@@ -148,7 +145,7 @@ def linear_diagnoser(
         nj=len(evals),
         nstate=lay["total"].stop,
         init_state=np.zeros(lay["total"].stop),
-        residual_names=tuple(f"{g.name}.{plant.outputs[j]}" for g in gens for j in g.outputs_used),
+        residual_names=tuple(_residual_names(gens, plant)),
         statistic_names=tuple(f"J_{gens[e.generator].name}" for e in evals),
     )
     return GainFile(
@@ -172,6 +169,58 @@ def linear_diagnoser(
         },
         provenance=provenance(options=dict(options or {})),
     )
+
+
+def default_fault_classes(plant: LinearPlant, generators: Sequence[Generator]) -> list[FaultClass]:
+    """One class per sensor and per component fault that reaches the bank; classes the
+    bank cannot tell apart (equal signatures) are merged and named ``"a|b"``."""
+    singles = [FaultClass(o, sensors=(o,)) for o in plant.outputs] + [
+        FaultClass(c, components=(c,)) for c in plant.component_faults
+    ]
+    merged: dict[tuple[int, ...], list[FaultClass]] = {}
+    for fault in singles:
+        sig = tuple(_expected(fault, g, plant) for g in generators)
+        if any(sig):
+            merged.setdefault(sig, []).append(fault)
+    return [
+        FaultClass(
+            "|".join(f.name for f in group),
+            sensors=tuple(s for f in group for s in f.sensors),
+            components=tuple(c for f in group for c in f.components),
+        )
+        for group in merged.values()
+    ]
+
+
+def _residual_names(gens: Sequence[Generator], plant: LinearPlant) -> list[str]:
+    """``generator.output`` when a residual has one component per sensor it reads, else ``generator.r<k>``."""
+    out: list[str] = []
+    for g in gens:
+        if g.n_residual == len(g.outputs_used):
+            out.extend(f"{g.name}.{plant.outputs[j]}" for j in g.outputs_used)
+        else:
+            out.extend(f"{g.name}.r{k}" for k in range(g.n_residual))
+    return out
+
+
+def _expected(fault: FaultClass, gen: Generator, plant: LinearPlant) -> int:
+    """1 when ``fault`` reaches ``gen``'s residual: it corrupts a sensor the generator
+    reads, or a component fault's transfer to the residual is not identically zero."""
+    for s in fault.sensors:
+        if s not in plant.outputs:
+            raise ShapeError(f"fault {fault.name!r} names sensor {s!r}; sensors are {list(plant.outputs)}")
+    for c in fault.components:
+        if c not in plant.component_faults:
+            raise ShapeError(f"fault {fault.name!r} names component fault {c!r}; the plant has {list(plant.component_faults)}")
+    if {plant.outputs.index(s) for s in fault.sensors} & set(gen.outputs_used):
+        return 1
+    form = internal_form(gen, plant)
+    for c in fault.components:
+        j = plant.component_faults.index(c)
+        # round-off of an exactly decoupled transfer is ~1e-16; 1e-8 separates "reaches" from "cancels"
+        if transfer_size(form.A, form.Bf[:, [j]], form.C, np.zeros((form.C.shape[0], 1))) > 1e-8:
+            return 1
+    return 0
 
 
 def _bank_checks(

@@ -43,7 +43,6 @@ from fdisyn.runtime.errors import NominalValueError, NonDifferentiableError, Sha
 
 __all__ = ["NONDIFFERENTIABLE_OPERATIONS", "SMOOTH_FUNCTIONS", "NonlinearPlant"]
 
-_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
 SMOOTH_FUNCTIONS: Mapping[str, Callable[..., ca.SX]] = {
     "sin": ca.sin,

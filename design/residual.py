@@ -15,6 +15,7 @@ identically zero.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -23,7 +24,7 @@ from fdisyn.design.plant import LinearPlant
 from fdisyn.runtime.errors import ExistenceError, ShapeError
 from fdisyn.runtime.gainfile import Generator
 
-__all__ = ["InternalForm", "internal_form", "dc_gain_y", "residual_covariance"]
+__all__ = ["InternalForm", "internal_form", "dc_gain_y", "residual_covariance", "embed_outputs"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -96,3 +97,20 @@ def residual_covariance(gen: Generator, plant: LinearPlant) -> np.ndarray:
     sig = dlyap(form.A, bw @ plant.Q @ bw.T + bv @ plant.R @ bv.T)
     s = form.C @ sig @ form.C.T + gen.Dy @ plant.R @ gen.Dy.T
     return 0.5 * (s + s.T)
+
+
+def embed_outputs(gen: Generator, outputs_used: Sequence[int], n_outputs: int) -> Generator:
+    """``gen`` designed on a subset of the sensors, on the full output vector of ``n_outputs``.
+
+    Its ``By``/``Dy`` columns move to ``outputs_used``; the others are zero.
+    """
+    idx = [int(j) for j in outputs_used]
+    if gen.By.shape[1] != len(idx):
+        raise ShapeError(f"generator {gen.name!r} reads {gen.By.shape[1]} outputs; outputs_used lists {len(idx)}")
+    by = np.zeros((gen.n_state, n_outputs))
+    dy = np.zeros((gen.n_residual, n_outputs))
+    by[:, idx] = gen.By
+    dy[:, idx] = gen.Dy
+    return Generator.from_canonical(
+        name=gen.name, outputs_used=idx, Ar=gen.Ar, Bu=gen.Bu, By=by, Cr=gen.Cr, Du=gen.Du, Dy=dy, method=gen.method
+    )

@@ -117,7 +117,8 @@ def simulate_linear(
 
     ``x⁺ = A x + B u + E d + w``, ``y = C x + D u + v`` with ``w ~ N(0, Q)``,
     ``v ~ N(0, R)`` (the design's covariances), the scenario's sensor faults
-    applied to ``y``. ``u`` comes from ``inputs`` or, when ``feedback`` is
+    applied to ``y`` and its component faults (steps through ``Fx``) to the
+    state. ``u`` comes from ``inputs`` or, when ``feedback`` is
     given, from ``feedback(y_k, k)`` (runs × nu) computed on the (possibly
     faulty) measurements — a controller closing the loop; it needs ``D = 0``.
     """
@@ -148,6 +149,13 @@ def simulate_linear(
             dd[i, :, j] = sig.sample(t, rng, ts)
     active = scenario.active(t)
     onset = scenario.onset or 0.0
+    # component faults: steps of the fault inputs while active, entering through Fx (held over the sample)
+    fvec = None
+    for cname, value in scenario.params.get("component_faults", []):
+        if cname not in plant.component_faults:
+            raise SpecError(f"component fault {cname!r}: the plant has {list(plant.component_faults)}")
+        col = np.asarray(plant.Fx)[:, plant.component_faults.index(cname)] * float(value)
+        fvec = col if fvec is None else fvec + col
     x = np.tile(np.asarray(x0, dtype=float), (runs, 1))
     Y = np.empty((runs, n, plant.p))
     X = np.empty((runs, n, plant.n))
@@ -162,6 +170,8 @@ def simulate_linear(
         Y[:, k] = y
         X[:, k] = x
         x = x @ a.T + uu[:, k] @ b.T + dd[:, k] @ e.T + w[:, k]
+        if active[k] and fvec is not None:
+            x = x + fvec
     extra = {name: X[:, :, i] for i, name in enumerate(plant.states)}
     extra.update({name: dd[:, :, j] for j, name in enumerate(plant.unknown_inputs)})
     return Batch(

@@ -19,17 +19,26 @@ The TOML format (every key is validated; errors name the key)::
     C = [[...]]                       # p × n
     D = [[...]]                       # p × m (optional)
     E = [[...]]                       # n × q unknown-input directions
+    Fx = [[...]]                      # n × f component-fault directions (optional; names in [signals].component_faults)
     Q = [[...]]                       # process noise: intensity (continuous) or covariance per sample
     R = [[...]]                       # sensor noise covariance per sample
     state_scale = [...]               # optional typical state magnitudes (conditioning)
 
     [design]
     method = "kalman_uio"             # kalman_uio | kalman_uio_paper | uio_pole_placement
+                                      # | sampled_data_observer | lmi (continuous models)
     P_f = 0.001                       # false-alarm probability per statistic and sample
     persistence = 1                   # consecutive exceedances before a statistic alarms
     poles = [0.5, 0.6]                # uio_pole_placement: one pole per state
+    sampling = "direct"               # sampled_data_observer: "direct" (Theorem 1) or "indirect" (ZOH first)
+    eta = "inf"                       # lmi: the fault measure, "inf", "2" or "-"
     bank = [["y1", "y2"], ["y1", "y3"]]   # one generator per group (default: all outputs)
-    faults = [{ name = "y1", sensors = ["y1"] }]   # default: one per output, merged when alike
+    faults = [{ name = "y1", sensors = ["y1"] }, { name = "f", components = ["f"] }]
+                                      # default: one per sensor and component fault, merged when alike
+
+For the UIO methods ``E`` holds unknown inputs to decouple; for the
+sampled-data methods (seed 004) it holds the disturbance, continuous white
+noise of unit intensity, and ``Fx`` the faults to be sensitive to.
 
     [simulation]                      # for simulate / evaluate / report
     duration = 100.0                  # of the fault-free scenario (s)
@@ -44,10 +53,13 @@ The TOML format (every key is validated; errors name the key)::
     onset = 50.0
     end = 80.0                        # optional
     sensor_faults = [{ sensor = "y1", kind = "offset", value = 0.5 }]   # stuck | gain | offset | drift
+    component_faults = [{ fault = "f", value = 10.0 }]                   # a step of the fault input
 
 Signal kinds: constant (offset), step (offset, amplitude, start), sine (offset,
 amplitude, period), prbs (offset, amplitude, period = hold time),
-gauss_markov (offset, amplitude, period = correlation time).
+gauss_markov (offset, amplitude, period = correlation time). For the
+sampled-data methods the disturbance is white noise of unit intensity, sampled
+exactly by the simulator ([simulation].unknown_inputs is not used).
 """
 
 from __future__ import annotations
@@ -55,32 +67,85 @@ from __future__ import annotations
 import re
 import tomllib
 from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from fdisyn.design.diagnoser import SensorFault, linear_diagnoser
+from fdisyn.design.certificate import Certificate
+from fdisyn.design.diagnoser import FaultClass, default_fault_classes, linear_diagnoser
+from fdisyn.design.lmi import lmi_diagnostic_observer
 from fdisyn.design.plant import LinearPlant
 from fdisyn.design.problem import Batch, Problem, Scenario, get_problem
+from fdisyn.design.residual import embed_outputs, residual_covariance
+from fdisyn.design.sampled_data import SampledDataPlant, optimal_diagnostic_observer
+from fdisyn.design.sampling import van_loan
 from fdisyn.design.simulate import SensorFaultSpec, Signal, simulate_linear
 from fdisyn.design.uio import kalman_uio, pole_placement_uio
 from fdisyn.runtime.errors import FdisynError, SpecError
-from fdisyn.runtime.gainfile import GainFile
+from fdisyn.runtime.gainfile import GainFile, Generator
 
 __all__ = ["load_spec", "problem_from_toml", "LINEAR_METHODS", "register_method"]
 
 _IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
-MethodFn = Callable[[LinearPlant, Mapping[str, Any]], Any]
-LINEAR_METHODS: dict[str, MethodFn] = {
-    "kalman_uio": lambda plant, o: kalman_uio(plant, variant="optimal"),
-    "kalman_uio_paper": lambda plant, o: kalman_uio(plant, variant="paper"),
-    "uio_pole_placement": lambda plant, o: pole_placement_uio(plant, poles=o["poles"]),
-}
-"""Design methods a TOML file may name: ``(sub-plant, design options) → design``
-with ``generator(name, outputs_used, n_outputs)``, ``Sigma_r`` and ``certificate``."""
+@dataclass(frozen=True, eq=False)
+class MethodContext:
+    """What a design method gets for one generator of the bank."""
 
-_DESIGN_KEYS = {"method", "P_f", "persistence", "poles", "bank", "faults"}
+    name: str
+    outputs_used: tuple[int, ...]
+    """Indices of the sensors this generator reads (in the plant's outputs)."""
+    plant: LinearPlant
+    """The discrete design model (states scaled as the file asks), all outputs."""
+    continuous: LinearPlant | None
+    """The continuous model (all outputs) when the file gives one; sampled-data methods need it."""
+    options: Mapping[str, Any]
+
+
+MethodFn = Callable[[MethodContext], tuple[Generator, np.ndarray, Certificate]]
+"""A design method: ``context → (generator on the full outputs, residual covariance, certificate)``."""
+
+
+def _uio(variant: str) -> MethodFn:
+    def method(ctx: MethodContext) -> tuple[Generator, np.ndarray, Certificate]:
+        sub = ctx.plant.select_outputs(ctx.outputs_used)
+        d = pole_placement_uio(sub, poles=ctx.options["poles"]) if variant == "poles" else kalman_uio(sub, variant=variant)  # type: ignore[arg-type]
+        return d.generator(ctx.name, ctx.outputs_used, ctx.plant.p), d.Sigma_r, d.certificate
+
+    return method
+
+
+def _sampled_data(kind: str) -> MethodFn:
+    def method(ctx: MethodContext) -> tuple[Generator, np.ndarray, Certificate]:
+        if ctx.continuous is None:
+            raise SpecError(f"method {kind!r} designs for a continuous plant sampled at Ts: set [model].time = \"continuous\"")
+        cont = ctx.continuous.select_outputs(ctx.outputs_used)
+        ts = float(ctx.plant.Ts)  # type: ignore[arg-type]
+        sd = SampledDataPlant.from_linear_plant(cont, h=ts)
+        if kind == "lmi":
+            obs: Any = lmi_diagnostic_observer(plant=sd, eta=str(ctx.options.get("eta", "inf")))  # type: ignore[arg-type]
+        else:
+            obs = optimal_diagnostic_observer(plant=sd, design=str(ctx.options.get("sampling", "direct")))  # type: ignore[arg-type]
+        gen = embed_outputs(obs.generator(name=ctx.name), ctx.outputs_used, ctx.plant.p)
+        # the disturbance is white of unit intensity: its exact sampled covariance joins the process noise
+        phys = ctx.continuous.discretise(ts)
+        noise = phys.with_noise(Q=np.asarray(phys.Q) + van_loan(np.asarray(ctx.continuous.A), sd.Bd @ sd.Bd.T, ts))
+        return gen, residual_covariance(gen, noise), obs.certificate
+
+    return method
+
+
+LINEAR_METHODS: dict[str, MethodFn] = {
+    "kalman_uio": _uio("optimal"),
+    "kalman_uio_paper": _uio("paper"),
+    "uio_pole_placement": _uio("poles"),
+    "sampled_data_observer": _sampled_data("sampled_data_observer"),
+    "lmi": _sampled_data("lmi"),
+}
+"""Design methods a TOML file may name."""
+
+_DESIGN_KEYS = {"method", "P_f", "persistence", "poles", "bank", "faults", "eta", "sampling"}
 
 
 def register_method(name: str, fn: MethodFn, *, keys: tuple[str, ...] = ()) -> None:
@@ -128,7 +193,7 @@ class _Section:
         except (TypeError, ValueError):
             raise SpecError(f"{self.where}.{key} must be a matrix of numbers (a list of rows)") from None
         if a.ndim == 1:
-            a = a.reshape(-1, 1) if key in ("B", "E") else a.reshape(1, -1)
+            a = a.reshape(-1, 1) if key in ("B", "E", "Fx") else a.reshape(1, -1)
         if a.ndim != 2:
             raise SpecError(f"{self.where}.{key} must be a matrix (a list of rows), got {a.ndim} dimensions")
         return a
@@ -159,9 +224,9 @@ def problem_from_toml(path: Path) -> Problem:
     name = str(top.get("name", required=True))
     if not _IDENT.match(name):
         raise SpecError(f"{path}: name {name!r} must be an identifier (it prefixes the C API)")
-    sig = _Section(top.get("signals", {}), f"{path} [signals]", {"states", "inputs", "unknown_inputs", "outputs"})
+    sig = _Section(top.get("signals", {}), f"{path} [signals]", {"states", "inputs", "unknown_inputs", "outputs", "component_faults"})
     mod = _Section(
-        top.get("model", required=True), f"{path} [model]", {"time", "Ts", "A", "B", "C", "D", "E", "Q", "R", "state_scale"}
+        top.get("model", required=True), f"{path} [model]", {"time", "Ts", "A", "B", "C", "D", "E", "Fx", "Q", "R", "state_scale"}
     )
     time = mod.get("time", "continuous")
     if time not in ("continuous", "discrete"):
@@ -174,6 +239,7 @@ def problem_from_toml(path: Path) -> Problem:
             C=mod.matrix("C", required=True),
             D=mod.matrix("D"),
             E=mod.matrix("E"),
+            Fx=mod.matrix("Fx"),
             Q=mod.matrix("Q"),
             R=mod.matrix("R"),
             Ts=ts if time == "discrete" else None,
@@ -181,6 +247,7 @@ def problem_from_toml(path: Path) -> Problem:
             inputs=sig.get("inputs"),
             unknown_inputs=sig.get("unknown_inputs"),
             outputs=sig.get("outputs"),
+            component_faults=sig.get("component_faults"),
         )
         physical = plant if time == "discrete" else plant.discretise(ts)  # type: ignore[arg-type]
     except FdisynError as exc:
@@ -197,16 +264,25 @@ def problem_from_toml(path: Path) -> Problem:
         if not isinstance(g, list) or not g:
             raise SpecError(f"{path} [design].bank[{gi}] must be a non-empty list of output names")
         bank.append([physical.output_index(str(o)) for o in g])
-    faults = _faults(des.get("faults"), physical, bank, f"{path} [design].faults")
+    fault_spec = des.get("faults")
+    listed = _faults(fault_spec, physical, f"{path} [design].faults") if fault_spec is not None else None
     design_opts = {k: des.get(k) for k in des.doc if k not in ("method", "bank", "faults")}
+    continuous_plant = plant if time == "continuous" else None
 
     def design_fn(**_: Any) -> GainFile:
         gens, sigmas, certs = [], [], []
         for gi, idx in enumerate(bank):
-            d = LINEAR_METHODS[method](design_plant.select_outputs(idx), design_opts)
-            gens.append(d.generator(f"g{gi}_" + "_".join(physical.outputs[i] for i in idx), idx, physical.p))
-            sigmas.append(d.Sigma_r)
-            certs.append(d.certificate)
+            ctx = MethodContext(
+                name=f"g{gi}_" + "_".join(physical.outputs[i] for i in idx),
+                outputs_used=tuple(idx),
+                plant=design_plant,
+                continuous=None if continuous_plant is None else continuous_plant.scaled(scale) if scale is not None else continuous_plant,
+                options=design_opts,
+            )
+            gen, sig, cert = LINEAR_METHODS[method](ctx)
+            gens.append(gen)
+            sigmas.append(sig)
+            certs.append(cert)
         return linear_diagnoser(
             name=f"{name}_{method}",
             problem=name,
@@ -215,7 +291,7 @@ def problem_from_toml(path: Path) -> Problem:
             generators=gens,
             sigma_r=sigmas,
             P_f=float(des.number("P_f", 1e-3) or 1e-3),
-            faults=faults,
+            faults=listed if listed is not None else default_fault_classes(design_plant, gens),
             certificates=certs,
             persistence=int(des.get("persistence", 1)),
             options={"spec": str(path), "method": method, **design_opts},
@@ -232,13 +308,22 @@ def problem_from_toml(path: Path) -> Problem:
     if x0.shape != (physical.n,):
         raise SpecError(f"{path} [simulation].x0 must have {physical.n} entries, got {x0.size}")
     scenarios = {"fault_free": Scenario("fault_free", "No fault.", float(sim.number("duration", 100.0) or 100.0))}
-    fault_names = {f.name for f in faults}
+    sources = set(physical.outputs) | set(physical.component_faults)
     for i, sd in enumerate(top.get("scenarios", [])):
         w = f"{path} [[scenarios]][{i}]"
-        sc = _Section(sd, w, {"name", "description", "duration", "fault", "onset", "end", "sensor_faults"})
+        sc = _Section(sd, w, {"name", "description", "duration", "fault", "onset", "end", "sensor_faults", "component_faults"})
         fname = sc.get("fault")
-        if fname is not None and fname not in fault_names:
-            raise SpecError(f"{w}.fault {fname!r} is not a fault class; classes: {sorted(fault_names)}")
+        # a listed class, or (default classes) a sensor/component name or a merged "a|b" group of them
+        known = {f.name for f in listed} if listed is not None else None
+        if fname is not None and (fname not in known if known is not None else not set(str(fname).split("|")) <= sources):
+            raise SpecError(f"{w}.fault {fname!r} is not a fault class; classes: {sorted(known or sources)}")
+        cfs = []
+        for j, f in enumerate(sc.get("component_faults", [])):
+            fs = _Section(f, f"{w}.component_faults[{j}]", {"fault", "value"})
+            cname = str(fs.get("fault", required=True))
+            if cname not in physical.component_faults:
+                raise SpecError(f"{w}.component_faults[{j}]: no component fault {cname!r}; the plant has {list(physical.component_faults)}")
+            cfs.append((cname, float(fs.number("value", required=True))))  # type: ignore[arg-type]
         sfs = []
         for j, f in enumerate(sc.get("sensor_faults", [])):
             fs = _Section(f, f"{w}.sensor_faults[{j}]", {"sensor", "kind", "value"})
@@ -252,12 +337,21 @@ def problem_from_toml(path: Path) -> Problem:
             fault=fname,
             onset=sc.number("onset"),
             end=sc.number("end"),
-            params={"sensor_faults": sfs},
+            params={"sensor_faults": sfs, "component_faults": cfs},
         )
         scenarios[scen.name] = scen
 
+    white = method in ("sampled_data_observer", "lmi")
+    if white:
+        # seed 004's disturbance: continuous white noise of unit intensity, sampled exactly into the process noise
+        w_d = van_loan(np.asarray(plant.A), np.asarray(plant.E) @ np.asarray(plant.E).T, float(ts))  # type: ignore[arg-type]
+        sim_plant = physical.with_noise(Q=np.asarray(physical.Q) + w_d)
+        d_sigs = [Signal()] * physical.q
+    else:
+        sim_plant = physical
+
     def simulate(scenario: Scenario, seeds: tuple[int, ...]) -> Batch:
-        return simulate_linear(physical, scenario, seeds, x0=x0, inputs=u_sigs, unknown_inputs=d_sigs)
+        return simulate_linear(sim_plant, scenario, seeds, x0=x0, inputs=u_sigs, unknown_inputs=d_sigs)
 
     return Problem(
         name=name,
@@ -271,20 +365,18 @@ def problem_from_toml(path: Path) -> Problem:
     )
 
 
-def _faults(spec: Any, plant: LinearPlant, bank: list[list[int]], where: str) -> list[SensorFault]:
-    if spec is not None:
-        out = []
-        for i, f in enumerate(spec):
-            fs = _Section(f, f"{where}[{i}]", {"name", "sensors"})
-            sensors = tuple(str(s) for s in fs.get("sensors", required=True))
-            for s in sensors:
-                plant.output_index(s)
-            out.append(SensorFault(str(fs.get("name", required=True)), sensors))
-        return out
-    # one class per output; outputs the bank cannot tell apart are merged (detected, isolated as a group)
-    by_signature: dict[tuple[int, ...], list[str]] = {}
-    for j, o in enumerate(plant.outputs):
-        sig = tuple(int(j in g) for g in bank)
-        if any(sig):
-            by_signature.setdefault(sig, []).append(o)
-    return [SensorFault("|".join(names), tuple(names)) for names in by_signature.values()]
+def _faults(spec: Any, plant: LinearPlant, where: str) -> list[FaultClass]:
+    out = []
+    for i, f in enumerate(spec):
+        fs = _Section(f, f"{where}[{i}]", {"name", "sensors", "components"})
+        sensors = tuple(str(s) for s in fs.get("sensors", []))
+        components = tuple(str(c) for c in fs.get("components", []))
+        for s in sensors:
+            plant.output_index(s)
+        for c in components:
+            if c not in plant.component_faults:
+                raise SpecError(f"{where}[{i}]: no component fault {c!r}; the plant has {list(plant.component_faults)}")
+        if not sensors and not components:
+            raise SpecError(f"{where}[{i}] names no sensor and no component fault")
+        out.append(FaultClass(str(fs.get("name", required=True)), sensors, components))
+    return out

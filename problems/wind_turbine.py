@@ -25,7 +25,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from fdisyn.design.diagnoser import SensorFault, linear_diagnoser
+from fdisyn.design.diagnoser import FaultClass, linear_diagnoser
 from fdisyn.design.plant import LinearPlant
 from fdisyn.design.problem import Batch, Problem, Scenario
 from fdisyn.design.report import ReportContext, fmt, plt, shade, table, timeline
@@ -215,9 +215,9 @@ def _name(parameters: str, design: str) -> str:
     return f"wind_turbine_{design}" if parameters == "benchmark" else f"wind_turbine_{parameters}_{design}"
 
 
-def _fault_classes() -> list[SensorFault]:
-    singles = [SensorFault(o, (o,)) for o in OUTPUTS]
-    pairs = [SensorFault(f"{r}+{g}", (r, g)) for r in OUTPUTS[:2] for g in OUTPUTS[2:]]
+def _fault_classes() -> list[FaultClass]:
+    singles = [FaultClass(o, (o,)) for o in OUTPUTS]
+    pairs = [FaultClass(f"{r}+{g}", (r, g)) for r in OUTPUTS[:2] for g in OUTPUTS[2:]]
     return singles + pairs
 
 

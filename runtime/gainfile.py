@@ -535,9 +535,22 @@ def _validate(gf: GainFile) -> None:
         _fail(f"diagnoser kind {gf.kind!r} needs its payload in extensions[{gf.kind!r}]")
 
 
+def _finite(a: np.ndarray, where: str) -> None:
+    if not np.all(np.isfinite(a)):
+        _fail(f"{where} holds a non-finite number")
+
+
 def _validate_linear(gf: GainFile) -> None:
     m, p = len(gf.inputs), len(gf.outputs)
     pl = gf.plant
+    for k, a in pl.items():
+        _finite(a, f"plant.{k}")
+    for i, gen in enumerate(gf.generators):
+        for k in _MATRIX_KEYS:
+            _finite(getattr(gen, k), f"generators[{i}].{k}")
+    for j, ev in enumerate(gf.evaluators):
+        _finite(ev.Sigma_r, f"evaluators[{j}].Sigma_r")
+        _finite(ev.W, f"evaluators[{j}].W")
     if set(pl) != {"A", "B", "C", "D", "E", "Q", "R"}:
         _fail(f"plant must hold A, B, C, D, E, Q, R; found {sorted(pl)}")
     n = pl["A"].shape[0]
@@ -605,7 +618,14 @@ def _validate_linear(gf: GainFile) -> None:
 
 
 def to_jsonable(obj: object) -> object:
-    """Numbers, strings, lists and dicts only (NumPy scalars/arrays and complex numbers converted)."""
+    """Numbers, strings, lists and dicts only (NumPy scalars/arrays and complex numbers converted).
+
+    A non-finite number becomes the string ``"inf"``, ``"-inf"`` or ``"nan"``:
+    informational fields (a performance that is infinite, say) may hold one;
+    matrices may not, and the gain file's validation refuses them before this.
+    """
+    if isinstance(obj, (float, np.floating)) and not math.isfinite(float(obj)):
+        return "nan" if math.isnan(float(obj)) else ("inf" if obj > 0 else "-inf")
     if isinstance(obj, np.ndarray):
         return obj.tolist()
     if isinstance(obj, Mapping):
@@ -613,7 +633,7 @@ def to_jsonable(obj: object) -> object:
     if isinstance(obj, (list, tuple)):
         return [to_jsonable(v) for v in obj]
     if isinstance(obj, (np.floating, np.integer, np.bool_)):
-        return obj.item()
+        return to_jsonable(obj.item())
     if isinstance(obj, complex):
-        return [obj.real, obj.imag]
+        return [to_jsonable(obj.real), to_jsonable(obj.imag)]
     return obj

@@ -1,0 +1,276 @@
+"""Seed 004's example: the optimal diagnostic observer of a sampled-data system.
+
+Continuous plant ``ẋ = A x + Bu u + Bd d + Bf f``, ``y = C x`` with
+``A = [[−1, 5], [0, −2]]``, ``Bu = [0, 1]ᵀ``, ``Bd = [0.1, 1]ᵀ``,
+``Bf = [0, 1]ᵀ``, ``C = I``, sampled at ``h = 1 s`` (ZOH input, sampled
+outputs); ``d`` is continuous white noise of unit intensity (the paper's
+"variance 1"), ``f`` the fault. Signals: input ``u``, outputs ``y1``, ``y2``,
+fault ``f``.
+
+Designs: ``direct`` (Theorem 1 on Lemma 1's norm-invariant model, the default),
+``indirect`` (ZOH-discretise the plant first, then design — the paper's
+comparison) and ``lmi`` (the ratio problem of eq. (19) as SDPs, η = ∞). Each
+residual generator gets a χ² statistic whose covariance is computed for the
+true sampled-data noise, so every design has the same false-alarm rate per
+sample by construction and the comparison is at equal false alarms.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
+
+import numpy as np
+from fdisyn.design.diagnoser import FaultClass, linear_diagnoser
+from fdisyn.design.lmi import lmi_diagnostic_observer
+from fdisyn.design.plant import LinearPlant
+from fdisyn.design.problem import Batch, Problem, Scenario
+from fdisyn.design.report import ReportContext, plt, shade, table
+from fdisyn.design.residual import residual_covariance
+from fdisyn.design.sampled_data import ETAS, SampledDataPlant, optimal_diagnostic_observer, simulate_sampled_data
+from fdisyn.design.sampling import van_loan
+from fdisyn.runtime.gainfile import GainFile
+
+__all__ = ["PAPER", "PAPER_GAINS", "PLANT", "PROBLEM", "noise_plant"]
+
+PAPER: Mapping[str, Any] = {
+    "A": np.array([[-1.0, 5.0], [0.0, -2.0]]),
+    "Bu": np.array([[0.0], [1.0]]),
+    "Bd": np.array([[0.1], [1.0]]),
+    "Bf": np.array([[0.0], [1.0]]),
+    "C": np.eye(2),
+    "h": 1.0,
+}
+"""Seed 004, section 4: the example plant."""
+
+PAPER_GAINS: Mapping[str, np.ndarray] = {
+    "L": np.array([[0.38, 1.16], [0.0, 0.14]]),
+    "E": np.array([[1.0], [0.43]]),
+    "W": np.array([[0.90, -0.90], [0.0, 2.86]]),
+    "V": np.array([[0.90, -0.90], [0.0, 2.86]]),
+}
+"""The gains the paper prints (two decimals; its "H" is E)."""
+
+PLANT = SampledDataPlant.create(**PAPER)
+DURATION = 100.0
+FAULT_TIME = 60.0
+FAULT_SIZE = 10.0
+
+
+def noise_plant(plant: SampledDataPlant = PLANT) -> LinearPlant:
+    """The discrete model the χ² statistics and the gain file use.
+
+    ``x⁺ = A_D x + B_uD u + w``, ``y = C x`` with ``w`` the exactly sampled
+    disturbance, ``Cov w = ∫₀ʰ e^{Aτ} Bd Bdᵀ e^{Aᵀτ} dτ = B_dJ B_dJᵀ`` (Lemma 1),
+    no sensor noise (the paper's ``y = C x``); ``E = B_dJ`` (its columns are the
+    lifted disturbance of Lemma 1: one per rank of the Gramian), ``Fx = B_fD``
+    (the fault held over the sample, exact for a step at a sampling instant).
+    """
+    return LinearPlant.create(
+        A=plant.A_D,
+        B=plant.B_uD,
+        C=plant.C,
+        E=plant.B_dJ,
+        Fx=plant.B_fD,
+        Q=van_loan(plant.A, plant.Bd @ plant.Bd.T, plant.h),
+        R=np.zeros((plant.p, plant.p)),
+        Ts=plant.h,
+        inputs=("u",),
+        unknown_inputs=tuple(f"d_lifted{i}" for i in range(plant.B_dJ.shape[1])),
+        outputs=("y1", "y2"),
+        component_faults=("f",),
+    )
+
+
+def _diagnoser(design: str, observer: Any, *, P_f: float) -> GainFile:
+    dplant = noise_plant()
+    gen = observer.generator(name=design)
+    return linear_diagnoser(
+        name=f"sampled_data_example_{design}",
+        problem="sampled_data_example",
+        design=design,
+        plant=dplant,
+        generators=[gen],
+        sigma_r=[residual_covariance(gen, dplant)],
+        P_f=P_f,
+        faults=[FaultClass("f", components=("f",))],
+        certificates=[observer.certificate],
+        options={"P_f": P_f, "J": dict(observer.J), "h": PLANT.h},
+    )
+
+
+def _designs() -> dict[str, Callable[..., GainFile]]:
+    def direct(*, P_f: float = 1e-3, **_: object) -> GainFile:
+        return _diagnoser("direct", optimal_diagnostic_observer(plant=PLANT, design="direct"), P_f=P_f)
+
+    def indirect(*, P_f: float = 1e-3, **_: object) -> GainFile:
+        return _diagnoser("indirect", optimal_diagnostic_observer(plant=PLANT, design="indirect"), P_f=P_f)
+
+    def lmi(*, P_f: float = 1e-3, **_: object) -> GainFile:
+        return _diagnoser("lmi", lmi_diagnostic_observer(plant=PLANT, eta="inf"), P_f=P_f)
+
+    return {"direct": direct, "indirect": indirect, "lmi": lmi}
+
+
+SCENARIOS = {
+    "fault_free": Scenario("fault_free", "u a unit step, d continuous white noise of unit intensity, no fault.", DURATION),
+    "paper": Scenario(
+        "paper",
+        f"Seed 004, section 4: u a unit step, d white of unit intensity, f a step of {FAULT_SIZE:g} at {FAULT_TIME:g} s.",
+        DURATION,
+        fault="f",
+        onset=FAULT_TIME,
+        params={"size": FAULT_SIZE},
+    ),
+    **{
+        f"fault_{size:g}": Scenario(
+            f"fault_{size:g}",
+            f"As the paper's scenario with a fault step of {size:g} (beyond the paper: where the designs differ).",
+            DURATION,
+            fault="f",
+            onset=FAULT_TIME,
+            params={"size": size},
+        )
+        for size in (3.0, 1.5)
+    },
+}
+
+
+def _simulate(sc: Scenario, seeds: Sequence[int], **_options: object) -> Batch:
+    """Exact samples of the sampled-data plant (the disturbance integrated between samples)."""
+    n = int(round(sc.duration / PLANT.h))
+    t = np.arange(n) * PLANT.h
+    u = np.ones((n, 1))
+    f = (float(sc.params.get("size", 0.0)) * sc.active(t)).astype(float)[:, None]
+    runs = [simulate_sampled_data(plant=PLANT, v=u, rng=np.random.default_rng(int(s)), f=f) for s in seeds]
+    return Batch(
+        scenario=sc,
+        seeds=tuple(int(s) for s in seeds),
+        t=t,
+        inputs=("u",),
+        outputs=("y1", "y2"),
+        U=np.stack([u] * len(runs)),
+        Y=np.stack([r.psi for r in runs]),
+        extra={"x1": np.stack([r.x[:, 0] for r in runs]), "x2": np.stack([r.x[:, 1] for r in runs])},
+    )
+
+
+def _matrix(a: np.ndarray, digits: int) -> str:
+    return "[" + "; ".join(", ".join(f"{v:.{digits}f}" for v in row) for row in np.asarray(a)) + "]"
+
+
+def _report(ctx: ReportContext) -> list[tuple[str, str]]:
+    direct = optimal_diagnostic_observer(plant=PLANT, design="direct")
+    indirect = optimal_diagnostic_observer(plant=PLANT, design="indirect")
+    lmi = lmi_diagnostic_observer(plant=PLANT, eta="inf")
+    rows = [
+        ["J* (Theorem 1, analytic)", *(direct.J_star[e] for e in ETAS)],
+        ["direct (Theorem 1)", *(direct.J[e] for e in ETAS)],
+        ["LMI (η = ∞ design)", *(lmi.J_sampled_data[e] for e in ETAS)],
+        ["indirect, on the true sampled-data system", *(indirect.J[e] for e in ETAS)],
+        ["indirect, as it believes (on the ZOH model)", *(indirect.J_star[e] for e in ETAS)],
+    ]
+    perf = table(["J = ‖G_rψ G_dJ‖∞ / ‖G_rψ G_fJ‖_η", "η = ∞", "η = 2", "η = −"], rows, left=1)
+    gains = []
+    for key, ours in (("L", direct.L), ("E", direct.E), ("W", direct.W), ("V", direct.V)):
+        gains.append([key, _matrix(PAPER_GAINS[key], 2), _matrix(ours, 4)])
+    gtab = table(["matrix", "paper (printed)", "fdisyn, direct design"], gains, left=3)
+    sections = [
+        (
+            "Performance and gains beside the paper",
+            perf
+            + '<p class="small">The paper rounds L[0,0] = e⁻¹ = 0.368 to 0.38, prints E as "H", and prints V = W as the '
+            "transpose of a valid N# (VᵀV = X⁻¹ holds for ours, VVᵀ ≈ X⁻¹ for the printed one); F ≈ 0 as printed.</p>"
+            + gtab,
+        )
+    ]
+    v = ctx.variants[0]
+    ex, bt = v.evaluation.examples, v.evaluation.batches
+    if "paper" in bt and "direct" in ex and "indirect" in ex:
+        b = bt["paper"]
+        body = []
+        for fig_no, design in ((2, "direct"), (3, "indirect")):
+            res = ex[design]["paper"]
+            thr = float(v.built[design].gain_file.thresholds[0])
+            fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 4.8), sharex=True)
+            for k in range(res.r.shape[1]):
+                ax1.plot(b.t, res.r[:, k], lw=0.9, label=f"r{k}")
+            shade(ax1, b.t, b.active)
+            ax1.set_ylabel("residual")
+            ax1.legend(fontsize=7)
+            ax1.grid(alpha=0.3)
+            ax2.plot(b.t, res.J[:, 0], lw=0.9, label="J")
+            ax2.axhline(thr, color="k", ls="--", lw=0.8, label=f"threshold {thr:.3g}")
+            shade(ax2, b.t, b.active)
+            ax2.set_yscale("log")
+            ax2.set_xlabel("t (s)")
+            ax2.set_ylabel("χ² statistic")
+            ax2.legend(fontsize=7)
+            ax2.grid(alpha=0.3)
+            body.append(
+                ctx.figure(
+                    f"fig{fig_no}_{design}",
+                    fig,
+                    f"Run 0 of the paper's scenario through the generated C, {design} design: residual and χ² statistic "
+                    f"(cf. seed 004, fig. {fig_no}).",
+                )
+            )
+        m = v.evaluation.metrics
+        rows = []
+        for scen in [s for s in SCENARIOS if SCENARIOS[s].fault]:
+            for d in m:
+                mm = m[d][scen]
+                rows.append([scen, d, m[d]["fault_free"].false_alarm_rate, mm.missed_detection_rate, mm.missed_alarm_fraction,
+                             mm.detection_delay_mean_s, mm.detection_delay_max_s])
+        body.append(
+            "<p>At equal false-alarm probability per sample (every statistic uses the covariance of its residual under "
+            "the true sampled-data noise). The fault of the paper (10, about nine standard deviations of the residual) is "
+            "caught by every design one sample after its onset — the first sample it can reach; smaller faults show the "
+            "difference the ratio J predicts:</p>"
+            + table(["scenario", "design", "false-alarm rate", "missed detection", "missed-alarm fraction", "delay mean (s)", "delay max (s)"], rows, left=2)
+        )
+        sections.append(("Figures 2–3 and detection at equal false alarms", "".join(body)))
+    return sections
+
+
+NOTES = (
+    "d is continuous white noise of unit intensity (the paper's 'variance 1'); it is sampled exactly between samples "
+    "(Van Loan), so the simulated plant is the true sampled-data system, not a discretised one.",
+    "The fault is a step of 10 at 60 s, held constant between samples (exact for a step at a sampling instant); u is a "
+    "unit step; runs last 100 s (the paper does not say). Faults of 3 and 1.5 are added to compare the designs where "
+    "detection is not certain.",
+    "The paper reports that the indirect design cannot detect the fault at all. With a χ² threshold computed for each "
+    "design's own residual covariance (equal false-alarm probability), the indirect design detects the paper's fault as "
+    "promptly as the direct one: its ratio J is only 8 % worse (1.049 against 0.968); the paper's figure 3 likely "
+    "judged it against a threshold that did not match its residual.",
+    "χ² statistics: the residual covariance of each design under the true sampled-data noise, P_f = 1e-3 per sample "
+    "(the paper gives no threshold). The direct design's residual is white with identity covariance "
+    "(G_rψ G_dJ is co-inner).",
+    "B_J is the full-column-rank eigen-factor of Lemma 1's Gramian; H₋ is σ_min over all fault inputs (zero for wide "
+    "systems), the only convention under which the paper's inequality (4) holds.",
+    "Theorem 1 as printed has A_D^n in the first row of eq. (21)'s matrix; A_D^(n−1) is right (tested against SciPy's "
+    "Sylvester solver); Lemma 4's G_i needs B + MᵀD (irrelevant here, D = 0).",
+    "The indirect design (ZOH first) has a tall disturbance model (one disturbance, two outputs): its DTARS pencil is "
+    "singular, X comes from the value recursion and M is the least-squares choice; it has a single residual direction.",
+    "The LMI design: an H2-optimal predictor gain by LMI, then a convex SDP for the post-filter VᵀV that minimises "
+    "‖V G_ed‖∞ with the fault side normalised; exact when G_dJ has full row normal rank (as here).",
+)
+
+PROBLEM = Problem(
+    name="sampled_data_example",
+    title="Optimal diagnostic observer for a sampled-data system",
+    summary=(
+        "A continuous plant sampled at h = 1 s: the diagnostic observer designed directly for the sampled-data system "
+        "(co-inner–outer factorisation of Lemma 1's norm-invariant model, Theorem 1), against discretising first and "
+        "against an LMI synthesis (seed 004, Qiu, Wen & Jiang, Control Theory & Applications 27(8), 2010)."
+    ),
+    designs=_designs(),
+    default_design="direct",
+    scenarios=SCENARIOS,
+    simulate=_simulate,
+    options={"P_f": 1e-3},
+    reference={"J_direct_detects_at_60s": True, "J_indirect_detects": False},
+    monte_carlo_runs=200,
+    report=_report,
+    notes=NOTES,
+)

@@ -1,0 +1,85 @@
+"""Seed 004's example through the pipeline: designs, the χ² law, detection, C export, the TOML route."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.stats
+
+from fdisyn.design.cli import main
+from fdisyn.design.evaluate import build
+from fdisyn.design.metrics import binomial_interval
+from fdisyn.design.pipeline import EXPORT_TOL, check_export, export_trace
+from fdisyn.problems.sampled_data_example import PROBLEM
+from fdisyn.runtime.gainfile import read_gain_file
+
+DATA = Path(__file__).parents[1] / "data"
+
+
+@pytest.fixture(scope="module")
+def built(tmp_path_factory):
+    root = tmp_path_factory.mktemp("sd")
+    return {d: build(PROBLEM, d, root / d) for d in PROBLEM.designs}
+
+
+def test_every_design_certifies_and_the_direct_residual_is_white_unit(built):
+    for b in built.values():
+        assert b.gain_file.certificate["passed"]
+    ev = built["direct"].gain_file.evaluators[0]
+    # G_rψ G_dJ co-inner and d of unit intensity: the residual covariance is I (round-off only)
+    np.testing.assert_allclose(ev.Sigma_r, np.eye(2), atol=1e-12)
+    assert ev.dof == 2 and built["indirect"].gain_file.evaluators[0].dof == 1
+
+
+def test_chi2_law_of_the_direct_statistic(built):
+    b = built["direct"]
+    batch = PROBLEM.run("fault_free", range(500))
+    js = np.concatenate([b.diagnoser.run(batch.U[i], batch.Y[i]).J[5:, 0] for i in range(500)])
+    lo, hi = binomial_interval(js.size, 1e-3, alpha=1e-6)  # fails with probability 1e-6 if the law is right
+    assert lo <= int(np.sum(js > b.gain_file.thresholds[0])) <= hi
+    assert scipy.stats.kstest(js, scipy.stats.chi2(2).cdf).pvalue > 1e-6
+
+
+@pytest.mark.parametrize("design", ["direct", "indirect", "lmi"])
+def test_the_paper_fault_is_detected_one_sample_after_onset(built, design):
+    b = built[design]
+    batch = PROBLEM.run("paper", range(20))
+    for i in range(20):
+        alarm = b.diagnoser.run(batch.U[i], batch.Y[i]).alarm
+        # the step at 60 s reaches the outputs at the next sample; a 9-σ fault is seen at once
+        assert alarm[61:].mean() > 0.95 and alarm[61] == 1
+
+
+@pytest.mark.parametrize("design", ["direct", "indirect", "lmi"])
+def test_generated_c_agrees_with_the_references(built, design):
+    U, Y = export_trace(PROBLEM)
+    chk = check_export(built[design], U, Y)
+    for v in chk.references.values():
+        assert max(v["r"], v["J"], v["state"]) <= EXPORT_TOL and v["decisions_equal"]
+
+
+def test_toml_route_gives_the_same_observer(built, tmp_path):
+    spec = str(DATA / "sampled_data.toml")
+    assert main(["design", spec, "--out", str(tmp_path)]) == 0
+    gf = read_gain_file(tmp_path / "gains.json")
+    ref = built["direct"].gain_file.generators[0]
+    g = gf.generators[0]
+    for k in ("Ar", "Bu", "By", "Cr", "Dy"):
+        np.testing.assert_allclose(getattr(g, k), getattr(ref, k), rtol=1e-12, atol=1e-14)
+    assert gf.faults == ("y1|y2|f",)  # one generator reads every sensor and feels the fault: one class
+    assert main(["codegen", str(tmp_path)]) == 0
+    trace = tmp_path / "t.csv"
+    assert main(["simulate", spec, "--scenario", "fault_step", "--seed", "3", "--out", str(trace)]) == 0
+    assert main(["replay", str(tmp_path), str(trace), str(tmp_path / "o.csv")]) == 0
+    out = np.genfromtxt(tmp_path / "o.csv", delimiter=",", names=True)
+    assert out["alarm"][out["t"] >= 61].mean() > 0.95
+
+
+def test_toml_lmi_method(tmp_path):
+    text = (DATA / "sampled_data.toml").read_text().replace('method = "sampled_data_observer"', 'method = "lmi"')
+    spec = tmp_path / "lmi.toml"
+    spec.write_text(text)
+    assert main(["design", str(spec), "--out", str(tmp_path / "d")]) == 0
+    assert read_gain_file(tmp_path / "d" / "gains.json").design == "lmi"
