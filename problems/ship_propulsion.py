@@ -48,12 +48,10 @@ __all__ = [
     "Record",
     "design",
     "input_signal",
-    "monte_carlo",
     "plant",
     "reproduce_paper",
     "run_metrics",
     "scenario",
-    "standard_scenarios",
 ]
 
 NOMINAL: Mapping[str, float] = {"a": -0.58, "b": 0.2}
@@ -181,13 +179,6 @@ STANDARD_FAULTS: Sequence[tuple[str, Mapping[str, float]]] = (
 """Fault scenarios beyond the paper's: jumps in ``a``, in ``b`` and in both, of several sizes."""
 
 
-def standard_scenarios(*, seed: int, length: int = 2000, fault_free_length: int = 10_000) -> list[Record]:
-    """The paper's scenario, the other faults of :data:`STANDARD_FAULTS`, and a long fault-free run."""
-    out = [scenario(length=length, scale=sc, seed=seed + i, name=nm) for i, (nm, sc) in enumerate(STANDARD_FAULTS)]
-    out.append(scenario(length=fault_free_length, fault_time=None, seed=seed + len(STANDARD_FAULTS), name="fault_free"))
-    return out
-
-
 def design(*, false_alarm_probability: float = 1e-4, window: int = 10) -> NafdfDesign:
     """The recommended NAFDF for this plant (every number below is a documented choice).
 
@@ -293,84 +284,6 @@ def reproduce_paper(*, seed: int = 1, length: int = 2000) -> dict[str, Any]:
     m["true_fault_size"] = dict(scen.fault_size)
     m["paper"] = dict(PAPER)
     return m
-
-
-def monte_carlo(
-    *,
-    seeds: Sequence[int] = tuple(range(100)),
-    fault_free_length: int = 20_000,
-    length: int = 2000,
-    faults: Sequence[tuple[str, Mapping[str, float]]] = STANDARD_FAULTS,
-) -> dict[str, object]:
-    """Monte Carlo over ``seeds``: false alarms, detection delays, isolation accuracy, fault-size error.
-
-    For each seed: one fault-free run of ``fault_free_length`` samples and one
-    run per fault of ``faults`` (fault at :data:`FAULT_TIME`). Returns per-fault
-    and fault-free summaries (distributions as sorted lists and quantiles).
-    """
-    dsg = design()
-    ff_alarm_samples = 0
-    ff_episodes = []
-    ff_wrong_isolations = 0
-    ff_samples = 0
-    per_fault: dict[str, dict[str, list]] = {
-        nm: {"delay": [], "isolated": [], "size_err": [], "iso_time": [], "classes_exact": []} for nm, _ in faults
-    }
-    for sd in seeds:
-        ff = scenario(length=fault_free_length, fault_time=None, seed=10_000 + int(sd), name="fault_free")
-        mff = run_metrics(dsg, ff)
-        ff_alarm_samples += int(mff["false_alarm_samples"])
-        ff_episodes.append(int(mff["false_alarm_episodes"]))
-        ff_samples += int(mff["samples"])
-        ff_wrong_isolations += int(mff["isolated"] is not None)
-        for j, (nm, sc) in enumerate(faults):
-            scen = scenario(length=length, scale=sc, seed=1_000_000 * (j + 1) + int(sd), name=nm)
-            m = run_metrics(dsg, scen)
-            rec = per_fault[nm]
-            rec["delay"].append(m.get("detection_delay"))
-            rec["isolated"].append(m["isolated"])
-            rec["iso_time"].append(m["isolation_time"])
-            # every jumping parameter classified (class ≥ 1) and no other one
-            rec["classes_exact"].append(all((m["fault_class"][q] > 0) == (q in scen.faulty) for q in dsg.fault_names))
-            iso = m["isolated"]
-            rec["size_err"].append(
-                None if iso is None or iso not in scen.fault_size else float(m["fault_size"][iso] - scen.fault_size[iso])
-            )
-    summary: dict[str, object] = {
-        "seeds": len(seeds),
-        "fault_free": {
-            "samples": ff_samples,
-            "alarm_sample_rate": ff_alarm_samples / max(ff_samples, 1),
-            "false_alarm_episodes_per_10k": 1e4 * sum(ff_episodes) / max(ff_samples, 1),
-            "runs_without_false_alarm": int(sum(e == 0 for e in ff_episodes)),
-            "runs_with_an_isolation": ff_wrong_isolations,
-            "false_alarm_probability_design": dsg.settings.false_alarm_probability,
-        },
-    }
-    faults_out: dict[str, object] = {}
-    for nm, sc in faults:
-        rec = per_fault[nm]
-        delays = np.array([d for d in rec["delay"] if d is not None], dtype=float)
-        truth = sorted(k for k, v in sc.items() if v != 1.0)
-        iso = rec["isolated"]
-        errs = np.array([e for e in rec["size_err"] if e is not None], dtype=float)
-        iso_t = np.array([t for t in rec["iso_time"] if t is not None], dtype=float)
-        faults_out[nm] = {
-            "scale": dict(sc),
-            "detected": int(delays.size),
-            "delay_quantiles_5_50_95": np.quantile(delays, [0.05, 0.5, 0.95]).tolist() if delays.size else None,
-            "delay_mean": float(delays.mean()) if delays.size else None,
-            "isolated_correct": int(sum(i in truth for i in iso)),
-            "isolated_wrong": int(sum(i is not None and i not in truth for i in iso)),
-            "not_isolated": int(sum(i is None for i in iso)),
-            "isolation_time_median": float(np.median(iso_t)) if iso_t.size else None,
-            "all_classes_correct": int(sum(rec["classes_exact"])),
-            "size_error_mean": float(errs.mean()) if errs.size else None,
-            "size_error_sd": float(errs.std(ddof=1)) if errs.size > 1 else None,
-            "size_error_abs_95": float(np.quantile(np.abs(errs), 0.95)) if errs.size else None,
-        }
-    summary["faults"] = faults_out
-    return summary
 
 
 # --------------------------------------------------------------------------- the pipeline's problem

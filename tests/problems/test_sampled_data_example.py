@@ -7,7 +7,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 import scipy.stats
-
 from fdisyn.design.cli import main
 from fdisyn.design.evaluate import build
 from fdisyn.design.metrics import binomial_interval
