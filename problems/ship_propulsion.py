@@ -442,6 +442,7 @@ def _report(ctx: ReportContext) -> list[tuple[str, str]]:
         axes[2].axhline(dsg.settings.W2, color="k", ls="--", lw=0.8, label="W2")
         axes[2].legend(loc="upper left", fontsize=7, ncol=4)
         axes[2].set_ylabel("Bayes distance")
+        axes[2].set_xlabel("t (samples)")
         sections.append(
             (
                 "Figures — the paper's fault",
