@@ -38,7 +38,9 @@ The TOML format (every key is validated; errors name the key)::
 
 For the UIO methods ``E`` holds unknown inputs to decouple; for the
 sampled-data methods (seed 004) it holds the disturbance, continuous white
-noise of unit intensity, and ``Fx`` the faults to be sensitive to.
+noise of unit intensity, and ``Fx`` the faults to be sensitive to. Seed 004's
+names are accepted too: ``Bu``, ``Bd``, ``Bf`` and ``h`` for ``B``, ``E``,
+``Fx`` and ``Ts`` (one name per matrix in a file).
 
     [simulation]                      # for simulate / evaluate / report
     duration = 100.0                  # of the fault-free scenario (s)
@@ -145,6 +147,11 @@ LINEAR_METHODS: dict[str, MethodFn] = {
 }
 """Design methods a TOML file may name."""
 
+SEED_004_KEYS = {"Bu": "B", "Bd": "E", "Bf": "Fx", "h": "Ts"}
+"""Seed 004 writes a sampled-data plant as ``ẋ = A x + Bu u + Bd d + Bf f``,
+``y = C x`` sampled every ``h``: those names are accepted for ``B``, ``E``,
+``Fx`` and ``Ts``."""
+
 _DESIGN_KEYS = {"method", "P_f", "persistence", "poles", "bank", "faults", "eta", "sampling"}
 
 
@@ -226,8 +233,15 @@ def problem_from_toml(path: Path) -> Problem:
         raise SpecError(f"{path}: name {name!r} must be an identifier (it prefixes the C API)")
     sig = _Section(top.get("signals", {}), f"{path} [signals]", {"states", "inputs", "unknown_inputs", "outputs", "component_faults"})
     mod = _Section(
-        top.get("model", required=True), f"{path} [model]", {"time", "Ts", "A", "B", "C", "D", "E", "Fx", "Q", "R", "state_scale"}
+        top.get("model", required=True),
+        f"{path} [model]",
+        {"time", "Ts", "A", "B", "C", "D", "E", "Fx", "Q", "R", "state_scale", *SEED_004_KEYS},
     )
+    for ours, theirs in SEED_004_KEYS.items():
+        if ours in mod.doc and theirs in mod.doc:
+            raise SpecError(f"{path} [model] gives both {ours!r} and {theirs!r}: they are the same matrix, give one")
+        if ours in mod.doc:
+            mod.doc = {**mod.doc, theirs: mod.doc[ours]}
     time = mod.get("time", "continuous")
     if time not in ("continuous", "discrete"):
         raise SpecError(f"{path} [model].time must be 'continuous' or 'discrete', got {time!r}")

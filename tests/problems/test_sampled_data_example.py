@@ -82,3 +82,11 @@ def test_toml_lmi_method(tmp_path):
     spec.write_text(text)
     assert main(["design", str(spec), "--out", str(tmp_path / "d")]) == 0
     assert read_gain_file(tmp_path / "d" / "gains.json").design == "lmi"
+
+
+def test_toml_refuses_two_names_for_one_matrix(tmp_path, capsys):
+    text = (DATA / "sampled_data.toml").read_text().replace("h = 1.0", "h = 1.0\nTs = 1.0")
+    spec = tmp_path / "both.toml"
+    spec.write_text(text)
+    assert main(["design", str(spec), "--out", str(tmp_path / "d")]) == 2
+    assert "gives both 'h' and 'Ts'" in capsys.readouterr().err
