@@ -64,6 +64,9 @@ SMOOTH_FUNCTIONS: Mapping[str, Callable[..., ca.SX]] = {
 }
 """Functions an expression may call: differentiable on the interior of their domain."""
 
+_BINARY_FUNCTIONS: Mapping[str, int] = {"atan2": 2}
+"""Arity of the functions of :data:`SMOOTH_FUNCTIONS` that take more than one argument."""
+
 NONDIFFERENTIABLE_OPERATIONS: Mapping[int, str] = {
     ca.OP_FABS: "abs",
     ca.OP_SIGN: "sign",
@@ -251,11 +254,13 @@ class _ExpressionCompiler:
                 raise SpecError(
                     f"{self.where}: unknown function {fname!r} in {self.text!r}; allowed: {sorted(SMOOTH_FUNCTIONS)}"
                 )
-            args = [self._node(a) for a in node.args]
-            try:
-                return SMOOTH_FUNCTIONS[fname](*args)
-            except (TypeError, RuntimeError, NotImplementedError) as exc:
-                raise SpecError(f"{self.where}: wrong number of arguments to {fname}() in {self.text!r}: {exc}") from None
+            arity = _BINARY_FUNCTIONS.get(fname, 1)
+            if len(node.args) != arity:
+                raise SpecError(
+                    f"{self.where}: {fname}() takes {arity} argument{'s' if arity > 1 else ''}, "
+                    f"got {len(node.args)} in {self.text!r}"
+                )
+            return SMOOTH_FUNCTIONS[fname](*[self._node(a) for a in node.args])
         if isinstance(node, (ast.Compare, ast.BoolOp, ast.IfExp)):
             raise self._fail_nonsmooth("a comparison or a conditional")
         raise SpecError(f"{self.where}: {type(node).__name__} is not allowed in the expression {self.text!r}")

@@ -141,6 +141,8 @@ def test_mx_functions_are_expanded_to_the_same_model() -> None:
     [
         ({"f": {"x": "x + q"}}, SpecError, "unknown name 'q'"),
         ({"f": {"x": "x + cbrt(u)"}}, SpecError, "unknown function 'cbrt'"),
+        ({"f": {"x": "x + sin(u, x)"}}, SpecError, r"sin\(\) takes 1 argument, got 2"),
+        ({"f": {"x": "x + atan2(u)"}}, SpecError, r"atan2\(\) takes 2 arguments, got 1"),
         ({"f": {}}, SpecError, r"missing \['x'\]"),
         ({"h": {"y": "x + u"}}, SpecError, "may not depend on u"),
         ({"f": {"x": "x +"}}, SpecError, "cannot parse"),
