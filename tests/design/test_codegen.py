@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import re
 import subprocess
 
@@ -33,12 +34,32 @@ def test_c_agrees_with_both_python_references_on_1e4_samples(wt_built, wt_trace)
     chk = check_export(wt_built, U, Y)
     assert chk.samples == 10_000 and chk.nonfinite_samples == 4
     for ref, v in chk.references.items():
-        # normwise relative: C and NumPy sum in different orders; residuals are ~0.1 differences of ~150
+        # relative to the rounding scale of each output: a few ulps are expected, 1e-12 is ~1e4 of them
         assert max(v["r"], v["J"], v["state"]) <= EXPORT_TOL, (ref, v)
         assert v["decisions_equal"], ref
     res = wt_built.diagnoser.run(U, Y)
+    # and plainly normwise relative to the reference (the contract's figure): residuals are ~0.1
+    # differences of ~150-sized terms, so summation order alone leaves ~1e-13
+    ref = LinearReference(wt_built.gain_file).run(U, Y)
+    for name in ("r", "J", "state"):
+        a, b = getattr(res, name), getattr(ref, name)
+        assert np.linalg.norm(a - b) <= EXPORT_TOL * np.linalg.norm(b), name
     assert res.alarm[-3000:].mean() > 0.9  # the stuck sensor (from 100 s) is detected in this window
     assert np.all(np.isfinite(res.r)) and np.all(np.isfinite(res.J))
+
+
+def test_the_export_check_sees_a_gain_off_by_1e_10(wt_built, wt_trace):
+    """The rounding-scale measure still has teeth: a reference whose Dy differs by 1e-10 relative
+    (not round-off: ~1e6 ulps) fails the check, while the untouched one stays within ~10 ulps."""
+    _, U, Y = wt_trace
+    gf = wt_built.gain_file
+    gens = list(gf.generators)
+    gens[0] = dataclasses.replace(gens[0], Dy=gens[0].Dy * (1.0 + 1e-10))
+    off = dataclasses.replace(wt_built, gain_file=dataclasses.replace(gf, generators=tuple(gens)))
+    bad = check_export(off, U[:2000], Y[:2000]).references["numpy"]
+    assert bad["r"] > 10 * EXPORT_TOL
+    good = check_export(wt_built, U[:2000], Y[:2000]).references["numpy"]
+    assert good["r"] < 1e-3 * EXPORT_TOL
 
 
 def test_per_sample_calls_equal_the_batch_call(wt_built, wt_trace):
