@@ -57,7 +57,8 @@ def _cmd_design(a: argparse.Namespace) -> None:
     prob = _problem(a.spec)
     gf = prob.design(a.design, **_options(a.option))
     path = write_gain_file(gf, Path(a.out) / "gains.json")
-    print(f"wrote {path} ({gf.name}: {len(gf.generators)} generators, certificate passed)")
+    what = f"{len(gf.generators)} generators" if gf.kind == "linear" else f"a {gf.kind} step with {gf.step.nstate} states"
+    print(f"wrote {path} ({gf.name}: {what}, certificate passed)")
 
 
 def _cmd_codegen(a: argparse.Namespace) -> None:

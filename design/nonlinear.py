@@ -41,7 +41,7 @@ from fdisyn.design.plant import frozen_array, identifier_names
 from fdisyn.design.sampling import check_sample_time
 from fdisyn.runtime.errors import NominalValueError, NonDifferentiableError, ShapeError, SpecError
 
-__all__ = ["NONDIFFERENTIABLE_OPERATIONS", "SMOOTH_FUNCTIONS", "NonlinearPlant"]
+__all__ = ["NONDIFFERENTIABLE_OPERATIONS", "SMOOTH_FUNCTIONS", "NonlinearPlant", "covariance_matrix"]
 
 
 SMOOTH_FUNCTIONS: Mapping[str, Callable[..., ca.SX]] = {
@@ -123,9 +123,16 @@ def _names(given: Sequence[str], what: str, *, allow_empty: bool = False) -> tup
     return names
 
 
-def _covariance(value: object, name: str, size: int, *, definite: bool) -> np.ndarray:
-    """A ``size × size`` covariance from a scalar (times ``I``), a vector (diagonal) or a matrix."""
-    arr = np.asarray(value, dtype=float)
+def covariance_matrix(value: object, name: str, size: int, *, definite: bool) -> np.ndarray:
+    """A ``size × size`` covariance from a scalar (times ``I``), a vector (diagonal) or a matrix.
+
+    Raises :class:`ShapeError` naming ``name`` for non-numbers, a wrong
+    shape, asymmetry, or an eigenvalue below zero (``definite``: not above).
+    """
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ShapeError(f"{name} must be a number or a matrix of numbers; got {value!r}") from None
     if arr.ndim == 0:
         arr = float(arr) * np.eye(size)
     elif arr.ndim == 1 and arr.size == size:
@@ -331,8 +338,8 @@ class NonlinearPlant:
         theta = _nominal_vector(par, nominal)
         f_sx = _as_sx_function(f, "f", (n, m, l), n, ("x", "u", "theta"), "x_next")
         h_sx = _as_sx_function(h, "h", (n, l), p, ("x", "theta"), "y")
-        q1 = _covariance(Q1, "Q1", n, definite=False)
-        q2 = _covariance(Q2, "Q2", p, definite=True)
+        q1 = covariance_matrix(Q1, "Q1", n, definite=False)
+        q2 = covariance_matrix(Q2, "Q2", p, definite=True)
         return cls(
             f=f_sx,
             h=h_sx,

@@ -287,6 +287,57 @@ def _metrics_section(variant: Any) -> str:
     return "".join(out)
 
 
+def _run_figures(ctx: ReportContext) -> list[tuple[str, str]]:
+    """Figures of a problem without its own report hook (e.g. a TOML plant file).
+
+    For every design and scenario, run 0 through the generated C: each
+    statistic that has a fixed threshold, divided by it (an alarm is above 1);
+    the isolated fault; and for parameter estimators (``theta_hat_<θ>``
+    statistics) the estimate beside the simulated truth ``true_<θ>``.
+    """
+    v = ctx.variants[0]
+    ex, bt = v.evaluation.examples, v.evaluation.batches
+    body = []
+    for dname, built in v.built.items():
+        gf = built.gain_file
+        names = list(gf.step.statistic_names)
+        thr = np.asarray(gf.thresholds, dtype=float)
+        fixed = [j for j in range(len(names)) if np.isfinite(thr[j]) and thr[j] > 0]
+        for sname, res in ex.get(dname, {}).items():
+            b = bt[sname]
+            est = [(j, nm[len("theta_hat_") :]) for j, nm in enumerate(names) if nm.startswith("theta_hat_")]
+            est = [(j, q) for j, q in est if f"true_{q}" in b.extra]
+            rows = 2 + bool(est)
+            fig, axes = plt.subplots(rows, 1, figsize=(9, 2.2 * rows + 0.6), sharex=True)
+            timeline(axes[0], b.t, res.J[:, fixed] / thr[fixed], [names[j] for j in fixed], threshold=1.0)
+            axes[0].set_ylabel("J / threshold")
+            shade(axes[0], b.t, b.active)
+            axes[0].legend(fontsize=7, ncol=3)
+            axes[1].step(b.t, res.isolated, where="post", lw=0.9)
+            axes[1].set_yticks(range(-1, len(gf.faults)), ["none", *gf.faults])
+            axes[1].set_ylabel("isolated")
+            axes[1].grid(alpha=0.3)
+            shade(axes[1], b.t, b.active)
+            for j, q in est:
+                axes[2].plot(b.t, res.J[:, j], lw=0.8, label=f"estimate of {q}")
+                axes[2].plot(b.t, b.extra[f"true_{q}"][0], "k--", lw=0.8, label=f"true {q}" if len(est) > 1 else "truth")
+            if est:
+                axes[2].set_ylabel("parameters")
+                axes[2].legend(fontsize=7, ncol=2)
+                axes[2].grid(alpha=0.3)
+            axes[-1].set_xlabel("t (s)")
+            body.append(
+                ctx.figure(
+                    f"{dname}_{sname}",
+                    fig,
+                    f"{dname}, scenario {sname} ({ctx.problem.scenarios[sname].description or 'no description'}): run 0 "
+                    "through the generated C — statistics over their thresholds, the isolated fault"
+                    + (", the parameter estimates against the truth." if est else "."),
+                )
+            )
+    return [("Figures", "".join(body))] if body else []
+
+
 def write_report(problem: Problem, variants: Sequence[Any], directory: Path) -> Path:
     """Write the problem's report page (and its figures and gain files)."""
     directory.mkdir(parents=True, exist_ok=True)
@@ -300,9 +351,9 @@ def write_report(problem: Problem, variants: Sequence[Any], directory: Path) -> 
     ]
     if problem.notes:
         parts.append("<h2>Modelling choices</h2><ul>" + "".join(f"<li>{html.escape(n)}</li>" for n in problem.notes) + "</ul>")
-    if problem.report is not None:
-        for title, body in problem.report(ctx):
-            parts.append(f"<h2>{html.escape(title)}</h2>{body}")
+    sections = problem.report(ctx) if problem.report is not None else _run_figures(ctx)
+    for title, body in sections:
+        parts.append(f"<h2>{html.escape(title)}</h2>{body}")
     gains_dir = directory / "gains"
     for v in variants:
         label = "" if v.label == "default" else f" — {v.label}"

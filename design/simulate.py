@@ -70,7 +70,9 @@ class Signal:
     """A known or unknown input signal of a TOML problem.
 
     ``constant``: ``offset``; ``step``: ``offset`` + ``amplitude`` from ``start``;
-    ``sine``: ``offset + amplitude·sin(2πt/period)``; ``prbs``: ``offset ±
+    ``sine``: ``offset + amplitude·sin(2πt/period)``; ``square``: ``offset +
+    amplitude`` for the first half of each period, ``offset − amplitude`` for
+    the second (from ``t = 0``); ``prbs``: ``offset ±
     amplitude`` switching at random multiples of ``period`` (per run);
     ``gauss_markov``: ``offset + amplitude·ζ`` with correlation time ``period``.
     """
@@ -81,12 +83,12 @@ class Signal:
     period: float = 1.0
     start: float = 0.0
 
-    KINDS = ("constant", "step", "sine", "prbs", "gauss_markov")
+    KINDS = ("constant", "step", "sine", "square", "prbs", "gauss_markov")
 
     def __post_init__(self) -> None:
         if self.kind not in self.KINDS:
             raise SpecError(f"signal kind {self.kind!r} is not one of {self.KINDS}")
-        if self.kind in ("sine", "prbs", "gauss_markov") and not self.period > 0:
+        if self.kind in ("sine", "square", "prbs", "gauss_markov") and not self.period > 0:
             raise SpecError(f"a {self.kind} signal needs a positive period, got {self.period}")
 
     def sample(self, t: np.ndarray, rng: np.random.Generator, Ts: float) -> np.ndarray:
@@ -96,6 +98,10 @@ class Signal:
             return self.offset + self.amplitude * (t >= self.start)
         if self.kind == "sine":
             return self.offset + self.amplitude * np.sin(2 * np.pi * t / self.period)
+        if self.kind == "square":
+            # half-periods counted on the sample grid, so a period of whole samples splits exactly
+            half = np.floor(2.0 * t / self.period + 1e-9)
+            return self.offset + self.amplitude * np.where(half % 2 == 0, 1.0, -1.0)
         if self.kind == "prbs":
             hold = max(1, int(round(self.period / Ts)))
             levels = rng.choice([-1.0, 1.0], size=len(t) // hold + 1)

@@ -58,10 +58,42 @@ names are accepted too: ``Bu``, ``Bd``, ``Bf`` and ``h`` for ``B``, ``E``,
     component_faults = [{ fault = "f", value = 10.0 }]                   # a step of the fault input
 
 Signal kinds: constant (offset), step (offset, amplitude, start), sine (offset,
-amplitude, period), prbs (offset, amplitude, period = hold time),
-gauss_markov (offset, amplitude, period = correlation time). For the
-sampled-data methods the disturbance is white noise of unit intensity, sampled
-exactly by the simulator ([simulation].unknown_inputs is not used).
+amplitude, period), square (offset ± amplitude, period), prbs (offset,
+amplitude, period = hold time), gauss_markov (offset, amplitude, period =
+correlation time). For the sampled-data methods the disturbance is white
+noise of unit intensity, sampled exactly by the simulator
+([simulation].unknown_inputs is not used).
+
+A nonlinear plant (seed 001, ``x(k+1) = f(x, u, θ) + v``, ``y = h(x, θ) + e``)
+is written with ``time = "nonlinear"`` and designed by the NAFDF::
+
+    [signals]
+    states = ["x"]; inputs = ["u"]; outputs = ["y"]; parameters = ["a", "b"]
+    [model]
+    time = "nonlinear"
+    Ts = 1.0                          # optional (default: time counted in samples)
+    f = { x = "0.1*a*x^2 + x + 0.1*b*u" }     # one expression per state
+    h = { y = "x" }                   # one per output; no inputs
+    nominal = { a = -0.58, b = 0.2 }  # every parameter
+    constants = { g = 9.81 }          # optional
+    Q = [[0.0]]                       # covariance of v per sample (scalar, diagonal or matrix)
+    R = [[0.01]]                      # covariance of e per sample
+    [design]
+    method = "nafdf"                  # every keyword of fdisyn.design.nafdf.nafdf:
+    P_f = 1e-4                        # P_f, window, threshold_rule, beta0, x0 (default
+    window = 10                       # [simulation].x0), P0 (default 1), theta0, R0,
+    theta0 = { a = 0.0, b = 0.0 }     # forgetting_initial/_rate/_final, theta_lower,
+                                      # theta_upper, nominal_samples, classifier_window,
+                                      # W1, W2, T1, convergence_tolerance, convergence_level;
+                                      # per-parameter ones as a list or a table by name
+    [simulation]
+    duration = 20000; x0 = [0.0]; inputs = [{ kind = "square", offset = 5.0, amplitude = 4.0, period = 50 }]
+    [[scenarios]]
+    name = "a_half"; duration = 2000; onset = 701   # end optional
+    parameter_faults = [{ parameter = "a", scale = 0.5 }]   # θ → scale·θ0, or value = θ_faulty
+
+A scenario's fault is its jumping parameters joined by "+"; the jump drives
+the transitions from the onset sample on.
 """
 
 from __future__ import annotations
@@ -84,7 +116,7 @@ from fdisyn.design.sampled_data import SampledDataPlant, optimal_diagnostic_obse
 from fdisyn.design.sampling import van_loan
 from fdisyn.design.simulate import SensorFaultSpec, Signal, simulate_linear
 from fdisyn.design.uio import kalman_uio, pole_placement_uio
-from fdisyn.runtime.errors import FdisynError, SpecError
+from fdisyn.runtime.errors import FdisynError, ShapeError, SpecError
 from fdisyn.runtime.gainfile import GainFile, Generator
 
 __all__ = ["load_spec", "problem_from_toml", "LINEAR_METHODS", "register_method"]
@@ -231,6 +263,8 @@ def problem_from_toml(path: Path) -> Problem:
     name = str(top.get("name", required=True))
     if not _IDENT.match(name):
         raise SpecError(f"{path}: name {name!r} must be an identifier (it prefixes the C API)")
+    if isinstance(top.get("model"), Mapping) and top.get("model").get("time") == "nonlinear":
+        return _nonlinear_problem(path, top, name)
     sig = _Section(top.get("signals", {}), f"{path} [signals]", {"states", "inputs", "unknown_inputs", "outputs", "component_faults"})
     mod = _Section(
         top.get("model", required=True),
@@ -244,7 +278,7 @@ def problem_from_toml(path: Path) -> Problem:
             mod.doc = {**mod.doc, theirs: mod.doc[ours]}
     time = mod.get("time", "continuous")
     if time not in ("continuous", "discrete"):
-        raise SpecError(f"{path} [model].time must be 'continuous' or 'discrete', got {time!r}")
+        raise SpecError(f"{path} [model].time must be 'continuous', 'discrete' or 'nonlinear', got {time!r}")
     ts = mod.number("Ts", required=True)
     try:
         plant = LinearPlant.create(
@@ -394,3 +428,172 @@ def _faults(spec: Any, plant: LinearPlant, where: str) -> list[FaultClass]:
             raise SpecError(f"{where}[{i}] names no sensor and no component fault")
         out.append(FaultClass(str(fs.get("name", required=True)), sensors, components))
     return out
+
+
+# --------------------------------------------------------------------------- nonlinear plants (seed 001)
+
+_NAFDF_KEYS = {
+    # TOML key → keyword of fdisyn.design.nafdf.nafdf
+    "P_f": "false_alarm_probability",
+    "window": "window",
+    "threshold_rule": "threshold_rule",
+    "beta0": "beta0",
+    "x0": "x0",
+    "P0": "P0",
+    "theta0": "theta0",
+    "R0": "R0",
+    "forgetting_initial": "forgetting_initial",
+    "forgetting_rate": "forgetting_rate",
+    "forgetting_final": "forgetting_final",
+    "theta_lower": "theta_lower",
+    "theta_upper": "theta_upper",
+    "nominal_samples": "nominal_samples",
+    "classifier_window": "classifier_window",
+    "W1": "W1",
+    "W2": "W2",
+    "T1": "T1",
+    "convergence_tolerance": "convergence_tolerance",
+    "convergence_level": "convergence_level",
+}
+_PER_PARAMETER = {"theta0", "theta_lower", "theta_upper", "convergence_tolerance"}
+
+
+def _per_parameter(value: Any, parameters: tuple[str, ...], where: str) -> Any:
+    """A per-parameter setting given as a list (in ``[signals].parameters`` order) or a table by name."""
+    if not isinstance(value, Mapping):
+        return value
+    unknown = sorted(set(value) - set(parameters))
+    missing = [q for q in parameters if q not in value]
+    if unknown or missing:
+        raise SpecError(f"{where}: expected one entry per parameter {list(parameters)}; missing {missing}, unknown {unknown}")
+    return [value[q] for q in parameters]
+
+
+def _nonlinear_problem(path: Path, top: _Section, name: str) -> Problem:
+    """A ``time = "nonlinear"`` plant file: seed 001's model and the NAFDF (format in the README)."""
+    from fdisyn.design.nafdf import nafdf, nafdf_extra_metrics, nafdf_gain_file
+    from fdisyn.design.nonlinear import NonlinearPlant, covariance_matrix
+
+    sig = _Section(top.get("signals", {}), f"{path} [signals]", {"states", "inputs", "outputs", "parameters"})
+    mod = _Section(top.get("model", required=True), f"{path} [model]", {"time", "Ts", "f", "h", "nominal", "constants", "Q", "R"})
+    ts = mod.number("Ts")
+    names = {}
+    for key in ("states", "inputs", "outputs", "parameters"):
+        v = sig.get(key, [], required=key != "inputs")
+        if not isinstance(v, list) or not all(isinstance(x, str) for x in v):
+            raise SpecError(f"{path} [signals].{key} must be a list of names, got {v!r}")
+        names[key] = v
+    noise = {}
+    for key, size, definite in (("Q", len(names["states"]), False), ("R", len(names["outputs"]), True)):
+        try:
+            noise[key] = covariance_matrix(mod.get(key, required=True), key, size, definite=definite)
+        except ShapeError as exc:
+            raise SpecError(f"{path} [model].{exc}") from None
+    for key in ("f", "h", "nominal"):
+        if not isinstance(mod.get(key, required=True), Mapping):
+            raise SpecError(f"{path} [model].{key} must be a table such as {{ x = \"...\" }}")
+    try:
+        plant = NonlinearPlant.from_expressions(
+            states=names["states"],
+            inputs=names["inputs"],
+            outputs=names["outputs"],
+            parameters=names["parameters"],
+            nominal=mod.get("nominal"),
+            f=mod.get("f"),
+            h=mod.get("h"),
+            Q1=noise["Q"],
+            Q2=noise["R"],
+            constants=mod.get("constants"),
+            Ts=ts,
+        )
+    except FdisynError as exc:
+        raise SpecError(f"{path} [model]: {exc}") from exc
+    step_ts = ts or 1.0
+    pars = plant.parameters
+
+    sim = _Section(top.get("simulation", {}), f"{path} [simulation]", {"duration", "x0", "inputs"})
+    u_sigs = [_signal(x, f"{path} [simulation].inputs[{i}]") for i, x in enumerate(sim.get("inputs", []))]
+    if len(u_sigs) > plant.m:
+        raise SpecError(f"{path} [simulation].inputs: {plant.m} input signal(s) at most, got {len(u_sigs)}")
+    u_sigs += [Signal()] * (plant.m - len(u_sigs))
+    x0 = np.asarray(sim.get("x0", [0.0] * plant.n), dtype=float)
+    if x0.shape != (plant.n,):
+        raise SpecError(f"{path} [simulation].x0 must have {plant.n} entries, got {x0.size}")
+
+    des = _Section(top.get("design", {}), f"{path} [design]", {"method", *_NAFDF_KEYS})
+    method = str(des.get("method", "nafdf"))
+    if method != "nafdf":
+        raise SpecError(f"{path} [design].method {method!r}: a nonlinear plant is designed by 'nafdf'")
+    kwargs: dict[str, Any] = {"x0": x0, "P0": 1.0}
+    for key, kw in _NAFDF_KEYS.items():
+        if key in des.doc:
+            v = des.get(key)
+            kwargs[kw] = _per_parameter(v, pars, f"{path} [design].{key}") if key in _PER_PARAMETER else v
+
+    def design_fn(**_: Any) -> GainFile:
+        try:
+            dsg = nafdf(plant, name=name, **kwargs)
+        except (TypeError, ValueError) as exc:
+            raise SpecError(f"{path} [design]: {exc}") from exc
+        return nafdf_gain_file(dsg, problem=name, design_name=method, name=f"{name}_{method}", options={"spec": str(path)})
+
+    scenarios = {
+        "fault_free": Scenario("fault_free", "No fault.", float(sim.number("duration", 1000.0 * step_ts) or 1000.0 * step_ts))
+    }
+    for i, sd in enumerate(top.get("scenarios", [])):
+        w = f"{path} [[scenarios]][{i}]"
+        sc = _Section(sd, w, {"name", "description", "duration", "onset", "end", "parameter_faults"})
+        theta = dict(zip(pars, plant.theta_nominal.tolist(), strict=True))
+        for j, pf in enumerate(sc.get("parameter_faults", [])):
+            fs = _Section(pf, f"{w}.parameter_faults[{j}]", {"parameter", "scale", "value"})
+            q = str(fs.get("parameter", required=True))
+            if q not in pars:
+                raise SpecError(f"{w}.parameter_faults[{j}]: no parameter {q!r}; the plant has {list(pars)}")
+            if ("scale" in fs.doc) == ("value" in fs.doc):
+                raise SpecError(f"{w}.parameter_faults[{j}]: give either scale (θ → scale·θ0) or value (θ → value)")
+            theta[q] = float(fs.number("value")) if "value" in fs.doc else float(fs.number("scale")) * theta[q]  # type: ignore[arg-type]
+        sizes = {q: theta[q] - float(plant.theta_nominal[k]) for k, q in enumerate(pars) if theta[q] != plant.theta_nominal[k]}
+        onset = sc.number("onset")
+        if sizes and onset is None:
+            raise SpecError(f"{w}: a scenario with parameter faults needs an onset")
+        scen = Scenario(
+            name=str(sc.get("name", required=True)),
+            description=str(sc.get("description", "")),
+            duration=float(sc.number("duration", required=True)),  # type: ignore[arg-type]
+            fault="+".join(sizes) if sizes else None,
+            onset=onset if sizes else None,
+            end=sc.number("end"),
+            params={"theta": [theta[q] for q in pars], "fault_size": sizes},
+        )
+        scenarios[scen.name] = scen
+
+    def simulate(scenario: Scenario, seeds: tuple[int, ...]) -> Batch:
+        n = int(round(scenario.duration / step_ts))
+        t = np.arange(n) * step_ts
+        # row k of θ drives the transition x(k) → x(k+1): a jump at the onset first shows in y(onset + 1)
+        theta = np.tile(plant.theta_nominal, (n, 1))
+        if scenario.fault is not None:
+            theta[scenario.active(t)] = np.asarray(scenario.params["theta"], dtype=float)
+        U, Y, X = [], [], []
+        for seed in seeds:
+            rng = np.random.default_rng(seed)
+            u = np.column_stack([s.sample(t, rng, step_ts) for s in u_sigs]) if plant.m else np.zeros((n, 0))
+            x, y = plant.simulate(x0=x0, u=u, theta=theta, rng=rng)
+            U.append(u)
+            Y.append(y)
+            X.append(x)
+        extra = {f"true_{q}": np.tile(theta[:, k], (len(seeds), 1)) for k, q in enumerate(pars)}
+        extra |= {f"true_{s}": np.stack(X)[:, :, k] for k, s in enumerate(plant.states)}
+        return Batch(scenario, tuple(seeds), t, plant.inputs, plant.outputs, np.stack(U), np.stack(Y), extra)
+
+    return Problem(
+        name=name,
+        title=str(top.get("title", name)),
+        summary=f"Nonlinear plant described by {path.name}; the adaptive fault detection filter (NAFDF, seed 001).",
+        designs={method: design_fn},
+        default_design=method,
+        scenarios=scenarios,
+        simulate=simulate,
+        monte_carlo_runs=50,
+        extra_metrics=nafdf_extra_metrics,
+    )

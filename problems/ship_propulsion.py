@@ -32,7 +32,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from fdisyn.design.nafdf import NafdfDesign, nafdf, nafdf_gain_file
+from fdisyn.design.nafdf import NafdfDesign, nafdf, nafdf_extra_metrics, nafdf_gain_file
 from fdisyn.design.nonlinear import NonlinearPlant
 from fdisyn.design.problem import Batch, Problem
 from fdisyn.design.problem import Scenario as PipelineScenario
@@ -310,7 +310,7 @@ def _pipeline_scenarios() -> dict[str, PipelineScenario]:
             float(RECORD_LENGTH),
             fault="+".join(jumping),
             onset=float(FAULT_TIME),
-            params={"scale": dict(sc)},
+            params={"scale": dict(sc), "fault_size": {k: (v - 1.0) * NOMINAL[k] for k, v in sc.items() if v != 1.0}},
         )
     return out
 
@@ -346,36 +346,6 @@ def _gain_file(*, P_f: float = 1e-4, window: int = 10, **_options: object) -> Ga
         problem="ship_propulsion",
         options={"P_f": P_f, "window": window},
     )
-
-
-def _extra_metrics(sc: PipelineScenario, gf: GainFile, runs: Mapping[str, np.ndarray]) -> dict[str, float | None]:
-    """Fault-size error, parameter classes, isolation time; wrong isolations when fault-free."""
-    names = list(gf.step.statistic_names)
-    jj, iso, alarm = runs["J"], runs["isolated"], runs["alarm"]
-    last = jj[:, -1, :]
-    if not sc.fault:
-        onsets = np.sum(np.diff(alarm, axis=1, prepend=0) > 0)
-        return {
-            "runs with an isolation": float(np.mean(np.any(iso >= 0, axis=1))),
-            "alarm episodes per 10k samples": float(1e4 * onsets / alarm.size),
-        }
-    scale = dict(sc.params["scale"])
-    jumping = [q for q, v in scale.items() if v != 1.0]
-    out: dict[str, float | None] = {}
-    classes = np.stack([last[:, names.index(f"fault_class_{q}")] for q in gf.faults], axis=1)
-    exact = np.all((classes > 0) == np.array([q in jumping for q in gf.faults])[None, :], axis=1)
-    out["all parameter classes correct"] = float(np.mean(exact))
-    onset = int(sc.onset or 0)
-    first = [int(np.argmax(row[onset:] >= 0)) if np.any(row[onset:] >= 0) else None for row in iso]
-    found = [f for f in first if f is not None]
-    out["isolation delay median (samples)"] = float(np.median(found)) if found else None
-    for q in jumping:
-        true = (scale[q] - 1.0) * NOMINAL[q]
-        sel = last[:, names.index(f"fault_class_{q}")] > 0
-        err = last[sel, names.index(f"fault_size_{q}")] - true
-        out[f"size error {q}: mean"] = float(err.mean()) if err.size else None
-        out[f"size error {q}: sd"] = float(err.std(ddof=1)) if err.size > 1 else None
-    return out
 
 
 def _report(ctx: ReportContext) -> list[tuple[str, str]]:
@@ -507,5 +477,5 @@ PROBLEM = Problem(
     monte_carlo_runs=100,
     report=_report,
     notes=NOTES,
-    extra_metrics=_extra_metrics,
+    extra_metrics=nafdf_extra_metrics,
 )

@@ -38,7 +38,7 @@ from collections.abc import Mapping, Sequence
 
 import casadi as ca
 import numpy as np
-from fdisyn.design.nafdf import NafdfDesign, nafdf, nafdf_gain_file
+from fdisyn.design.nafdf import NafdfDesign, nafdf, nafdf_extra_metrics, nafdf_gain_file
 from fdisyn.design.nonlinear import NonlinearPlant
 from fdisyn.design.problem import Batch, Problem
 from fdisyn.design.problem import Scenario as PipelineScenario
@@ -248,6 +248,7 @@ def _pipeline_scenarios() -> dict[str, PipelineScenario]:
             RECORD_SAMPLES * TS,
             fault="eta",
             onset=FAULT_SAMPLE * TS,
+            params={"fault_size": {"eta": ETA_FAULTY - ETA_NOMINAL}},
         ),
     }
 
@@ -270,19 +271,6 @@ def _simulate(sc: PipelineScenario, seeds: Sequence[int], **_options: object) ->
 
 def _gain_file(*, P_f: float = 1e-4, **_options: object) -> GainFile:
     return nafdf_gain_file(design(false_alarm_probability=P_f), problem="wind_turbine_efficiency", options={"P_f": P_f})
-
-
-def _extra_metrics(sc: PipelineScenario, gf: GainFile, runs: Mapping[str, np.ndarray]) -> dict[str, float | None]:
-    names = list(gf.step.statistic_names)
-    last = runs["J"][:, -1, :]
-    if sc.fault is None:
-        return {"runs with an isolation": float(np.mean(np.any(runs["isolated"] >= 0, axis=1)))}
-    err = last[:, names.index("fault_size_eta")] - (ETA_FAULTY - ETA_NOMINAL)
-    sel = last[:, names.index("fault_class_eta")] > 0
-    return {
-        "size error eta: mean": float(err[sel].mean()) if sel.any() else None,
-        "size error eta: sd": float(err[sel].std(ddof=1)) if sel.sum() > 1 else None,
-    }
 
 
 def _report(ctx: ReportContext) -> list[tuple[str, str]]:
@@ -345,5 +333,5 @@ PROBLEM = Problem(
     monte_carlo_runs=50,
     report=_report,
     notes=NOTES,
-    extra_metrics=_extra_metrics,
+    extra_metrics=nafdf_extra_metrics,
 )

@@ -127,3 +127,20 @@ def test_reproduce_end_to_end(tmp_path):
     assert [v["label"] for v in metrics["variants"]] == ["default", "paper parameter set", "persistence 3"]
     assert all(c["passed"] for v in metrics["variants"] for c in v["exports"].values())
     assert (page.parent / "gains" / "wind_turbine_kalman_uio.json").exists()
+
+
+def test_reproduce_plant_files(tmp_path):
+    """Both kinds of plant file through the main job: the export check passes (the motor's
+    residuals are small differences of an integrating angle, compared against their terms) and
+    a problem without its own report hook gets a figure per design and scenario."""
+    specs = [str(DATA / "dc_motor.toml"), str(DATA / "ship.toml")]
+    assert main(["reproduce", *specs, "--runs", "2", "--reports", str(tmp_path / "r"), "--workdir", str(tmp_path / "b")]) == 0
+    for name, design, scenarios in (("dc_motor", "kalman_uio", ("fault_free", "speed_sensor_offset")), ("ship", "nafdf", ("a_half", "both"))):
+        page = tmp_path / "r" / name / "index.html"
+        metrics = json.loads((page.parent / "metrics.json").read_text())
+        assert all(c["passed"] for v in metrics["variants"] for c in v["exports"].values()), name
+        for sc in scenarios:
+            assert f"{design}_{sc}.png" in page.read_text() and (page.parent / f"{design}_{sc}.png").exists()
+    ship = json.loads((tmp_path / "r" / "ship" / "metrics.json").read_text())["variants"][0]["evaluation"]["designs"]["nafdf"]
+    assert ship["a_half"]["missed_detection_rate"] == 0.0 and ship["a_half"]["isolation_accuracy"] == 1.0
+    assert set(ship["both"]["extra"]) >= {"all parameter classes correct", "size error a: mean", "size error b: mean"}

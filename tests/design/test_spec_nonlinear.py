@@ -1,0 +1,141 @@
+"""A nonlinear plant file (``time = "nonlinear"``) designs the NAFDF of seed 001.
+
+The truth for the TOML route is the built-in ``ship_propulsion`` problem:
+``tests/data/ship.toml`` writes the same plant, the same settings and the
+same input, so the design must be the same step function and the simulator
+the same data, to the bit.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from fdisyn.design.cli import main
+from fdisyn.design.nafdf import nafdf_extra_metrics
+from fdisyn.design.simulate import Signal
+from fdisyn.design.spec import load_spec
+from fdisyn.problems import ship_propulsion as sp
+from fdisyn.runtime.errors import SpecError
+from fdisyn.runtime.gainfile import read_gain_file
+
+DATA = Path(__file__).parents[1] / "data"
+SHIP = DATA / "ship.toml"
+
+
+@pytest.fixture(scope="module")
+def problem():
+    return load_spec(SHIP)
+
+
+def test_the_file_designs_the_built_in_ship_nafdf(problem) -> None:
+    gf, ref = problem.design(), sp.PROBLEM.design()
+    assert gf.kind == "nafdf" and gf.name == "ship_nafdf" and gf.faults == ("a", "b")
+    assert (gf.inputs, gf.outputs, gf.Ts) == (ref.inputs, ref.outputs, ref.Ts)
+    ours, theirs = gf.extensions["nafdf"], ref.extensions["nafdf"]
+    for key in ("plant", "settings", "wssr_thresholds", "state_layout", "init_state", "r_names", "J_names", "thresholds"):
+        assert ours[key] == theirs[key], key
+
+
+def test_the_file_simulates_the_built_in_ship_data(problem) -> None:
+    """Same square wave (offset 5 ± 4, period 50), same x0, same noise draws, same jump of a at 701."""
+    ours = problem.run("a_half", [3, 4])
+    theirs = sp.PROBLEM.run("paper_a_half", [3, 4])
+    np.testing.assert_array_equal(ours.U, theirs.U)
+    np.testing.assert_array_equal(ours.Y, theirs.Y)
+    np.testing.assert_array_equal(ours.extra["true_a"], theirs.extra["a"])
+    assert ours.scenario.fault == "a" and ours.scenario.params["fault_size"] == {"a": pytest.approx(0.29)}
+
+
+def test_scenarios_by_scale_and_by_value(problem) -> None:
+    both = problem.scenario("both")
+    assert both.fault == "a+b"
+    assert both.params["fault_size"] == {"a": pytest.approx(-0.29), "b": pytest.approx(0.1)}
+    b = problem.run("both", [0])
+    np.testing.assert_array_equal(b.extra["true_a"][0, :701], -0.58)
+    np.testing.assert_array_equal(b.extra["true_a"][0, 701:], 1.5 * -0.58)  # θ → scale·θ0, computed the same way
+    np.testing.assert_array_equal(b.extra["true_b"][0, 701:], 0.3)
+    assert problem.scenario("fault_free").duration == 20000 and problem.scenario("fault_free").fault is None
+
+
+def test_cli_design_codegen_and_replay(tmp_path) -> None:
+    d = tmp_path / "ship"
+    assert main(["design", str(SHIP), "--out", str(d)]) == 0
+    assert read_gain_file(d / "gains.json").name == "ship_nafdf"
+    assert main(["codegen", str(d)]) == 0
+    trace = tmp_path / "t.csv"
+    assert main(["simulate", str(SHIP), "--scenario", "a_half", "--seed", "1", "--out", str(trace)]) == 0
+    assert main(["replay", str(d), str(trace), str(tmp_path / "o.csv")]) == 0
+    out = np.genfromtxt(tmp_path / "o.csv", delimiter=",", names=True)
+    # the paper's fault is detected within 20 samples (Monte Carlo: 95 % within ~11) and a is isolated
+    assert 701 <= np.flatnonzero(out["alarm"][701:])[0] + 701 <= 721
+    assert out["isolated"][-1] == 0
+
+
+def _write(tmp_path: Path, old: str, new: str) -> Path:
+    text = SHIP.read_text()
+    assert old in text, old
+    p = tmp_path / "bad.toml"
+    p.write_text(text.replace(old, new, 1))
+    return p
+
+
+@pytest.mark.parametrize(
+    "old, new, match",
+    [
+        ('method = "nafdf"', 'method = "kalman_uio"', "a nonlinear plant is designed by 'nafdf'"),
+        ("nominal = { a = -0.58, b = 0.2 }", "nominal = { a = -0.58 }", "'b'"),
+        ('f = { x = "0.1*a*x^2', 'f = { x = "abs(x) + 0.1*a*x^2', "abs"),
+        ("theta0 = { a = 0.0, b = 0.0 }", "theta0 = { a = 0.0 }", r"missing \['b'\]"),
+        ('{ parameter = "a", scale = 0.5 }', '{ parameter = "c", scale = 0.5 }', "no parameter 'c'"),
+        ('{ parameter = "a", scale = 0.5 }', '{ parameter = "a", scale = 0.5, value = 1.0 }', "either scale"),
+        ("onset = 701\nparameter_faults = [{ parameter = \"a\"", "parameter_faults = [{ parameter = \"a\"", "needs an onset"),
+        ("W1 = 50.0", "W1 = 500.0", "W1 < W2"),
+        ("window = 10", "windw = 10", "unknown key"),
+        ('x0 = [0.0]', 'x0 = [0.0, 1.0]', "x0 must have 1 entries"),
+        ("R = [[0.01]]", "R = [[0.01, 0.0]]", r"\[model\].R has shape \(1, 2\); expected \(1, 1\)"),
+        ("Q = [[0.0]]", "Q = [[-1.0]]", r"\[model\].Q must be positive semidefinite"),
+        ("R = [[0.01]]", "R = 0.0", r"\[model\].R must be positive definite"),
+        ('states = ["x"]', "states = 3", r"\[signals\].states must be a list of names"),
+        ("window = 10", 'window = "ten"', "window must be a positive integer"),
+        ("P0 = 100.0", 'P0 = "big"', "P0 must be a number or an array of numbers"),
+    ],
+)
+def test_bad_nonlinear_files_name_the_problem(tmp_path, old, new, match) -> None:
+    with pytest.raises(SpecError, match=match):
+        load_spec(_write(tmp_path, old, new)).design()
+
+
+def test_square_signal_on_the_sample_grid() -> None:
+    s = Signal(kind="square", offset=5.0, amplitude=4.0, period=50.0)
+    u = s.sample(np.arange(200.0), np.random.default_rng(0), 1.0)
+    np.testing.assert_array_equal(u, np.where(np.arange(200) % 50 < 25, 9.0, 1.0))
+    # a period that is a whole number of samples splits exactly even when Ts is not a binary fraction
+    t = np.arange(1000) * 0.01
+    v = Signal(kind="square", amplitude=1.0, period=0.2).sample(t, np.random.default_rng(0), 0.01)
+    np.testing.assert_array_equal(v, np.where(np.arange(1000) % 20 < 10, 1.0, -1.0))
+
+
+def test_nafdf_extra_metrics_by_hand() -> None:
+    """Three runs with known latched classes, sizes and isolation times."""
+    gf = SimpleNamespace(faults=("a", "b"), Ts=1.0, step=SimpleNamespace(statistic_names=("fault_class_a", "fault_class_b", "fault_size_a", "fault_size_b")))
+    N = 10
+    J = np.zeros((3, N, 4))
+    J[:, -1] = [[1, 0, 0.30, 0.0], [2, 0, 0.26, 0.0], [1, 1, 0.5, 0.1]]
+    iso = -np.ones((3, N), dtype=int)
+    iso[0, 7:], iso[1, 9:], iso[2, 6:] = 0, 0, 0
+    runs = {"J": J, "isolated": iso, "alarm": np.zeros((3, N), dtype=int)}
+    sc = SimpleNamespace(fault="a", onset=5.0, params={"fault_size": {"a": 0.29}})
+    m = nafdf_extra_metrics(sc, gf, runs)
+    assert m["all parameter classes correct"] == pytest.approx(2 / 3)
+    assert m["isolation delay median (samples)"] == 2.0  # delays 2, 4, 1
+    err = np.array([0.30, 0.26, 0.5]) - 0.29
+    assert m["size error a: mean"] == pytest.approx(err.mean()) and m["size error a: sd"] == pytest.approx(err.std(ddof=1))
+    alarm = np.zeros((2, N), dtype=int)
+    alarm[0, 2:4] = alarm[0, 6] = alarm[1, 9] = 1
+    free = nafdf_extra_metrics(
+        SimpleNamespace(fault=None, onset=None, params={}), gf, {"J": J[:2], "isolated": -np.ones((2, N), dtype=int), "alarm": alarm}
+    )
+    assert free == {"runs with an isolation": 0.0, "alarm episodes per 10k samples": pytest.approx(1e4 * 3 / 20)}
