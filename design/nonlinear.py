@@ -400,6 +400,9 @@ class NonlinearPlant:
         if clash:
             raise SpecError(f"constant names {clash} clash with signal or parameter names")
         for what, given, expected in (("f", f, st), ("h", h, out)):
+            wrong = {k: v for k, v in given.items() if not isinstance(v, str)}
+            if wrong:
+                raise SpecError(f"{what}: expressions must be strings; got {wrong}")
             keys = set(given)
             if keys != set(expected):
                 raise SpecError(

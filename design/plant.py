@@ -33,6 +33,8 @@ def identifier_names(given: Sequence[str] | None, what: str, *, count: int | Non
     """Signal names: identifiers, unique, ``count`` of them (``None`` given: ``prefix0…``)."""
     if given is None:
         return tuple(f"{prefix}{i}" for i in range(count or 0))
+    if isinstance(given, (str, bytes)) or not isinstance(given, Sequence):
+        raise ShapeError(f"{what} names must be a list of names, got {given!r}")
     names = tuple(str(g) for g in given)
     if count is not None and len(names) != count:
         raise ShapeError(f"{what} names: expected {count} names to match the matrices, got {len(names)}: {list(names)}")
@@ -181,7 +183,10 @@ class LinearPlant:
         designed on it, is unchanged; only the conditioning of the state
         matrices improves when ``scale`` holds typical state magnitudes.
         """
-        s = np.asarray(scale, dtype=float).reshape(-1)
+        try:
+            s = np.asarray(scale, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            raise ShapeError(f"state scaling must be {self.n} positive finite numbers; got {scale!r}") from None
         if s.shape != (self.n,) or not np.all(np.isfinite(s)) or np.any(s <= 0):
             raise ShapeError(f"state scaling must be {self.n} positive finite numbers; got {scale!r}")
         si = 1.0 / s

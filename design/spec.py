@@ -119,7 +119,7 @@ from fdisyn.design.uio import kalman_uio, pole_placement_uio
 from fdisyn.runtime.errors import FdisynError, ShapeError, SpecError
 from fdisyn.runtime.gainfile import GainFile, Generator
 
-__all__ = ["load_spec", "problem_from_toml", "LINEAR_METHODS", "register_method"]
+__all__ = ["load_spec", "problem_from_toml", "problem_from_document", "LINEAR_METHODS", "register_method"]
 
 _IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
@@ -202,7 +202,9 @@ def load_spec(spec: str | Path) -> Problem:
 
 
 class _Section:
-    def __init__(self, doc: Mapping[str, Any], where: str, allowed: set[str]) -> None:
+    def __init__(self, doc: Any, where: str, allowed: set[str]) -> None:
+        if not isinstance(doc, Mapping):
+            raise SpecError(f"{where} must be a table (key = value pairs), got {doc!r}")
         unknown = sorted(set(doc) - allowed)
         if unknown:
             raise SpecError(f"{where}: unknown key(s) {unknown}; allowed: {sorted(allowed)}")
@@ -215,6 +217,20 @@ class _Section:
             return default
         return self.doc[key]
 
+    def entries(self, key: str) -> list[Any]:
+        """A list (default empty), e.g. of tables."""
+        v = self.get(key, [])
+        if not isinstance(v, list):
+            raise SpecError(f"{self.where}.{key} must be a list, got {v!r}")
+        return v
+
+    def duration(self, key: str, default: float | None = None) -> float:
+        """A positive, finite length of time (required when ``default`` is None)."""
+        v = self.number(key, default, required=default is None)
+        if v is None or not np.isfinite(v) or v <= 0:
+            raise SpecError(f"{self.where}.{key} must be a positive, finite time, got {v!r}")
+        return v
+
     def number(self, key: str, default: float | None = None, *, required: bool = False) -> float | None:
         v = self.get(key, default, required=required)
         if v is None:
@@ -222,6 +238,17 @@ class _Section:
         if isinstance(v, bool) or not isinstance(v, (int, float)):
             raise SpecError(f"{self.where}.{key} must be a number, got {v!r}")
         return float(v)
+
+    def vector(self, key: str, size: int) -> np.ndarray:
+        """A list of ``size`` numbers (default: zeros)."""
+        v = self.get(key, [0.0] * size)
+        try:
+            a = np.asarray(v, dtype=float)
+        except (TypeError, ValueError):
+            raise SpecError(f"{self.where}.{key} must be a list of {size} numbers, got {v!r}") from None
+        if a.shape != (size,):
+            raise SpecError(f"{self.where}.{key} must have {size} entries, got {a.size}")
+        return a
 
     def matrix(self, key: str, *, required: bool = False) -> np.ndarray | None:
         v = self.get(key, None, required=required)
@@ -259,6 +286,11 @@ def problem_from_toml(path: Path) -> Problem:
         raise SpecError(f"no plant file at {path}") from None
     except tomllib.TOMLDecodeError as exc:
         raise SpecError(f"{path} is not valid TOML: {exc}") from exc
+    return problem_from_document(doc, path)
+
+
+def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
+    """The problem a parsed plant file describes (``path`` names it in errors and in the gain file)."""
     top = _Section(doc, str(path), {"name", "title", "signals", "model", "design", "simulation", "scenarios"})
     name = str(top.get("name", required=True))
     if not _IDENT.match(name):
@@ -306,7 +338,7 @@ def problem_from_toml(path: Path) -> Problem:
     method = str(des.get("method", "kalman_uio"))
     if method not in LINEAR_METHODS:
         raise SpecError(f"{path} [design].method {method!r} is not one of {sorted(LINEAR_METHODS)}")
-    groups = des.get("bank", [list(physical.outputs)])
+    groups = des.entries("bank") or [list(physical.outputs)]
     bank = []
     for gi, g in enumerate(groups):
         if not isinstance(g, list) or not g:
@@ -346,18 +378,16 @@ def problem_from_toml(path: Path) -> Problem:
         )
 
     sim = _Section(top.get("simulation", {}), f"{path} [simulation]", {"duration", "x0", "inputs", "unknown_inputs"})
-    u_sigs = [_signal(s, f"{path} [simulation].inputs[{i}]") for i, s in enumerate(sim.get("inputs", []))]
-    d_sigs = [_signal(s, f"{path} [simulation].unknown_inputs[{i}]") for i, s in enumerate(sim.get("unknown_inputs", []))]
+    u_sigs = [_signal(s, f"{path} [simulation].inputs[{i}]") for i, s in enumerate(sim.entries("inputs"))]
+    d_sigs = [_signal(s, f"{path} [simulation].unknown_inputs[{i}]") for i, s in enumerate(sim.entries("unknown_inputs"))]
     u_sigs += [Signal()] * (physical.m - len(u_sigs))
     d_sigs += [Signal()] * (physical.q - len(d_sigs))
     if len(u_sigs) != physical.m or len(d_sigs) != physical.q:
         raise SpecError(f"{path} [simulation]: {physical.m} input and {physical.q} unknown-input signals at most")
-    x0 = np.asarray(sim.get("x0", [0.0] * physical.n), dtype=float)
-    if x0.shape != (physical.n,):
-        raise SpecError(f"{path} [simulation].x0 must have {physical.n} entries, got {x0.size}")
-    scenarios = {"fault_free": Scenario("fault_free", "No fault.", float(sim.number("duration", 100.0) or 100.0))}
+    x0 = sim.vector("x0", physical.n)
+    scenarios = {"fault_free": Scenario("fault_free", "No fault.", sim.duration("duration", 100.0))}
     sources = set(physical.outputs) | set(physical.component_faults)
-    for i, sd in enumerate(top.get("scenarios", [])):
+    for i, sd in enumerate(top.entries("scenarios")):
         w = f"{path} [[scenarios]][{i}]"
         sc = _Section(sd, w, {"name", "description", "duration", "fault", "onset", "end", "sensor_faults", "component_faults"})
         fname = sc.get("fault")
@@ -366,14 +396,14 @@ def problem_from_toml(path: Path) -> Problem:
         if fname is not None and (fname not in known if known is not None else not set(str(fname).split("|")) <= sources):
             raise SpecError(f"{w}.fault {fname!r} is not a fault class; classes: {sorted(known or sources)}")
         cfs = []
-        for j, f in enumerate(sc.get("component_faults", [])):
+        for j, f in enumerate(sc.entries("component_faults")):
             fs = _Section(f, f"{w}.component_faults[{j}]", {"fault", "value"})
             cname = str(fs.get("fault", required=True))
             if cname not in physical.component_faults:
                 raise SpecError(f"{w}.component_faults[{j}]: no component fault {cname!r}; the plant has {list(physical.component_faults)}")
             cfs.append((cname, float(fs.number("value", required=True))))  # type: ignore[arg-type]
         sfs = []
-        for j, f in enumerate(sc.get("sensor_faults", [])):
+        for j, f in enumerate(sc.entries("sensor_faults")):
             fs = _Section(f, f"{w}.sensor_faults[{j}]", {"sensor", "kind", "value"})
             sensor = str(fs.get("sensor", required=True))
             physical.output_index(sensor)
@@ -381,7 +411,7 @@ def problem_from_toml(path: Path) -> Problem:
         scen = Scenario(
             name=str(sc.get("name", required=True)),
             description=str(sc.get("description", "")),
-            duration=float(sc.number("duration", required=True)),  # type: ignore[arg-type]
+            duration=sc.duration("duration"),
             fault=fname,
             onset=sc.number("onset"),
             end=sc.number("end"),
@@ -414,11 +444,13 @@ def problem_from_toml(path: Path) -> Problem:
 
 
 def _faults(spec: Any, plant: LinearPlant, where: str) -> list[FaultClass]:
+    if not isinstance(spec, list):
+        raise SpecError(f"{where} must be a list of tables, got {spec!r}")
     out = []
     for i, f in enumerate(spec):
         fs = _Section(f, f"{where}[{i}]", {"name", "sensors", "components"})
-        sensors = tuple(str(s) for s in fs.get("sensors", []))
-        components = tuple(str(c) for c in fs.get("components", []))
+        sensors = tuple(str(s) for s in fs.entries("sensors"))
+        components = tuple(str(c) for c in fs.entries("components"))
         for s in sensors:
             plant.output_index(s)
         for c in components:
@@ -512,13 +544,11 @@ def _nonlinear_problem(path: Path, top: _Section, name: str) -> Problem:
     pars = plant.parameters
 
     sim = _Section(top.get("simulation", {}), f"{path} [simulation]", {"duration", "x0", "inputs"})
-    u_sigs = [_signal(x, f"{path} [simulation].inputs[{i}]") for i, x in enumerate(sim.get("inputs", []))]
+    u_sigs = [_signal(x, f"{path} [simulation].inputs[{i}]") for i, x in enumerate(sim.entries("inputs"))]
     if len(u_sigs) > plant.m:
         raise SpecError(f"{path} [simulation].inputs: {plant.m} input signal(s) at most, got {len(u_sigs)}")
     u_sigs += [Signal()] * (plant.m - len(u_sigs))
-    x0 = np.asarray(sim.get("x0", [0.0] * plant.n), dtype=float)
-    if x0.shape != (plant.n,):
-        raise SpecError(f"{path} [simulation].x0 must have {plant.n} entries, got {x0.size}")
+    x0 = sim.vector("x0", plant.n)
 
     des = _Section(top.get("design", {}), f"{path} [design]", {"method", *_NAFDF_KEYS})
     method = str(des.get("method", "nafdf"))
@@ -538,13 +568,13 @@ def _nonlinear_problem(path: Path, top: _Section, name: str) -> Problem:
         return nafdf_gain_file(dsg, problem=name, design_name=method, name=f"{name}_{method}", options={"spec": str(path)})
 
     scenarios = {
-        "fault_free": Scenario("fault_free", "No fault.", float(sim.number("duration", 1000.0 * step_ts) or 1000.0 * step_ts))
+        "fault_free": Scenario("fault_free", "No fault.", sim.duration("duration", 1000.0 * step_ts))
     }
-    for i, sd in enumerate(top.get("scenarios", [])):
+    for i, sd in enumerate(top.entries("scenarios")):
         w = f"{path} [[scenarios]][{i}]"
         sc = _Section(sd, w, {"name", "description", "duration", "onset", "end", "parameter_faults"})
         theta = dict(zip(pars, plant.theta_nominal.tolist(), strict=True))
-        for j, pf in enumerate(sc.get("parameter_faults", [])):
+        for j, pf in enumerate(sc.entries("parameter_faults")):
             fs = _Section(pf, f"{w}.parameter_faults[{j}]", {"parameter", "scale", "value"})
             q = str(fs.get("parameter", required=True))
             if q not in pars:
@@ -559,7 +589,7 @@ def _nonlinear_problem(path: Path, top: _Section, name: str) -> Problem:
         scen = Scenario(
             name=str(sc.get("name", required=True)),
             description=str(sc.get("description", "")),
-            duration=float(sc.number("duration", required=True)),  # type: ignore[arg-type]
+            duration=sc.duration("duration"),
             fault="+".join(sizes) if sizes else None,
             onset=onset if sizes else None,
             end=sc.number("end"),

@@ -8,6 +8,8 @@ the same data, to the bit.
 
 from __future__ import annotations
 
+import copy
+import tomllib
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -16,9 +18,9 @@ import pytest
 from fdisyn.design.cli import main
 from fdisyn.design.nafdf import nafdf_extra_metrics
 from fdisyn.design.simulate import Signal
-from fdisyn.design.spec import load_spec
+from fdisyn.design.spec import load_spec, problem_from_document
 from fdisyn.problems import ship_propulsion as sp
-from fdisyn.runtime.errors import SpecError
+from fdisyn.runtime.errors import FdisynError, SpecError
 from fdisyn.runtime.gainfile import read_gain_file
 
 DATA = Path(__file__).parents[1] / "data"
@@ -94,7 +96,8 @@ def _write(tmp_path: Path, old: str, new: str) -> Path:
         ("onset = 701\nparameter_faults = [{ parameter = \"a\"", "parameter_faults = [{ parameter = \"a\"", "needs an onset"),
         ("W1 = 50.0", "W1 = 500.0", "W1 < W2"),
         ("window = 10", "windw = 10", "unknown key"),
-        ('x0 = [0.0]', 'x0 = [0.0, 1.0]', "x0 must have 1 entries"),
+        ("x0 = [0.0]", "x0 = [0.0, 1.0]", "x0 must have 1 entries"),
+        ("x0 = [0.0]", 'x0 = ["zero"]', r"\[simulation\].x0 must be a list of 1 numbers"),
         ("R = [[0.01]]", "R = [[0.01, 0.0]]", r"\[model\].R has shape \(1, 2\); expected \(1, 1\)"),
         ("Q = [[0.0]]", "Q = [[-1.0]]", r"\[model\].Q must be positive semidefinite"),
         ("R = [[0.01]]", "R = 0.0", r"\[model\].R must be positive definite"),
@@ -139,3 +142,36 @@ def test_nafdf_extra_metrics_by_hand() -> None:
         SimpleNamespace(fault=None, onset=None, params={}), gf, {"J": J[:2], "isolated": -np.ones((2, N), dtype=int), "alarm": alarm}
     )
     assert free == {"runs with an isolation": 0.0, "alarm episodes per 10k samples": pytest.approx(1e4 * 3 / 20)}
+
+
+def _key_paths(node: object, prefix: tuple = ()) -> list[tuple]:
+    out = []
+    if isinstance(node, dict):
+        for k, v in node.items():
+            out += [(*prefix, k), *_key_paths(v, (*prefix, k))]
+    elif isinstance(node, list) and node and all(isinstance(x, dict) for x in node):
+        for i, v in enumerate(node):
+            out += [(*prefix, i), *_key_paths(v, (*prefix, i))]
+    return out
+
+
+@pytest.mark.parametrize("name", ["ship.toml", "dc_motor.toml", "sampled_data.toml"])
+def test_every_key_with_a_wrong_value_gives_a_named_error(name) -> None:
+    """Each key (and table) of the example files replaced in turn by a value of the wrong type or
+    sign: parsing, designing and simulating either succeed or raise an fdisyn error — never a
+    bare TypeError/ValueError from deep inside (the CLI turns fdisyn errors into one line)."""
+    doc = tomllib.loads((DATA / name).read_text())
+    for path in _key_paths(doc):
+        for bad in ("x", -1.0, {"q": 1}, [["a"]]):
+            d = copy.deepcopy(doc)
+            node = d
+            for k in path[:-1]:
+                node = node[k]
+            node[path[-1]] = bad
+            try:
+                prob = problem_from_document(d, DATA / name)
+                prob.design()
+                for sc in list(prob.scenarios)[:2]:
+                    prob.run(sc, [0])
+            except FdisynError:
+                pass
