@@ -11,8 +11,8 @@ in the same order, so that a file is either read identically by both or
 refused by both with the same message:
 
 1. physical lines end at LF; the CR of a CRLF is dropped; a line holds at
-   most :data:`MAX_LINE_BYTES` bytes (line break excluded); a UTF-8 byte-order
-   mark opens the file at most;
+   most :data:`MAX_LINE_BYTES` bytes (line break excluded); the file may open
+   with a UTF-8 byte-order mark, which is skipped;
 2. every line is UTF-8 without control characters (C0 except tab, DEL, C1 —
    among them U+0085 —, U+2028, U+2029) and without a lone CR: these are line
    breaks for some readers and not for others, so they are refused rather
@@ -39,8 +39,8 @@ changed.
 
 Errors in the data raise :class:`~fdisyn.runtime.errors.TraceError` with the
 message ``<path> line <n>: <what>; expected <what>``; a file the operating
-system refuses to read or write raises ``OSError`` whose message is
-``cannot read|write <path>: <reason>``.
+system refuses to read or write raises ``OSError`` (its ``errno`` kept) whose
+``strerror`` is ``cannot read|write <path>: <reason>``.
 """
 
 from __future__ import annotations
