@@ -118,6 +118,13 @@ def test_the_plain_trace_is_replayed(motor, tmp_path):
     assert [r[0] for r in _rows(res.output)][:3] == ["0", "0.001", "0.002"]
 
 
+def test_a_header_without_rows_gives_a_header_without_rows(motor, tmp_path):
+    for data in (HEADER, csv(), csv(b"", b" ")):
+        res = both(motor, tmp_path, data)
+        assert (res.status, res.output) == (0, b"t,alarm,isolated,J0,J1,r0,r1,r2,r3\n")
+        assert res.message == "replay: 0 samples, 0 with non-finite values skipped"
+
+
 SAME_AS_PLAIN = {
     "CRLF line endings": csv(*ROWS, end=b"\r\n"),
     "no line break after the last row": csv(*ROWS)[:-1],
@@ -370,3 +377,59 @@ def test_differential_fuzz(motor, tmp_path, monkeypatch):
     # the fuzzer must exercise both sides of the grammar and most of its refusals, not one of them over and over
     assert seen[0] >= 60 and seen[2] >= 300, seen
     assert len(kinds) >= 12, sorted(kinds)
+
+
+def _random_numeral(rng: np.random.Generator) -> str:
+    """A numeral of the grammar: long mantissas, exponents around the double range's ends, specials, empty."""
+    if rng.random() < 0.06:
+        return str(rng.choice(["nan", "NaN", "-nan", "inf", "-Inf", "+INFINITY", ""]))
+    digits = lambda k: "".join(rng.choice(list("0123456789"), size=k))  # noqa: E731
+    k = int(rng.choice([1, 2, 5, 17, 18, 25, 60, 400]))
+    body = [digits(k), digits(int(rng.integers(1, 5))) + "." + digits(k), "." + digits(k)][int(rng.integers(3))]
+    s = str(rng.choice(["", "+", "-"])) + body
+    if rng.random() < 0.5:
+        s += str(rng.choice(["e", "E"])) + str(rng.choice(["", "+", "-"])) + str(rng.choice([0, 5, 22, 300, 308, 309, 323, 324, 400, 99999]))
+    return s
+
+
+def _exact(numeral: str) -> float:
+    """The double nearest to a numeral, by exact rational arithmetic (the truth both replays must print)."""
+    body = numeral.lstrip("+-").lower()
+    if body in ("nan", ""):
+        return float("nan")
+    sign = -1.0 if numeral.startswith("-") else 1.0
+    if body.startswith("inf"):
+        return sign * float("inf")
+    try:
+        return sign * float(Fraction(body))  # int / int rounds correctly
+    except OverflowError:
+        return sign * float("inf")
+
+
+def test_differential_fuzz_of_valid_files(motor, tmp_path):
+    """80 seeded valid files: random column order, quoting, blanks, line endings and numerals (up to
+    400 digits, exponents at the ends of the double range). Both replays accept them, write the same
+    bytes, and print each t as the correctly rounded double of its numeral."""
+    rng = np.random.default_rng(4180)
+    names = ["t", "voltage", "i_meas", "w_meas", "theta_meas", "note", "x"]
+
+    def wrap(text: str) -> str:
+        blank = lambda: "".join(rng.choice([" ", "\t"], size=int(rng.integers(0, 3)))) if rng.random() < 0.2 else ""  # noqa: E731
+        quoted = '"' + text.replace('"', '""') + '"' if rng.random() < 0.2 else text
+        return blank() + quoted + blank()
+
+    for _ in range(80):
+        order = rng.permutation(len(names))
+        lines, times = [",".join(wrap(names[i]) for i in order)], []
+        for _ in range(int(rng.integers(0, 20))):
+            if rng.random() < 0.05:
+                lines.append(" " * int(rng.integers(0, 3)))
+                continue
+            row = {n: _random_numeral(rng) for n in ("t", "voltage", "i_meas", "w_meas", "theta_meas", "x")}
+            row["note"] = '"' + str(rng.choice(["ok", "a,b", 'q""q', "é", ""])) + '"'
+            times.append(row["t"])
+            lines.append(",".join(row[names[i]] if names[i] == "note" else wrap(row[names[i]]) for i in order))
+        eol = "\r\n" if rng.random() < 0.3 else "\n"
+        res = both(motor, tmp_path, (eol.join(lines) + (eol if rng.random() < 0.8 else "")).encode())
+        assert res.status == 0 and res.output is not None, res.message
+        assert [r[0] for r in _rows(res.output)] == ["%.17g" % _exact(s) for s in times]
