@@ -69,14 +69,25 @@ def _cmd_codegen(a: argparse.Namespace) -> None:
 
 
 def _cmd_replay(a: argparse.Namespace) -> None:
+    """Stream IN.csv through DIR's compiled diagnoser into OUT.csv, as ``DIR/replay`` does.
+
+    Bad data is an ``FdisynError`` (status 2, one line, from ``main``); a file
+    the system refuses to read or write ends with status 1 and one line, the
+    statuses and messages of the C program.
+    """
     from fdisyn.runtime.monitor import Monitor
-    from fdisyn.runtime.trace import read_trace, write_replay_csv
+    from fdisyn.runtime.trace import replay_csv
 
     mon = Monitor.from_directory(a.dir, backend="compiled")
-    tr = read_trace(a.input, inputs=mon.gf.inputs, outputs=mon.gf.outputs)
-    res = mon.run(tr.U, tr.Y)
-    write_replay_csv(a.output, tr.t, res)
-    print(f"replay: {len(tr.t)} samples, {res.nonfinite_samples} with non-finite values skipped", file=sys.stderr)
+    st = mon.gf.step
+    try:
+        samples, skipped = replay_csv(mon.run, a.input, a.output, inputs=mon.gf.inputs, outputs=mon.gf.outputs, nj=st.nj, nr=st.nr)
+    except FdisynError:
+        raise
+    except OSError as exc:
+        print(f"fdisyn replay: error: {exc.strerror or exc}", file=sys.stderr)
+        raise SystemExit(1) from None
+    print(f"replay: {samples} samples, {skipped} with non-finite values skipped", file=sys.stderr)
 
 
 def _cmd_simulate(a: argparse.Namespace) -> None:

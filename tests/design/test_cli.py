@@ -113,7 +113,7 @@ def test_replay_reports_a_missing_column(tmp_path, capsys):
     p = tmp_path / "in.csv"
     p.write_text("t,tau_g,omega_r_m1\n0,1,1\n")
     assert main(["replay", str(tmp_path), str(p), str(tmp_path / "o.csv")]) == 2
-    assert "no column 'omega_r_m2' (the output column)" in capsys.readouterr().err
+    assert "in.csv line 1: no column 'omega_r_m2' (output 1)" in capsys.readouterr().err
 
 
 def test_reproduce_end_to_end(tmp_path):

