@@ -149,7 +149,7 @@ def _render(template: str, gf: GainFile, extra: Mapping[str, str] | None = None)
     subs = {
         "prefix": gf.name,
         "PREFIX": gf.name.upper(),
-        "FORMAT": c_comment_text(FORMAT),
+        "FORMAT": FORMAT,  # fdisyn's own constant, not data from the file
         "problem": c_comment_text(gf.problem),
         "design": c_comment_text(gf.design),
         "NU": str(st.nu),

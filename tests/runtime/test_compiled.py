@@ -274,3 +274,17 @@ def test_a_diagnoser_without_inputs_takes_n_by_0_blocks(tmp_path):
             impl.run(None, Y)
         with pytest.raises(ShapeError, match=r"^u has shape \(1,\); expected \(0,\)$"):
             impl.step(impl.init_state(), [0.0], [1.0, 2.0])
+
+
+def test_design_without_codegen_leaves_a_library_that_is_refused(tmp_path, wt_trace, capsys):
+    """The sequence users run: design, codegen, design again with another P_f — and replay."""
+    d = tmp_path / "wt"
+    assert main(["design", "wind_turbine", "--out", str(d)]) == 0 and main(["codegen", str(d)]) == 0
+    assert main(["design", "wind_turbine", "--out", str(d), "--option", "P_f=0.01"]) == 0
+    _, U, Y = wt_trace
+    trace = _trace_csv(read_gain_file(d / "gains.json"), U[:100], Y[:100], tmp_path / "in.csv")
+    capsys.readouterr()
+    assert main(["replay", str(d), trace, str(tmp_path / "out.csv")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "was built from another gain file" in err and f"run `fdisyn codegen {d}`" in err
+    assert not (tmp_path / "out.csv").exists()
