@@ -102,9 +102,10 @@ LIMITS: Mapping[str, int] = {
 ``coefficients`` — the nonzero entries of every generator's ``Ar Bu By Cr
 Du Dy Xu Xy`` and every evaluator's ``W`` — is the one that matters: the
 generated C holds one multiply-add per coefficient in straight-line code, and
-gcc -O2 needs about 1.3 ms and 45 kB per coefficient (10 000: ~12 s and
-~0.4 GB on a 2-core machine; a dense 400-state generator would take minutes
-and gigabytes). ``nstate`` ≤ 2048 keeps the step's copy of the state on the
+gcc -O2's memory grows by ~45 kB per coefficient (measured on a 2-core machine
+shared with other jobs: 4 974 coefficients took 11 s and 0.20 GB, 9 774 took
+14–16 s and 0.44 GB; a dense 400-state generator, ~170 000 coefficients,
+would take minutes and gigabytes). ``nstate`` ≤ 2048 keeps the step's copy of the state on the
 stack at 16 KiB; ``generator_states`` ≤ 256 bounds the stability check (an
 eigenvalue problem per generator); the signal, fault, generator and residual
 counts (``step_outputs``: residual and statistic names of any kind) bound the
