@@ -105,10 +105,10 @@ generated C holds one multiply-add per coefficient in straight-line code, and
 gcc -O2's memory grows by ~45 kB per coefficient (measured on a 2-core machine
 shared with other jobs: 4 974 coefficients took 11 s and 0.20 GB, 9 774 took
 14–16 s and 0.44 GB; a dense 400-state generator, ~170 000 coefficients,
-would take minutes and gigabytes). ``nstate`` ≤ 2048 keeps the step's copy of the state on the
-stack at 16 KiB; ``generator_states`` ≤ 256 bounds the stability check (an
-eigenvalue problem per generator); the signal, fault, generator and residual
-counts (``step_outputs``: residual and statistic names of any kind) bound the
+would take minutes and gigabytes). ``nstate`` ≤ 2048 keeps the step's copy
+of the state on the stack at 16 KiB; ``generator_states`` ≤ 256 bounds the
+stability check (an eigenvalue problem per generator); the signal, fault,
+generator and residual counts (``step_outputs``: residual and statistic names of any kind) bound the
 name tables and the replay program's stack arrays; ``file_bytes`` bounds what
 the reader parses at all. Other kinds add their own limits to their payload."""
 
