@@ -13,7 +13,9 @@ known to be the file ``fdisyn codegen`` wrote:
    truncated, corrupted or replaced file never reaches the dynamic loader);
 3. after loading, the hash compiled into the library
    (``<prefix>_gain_file_sha256()``) and its sizes (``<prefix>_dims``) must
-   match the gain file too.
+   match the gain file too (the dynamic loader returns a library already
+   loaded from the same path, even after the file was rebuilt: such a
+   process is told to start anew).
 
 Every array crosses into C only after the checks of
 :mod:`fdisyn.runtime.reference` (:func:`sample_vector`, :func:`sample_block`,
@@ -134,9 +136,11 @@ class CompiledDiagnoser:
         sha_fn.restype = ctypes.c_char_p
         compiled_sha = (sha_fn() or b"").decode("ascii", "replace")
         if compiled_sha != gain_sha:
+            # the file on disk passed the manifest check, so the loaded code is not that file: the dynamic
+            # loader hands back a library already loaded from the same path, however the file changed since
             raise BuildError(
-                f"{path} was built from another gain file (sha256 {compiled_sha[:16]}…; this gain file has {gain_sha[:16]}…); "
-                f"run `fdisyn codegen {path.parent}`"
+                f"this process already runs an older build of {path} (sha256 of its gain file {compiled_sha[:16]}…; this "
+                f"gain file has {gain_sha[:16]}…) and a library cannot be loaded twice from one path; start a new process"
             )
         self._init.argtypes = [_D]
         self._init.restype = None

@@ -288,3 +288,21 @@ def test_design_without_codegen_leaves_a_library_that_is_refused(tmp_path, wt_tr
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "was built from another gain file" in err and f"run `fdisyn codegen {d}`" in err
     assert not (tmp_path / "out.csv").exists()
+
+
+def test_a_rebuilt_library_is_not_confused_with_the_one_already_loaded(built_copy):
+    """dlopen returns the library already loaded from a path, even after `fdisyn codegen` rebuilt the file:
+    the hash compiled into the loaded code tells, and the message says what to do."""
+    gf = read_gain_file(built_copy / "gains.json")
+    CompiledDiagnoser(built_copy / "libwind_turbine_kalman_uio.so", gf)  # loaded in this process
+    doc = json.loads((built_copy / "gains.json").read_text())
+    doc["decision"]["persistence"] = 3
+    (built_copy / "gains.json").write_text(json.dumps(doc))
+    assert main(["codegen", str(built_copy)]) == 0
+    with pytest.raises(BuildError, match=r"this process already runs an older build of .*libwind_turbine_kalman_uio.so .* start a new process"):
+        Monitor.from_directory(built_copy)
+    proc = subprocess.run(  # a new process loads the new build
+        [sys.executable, "-c", f"from fdisyn.runtime.monitor import Monitor; print(Monitor.from_directory({str(built_copy)!r}).impl.gf.decision.persistence)"],
+        capture_output=True, text=True, timeout=120,
+    )
+    assert proc.returncode == 0 and proc.stdout.strip() == "3", proc.stderr
