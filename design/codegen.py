@@ -11,13 +11,27 @@
 Everything is compiled with ``-std=c99 -O2 -Wall -Wextra -Werror -pedantic``
 (never ``-ffast-math``, which may remove the non-finite checks). ``<prefix>``
 is the gain file's ``name``.
+
+A gain file is data, never code. Before anything is generated, the name that
+prefixes the C API is checked again (it cannot be escaped: it forms
+identifiers and file names) and so are the size limits; every other string
+written into C goes through :func:`c_string_literal` (string literals) or
+:func:`c_comment_text` (comments), so whatever a name holds it cannot end its
+literal or comment. The templates are filled in one pass, so a value that
+looks like a placeholder stays text. The library carries the gain file's
+content hash (``<prefix>_gain_file_sha256()``) and ``codegen`` writes a build
+manifest next to it (:func:`fdisyn.runtime.compiled.write_manifest`): the
+loader refuses a library built from another gain file, or one that changed
+since it was built, before ``dlopen`` ever sees it.
 """
 
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import subprocess
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -26,15 +40,34 @@ import casadi as ca
 import fdisyn.runtime
 import numpy as np
 from fdisyn.design.step import step_function
-from fdisyn.runtime.errors import BuildError
-from fdisyn.runtime.gainfile import FORMAT, GainFile, read_gain_file
+from fdisyn.runtime.compiled import write_manifest
+from fdisyn.runtime.errors import BuildError, GainFileError
+from fdisyn.runtime.gainfile import FORMAT, GainFile, check_limits, gain_file_sha256, read_gain_file
+from fdisyn.runtime.names import check_diagnoser_name
 
-__all__ = ["CFLAGS", "CodegenResult", "generate_sources", "compile_sources", "codegen", "compiler"]
+__all__ = [
+    "CFLAGS",
+    "STACK_LIMIT_BYTES",
+    "CodegenResult",
+    "c_comment_text",
+    "c_string_literal",
+    "generate_sources",
+    "compile_sources",
+    "codegen",
+    "compiler",
+    "step_stack_bytes",
+]
 
 C_TEMPLATES = Path(fdisyn.runtime.__file__).parent / "c"
 """The C templates shipped with the runtime package."""
 
 CFLAGS = ("-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-pedantic")
+
+STACK_LIMIT_BYTES = 64 * 1024
+"""Largest stack frame ``<prefix>_step`` may need (its work arrays and the copy
+of the state): a thread's stack is 8 MiB on Linux desktops but often tens of
+KiB on embedded targets, so the size is bounded here and written into the
+header as ``<PREFIX>_STACK_BYTES``."""
 
 
 @dataclass(frozen=True)
@@ -57,14 +90,48 @@ def compiler() -> str:
 
 
 def _c_double(x: float) -> str:
+    if np.isnan(x):
+        raise GainFileError("a number written into the C is NaN; the gain file's validation should have refused it")
     if np.isinf(x):
         return "INFINITY" if x > 0 else "-INFINITY"
     s = repr(float(x))
     return s if any(ch in s for ch in ".eEn") else s + ".0"
 
 
+def c_string_literal(text: str) -> str:
+    """``text`` as a C string literal whose bytes are exactly its UTF-8 bytes, whatever it holds.
+
+    Printable ASCII is kept except ``"`` and ``\\`` (they end or escape the
+    literal) and ``?`` (``??/`` is a trigraph for ``\\`` under ``-std=c99``);
+    every other byte — control characters, non-ASCII — is written as a
+    three-digit octal escape ``\\ooo``, which, unlike ``\\x``, never
+    swallows a following digit. (A NUL byte would end the C string early;
+    the name grammar refuses it long before.)
+    """
+    out = ['"']
+    for b in text.encode("utf-8", "surrogatepass"):
+        ch = chr(b)
+        out.append(ch if 0x20 <= b < 0x7F and ch not in '"\\?' else f"\\{b:03o}")
+    out.append('"')
+    return "".join(out)
+
+
+_COMMENT_SAFE = frozenset("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789 _.+|,:;=()[]{}#-")
+
+
+def c_comment_text(text: str) -> str:
+    """``text`` made inert inside a ``/* … */`` comment.
+
+    Letters, digits, blanks and ``_.+|,:;=()[]{}#-`` are kept; every other
+    byte of the UTF-8 text — notably ``*`` and ``/`` (which could close the
+    comment), ``?`` (trigraphs), ``\\`` and line breaks — is written as
+    ``%XX``, so the comment can neither end nor spill onto a code line.
+    """
+    return "".join(chr(b) if chr(b) in _COMMENT_SAFE else f"%{b:02X}" for b in text.encode("utf-8", "surrogatepass"))
+
+
 def _c_strings(names: tuple[str, ...]) -> str:
-    return ", ".join([f'"{n}"' for n in names] + ["0"])
+    return ", ".join([c_string_literal(n) for n in names] + ["0"])
 
 
 def _c_doubles(values: np.ndarray) -> str:
@@ -72,44 +139,79 @@ def _c_doubles(values: np.ndarray) -> str:
     return ", ".join(_c_double(x) for x in v) if v.size else "0.0"
 
 
-def _render(template: str, gf: GainFile) -> str:
+_PLACEHOLDER = re.compile(r"@([A-Za-z0-9_]+)@")
+
+
+def _render(template: str, gf: GainFile, extra: Mapping[str, str] | None = None) -> str:
+    """Fill ``template`` in one pass: a value is never searched for placeholders again."""
     text = (C_TEMPLATES / template).read_text(encoding="utf-8")
     st = gf.step
     subs = {
-        "@prefix@": gf.name,
-        "@PREFIX@": gf.name.upper(),
-        "@FORMAT@": FORMAT,
-        "@problem@": gf.problem,
-        "@design@": gf.design,
-        "@NU@": str(st.nu),
-        "@NY@": str(st.ny),
-        "@NR@": str(st.nr),
-        "@NJ@": str(st.nj),
-        "@NSTATE@": str(st.nstate),
-        "@NFAULTS@": str(len(gf.faults)),
-        "@TS@": _c_double(gf.Ts),
-        "@INIT_STATE@": _c_doubles(st.init_state),
-        "@INPUT_NAMES@": _c_strings(gf.inputs),
-        "@OUTPUT_NAMES@": _c_strings(gf.outputs),
-        "@FAULT_NAMES@": _c_strings(gf.faults),
-        "@THRESHOLDS@": _c_doubles(gf.thresholds),
+        "prefix": gf.name,
+        "PREFIX": gf.name.upper(),
+        "FORMAT": FORMAT,  # fdisyn's own constant, not data from the file
+        "problem": c_comment_text(gf.problem),
+        "design": c_comment_text(gf.design),
+        "NU": str(st.nu),
+        "NY": str(st.ny),
+        "NR": str(st.nr),
+        "NJ": str(st.nj),
+        "NSTATE": str(st.nstate),
+        "NFAULTS": str(len(gf.faults)),
+        "TS": _c_double(gf.Ts),
+        "INIT_STATE": _c_doubles(st.init_state),
+        "INPUT_NAMES": _c_strings(gf.inputs),
+        "OUTPUT_NAMES": _c_strings(gf.outputs),
+        "FAULT_NAMES": _c_strings(gf.faults),
+        "THRESHOLDS": _c_doubles(gf.thresholds),
+        **(extra or {}),
     }
-    for k, v in subs.items():
-        text = text.replace(k, v)
-    return text
+
+    def fill(m: re.Match[str]) -> str:
+        if m.group(1) not in subs:
+            raise BuildError(f"C template {template} has an unknown placeholder {m.group(0)}")
+        return subs[m.group(1)]
+
+    return _PLACEHOLDER.sub(fill, text)
+
+
+def step_stack_bytes(fn: ca.Function, nstate: int) -> int:
+    """Bytes of automatic storage ``<prefix>_step`` declares around CasADi's call.
+
+    CasADi's work vectors (``w``: ``sz_w`` doubles, ``iw``: ``sz_iw``
+    integers, ``arg``/``res``: pointers; each at least one entry) and the
+    next state (``nstate`` doubles), 8 bytes each on a 64-bit target.
+    """
+    slots = max(fn.sz_w(), 1) + max(fn.sz_iw(), 1) + max(fn.sz_arg(), 1) + max(fn.sz_res(), 1) + nstate + 3
+    return 8 * int(slots)
 
 
 def generate_sources(gf: GainFile, c_dir: str | Path, *, step: ca.Function | None = None) -> Path:
-    """Write the C sources of ``gf``'s step into ``c_dir``; return the header path."""
+    """Write the C sources of ``gf``'s step into ``c_dir``; return the header path.
+
+    Refuses, before writing anything, a ``name`` that cannot prefix the C API
+    (a :class:`GainFile` built around the reader must not reach identifiers),
+    a file beyond the size limits and a step whose stack frame would exceed
+    :data:`STACK_LIMIT_BYTES`.
+    """
+    check_diagnoser_name(gf.name, "name", error=GainFileError)
+    check_limits(gf)
+    fn = step if step is not None else step_function(gf)
+    stack = step_stack_bytes(fn, gf.step.nstate)
+    if stack > STACK_LIMIT_BYTES:
+        raise BuildError(
+            f"the step of {gf.name!r} would need {stack} bytes of stack (CasADi work arrays and the state); "
+            f"at most {STACK_LIMIT_BYTES} are allowed"
+        )
     c_dir = Path(c_dir)
     c_dir.mkdir(parents=True, exist_ok=True)
-    fn = step if step is not None else step_function(gf)
     ins: list[Any] = list(fn.sx_in() if fn.is_a("SXFunction") else fn.mx_in())
     named = ca.Function(f"{gf.name}_casadi_step", ins, fn.call(ins), list(fn.name_in()), list(fn.name_out()))
     # the generated header carries the <f>_SZ_* work-size macros the wrapper uses
     cg = ca.CodeGenerator(f"{gf.name}_casadi.c", {"with_header": True, "with_export": False, "verbose": False})
     cg.add(named)
     cg.generate(str(c_dir) + os.sep)
+    extra = {"GAIN_FILE_SHA256": c_string_literal(gain_file_sha256(gf)), "STACK_BYTES": str(stack)}
     for template, out in (
         ("diagnoser.h.in", f"{gf.name}.h"),
         ("diagnoser.c.in", f"{gf.name}.c"),
@@ -117,7 +219,7 @@ def generate_sources(gf: GainFile, c_dir: str | Path, *, step: ca.Function | Non
         ("bench.c.in", "bench.c"),
         ("CMakeLists.txt.in", "CMakeLists.txt"),
     ):
-        (c_dir / out).write_text(_render(template, gf), encoding="utf-8")
+        (c_dir / out).write_text(_render(template, gf, extra), encoding="utf-8")
     return c_dir / f"{gf.name}.h"
 
 
@@ -128,22 +230,30 @@ def _run(cmd: list[str], what: str) -> None:
 
 
 def compile_sources(gf: GainFile, c_dir: str | Path, out_dir: str | Path) -> tuple[Path, Path]:
-    """Compile ``lib<prefix>.so`` and the ``replay`` program; return their paths."""
-    c_dir, out_dir = Path(c_dir), Path(out_dir)
+    """Compile ``lib<prefix>.so`` and the ``replay`` program; return their paths.
+
+    Paths are made absolute, so a folder named like an option (``-o…``)
+    never reaches the compiler as one. The library's build manifest (its
+    sha256 and the gain file's) is written next to it.
+    """
+    check_diagnoser_name(gf.name, "name", error=GainFileError)
+    c_dir, out_dir = Path(c_dir).absolute(), Path(out_dir).absolute()
     cc = compiler()
     lib = out_dir / f"lib{gf.name}.so"
     replay = out_dir / "replay"
     wrapper = str(c_dir / f"{gf.name}.c")
     _run([cc, *CFLAGS, "-fPIC", "-shared", wrapper, "-o", str(lib), "-lm"], str(lib))
+    write_manifest(lib, gain_file_sha256(gf))
     _run([cc, *CFLAGS, str(c_dir / "replay.c"), wrapper, "-o", str(replay), "-lm"], str(replay))
     return lib, replay
 
 
 def compile_bench(gf: GainFile, c_dir: str | Path, out: str | Path) -> Path:
     """Compile the benchmark driver (``-O2`` like the library)."""
-    c_dir = Path(c_dir)
+    check_diagnoser_name(gf.name, "name", error=GainFileError)
+    c_dir, out = Path(c_dir).absolute(), Path(out).absolute()
     _run([compiler(), *CFLAGS, str(c_dir / "bench.c"), str(c_dir / f"{gf.name}.c"), "-o", str(out), "-lm"], str(out))
-    return Path(out)
+    return out
 
 
 def codegen(directory: str | Path) -> CodegenResult:

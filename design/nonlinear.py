@@ -40,6 +40,7 @@ from fdisyn.design.linalg import as_matrix
 from fdisyn.design.plant import frozen_array, identifier_names
 from fdisyn.design.sampling import check_sample_time
 from fdisyn.runtime.errors import NominalValueError, NonDifferentiableError, ShapeError, SpecError
+from fdisyn.runtime.names import check_distinct
 
 __all__ = ["NONDIFFERENTIABLE_OPERATIONS", "SMOOTH_FUNCTIONS", "NonlinearPlant", "covariance_matrix"]
 
@@ -121,6 +122,16 @@ def _names(given: Sequence[str], what: str, *, allow_empty: bool = False) -> tup
     if not names and not allow_empty:
         raise ShapeError(f"{what} names: expected at least one name, got none")
     return names
+
+
+def _distinct_names(states: tuple[str, ...], inputs: tuple[str, ...], outputs: tuple[str, ...], parameters: tuple[str, ...]) -> None:
+    """Names that share a namespace must differ (an output may share its state's name: it measures it)."""
+    check_distinct({"states": states, "inputs": inputs, "parameters": parameters}, why="the expressions of f refer to them by name")
+    truth = tuple(f"true_{q}" for q in (*parameters, *states))
+    check_distinct(
+        {"inputs": inputs, "outputs": outputs, "simulated truth columns": truth},
+        why="they are columns of the trace CSV `fdisyn simulate` writes",
+    )
 
 
 def covariance_matrix(value: object, name: str, size: int, *, definite: bool) -> np.ndarray:
@@ -334,6 +345,7 @@ class NonlinearPlant:
         inp = _names(inputs, "input", allow_empty=True)
         out = _names(outputs, "output")
         par = _names(parameters, "parameter")
+        _distinct_names(st, inp, out, par)
         n, m, p, l = len(st), len(inp), len(out), len(par)
         theta = _nominal_vector(par, nominal)
         f_sx = _as_sx_function(f, "f", (n, m, l), n, ("x", "u", "theta"), "x_next")
@@ -394,6 +406,7 @@ class NonlinearPlant:
         inp = _names(inputs, "input", allow_empty=True)
         out = _names(outputs, "output")
         par = _names(parameters, "parameter")
+        _distinct_names(st, inp, out, par)
         _nominal_vector(par, nominal)  # fail on missing nominal values before parsing anything
         consts = {"pi": float(np.pi), **{str(k): float(v) for k, v in (constants or {}).items()}}
         clash = sorted(set(consts) & set(st + inp + out + par))

@@ -15,7 +15,6 @@ noise; ``discretise`` turns ``Q`` into the exact sampled covariance.
 
 from __future__ import annotations
 
-import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
@@ -23,28 +22,16 @@ import numpy as np
 from fdisyn.design.linalg import as_matrix, as_square, as_symmetric
 from fdisyn.design.sampling import check_sample_time, van_loan, zoh
 from fdisyn.runtime.errors import ShapeError
+from fdisyn.runtime.names import check_distinct, check_signal_names
 
 __all__ = ["LinearPlant", "identifier_names", "frozen_array"]
 
-_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
-
 
 def identifier_names(given: Sequence[str] | None, what: str, *, count: int | None = None, prefix: str = "") -> tuple[str, ...]:
-    """Signal names: identifiers, unique, ``count`` of them (``None`` given: ``prefix0…``)."""
+    """Signal names (grammar of :mod:`fdisyn.runtime.names`), unique, ``count`` of them (``None`` given: ``prefix0…``)."""
     if given is None:
         return tuple(f"{prefix}{i}" for i in range(count or 0))
-    if isinstance(given, (str, bytes)) or not isinstance(given, Sequence):
-        raise ShapeError(f"{what} names must be a list of names, got {given!r}")
-    names = tuple(str(g) for g in given)
-    if count is not None and len(names) != count:
-        raise ShapeError(f"{what} names: expected {count} names to match the matrices, got {len(names)}: {list(names)}")
-    for nm in names:
-        if not _NAME.match(nm):
-            raise ShapeError(f"{what} name {nm!r} is not an identifier (letters, digits, underscore; no leading digit)")
-    if len(set(names)) != len(names):
-        dup = sorted({n for n in names if names.count(n) > 1})
-        raise ShapeError(f"{what} names must be unique; repeated: {dup}")
-    return names
+    return check_signal_names(given, f"{what} names", count=count)
 
 
 def frozen_array(a: object) -> np.ndarray:
@@ -60,7 +47,11 @@ class LinearPlant:
 
     Construct with keyword arguments; missing ``D``, ``E``, ``Fx`` default to
     zero matrices of the right size, missing ``Q``/``R`` to zero. Every matrix
-    is checked against the dimensions implied by ``A``, ``B`` and ``C``.
+    is checked against the dimensions implied by ``A``, ``B`` and ``C``, every
+    name against the signal-name grammar (:mod:`fdisyn.runtime.names`), and
+    names are distinct across states, inputs, unknown inputs, outputs and
+    component faults: they are all columns of the trace CSV ``fdisyn
+    simulate`` writes, and sensor and component faults name fault classes.
     """
 
     A: np.ndarray
@@ -112,6 +103,14 @@ class LinearPlant:
         q = np.zeros((n, n)) if Q is None else as_symmetric(Q, "Q", n, psd=True)
         r = np.zeros((p, p)) if R is None else as_symmetric(R, "R", p, psd=True)
         ts = None if Ts is None else check_sample_time(Ts)
+        names = {
+            "states": identifier_names(states, "state", count=n, prefix="x"),
+            "inputs": identifier_names(inputs, "input", count=m, prefix="u"),
+            "unknown inputs": identifier_names(unknown_inputs, "unknown input", count=e.shape[1], prefix="d"),
+            "outputs": identifier_names(outputs, "output", count=p, prefix="y"),
+            "component faults": identifier_names(component_faults, "component fault", count=fx.shape[1], prefix="f"),
+        }
+        check_distinct(names, why="they are columns of the trace CSV `fdisyn simulate` writes, and sensor and component faults name fault classes")
         return cls(
             A=frozen_array(a),
             B=frozen_array(b),
@@ -122,11 +121,11 @@ class LinearPlant:
             Q=frozen_array(q),
             R=frozen_array(r),
             Ts=ts,
-            states=identifier_names(states, "state", count=n, prefix="x"),
-            inputs=identifier_names(inputs, "input", count=m, prefix="u"),
-            unknown_inputs=identifier_names(unknown_inputs, "unknown input", count=e.shape[1], prefix="d"),
-            outputs=identifier_names(outputs, "output", count=p, prefix="y"),
-            component_faults=identifier_names(component_faults, "component fault", count=fx.shape[1], prefix="f"),
+            states=names["states"],
+            inputs=names["inputs"],
+            unknown_inputs=names["unknown inputs"],
+            outputs=names["outputs"],
+            component_faults=names["component faults"],
             units=dict(units or {}),
         )
 

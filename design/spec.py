@@ -6,6 +6,7 @@ The TOML format (every key is validated; errors name the key)::
     title = "..."                     # optional
 
     [signals]                         # all optional: default names x0…, u0…, d0…, y0…
+                                      # (a letter, then letters, digits, _; distinct: fdisyn.runtime.names)
     states = ["x1", "x2"]
     inputs = ["u"]
     unknown_inputs = ["d"]
@@ -98,7 +99,6 @@ the transitions from the onset sample on.
 
 from __future__ import annotations
 
-import re
 import tomllib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -118,10 +118,17 @@ from fdisyn.design.simulate import SensorFaultSpec, Signal, simulate_linear
 from fdisyn.design.uio import kalman_uio, pole_placement_uio
 from fdisyn.runtime.errors import FdisynError, ShapeError, SpecError
 from fdisyn.runtime.gainfile import GainFile, Generator
+from fdisyn.runtime.names import (
+    DIAGNOSER_NAME_MAX,
+    SHORT_LABEL_MAX,
+    check_diagnoser_name,
+    check_distinct,
+    check_fault_name,
+    check_label,
+    check_signal_names,
+)
 
 __all__ = ["load_spec", "problem_from_toml", "problem_from_document", "LINEAR_METHODS", "register_method"]
-
-_IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
 @dataclass(frozen=True, eq=False)
 class MethodContext:
@@ -292,12 +299,15 @@ def problem_from_toml(path: Path) -> Problem:
 def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
     """The problem a parsed plant file describes (``path`` names it in errors and in the gain file)."""
     top = _Section(doc, str(path), {"name", "title", "signals", "model", "design", "simulation", "scenarios"})
-    name = str(top.get("name", required=True))
-    if not _IDENT.match(name):
-        raise SpecError(f"{path}: name {name!r} must be an identifier (it prefixes the C API)")
+    name = check_diagnoser_name(top.get("name", required=True), f"{path}: name", error=SpecError)
     if isinstance(top.get("model"), Mapping) and top.get("model").get("time") == "nonlinear":
         return _nonlinear_problem(path, top, name)
     sig = _Section(top.get("signals", {}), f"{path} [signals]", {"states", "inputs", "unknown_inputs", "outputs", "component_faults"})
+    given = {f"[signals].{k}": check_signal_names(v, f"{path} [signals].{k}", error=SpecError) for k, v in sig.doc.items()}
+    try:
+        check_distinct(given, why="they are columns of the trace CSV `fdisyn simulate` writes, and fault classes are named after sensors and component faults", error=SpecError)
+    except SpecError as exc:
+        raise SpecError(f"{path}: {exc}") from None
     mod = _Section(
         top.get("model", required=True),
         f"{path} [model]",
@@ -338,12 +348,11 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
     method = str(des.get("method", "kalman_uio"))
     if method not in LINEAR_METHODS:
         raise SpecError(f"{path} [design].method {method!r} is not one of {sorted(LINEAR_METHODS)}")
+    _diagnoser_name(name, method, path)
     groups = des.entries("bank") or [list(physical.outputs)]
     bank = []
     for gi, g in enumerate(groups):
-        if not isinstance(g, list) or not g:
-            raise SpecError(f"{path} [design].bank[{gi}] must be a non-empty list of output names")
-        bank.append([physical.output_index(str(o)) for o in g])
+        bank.append(_sensor_indices(g, physical, f"{path} [design].bank[{gi}]"))
     fault_spec = des.get("faults")
     listed = _faults(fault_spec, physical, f"{path} [design].faults") if fault_spec is not None else None
     design_opts = {k: des.get(k) for k in des.doc if k not in ("method", "bank", "faults")}
@@ -409,7 +418,7 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
             physical.output_index(sensor)
             sfs.append(SensorFaultSpec(sensor, str(fs.get("kind", required=True)), float(fs.number("value", required=True))))  # type: ignore[arg-type]
         scen = Scenario(
-            name=str(sc.get("name", required=True)),
+            name=_scenario_name(sc.get("name", required=True), scenarios, w),
             description=str(sc.get("description", "")),
             duration=sc.duration("duration"),
             fault=fname,
@@ -444,22 +453,59 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
 
 
 def _faults(spec: Any, plant: LinearPlant, where: str) -> list[FaultClass]:
+    """``[design].faults``: named classes of sensors (outputs) and component faults, names checked and unique."""
     if not isinstance(spec, list):
         raise SpecError(f"{where} must be a list of tables, got {spec!r}")
-    out = []
+    out: list[FaultClass] = []
     for i, f in enumerate(spec):
         fs = _Section(f, f"{where}[{i}]", {"name", "sensors", "components"})
-        sensors = tuple(str(s) for s in fs.entries("sensors"))
-        components = tuple(str(c) for c in fs.entries("components"))
-        for s in sensors:
-            plant.output_index(s)
-        for c in components:
-            if c not in plant.component_faults:
-                raise SpecError(f"{where}[{i}]: no component fault {c!r}; the plant has {list(plant.component_faults)}")
+        fname = check_fault_name(fs.get("name", required=True), f"{where}[{i}].name", error=SpecError)
+        if any(c.name == fname for c in out):
+            raise SpecError(f"{where}[{i}].name {fname!r} names another fault class too; fault names must be unique")
+        sensors = tuple(plant.outputs[j] for j in _sensor_indices(fs.entries("sensors"), plant, f"{where}[{i}].sensors", empty=True))
+        components = tuple(fs.entries("components"))
+        for j, c in enumerate(components):
+            if not isinstance(c, str) or c not in plant.component_faults:
+                raise SpecError(f"{where}[{i}].components[{j}]: no component fault {c!r}; the plant has {list(plant.component_faults)}")
+        if len(set(components)) != len(components):
+            raise SpecError(f"{where}[{i}].components names a component fault twice: {list(components)}")
         if not sensors and not components:
             raise SpecError(f"{where}[{i}] names no sensor and no component fault")
-        out.append(FaultClass(str(fs.get("name", required=True)), sensors, components))
+        out.append(FaultClass(fname, sensors, components))
     return out
+
+
+def _sensor_indices(group: Any, plant: LinearPlant, where: str, *, empty: bool = False) -> list[int]:
+    """Indices of a list of distinct output names (a bank group, a fault class's sensors)."""
+    if not isinstance(group, list) or (not group and not empty):
+        raise SpecError(f"{where} must be a {'' if empty else 'non-empty '}list of output names, got {group!r}")
+    idx: list[int] = []
+    for j, o in enumerate(group):
+        if not isinstance(o, str) or o not in plant.outputs:
+            raise SpecError(f"{where}[{j}]: no output {o!r}; outputs are {list(plant.outputs)}")
+        if plant.outputs.index(o) in idx:
+            raise SpecError(f"{where} names output {o!r} twice")
+        idx.append(plant.outputs.index(o))
+    return idx
+
+
+def _diagnoser_name(name: str, method: str, path: Path) -> None:
+    """The gain file's name ``<name>_<method>`` prefixes the C API: within the length limit too."""
+    full = f"{name}_{method}"
+    if len(full) > DIAGNOSER_NAME_MAX:
+        raise SpecError(
+            f"{path}: name {name!r} is too long: the diagnoser's name {name}_{method} (name and design method) has "
+            f"{len(full)} characters, at most {DIAGNOSER_NAME_MAX} prefix the generated C API"
+        )
+    check_diagnoser_name(full, f"{path}: the diagnoser's name (name and design method)", error=SpecError)
+
+
+def _scenario_name(value: Any, scenarios: Mapping[str, Scenario], where: str) -> str:
+    """A scenario's name: a label (it names report figures, i.e. files), not already taken."""
+    sname = check_label(value, f"{where}.name", max_length=SHORT_LABEL_MAX, error=SpecError)
+    if sname in scenarios:
+        raise SpecError(f"{where}.name {sname!r} is taken (by the built-in fault-free scenario or an earlier one); scenario names must be unique")
+    return sname
 
 
 # --------------------------------------------------------------------------- nonlinear plants (seed 001)
@@ -514,7 +560,7 @@ def _nonlinear_problem(path: Path, top: _Section, name: str) -> Problem:
         v = sig.get(key, [], required=key != "inputs")
         if not isinstance(v, list) or not all(isinstance(x, str) for x in v):
             raise SpecError(f"{path} [signals].{key} must be a list of names, got {v!r}")
-        names[key] = v
+        names[key] = list(check_signal_names(v, f"{path} [signals].{key}", error=SpecError))
     noise = {}
     for key, size, definite in (("Q", len(names["states"]), False), ("R", len(names["outputs"]), True)):
         try:
@@ -554,6 +600,7 @@ def _nonlinear_problem(path: Path, top: _Section, name: str) -> Problem:
     method = str(des.get("method", "nafdf"))
     if method != "nafdf":
         raise SpecError(f"{path} [design].method {method!r}: a nonlinear plant is designed by 'nafdf'")
+    _diagnoser_name(name, method, path)
     kwargs: dict[str, Any] = {"x0": x0, "P0": 1.0}
     for key, kw in _NAFDF_KEYS.items():
         if key in des.doc:
@@ -587,7 +634,7 @@ def _nonlinear_problem(path: Path, top: _Section, name: str) -> Problem:
         if sizes and onset is None:
             raise SpecError(f"{w}: a scenario with parameter faults needs an onset")
         scen = Scenario(
-            name=str(sc.get("name", required=True)),
+            name=_scenario_name(sc.get("name", required=True), scenarios, w),
             description=str(sc.get("description", "")),
             duration=sc.duration("duration"),
             fault="+".join(sizes) if sizes else None,

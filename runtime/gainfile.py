@@ -18,21 +18,47 @@ sample), ``evaluators`` (χ² statistics ``J = rᵀ W r``, ``W = Σ_r⁺``) and
 Matrices are nested lists of floats written with full round-trip precision
 (Python's ``repr``); non-finite numbers are refused on writing and reading.
 The reader validates everything and raises :class:`GainFileError` naming the
-field, what was expected and what was found.
+field, what was expected and what was found:
+
+* names follow :mod:`fdisyn.runtime.names` (``name`` prefixes the C API;
+  ``inputs`` and ``outputs`` are signal names, distinct across both lists;
+  ``faults`` are fault names; ``problem``, ``design`` and the generator,
+  residual and statistic names are labels);
+* ``certificate.passed`` must be ``true``: a design that failed its
+  verification is neither compiled nor run;
+* a χ² evaluator's ``W`` must be symmetric positive semidefinite with rank
+  ``dof`` and the pseudo-inverse of ``Sigma_r`` on its range
+  (``W Σ_r W = W``), its threshold positive;
+* sizes stay within :data:`LIMITS`, checked before any costly step (the
+  generated C grows with the number of coefficients; gcc's time and memory
+  with it).
+
+:func:`gain_file_sha256` is the file's content hash (canonical JSON: layout
+and whitespace do not matter, every value does); ``fdisyn codegen`` compiles
+it into the library so that a library never runs another gain file.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
-import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 import numpy as np
 from fdisyn.runtime.errors import GainFileError
+from fdisyn.runtime.names import (
+    SHORT_LABEL_MAX,
+    check_diagnoser_name,
+    check_distinct,
+    check_fault_name,
+    check_label,
+    check_signal_names,
+    shown,
+)
 
 __all__ = [
     "FORMAT",
@@ -45,12 +71,46 @@ __all__ = [
     "write_gain_file",
     "linear_state_layout",
     "to_jsonable",
+    "LIMITS",
+    "check_limits",
+    "step_coefficients",
+    "gain_file_sha256",
 ]
 
 FORMAT = "fdisyn.gains/1"
 _FORMAT_FAMILY = "fdisyn.gains/"
-_C_IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 _MATRIX_KEYS = ("Ar", "Bu", "By", "Cr", "Du", "Dy", "Xu", "Xy")
+
+LIMITS: Mapping[str, int] = {
+    # every kind
+    "inputs": 256,
+    "outputs": 256,
+    "faults": 256,
+    "step_outputs": 1024,
+    "file_bytes": 64 * 1024 * 1024,
+    # linear kind
+    "generators": 64,
+    "generator_states": 256,
+    "nstate": 2048,
+    "residuals": 256,
+    "plant_states": 512,
+    "unknown_inputs": 256,
+    "coefficients": 10_000,
+}
+"""Size limits of a gain file, checked by the reader before anything costly.
+
+``coefficients`` — the nonzero entries of every generator's ``Ar Bu By Cr
+Du Dy Xu Xy`` and every evaluator's ``W`` — is the one that matters: the
+generated C holds one multiply-add per coefficient in straight-line code, and
+gcc -O2's memory grows by ~45 kB per coefficient (measured on a 2-core machine
+shared with other jobs: 4 974 coefficients took 11 s and 0.20 GB, 9 774 took
+14–16 s and 0.44 GB; a dense 400-state generator, ~170 000 coefficients,
+would take minutes and gigabytes). ``nstate`` ≤ 2048 keeps the step's copy
+of the state on the stack at 16 KiB; ``generator_states`` ≤ 256 bounds the
+stability check (an eigenvalue problem per generator); the signal, fault,
+generator and residual counts (``step_outputs``: residual and statistic names of any kind) bound the
+name tables and the replay program's stack arrays; ``file_bytes`` bounds what
+the reader parses at all. Other kinds add their own limits to their payload."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -308,10 +368,29 @@ def write_gain_file(gf: GainFile, path: str | Path) -> Path:
     return p
 
 
+def gain_file_sha256(gf: GainFile) -> str:
+    """The content hash of ``gf``: sha256 (hex) of its canonical JSON.
+
+    Canonical: :meth:`GainFile.to_dict` with sorted keys, no blanks, ASCII
+    escapes and Python's round-trip float repr — so a file re-indented or
+    re-ordered by hand keeps its hash, while any changed value (a threshold,
+    a name, the provenance's time stamp) changes it. A gain file read back
+    from disk hashes like the object it was written from.
+    """
+    try:
+        text = json.dumps(gf.to_dict(), sort_keys=True, separators=(",", ":"), ensure_ascii=True, allow_nan=False)
+    except (TypeError, ValueError) as exc:
+        raise GainFileError(f"gain file {gf.name!r} cannot be serialised canonically: {exc}") from exc
+    return hashlib.sha256(text.encode("ascii")).hexdigest()
+
+
 def read_gain_file(path: str | Path) -> GainFile:
     """Read and validate a gain file; refuse other formats and versions."""
     p = Path(path)
     try:
+        size = p.stat().st_size
+        if size > LIMITS["file_bytes"]:
+            raise GainFileError(f"{p} has {size} bytes; a gain file may have at most {LIMITS['file_bytes']} (see the size limits)")
         text = p.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise GainFileError(f"no gain file at {p}") from None
@@ -323,6 +402,8 @@ def read_gain_file(path: str | Path) -> GainFile:
         raise GainFileError(f"{p} is not valid JSON (line {exc.lineno}, column {exc.colno}): {exc.msg}") from exc
     except ValueError as exc:
         raise GainFileError(f"{p}: {exc}") from exc
+    except RecursionError:
+        raise GainFileError(f"{p}: its JSON is nested too deeply to be a gain file") from None
     return gain_file_from_dict(doc, source=str(p))
 
 
@@ -331,7 +412,14 @@ def _refuse_constant(name: str) -> float:
 
 
 def gain_file_from_dict(doc: object, *, source: str = "gain file") -> GainFile:
-    """Validate a parsed JSON document and build the :class:`GainFile`."""
+    """Validate a parsed JSON document and build the :class:`GainFile`.
+
+    Besides the content (see the module docstring), the file must record a
+    passed verification: ``certificate.passed`` is ``true``. This reader is
+    what ``fdisyn codegen``, ``fdisyn replay`` and :class:`Monitor` load
+    gain files with, so a design that failed its certificate is never
+    compiled or run.
+    """
     if not isinstance(doc, dict):
         raise GainFileError(f"{source} is not an fdisyn gain file: the top level is a {type(doc).__name__}, expected an object")
     fmt = doc.get("format")
@@ -345,6 +433,17 @@ def gain_file_from_dict(doc: object, *, source: str = "gain file") -> GainFile:
             f"this fdisyn reads {FORMAT!r} only"
         )
     r = _Reader(doc, source)
+    certificate = r.obj("certificate")
+    if "passed" not in certificate:
+        raise GainFileError(
+            f"{source}: certificate has no 'passed' field; a gain file must record that its design passed "
+            "verification (certificate.passed = true)"
+        )
+    if certificate["passed"] is not True:
+        raise GainFileError(
+            f"{source}: certificate.passed is {shown(certificate['passed'])}, not true: the design did not pass its "
+            "verification, so it is neither compiled nor run; re-run `fdisyn design` and read the certificate's failed checks"
+        )
     kind = r.string("kind")
     step_doc = r.obj("step")
     sr = _Reader(step_doc, f"{source}: step")
@@ -408,7 +507,7 @@ def gain_file_from_dict(doc: object, *, source: str = "gain file") -> GainFile:
             outputs=r.strings("outputs"),
             faults=r.strings("faults"),
             step=step,
-            certificate=r.obj("certificate"),
+            certificate=certificate,
             provenance=r.obj("provenance"),
             extensions=r.obj("extensions") if "extensions" in doc else {},
             **kwargs,
@@ -439,16 +538,20 @@ class _Reader:
 
     def number(self, key: str) -> float:
         v = self._get(key)
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            raise GainFileError(f"{self.where}: field {key!r} must be a finite number, found {v!r}")
-        return float(v)
+        try:
+            ok = not isinstance(v, bool) and isinstance(v, (int, float)) and math.isfinite(v)
+        except OverflowError:  # an integer beyond the double range
+            ok = False
+        if not ok:
+            raise GainFileError(f"{self.where}: field {key!r} must be a finite number, found {shown(v)}")
+        return float(v)  # type: ignore[arg-type]
 
     def integer(self, key: str, *, minimum: int | None = None) -> int:
         v = self._get(key)
         if isinstance(v, bool) or not isinstance(v, int):
-            raise GainFileError(f"{self.where}: field {key!r} must be an integer, found {v!r}")
+            raise GainFileError(f"{self.where}: field {key!r} must be an integer, found {shown(v)}")
         if minimum is not None and v < minimum:
-            raise GainFileError(f"{self.where}: field {key!r} must be ≥ {minimum}, found {v}")
+            raise GainFileError(f"{self.where}: field {key!r} must be ≥ {minimum}, found {shown(v)}")
         return v
 
     def obj(self, key: str) -> dict[str, Any]:
@@ -477,9 +580,11 @@ class _Reader:
 
     def vector(self, key: str) -> np.ndarray:
         v = self.array(key)
+        if not all(type(x) in (int, float) for x in v):  # NumPy would convert "1.5" and true silently
+            raise GainFileError(f"{self.where}: field {key!r} must be a list of numbers")
         try:
             a = np.asarray(v, dtype=float)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             raise GainFileError(f"{self.where}: field {key!r} must be a list of numbers") from None
         if a.ndim != 1 or not np.all(np.isfinite(a)):
             raise GainFileError(f"{self.where}: field {key!r} must be a flat list of finite numbers")
@@ -490,12 +595,14 @@ class _Reader:
         rows = len(v)
         if rows and not all(isinstance(row, list) for row in v):
             raise GainFileError(f"{self.where}: field {key!r} must be a list of rows (a matrix)")
+        if not all(type(x) in (int, float) for row in v for x in row):  # NumPy would convert "1.5" and true silently
+            raise GainFileError(f"{self.where}: matrix {key!r} holds something that is not a number")
         widths = {len(row) for row in v}
         if len(widths) > 1:
             raise GainFileError(f"{self.where}: matrix {key!r} has rows of different lengths {sorted(widths)}")
         try:
             a = np.asarray(v, dtype=float).reshape(rows, widths.pop() if widths else 0)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             raise GainFileError(f"{self.where}: matrix {key!r} holds something that is not a number") from None
         if not np.all(np.isfinite(a)):
             raise GainFileError(f"{self.where}: matrix {key!r} holds a non-finite number")
@@ -503,7 +610,7 @@ class _Reader:
 
 
 # ----------------------------------------------------------------- validation
-def _fail(msg: str) -> None:
+def _fail(msg: str) -> NoReturn:
     raise GainFileError(msg)
 
 
@@ -515,13 +622,10 @@ def _shape(a: np.ndarray, where: str, shape: tuple[int, int]) -> None:
 def _validate(gf: GainFile) -> None:
     if gf.format != FORMAT:
         _fail(f"format {gf.format!r}; expected {FORMAT!r}")
-    if not _C_IDENT.match(gf.name):
-        _fail(f"name {gf.name!r} must be a C identifier (letters, digits, underscore; it prefixes the generated C API)")
+    check_limits(gf)  # sizes first: nothing costly runs on a file beyond them
+    _validate_names(gf)
     if not math.isfinite(gf.Ts) or gf.Ts <= 0:
         _fail(f"Ts must be a positive sample time in seconds, found {gf.Ts!r}")
-    for what, names in (("inputs", gf.inputs), ("outputs", gf.outputs), ("faults", gf.faults)):
-        if len(set(names)) != len(names):
-            _fail(f"{what} names must be unique, found {list(names)}")
     st = gf.step
     if st.nu != len(gf.inputs) or st.ny != len(gf.outputs):
         _fail(f"step sizes nu={st.nu}, ny={st.ny} do not match {len(gf.inputs)} inputs and {len(gf.outputs)} outputs")
@@ -533,6 +637,154 @@ def _validate(gf: GainFile) -> None:
         _validate_linear(gf)
     elif gf.kind not in gf.extensions:
         _fail(f"diagnoser kind {gf.kind!r} needs its payload in extensions[{gf.kind!r}]")
+    else:
+        _validate_extension_thresholds(gf)
+
+
+def _validate_names(gf: GainFile) -> None:
+    """Every name of the file against the grammar of :mod:`fdisyn.runtime.names` (they reach C and CSV headers)."""
+    check_diagnoser_name(gf.name, "name", error=GainFileError)
+    check_label(gf.problem, "problem", max_length=SHORT_LABEL_MAX, error=GainFileError)
+    check_label(gf.design, "design", max_length=SHORT_LABEL_MAX, error=GainFileError)
+    check_signal_names(gf.inputs, "inputs", error=GainFileError)
+    check_signal_names(gf.outputs, "outputs", error=GainFileError)
+    # the replay reads inputs and outputs from the columns of one CSV header
+    check_distinct({"inputs": gf.inputs, "outputs": gf.outputs}, why="the replay reads both from one CSV header", error=GainFileError)
+    for i, f in enumerate(gf.faults):
+        check_fault_name(f, f"faults[{i}]", error=GainFileError)
+    if len(set(gf.faults)) != len(gf.faults):
+        _fail(f"faults must be unique; repeated: {sorted({f for f in gf.faults if gf.faults.count(f) > 1})}")
+    st = gf.step
+    for what, labels in (("step.residual_names", st.residual_names), ("step.statistic_names", st.statistic_names)):
+        for i, lb in enumerate(labels):
+            check_label(lb, f"{what}[{i}]", error=GainFileError)
+
+
+def _validate_extension_thresholds(gf: GainFile) -> None:
+    """The generic part of another kind's payload: an object, and its ``thresholds`` (read by the C generator)."""
+    ext = gf.extensions[gf.kind]
+    if not isinstance(ext, Mapping):
+        _fail(f"extensions[{gf.kind!r}] must be an object, found {type(ext).__name__}")
+    thr = ext.get("thresholds")
+    if thr is None:
+        return
+    if not isinstance(thr, (list, tuple)) or len(thr) != gf.step.nj:
+        _fail(f"extensions[{gf.kind!r}].thresholds must list one threshold (or null) per statistic ({gf.step.nj}), found {shown(thr)}")
+    for j, v in enumerate(thr):
+        if v is not None and (type(v) not in (int, float) or (isinstance(v, float) and math.isnan(v))):
+            _fail(f"extensions[{gf.kind!r}].thresholds[{j}] must be a number or null, found {shown(v)}")
+
+
+def step_coefficients(generators: Sequence[Generator], evaluators: Sequence[Evaluator]) -> int:
+    """Nonzero coefficients a linear step multiplies by: the generated C has one multiply-add per coefficient."""
+    count = sum(int(np.count_nonzero(getattr(g, k))) for g in generators for k in _MATRIX_KEYS)
+    return count + sum(int(np.count_nonzero(e.W)) for e in evaluators)
+
+
+def check_limits(gf: GainFile) -> None:
+    """Refuse a gain file beyond :data:`LIMITS` (:class:`GainFileError` naming the size and its limit).
+
+    Called by the reader before the costly checks (eigenvalues) and by the
+    C generator before it generates anything.
+    """
+    st = gf.step
+    generic = (
+        ("inputs", "inputs", len(gf.inputs)),
+        ("outputs", "outputs", len(gf.outputs)),
+        ("faults", "faults", len(gf.faults)),
+        ("step_outputs", "residual names (step.residual_names)", len(st.residual_names)),
+        ("step_outputs", "statistic names (step.statistic_names)", len(st.statistic_names)),
+    )
+    for key, what, count in generic:
+        if count > LIMITS[key]:
+            _fail(f"{what}: {count}; at most {LIMITS[key]} are supported (see the size limits)")
+    if gf.kind != "linear":
+        return
+    sizes = (
+        ("generators", "generators", len(gf.generators)),
+        ("generator_states", "states in one generator", max((g.n_state for g in gf.generators), default=0)),
+        ("nstate", "step.nstate (state entries)", gf.step.nstate),
+        ("residuals", "residual components (step.nr)", sum(g.n_residual for g in gf.generators)),
+        ("generators", "evaluators", len(gf.evaluators)),
+        ("plant_states", "plant dimensions (states, or rows or columns of a plant matrix)", max((max(a.shape, default=0) for a in gf.plant.values()), default=0)),
+        ("unknown_inputs", "plant unknown inputs (columns of plant.E)", gf.plant["E"].shape[1] if "E" in gf.plant else 0),
+    )
+    for key, what, count in sizes:
+        if count > LIMITS[key]:
+            _fail(f"{what}: {count}; at most {LIMITS[key]} are supported (see the size limits)")
+    coeffs = step_coefficients(gf.generators, gf.evaluators)
+    if coeffs > LIMITS["coefficients"]:
+        _fail(
+            f"the generators and evaluators hold {coeffs} nonzero coefficients; at most {LIMITS['coefficients']} are "
+            "supported (the generated C has one multiply-add per coefficient and gcc's time and memory grow with them)"
+        )
+
+
+def _normalised(a: np.ndarray, where: str) -> tuple[np.ndarray, float]:
+    """``a / s`` and ``s = max |a_ij|``, after checking that ``a`` is symmetric (relative to ``s``).
+
+    Working on ``a / s`` keeps every check finite however large the entries.
+    """
+    scale = float(np.max(np.abs(a))) if a.size else 0.0
+    if scale == 0.0:
+        return a, 0.0
+    b = a / scale
+    asym = float(np.max(np.abs(b - b.T)))
+    # the writer stores exactly symmetrised matrices; 1e-10 admits a file rounded to ~10 digits by hand
+    if not asym <= 1e-10:
+        _fail(f"{where} is not symmetric (max |{where} − {where}ᵀ| = {asym * scale:.3g})")
+    return 0.5 * (b + b.T), scale
+
+
+def _eigenvalues(b: np.ndarray, where: str) -> np.ndarray:
+    try:
+        return np.linalg.eigvalsh(b) if b.size else np.zeros(0)
+    except np.linalg.LinAlgError:
+        _fail(f"{where}: its eigenvalues cannot be computed")
+
+
+# Relative size below which an eigenvalue counts as zero: round-off leaves ~1e-16 of the largest, while
+# the design keeps residual directions down to 1e-6 of the largest variance (chi2_evaluator's rank rule),
+# i.e. W eigenvalues down to 1e-6 of its largest; 1e-9 sits three decades from either.
+_RANK_RTOL = 1e-9
+
+
+def _validate_chi2_weight(e: Evaluator, w: str) -> None:
+    """``J = rᵀ W r`` must be a χ² statistic with ``dof`` degrees of freedom for residuals of covariance ``Σ_r``.
+
+    ``Σ_r`` symmetric PSD; ``W`` symmetric PSD (a negative direction makes a
+    statistic that can never alarm) of rank ``dof``, and the pseudo-inverse
+    of ``Σ_r`` on its range: ``W Σ_r W = W``. Checked on the normalised
+    matrices, and written so that a check that cannot be evaluated fails.
+    """
+    ng = e.W.shape[0]
+    if not 1 <= e.dof <= ng:
+        _fail(f"{w}.dof must be between 1 and the residual size {ng}, found {e.dof}")
+    sn, ss = _normalised(e.Sigma_r, f"{w}.Sigma_r")
+    wn, sw = _normalised(e.W, f"{w}.W")
+    lam_s = _eigenvalues(sn, f"{w}.Sigma_r")
+    lam_w = _eigenvalues(wn, f"{w}.W")
+    if ss == 0.0 or not lam_s[0] >= -_RANK_RTOL * float(np.max(np.abs(lam_s))):
+        _fail(f"{w}.Sigma_r must be a nonzero covariance (symmetric positive semidefinite); eigenvalues {(lam_s * ss).tolist()}")
+    top_w = float(np.max(np.abs(lam_w))) if sw else 0.0
+    if sw == 0.0 or not lam_w[0] >= -_RANK_RTOL * top_w:
+        _fail(
+            f"{w}.W must be positive semidefinite and nonzero (smallest eigenvalue {lam_w[0] * sw:.3g}, largest "
+            f"{lam_w[-1] * sw:.3g}); a statistic with a negative direction may never alarm"
+        )
+    rank = int(np.sum(lam_w > _RANK_RTOL * top_w))
+    if rank != e.dof:
+        _fail(f"{w}.W has rank {rank} but dof is {e.dof}; the threshold is the χ²({e.dof}) quantile")
+    # W Σ W − W = sw·((sw·ss) Wn Sn Wn − Wn): relative to ‖W‖ = sw‖Wn‖
+    with np.errstate(over="ignore", invalid="ignore"):
+        gap = float(np.linalg.norm((sw * ss) * (wn @ sn @ wn) - wn)) / float(np.linalg.norm(wn))
+    # round-off of W Σ W is ~eps·cond(Σ_r on W's range) ≤ 1e-16·1e6 relative (the design's rank rule);
+    # 1e-6 leaves margin yet refuses a W scaled by 1 + 1e-6 or built from another Σ_r
+    if not gap <= 1e-6:
+        _fail(
+            f"{w}.W is not the pseudo-inverse of Sigma_r on its range (‖W Σ_r W − W‖ / ‖W‖ = {gap:.3g}); "
+            f"J would not be χ²({e.dof}) and the threshold would not give P_f"
+        )
 
 
 def _finite(a: np.ndarray, where: str) -> None:
@@ -562,19 +814,26 @@ def _validate_linear(gf: GainFile) -> None:
         _fail("a linear diagnoser needs at least one generator")
     nr = 0
     for i, g in enumerate(gf.generators):
+        check_label(g.name, f"generators[{i}].name", error=GainFileError)
         w = f"generators[{i}] ({g.name})"
         ns = g.n_state
         if g.Bu.shape[1] != m or g.By.shape[1] != p:
             _fail(f"{w} is for {g.Bu.shape[1]} inputs and {g.By.shape[1]} outputs; the file has {m} and {p}")
         if ns:
-            rho = float(np.max(np.abs(np.linalg.eigvals(g.Ar))))
+            try:
+                with np.errstate(over="ignore", invalid="ignore"):
+                    rho = float(np.max(np.abs(np.linalg.eigvals(g.Ar))))
+            except np.linalg.LinAlgError:
+                rho = math.inf
             if not rho < 1.0:
                 _fail(f"{w}.Ar is not Schur stable (spectral radius {rho:.6g}); the generator would diverge")
             # the equilibrium maps must solve (I − Ar) X = B: catches edited or corrupted files
             for xk, bk in (("Xu", "Bu"), ("Xy", "By")):
                 x, b = getattr(g, xk), getattr(g, bk)
-                res = np.linalg.norm((np.eye(ns) - g.Ar) @ x - b)
-                if res > 1e-8 * (np.linalg.norm(b) + np.linalg.norm(g.Ar) * np.linalg.norm(x) + 1e-300):
+                with np.errstate(over="ignore", invalid="ignore"):
+                    res = np.linalg.norm((np.eye(ns) - g.Ar) @ x - b)
+                    bound = 1e-8 * (np.linalg.norm(b) + np.linalg.norm(g.Ar) * np.linalg.norm(x) + 1e-300)
+                if not res <= bound:  # written so that an overflowed (NaN) check fails
                     _fail(f"{w}.{xk} is not (I − Ar)⁻¹ {bk} (residual {res:.3g}); the file is inconsistent")
         nr += g.n_residual
     if len(gf.evaluators) == 0:
@@ -592,6 +851,7 @@ def _validate_linear(gf: GainFile) -> None:
             _fail(f"{w}.P_f must be a probability in (0, 1), found {e.P_f}")
         if not e.threshold > 0:
             _fail(f"{w}.threshold must be positive, found {e.threshold}")
+        _validate_chi2_weight(e, w)
     d = gf.decision
     if d is None:
         _fail("a linear diagnoser needs a decision")
@@ -615,6 +875,10 @@ def _validate_linear(gf: GainFile) -> None:
             f"step sizes nr={st.nr}, nj={st.nj}, nstate={st.nstate} do not match the generators "
             f"(nr={nr}, nj={len(gf.evaluators)}, nstate={lay['total'].stop})"
         )
+    # the linear step starts from zero: no generator ready (each starts at the equilibrium of its first
+    # valid sample), no persistence counted, no sample skipped; anything else is an edited file
+    if np.any(st.init_state != 0.0):
+        _fail(f"step.init_state of a linear diagnoser must be all zeros; entries {np.flatnonzero(st.init_state).tolist()[:8]} are not")
 
 
 def to_jsonable(obj: object) -> object:

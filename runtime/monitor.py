@@ -9,7 +9,11 @@ Typical use in a deployment script::
             print(d.time, "fault:", d.fault)
 
 It runs the compiled C step when the directory holds one (``fdisyn codegen``),
-else the NumPy reference of a linear gain file.
+else the NumPy reference of a linear gain file. The gain file is read with
+:func:`read_gain_file` (validated; a failed certificate is refused) and a
+library is loaded only if it was built from exactly that gain file (see
+:mod:`fdisyn.runtime.compiled`); ``u``, ``y``, ``U`` and ``Y`` are checked
+by the backend with the same rules and messages for both.
 """
 
 from __future__ import annotations
@@ -58,7 +62,13 @@ class Monitor:
 
     @classmethod
     def from_directory(cls, directory: str | Path, *, backend: Literal["auto", "compiled", "reference"] = "auto") -> Monitor:
-        """Load ``DIR/gains.json`` and, if present, ``DIR/lib<name>.so``."""
+        """Load ``DIR/gains.json`` and, if present, ``DIR/lib<name>.so``.
+
+        A library that was not built from this very ``gains.json`` (or that
+        changed since it was built) raises :class:`BuildError` saying to run
+        ``fdisyn codegen DIR``; it is never run, nor silently replaced by the
+        reference.
+        """
         d = Path(directory)
         gf = read_gain_file(d / "gains.json")
         lib = library_path(d, gf)
@@ -73,8 +83,8 @@ class Monitor:
         self.skipped_samples = 0
 
     def update(self, u: np.ndarray, y: np.ndarray) -> Verdict:
-        """Process one sample."""
-        out = self.impl.step(self.state, np.asarray(u, dtype=float), np.asarray(y, dtype=float))
+        """Process one sample (``u``: nu real numbers, ``y``: ny; checked by the backend, never coerced)."""
+        out = self.impl.step(self.state, u, y)
         t = self.samples * self.gf.Ts
         self.samples += 1
         self.skipped_samples += out.status

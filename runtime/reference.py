@@ -21,6 +21,15 @@ flag is set when the counter reaches ``persistence``. ``alarm`` is any flag;
 ``status`` is 1 when any input or output of the sample was non-finite or a
 generator skipped it on overflow; the state keeps a running count of such
 samples.
+
+Arrays are checked before they are used, here and at the ctypes boundary of
+the compiled step alike (:func:`sample_vector`, :func:`sample_block`,
+:func:`step_state`: one set of rules, one set of messages): ``u``, ``y`` and
+the rows of ``U``, ``Y`` must have exactly the diagnoser's sizes (nothing is
+reshaped: a transposed ``U`` is refused, not reread), hold real numbers
+(floating point or integer, converted to float64; ``None``, booleans, complex
+numbers, strings and objects are refused) and ``state`` must be the
+diagnoser's float64 vector.
 """
 
 from __future__ import annotations
@@ -31,7 +40,74 @@ import numpy as np
 from fdisyn.runtime.errors import ShapeError
 from fdisyn.runtime.gainfile import GainFile, linear_state_layout
 
-__all__ = ["StepOutput", "RunResult", "LinearReference"]
+__all__ = ["StepOutput", "RunResult", "LinearReference", "sample_vector", "sample_block", "step_state"]
+
+
+def _real_array(a: object, name: str, expected: str) -> np.ndarray:
+    """``a`` as an array of real numbers (no copy yet), or :class:`ShapeError` naming ``name``."""
+    if a is None:
+        raise ShapeError(f"{name} is None; expected real numbers of shape {expected}")
+    try:
+        arr = np.asarray(a)
+    except (TypeError, ValueError) as exc:  # ragged nesting, unconvertible objects
+        raise ShapeError(f"{name} is not an array of numbers ({exc}); expected shape {expected}") from None
+    if arr.dtype.kind not in "fiu":
+        what = {"b": "booleans", "c": "complex numbers", "O": "Python objects", "U": "strings", "S": "bytes"}.get(arr.dtype.kind, str(arr.dtype))
+        raise ShapeError(f"{name} holds {what} (dtype {arr.dtype}); expected real numbers of shape {expected}")
+    return arr
+
+
+def _shape_text(shape: tuple[int | str, ...]) -> str:
+    return "(" + ", ".join(str(d) for d in shape) + ("," if len(shape) == 1 else "") + ")"
+
+
+def sample_vector(a: object, name: str, size: int) -> np.ndarray:
+    """One sample's ``u`` or ``y``: exactly ``size`` real numbers, returned as a new contiguous float64 vector."""
+    expected = _shape_text((size,))
+    arr = _real_array(a, name, expected)
+    if arr.shape != (size,):
+        raise ShapeError(f"{name} has shape {_shape_text(arr.shape)}; expected {expected}")
+    return np.array(arr, dtype=np.float64, order="C", copy=True)
+
+
+def sample_block(a: object, name: str, width: int, rows: int | None = None) -> np.ndarray:
+    """``U`` or ``Y`` over a trace: exactly ``rows × width`` real numbers (``rows`` free when ``None``).
+
+    Returned as a new C-contiguous float64 array. Nothing is reshaped: a
+    transposed or flattened block is refused.
+    """
+    expected = _shape_text(("N" if rows is None else rows, width))
+    arr = _real_array(a, name, expected)
+    if arr.ndim != 2 or arr.shape[1] != width or (rows is not None and arr.shape[0] != rows):
+        raise ShapeError(f"{name} has shape {_shape_text(arr.shape)}; expected {expected} (one row per sample)")
+    return np.array(arr, dtype=np.float64, order="C", copy=True)
+
+
+def step_state(state: object, nstate: int) -> np.ndarray:
+    """The state a per-sample step updates in place: a writeable, C-contiguous float64 vector of ``nstate``.
+
+    It is not converted (a converted copy would leave the caller's state
+    unchanged); anything else is refused before it reaches the step.
+    """
+    if (
+        not isinstance(state, np.ndarray)
+        or state.dtype != np.float64
+        or state.shape != (nstate,)
+        or not state.flags.c_contiguous
+        or not state.flags.writeable
+    ):
+        found = (
+            f"{type(state).__name__}"
+            if not isinstance(state, np.ndarray)
+            else f"dtype {state.dtype}, shape {_shape_text(state.shape)}"
+            + ("" if state.flags.c_contiguous else ", not contiguous")
+            + ("" if state.flags.writeable else ", read-only")
+        )
+        raise ShapeError(
+            f"state must be a writeable, contiguous float64 array of shape {_shape_text((nstate,))} "
+            f"(the step updates it in place); found {found}"
+        )
+    return state
 
 
 @dataclass(frozen=True)
@@ -79,12 +155,12 @@ class LinearReference:
         return self.gf.step.init_state.copy()
 
     def step(self, state: np.ndarray, u: np.ndarray, y: np.ndarray) -> StepOutput:
-        """Advance ``state`` in place by one sample and return the outputs."""
+        """Advance ``state`` in place by one sample and return the outputs (arrays checked first)."""
+        st = self.gf.step
+        return self._advance(step_state(state, st.nstate), sample_vector(u, "u", st.nu), sample_vector(y, "y", st.ny))
+
+    def _advance(self, state: np.ndarray, u: np.ndarray, y: np.ndarray) -> StepOutput:
         gf, lay = self.gf, self.layout
-        u = np.asarray(u, dtype=float).reshape(-1)
-        y = np.asarray(y, dtype=float).reshape(-1)
-        if u.shape != (gf.step.nu,) or y.shape != (gf.step.ny,):
-            raise ShapeError(f"step expects u of length {gf.step.nu} and y of length {gf.step.ny}; got {u.size} and {y.size}")
         fin_u, fin_y = np.isfinite(u), np.isfinite(y)
         us = np.where(fin_u, u, 0.0)
         ys = np.where(fin_y, y, 0.0)
@@ -130,17 +206,18 @@ class LinearReference:
         )
 
     def run(self, U: np.ndarray, Y: np.ndarray, state: np.ndarray | None = None) -> RunResult:
-        """Run over a trace: ``U`` is ``N × nu``, ``Y`` is ``N × ny``."""
-        U = np.asarray(U, dtype=float).reshape(len(Y), -1) if self.gf.step.nu else np.zeros((len(Y), 0))
-        Y = np.asarray(Y, dtype=float)
+        """Run over a trace: ``U`` is ``N × nu``, ``Y`` is ``N × ny``; ``state`` (copied) defaults to the initial one."""
+        spec = self.gf.step
+        Y = sample_block(Y, "Y", spec.ny)
         n = Y.shape[0]
-        st = self.init_state() if state is None else np.array(state, dtype=float)
+        U = sample_block(U, "U", spec.nu, rows=n)
+        st = self.init_state() if state is None else sample_vector(state, "state", spec.nstate)
         out_r = np.zeros((n, self.gf.step.nr))
         out_j = np.zeros((n, self.gf.step.nj))
         out_a = np.zeros(n, dtype=int)
         out_i = np.zeros(n, dtype=int)
         out_s = np.zeros(n, dtype=int)
         for k in range(n):
-            o = self.step(st, U[k], Y[k])
+            o = self._advance(st, U[k], Y[k])
             out_r[k], out_j[k], out_a[k], out_i[k], out_s[k] = o.r, o.J, o.alarm, o.isolated, o.status
         return RunResult(r=out_r, J=out_j, alarm=out_a, isolated=out_i, status=out_s, state=st)

@@ -109,6 +109,11 @@ class Trace:
     extra: Mapping[str, np.ndarray] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        # one CSV header holds every name: a repeated one would make a reader take one column for another
+        cols = ["t", *self.inputs, *self.outputs, *self.extra]
+        repeated = sorted({c for c in cols if cols.count(c) > 1})
+        if repeated:
+            raise TraceError(f"trace columns t, inputs, outputs and extras must have distinct names; repeated: {repeated}")
         n = self.t.shape[0]
         if self.U.shape != (n, len(self.inputs)) or self.Y.shape != (n, len(self.outputs)):
             raise TraceError(

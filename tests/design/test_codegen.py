@@ -11,7 +11,7 @@ import pytest
 from fdisyn.design.codegen import CFLAGS
 from fdisyn.design.pipeline import EXPORT_TOL, check_export
 from fdisyn.runtime.compiled import CompiledDiagnoser
-from fdisyn.runtime.errors import BuildError
+from fdisyn.runtime.errors import BuildError, GainFileError
 from fdisyn.runtime.gainfile import read_gain_file
 from fdisyn.runtime.reference import LinearReference
 from fdisyn.runtime.trace import Trace, read_trace, write_replay_csv, write_trace
@@ -154,7 +154,7 @@ def test_a_library_built_for_another_gain_file_is_refused(wt_built, tmp_path):
     from fdisyn.runtime.gainfile import gain_file_from_dict
 
     other = gain_file_from_dict(doc)
-    with pytest.raises(BuildError, match=r"was built for sizes .* = \(1, 4, 8, 4, 21, 8\), but the gain file says \(1, 4, 6, 3, 16, 4\)"):
+    with pytest.raises(BuildError, match=r"was built from another gain file \(sha256 [0-9a-f]{16}…; this gain file has [0-9a-f]{16}…\); run `fdisyn codegen "):
         CompiledDiagnoser(wt_built.artifacts.library, other)
 
 
@@ -186,3 +186,19 @@ def test_one_absurd_input_does_not_leave_the_bank_stuck(wt_built, wt_trace):
         res = impl.run(U, Y)
         assert res.status[201] == 1 and res.status[203:].sum() == 0
         assert res.J[210:].max() < 60  # back to χ²(1) values (the 1 − 1e-14 quantile is ~60)
+
+
+def test_the_generator_refuses_sizes_beyond_the_limits_before_writing(wt_built, tmp_path, monkeypatch):
+    from fdisyn.design import codegen
+    from fdisyn.runtime import gainfile
+
+    monkeypatch.setitem(gainfile.LIMITS, "coefficients", 100)  # the bank holds 148
+    with pytest.raises(GainFileError, match="hold 148 nonzero coefficients; at most 100"):
+        codegen.generate_sources(wt_built.gain_file, tmp_path / "c")
+    monkeypatch.setitem(gainfile.LIMITS, "coefficients", 10_000)
+    monkeypatch.setattr(codegen, "STACK_LIMIT_BYTES", 512)
+    with pytest.raises(BuildError, match=r"would need 896 bytes of stack .*; at most 512 are allowed"):
+        codegen.generate_sources(wt_built.gain_file, tmp_path / "c")
+    assert not (tmp_path / "c").exists()
+    header = (wt_built.artifacts.c_dir / "wind_turbine_kalman_uio.h").read_text()
+    assert "#define WIND_TURBINE_KALMAN_UIO_STACK_BYTES 896" in header  # 8 × (w 78, iw 1, arg 3, res 6; 21 states; a, iso, status)

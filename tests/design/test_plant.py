@@ -34,7 +34,7 @@ def test_names_are_checked():
         LinearPlant.create(A=np.eye(2), C=np.eye(2), outputs=["y"])
     with pytest.raises(ShapeError, match="unique"):
         LinearPlant.create(A=np.eye(2), C=np.eye(2), outputs=["y", "y"])
-    with pytest.raises(ShapeError, match="not an identifier"):
+    with pytest.raises(ShapeError, match="is not a signal name"):
         LinearPlant.create(A=np.eye(2), C=np.eye(2), outputs=["y 1", "y2"])
 
 

@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 from fdisyn.runtime.errors import GainFileError
-from fdisyn.runtime.gainfile import FORMAT, read_gain_file, write_gain_file
+from fdisyn.runtime.gainfile import FORMAT, gain_file_sha256, read_gain_file, write_gain_file
 
 
 @pytest.fixture
@@ -83,7 +83,7 @@ def test_missing_file_is_named(tmp_path):
         (lambda d: d["generators"][0].__setitem__("Ar", [[0.5, 0.0]]), r"generators\[0\]: generator 'uio_r_m1_g_m1'.Ar must be square .* found shape \(1, 2\)"),
         (lambda d: d["generators"][0].__setitem__("By", [[0.5, 0.0]]), r"generators\[0\]: generator 'uio_r_m1_g_m1'.By: expected shape \(3, 2\), found \(1, 2\)"),
         (lambda d: d["generators"][1]["By"][0].__setitem__(0, "x"), "holds something that is not a number"),
-        (lambda d: d.__setitem__("name", "wind-turbine"), "must be a C identifier"),
+        (lambda d: d.__setitem__("name", "wind-turbine"), "cannot prefix the generated C API"),
         (lambda d: d["generators"][0].__setitem__("Ar", [[1.5, 0, 0], [0, 0, 0], [0, 0, 0]]), "not Schur stable"),
         (lambda d: d["generators"][0]["Xy"][0].__setitem__(0, 123.0), "Xy is not"),
         (lambda d: d["evaluators"][0].__setitem__("generator", 9), "generator 9 is not a generator index"),
@@ -97,3 +97,111 @@ def test_inconsistent_content_is_named(doc, tmp_path, edit, message):
     edit(doc)
     with pytest.raises(GainFileError, match=message):
         read_gain_file(_write(tmp_path, doc))
+
+
+def _weight_edit(scale_w: float = 1.0, w=None, dof=None):  # noqa: ANN001, ANN202 - an edit of evaluators[0]
+    def edit(d):  # noqa: ANN001, ANN202
+        ev = d["evaluators"][0]
+        ev["W"] = w if w is not None else (np.array(ev["W"]) * scale_w).tolist()
+        if dof is not None:
+            ev["dof"] = dof
+
+    return edit
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        # the certificate: a design that failed verification is neither compiled nor run
+        (lambda d: d["certificate"].__setitem__("passed", False), "certificate.passed is False, not true: the design did not pass its verification"),
+        (lambda d: d["certificate"].__setitem__("passed", "true"), "certificate.passed is 'true', not true"),
+        (lambda d: d["certificate"].pop("passed"), "certificate has no 'passed' field"),
+        (lambda d: d.__setitem__("certificate", []), "field 'certificate' must be an object"),
+        # χ² weights: a negative-definite W gives a statistic that can never alarm
+        (_weight_edit(-1.0), r"evaluators\[0\].W must be positive semidefinite and nonzero \(smallest eigenvalue -81.2"),
+        (_weight_edit(w=[[0.0, 0.0], [0.0, 0.0]]), r"evaluators\[0\].W must be positive semidefinite and nonzero"),
+        (_weight_edit(1.001), r"evaluators\[0\].W is not the pseudo-inverse of Sigma_r on its range"),
+        (_weight_edit(dof=2), r"evaluators\[0\].W has rank 1 but dof is 2"),
+        (_weight_edit(dof=0), r"evaluators\[0\].dof must be between 1 and the residual size 2, found 0"),
+        (_weight_edit(w=[[1.0, 0.5], [0.0, 1.0]]), r"evaluators\[0\].W is not symmetric"),
+        (lambda d: d["evaluators"][1].__setitem__("Sigma_r", [[-1.0, 0.0], [0.0, -1.0]]), r"evaluators\[1\].Sigma_r must be a nonzero covariance"),
+        (lambda d: d["evaluators"][1].__setitem__("threshold", 0.0), r"evaluators\[1\].threshold must be positive"),
+        # names (they reach C literals, CSV headers and C identifiers)
+        (lambda d: d.__setitem__("name", "wt__x"), "cannot prefix the generated C API"),
+        (lambda d: d.__setitem__("name", "wt_"), "no trailing '_'"),
+        (lambda d: d.__setitem__("name", "w" * 300), "at most 64 characters"),
+        (lambda d: d["outputs"].__setitem__(0, "tau_g"), r"the name 'tau_g' is used by the inputs and by the outputs"),
+        (lambda d: d["inputs"].__setitem__(0, "t"), r"inputs\[0\] 't' is reserved"),
+        (lambda d: d["faults"].__setitem__(1, "omega_r_m1"), r"faults must be unique; repeated: \['omega_r_m1'\]"),
+        (lambda d: d["step"]["residual_names"].__setitem__(0, "r 0"), r"step.residual_names\[0\] 'r 0' is not a label"),
+        (lambda d: d["generators"][0].__setitem__("name", "*/"), r"generators\[0\].name '\*/' is not a label"),
+        # numbers are numbers: NumPy would turn "0.5" and true into floats without a word
+        (lambda d: d["generators"][0]["Ar"][0].__setitem__(0, "0.5"), r"matrix 'Ar' holds something that is not a number"),
+        (lambda d: d["generators"][0]["Ar"][0].__setitem__(0, True), r"matrix 'Ar' holds something that is not a number"),
+        (lambda d: d["generators"][0]["Ar"][0].__setitem__(0, 10**400), r"matrix 'Ar' holds something that is not a number"),
+        (lambda d: d["step"]["init_state"].__setitem__(0, False), r"field 'init_state' must be a list of numbers"),
+        (lambda d: d.__setitem__("Ts", 10**400), r"field 'Ts' must be a finite number"),
+        # a linear step starts from zero (generators start at the equilibrium of their first valid sample)
+        (lambda d: d["step"]["init_state"].__setitem__(12, 1.0), r"step.init_state of a linear diagnoser must be all zeros; entries \[12\] are not"),
+    ],
+)
+def test_unsafe_content_is_refused(doc, tmp_path, edit, message):
+    edit(doc)
+    with pytest.raises(GainFileError, match=message) as err:
+        read_gain_file(_write(tmp_path, doc))
+    assert "\n" not in str(err.value)
+
+
+def test_json_nested_too_deeply_is_refused(tmp_path):
+    p = tmp_path / "deep.json"
+    p.write_text('{"format": "fdisyn.gains/1", "x": ' + "[" * 100_000 + "]" * 100_000 + "}")
+    with pytest.raises(GainFileError, match="nested too deeply"):
+        read_gain_file(p)
+
+
+def test_an_oversized_file_is_refused_before_it_is_read(doc, tmp_path, monkeypatch):
+    from fdisyn.runtime import gainfile
+
+    p = _write(tmp_path, doc)
+    monkeypatch.setitem(gainfile.LIMITS, "file_bytes", p.stat().st_size - 1)
+    with pytest.raises(GainFileError, match=rf"has {p.stat().st_size} bytes; a gain file may have at most {p.stat().st_size - 1}"):
+        read_gain_file(p)
+
+
+def _dense_generator(doc, n: int) -> None:  # noqa: ANN001 - a gain-file document
+    """Give generator 0 a dense, stable n-state Ar (and consistent Bu, By, Cr, Xu, Xy)."""
+    rng = np.random.default_rng(1)
+    a = rng.standard_normal((n, n))
+    a *= 0.5 / np.max(np.abs(np.linalg.eigvals(a)))
+    g = doc["generators"][0]
+    g["Ar"] = a.tolist()
+    g["Bu"] = rng.standard_normal((n, 1)).tolist()
+    by = np.zeros((n, 4))
+    by[:, g["outputs_used"]] = rng.standard_normal((n, len(g["outputs_used"])))
+    g["By"] = by.tolist()
+    g["Cr"] = rng.standard_normal((2, n)).tolist()
+    g["Xu"] = np.linalg.solve(np.eye(n) - a, np.array(g["Bu"])).tolist()
+    g["Xy"] = np.linalg.solve(np.eye(n) - a, by).tolist()
+    doc["step"]["nstate"] += n - 3
+    doc["step"]["init_state"] = [0.0] * doc["step"]["nstate"]
+
+
+def test_a_400_state_dense_generator_is_refused_at_once(doc, tmp_path):
+    """A dense 400 × 400 Ar would keep gcc busy for minutes at gigabytes; the reader refuses it on its size,
+    before the eigenvalue check or any C."""
+    _dense_generator(doc, 400)
+    p = _write(tmp_path, doc)
+    with pytest.raises(GainFileError, match=r"states in one generator: 400; at most 256 are supported"):
+        read_gain_file(p)
+    _dense_generator(doc, 120)  # within the state limits, beyond the coefficients'
+    with pytest.raises(GainFileError, match=r"hold 1[0-9]{4} nonzero coefficients; at most 10000 are supported"):
+        read_gain_file(_write(tmp_path, doc))
+
+
+def test_the_content_hash_sees_values_not_layout(doc, tmp_path):
+    h = gain_file_sha256(read_gain_file(_write(tmp_path, doc)))
+    p = tmp_path / "spaced.json"
+    p.write_text(json.dumps(dict(sorted(doc.items(), reverse=True)), indent=8))
+    assert gain_file_sha256(read_gain_file(p)) == h
+    doc["evaluators"][2]["threshold"] = np.nextafter(doc["evaluators"][2]["threshold"], np.inf)  # one ulp
+    assert gain_file_sha256(read_gain_file(_write(tmp_path, doc))) != h
