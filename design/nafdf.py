@@ -159,7 +159,7 @@ drive train: ``N = 50``, ``N2 = 200``, 11 202 operations):
 * :data:`MAX_STEP_WORK` doubles of CasADi work memory. The generated
   ``<name>_step`` keeps that work vector and the next state on the stack, so
   its stack use is at most ``8·(MAX_STEP_WORK + MAX_STATE)`` bytes = 96 KiB
-  plus a few pointers (ship: 3.4 KiB; drive train: 9.8 KiB).
+  plus a few pointers (ship: 3.4 KiB; drive train: 9.7 KiB).
 
 Gain files. :func:`nafdf_payload` stores the model as data, not code:
 ``f`` and ``h`` as lists of elementary operations
@@ -178,8 +178,8 @@ is refused.
 from __future__ import annotations
 
 import json
-import re
 import math
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, Literal
@@ -244,6 +244,9 @@ MAX_STEP_INSTRUCTIONS = 40_000
 MAX_STEP_WORK = 8192
 """Most doubles of CasADi work memory (64 KiB; the generated step keeps it on the stack)."""
 
+# Names a payload may hold (the design's own and the signals'): identifiers of bounded length.
+_IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+_MAX_NAME = 64
 # The largest finite double: a threshold that can never be exceeded (JSON has no inf).
 _NEVER = float(np.finfo(float).max)
 # Variance floor of the classifier: keeps d_i finite when θ̂_i is constant to the last bit.
@@ -334,7 +337,7 @@ def _vec(value: object, name: str, size: int) -> np.ndarray:
 def _finite_vec(value: object, name: str, size: int) -> np.ndarray:
     arr = _vec(value, name, size)
     if not np.all(np.isfinite(arr)):
-        raise SpecError(f"{name} must be finite; got {arr.tolist()}")
+        raise SpecError(f"{name} must be finite; got {short_repr(arr.tolist())}")
     return arr
 
 
@@ -353,19 +356,21 @@ def _spd(value: object, name: str, size: int) -> np.ndarray:
     ev = np.linalg.eigvalsh(arr)
     if ev[0] <= 0.0:
         raise ShapeError(f"{name} must be positive definite; smallest eigenvalue {ev[0]:.3g}")
-    return 0.5 * (arr + arr.T)
+    return 0.5 * arr + 0.5 * arr.T  # halves first: 1e308 + 1e308 would overflow
 
 
 def _positive_int(value: object, name: str, maximum: int = MAX_COUNT) -> int:
     """A whole number in ``1..maximum`` (an integral float is accepted: TOML and JSON write ``1e3``)."""
-    ok = not isinstance(value, bool) and isinstance(value, (int, float, np.integer, np.floating))
-    if ok and isinstance(value, (float, np.floating)):
-        ok = math.isfinite(value) and float(value).is_integer()
-    if not ok or int(value) < 1:  # type: ignore[call-overload]
+    whole: int | None = None
+    if isinstance(value, (int, np.integer)) and not isinstance(value, bool):
+        whole = int(value)
+    elif isinstance(value, (float, np.floating)) and math.isfinite(value) and float(value).is_integer():
+        whole = int(value)
+    if whole is None or whole < 1:
         raise SpecError(f"{name} must be a positive integer; got {short_repr(value)}")
-    if int(value) > maximum:  # type: ignore[call-overload]
-        raise SpecError(f"{name} is {int(value)}; at most {maximum} is allowed (see the limits in fdisyn.design.nafdf)")  # type: ignore[call-overload]
-    return int(value)  # type: ignore[call-overload]
+    if whole > maximum:
+        raise SpecError(f"{name} is {whole}; at most {maximum} is allowed (see the limits in fdisyn.design.nafdf)")
+    return whole
 
 
 def _number(value: object, name: str) -> float:
@@ -1017,10 +1022,6 @@ def nafdf(
     return _design(plant, settings, name=name)
 
 
-_IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
-_MAX_NAME = 64
-
-
 def _check_sizes(plant: NonlinearPlant, window: int, classifier_window: int) -> None:
     """The limits that need no step: dimensions and state size (module docstring)."""
     for what, count in (("states", plant.n), ("inputs", plant.m), ("outputs", plant.p), ("parameters", plant.l)):
@@ -1052,14 +1053,14 @@ def _settings(plant: NonlinearPlant, **kw: Any) -> NafdfSettings:
     lo = np.full(l, -np.inf) if kw["theta_lower"] is None else _vec(kw["theta_lower"], "theta_lower", l)
     hi = np.full(l, np.inf) if kw["theta_upper"] is None else _vec(kw["theta_upper"], "theta_upper", l)
     if np.any(np.isnan(lo)) or np.any(np.isnan(hi)) or np.any(lo >= hi) or np.any(lo == np.inf) or np.any(hi == -np.inf):
-        raise SpecError(f"theta_lower must be below theta_upper for every parameter; got {lo} and {hi}")
+        raise SpecError(f"theta_lower must be below theta_upper for every parameter; got {short_repr(lo.tolist())} and {short_repr(hi.tolist())}")
     tol = (
         np.where(th_nom != 0.0, 0.05 * np.abs(th_nom), 0.05)
         if kw["convergence_tolerance"] is None
         else _vec(kw["convergence_tolerance"], "convergence_tolerance", l)
     )
     if np.any(~np.isfinite(tol)) or np.any(tol <= 0):
-        raise SpecError(f"convergence_tolerance must be positive and finite; got {tol}")
+        raise SpecError(f"convergence_tolerance must be positive and finite; got {short_repr(tol.tolist())}")
     th0 = th_nom.copy() if kw["theta0"] is None else _finite_vec(kw["theta0"], "theta0", l)
     beta0 = None if kw["beta0"] is None else _number(kw["beta0"], "beta0")
     if beta0 is not None and not (math.isfinite(beta0) and beta0 > 0):
@@ -1090,7 +1091,10 @@ def _settings(plant: NonlinearPlant, **kw: Any) -> NafdfSettings:
     if not 0.0 <= settings.W1 < settings.W2 or not math.isfinite(settings.W2):
         raise SpecError(f"the classifier thresholds must satisfy 0 <= W1 < W2 < inf; got W1 = {kw['W1']}, W2 = {kw['W2']}")
     if np.any(settings.theta0 < lo) or np.any(settings.theta0 > hi):
-        raise SpecError(f"theta0 = {settings.theta0} lies outside the parameter box [{lo}, {hi}]")
+        raise SpecError(
+            f"theta0 = {short_repr(settings.theta0.tolist())} lies outside the parameter box "
+            f"[{short_repr(lo.tolist())}, {short_repr(hi.tolist())}]"
+        )
     return settings
 
 
@@ -1484,9 +1488,9 @@ def _read_plant(doc: object, where: str) -> NonlinearPlant:
         Q1=q1, Q2=q2, Ts=ts, units=dict(units),
     )
     expressions = f.doc["expressions"]
+    e = None if expressions is None else _Fields(expressions, f"{where}.expressions", required=frozenset({"f", "h", "constants"}))
     plant = _wrap(where, NonlinearPlant.create, f=programs["f"], h=programs["h"], expressions=expressions, **common)
-    if expressions is not None:
-        e = _Fields(expressions, f"{where}.expressions", required=frozenset({"f", "h", "constants"}))
+    if e is not None:
         text = _wrap(f"{where}.expressions", NonlinearPlant.from_expressions, f=e.doc["f"], h=e.doc["h"], constants=e.doc["constants"], **common)
         for key in ("f", "h"):
             if model_program(getattr(text, key)) != model_program(getattr(plant, key)):

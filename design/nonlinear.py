@@ -234,7 +234,7 @@ def covariance_matrix(value: object, name: str, size: int, *, definite: bool) ->
     mat = as_matrix(arr, name, rows=size, cols=size)
     if not np.allclose(mat, mat.T, rtol=1e-12, atol=0.0):
         raise ShapeError(f"{name} must be symmetric; max |{name} − {name}ᵀ| = {np.max(np.abs(mat - mat.T)):.3g}")
-    mat = 0.5 * (mat + mat.T)
+    mat = 0.5 * mat + 0.5 * mat.T  # halves first: 1e308 + 1e308 would overflow
     ev = np.linalg.eigvalsh(mat) if size else np.zeros(0)
     scale = max(1.0, float(np.max(np.abs(ev)))) if ev.size else 1.0
     if definite and ev.size and ev[0] <= 0.0:
@@ -265,7 +265,8 @@ def _as_sx_function(fun: object, name: str, in_shapes: Sequence[int], out_size: 
     try:
         out = fun.expand()(*args) if fun.is_a("MXFunction") else fun(*args)
     except RuntimeError as exc:
-        raise SpecError(f"{name} cannot be evaluated on SX symbols (it must be expandable to SX): {exc}") from exc
+        first = next((ln.strip() for ln in str(exc).splitlines() if ln.strip()), type(exc).__name__)  # CasADi's text runs to many lines
+        raise SpecError(f"{name} cannot be evaluated on SX symbols (it must be expandable to SX): {short_repr(first, 200)}") from exc
     out = ca.densify(ca.reshape(ca.SX(out), out_size, 1))
     wrapped = ca.Function(name, sym, [out], list(in_names), [out_name])
     _check_model_function(wrapped, name)

@@ -1,12 +1,14 @@
 """Seeded fuzzing of a NAFDF gain file: whatever a file holds, reading it, building its step and
 generating its C either succeed (and the step runs finite) or end in one fdisyn error line.
 
-Mutations of a valid ship gain file: byte flips in the JSON text, deleted fields, values of the wrong
-type, extreme numbers, lists of the wrong length, corrupted model programs, small edits of numbers
-(consistent-looking but wrong files), and programs edited with the readable expressions removed
-(valid, different models, which must build and run). Everything that reaches CasADi runs in a
+A valid ship gain file is first swept — every field the NAFDF reader reads replaced in turn by a
+string, null, −1, 1e308 and an empty list — then mutated at random: byte flips in the
+JSON text, deleted fields, values of the wrong type, extreme numbers, lists of the wrong length,
+corrupted model programs, small edits of numbers (consistent-looking but wrong files), and programs
+edited with the readable expressions removed (valid, different models, which must build and run). Everything that reaches CasADi runs in a
 child process, so a crash inside native code is reported as a failure naming the mutation instead
-of killing the test session.
+of killing the test session; NumPy's RuntimeWarnings are errors there, so a silent overflow on
+the way is reported too.
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[2]
 SEED = 20240601
-MUTATIONS = 200
+MUTATIONS = 100
 _POOL: list[Any] = ["x", "", -1, 0, 1, 1.5, None, [], {}, True, 1e308, -1e308, 1e-320, [[1.0]], 10**30, "nan", [None], {"a": 1}]
 _NUMBERS: list[Any] = [0, 0.0, -0.0, 1e308, -1e308, 1e-308, 10**20, -(10**20), 3, -3, 0.5, 2**53 + 1]
 
@@ -140,6 +142,29 @@ def mutate(base: dict, text: bytes, rng: np.random.Generator) -> tuple[str, byte
     return desc, json.dumps(doc).encode()
 
 
+_SWEEP_VALUES: list[Any] = ["x", None, -1, 1e308, []]
+
+
+def sweep(base: dict) -> list[tuple[str, bytes]]:
+    """Every field the NAFDF reader reads (of a list, its first element) replaced in turn by each
+    value of :data:`_SWEEP_VALUES`. The stored certificate's checks and info, like the provenance, are
+    informational (the design is re-certified on reading), so only ``certificate.passed`` is swept there."""
+    out = []
+    for path in _paths(base):
+        if path[0] == "provenance" or (path[0] == "certificate" and path[1:] != ("passed",)):
+            continue
+        if path[:3] == ("extensions", "nafdf", "certificate") and path[3:] != ("passed",):
+            continue
+        parent = _get(base, path[:-1])
+        if isinstance(parent, list) and path[-1] != 0:
+            continue
+        for value in _SWEEP_VALUES:
+            doc = copy.deepcopy(base)
+            _get(doc, path[:-1])[path[-1]] = copy.deepcopy(value)
+            out.append((f"sweep {path} → {value!r}", json.dumps(doc).encode()))
+    return out
+
+
 def run_mutations(seed: int, count: int, workdir: str) -> None:
     """The child: build a valid gain file, then for each mutation report start and outcome as JSON lines."""
     from fdisyn.design.codegen import generate_sources
@@ -156,8 +181,9 @@ def run_mutations(seed: int, count: int, workdir: str) -> None:
     rng = np.random.default_rng(seed)
     scen = sp.scenario(length=20, fault_time=None, seed=1)
     u, y = scen.u, scen.y
-    for i in range(count + 1):
-        desc, data = ("unchanged", text) if i == 0 else mutate(base, text, rng)
+    cases = [("unchanged", text), *sweep(base)]
+    for i in range(len(cases) + count):
+        desc, data = cases[i] if i < len(cases) else mutate(base, text, rng)
         print(json.dumps({"i": i, "start": desc}), flush=True)
         path = work / "gains.json"
         path.write_bytes(data)
@@ -184,7 +210,9 @@ def run_mutations(seed: int, count: int, workdir: str) -> None:
 def test_mutated_nafdf_gain_files_never_crash_or_raise_anything_but_one_fdisyn_line() -> None:
     with tempfile.TemporaryDirectory() as work:
         proc = subprocess.run(
-            [sys.executable, "-c", f"from tests.design.test_nafdf_payload_fuzz import run_mutations; run_mutations({SEED}, {MUTATIONS}, {work!r})"],
+            # RuntimeWarning as an error: a silent NumPy overflow on the way is a finding too
+            [sys.executable, "-W", "error::RuntimeWarning", "-c",
+             f"from tests.design.test_nafdf_payload_fuzz import run_mutations; run_mutations({SEED}, {MUTATIONS}, {work!r})"],
             cwd=ROOT, capture_output=True, text=True, timeout=600, check=False,
         )
     started: dict[int, str] = {}
@@ -197,7 +225,7 @@ def test_mutated_nafdf_gain_files_never_crash_or_raise_anything_but_one_fdisyn_l
             outcomes[rec["i"]] = rec
     crashed = [f"{i}: {d}" for i, d in started.items() if i not in outcomes]
     assert proc.returncode == 0 and not crashed, f"child ended with {proc.returncode} during {crashed}: {proc.stderr[-2000:]}"
-    assert len(outcomes) == MUTATIONS + 1 and outcomes[0]["outcome"] == "ok", outcomes.get(0)
+    assert len(outcomes) > MUTATIONS and outcomes[0]["outcome"] == "ok", outcomes.get(0)
     bad = [f"{i} ({started[i]}): {r['message']}" for i, r in outcomes.items() if r["outcome"] == "bad"]
     assert not bad, "\n\n".join(bad)
     multi = [f"{i} ({started[i]}): {r['message']!r}" for i, r in outcomes.items() if r["outcome"] == "refused" and ("\n" in r["message"] or not r["message"])]
