@@ -343,7 +343,7 @@ def test_state_size_is_checked_from_the_layout_before_the_step_is_built() -> Non
 
 def test_step_operation_and_work_limits(monkeypatch) -> None:
     """The step budget is checked on the SX graph before any C exists: the ship with N = N2 = 1000
-    has ~54 000 operations (> 40 000); lowering the work limit below the ship's own 227 doubles
+    has ~54 000 operations (> 40 000); lowering the work limit below the ship's own ~230 doubles
     refuses the default ship design by its work memory (the C step's stack)."""
     from fdisyn.design import nafdf as mod
 
