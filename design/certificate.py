@@ -5,6 +5,12 @@ the measured value, the bound it must meet and the reason for that bound.
 ``Certificate.require()`` turns any failed check into a
 :class:`~fdisyn.runtime.errors.CertificateError`: a design that fails its
 certificate is an error, not a warning.
+
+A measurement that is NaN or infinite proves nothing, so a check whose value
+or bound is not finite fails, whatever its relation. Aggregates must keep a
+NaN visible: Python's ``max(0.0, nan)`` is ``0.0`` (every comparison with NaN
+is false), so a worst case over several measurements is taken with
+:func:`worst`, which returns NaN as soon as one of them is NaN.
 """
 
 from __future__ import annotations
@@ -17,12 +23,31 @@ from typing import Literal
 from fdisyn.runtime.errors import CertificateError
 from fdisyn.runtime.gainfile import to_jsonable
 
-__all__ = ["Check", "Certificate"]
+__all__ = ["Check", "Certificate", "worst"]
+
+
+def worst(*values: float) -> float:
+    """The largest of ``values``, or NaN if any of them is NaN (``max`` would drop it).
+
+    ``worst()`` of nothing is ``0.0``: no measurement, no deviation.
+    """
+    out = 0.0 if not values else -math.inf
+    for v in values:
+        fv = float(v)
+        if math.isnan(fv):
+            return math.nan
+        out = fv if fv > out else out
+    return out
 
 
 @dataclass(frozen=True)
 class Check:
-    """One verified quantity: ``value <relation> bound``, with the reason for the bound."""
+    """One verified quantity: ``value <relation> bound``, with the reason for the bound.
+
+    It passes only if both ``value`` and ``bound`` are finite numbers: a NaN
+    or infinite measurement (a diverged solver, an overflowed model) or bound
+    (a tolerance scaled by a NaN condition number) cannot certify anything.
+    """
 
     name: str
     value: float
@@ -32,10 +57,10 @@ class Check:
 
     @property
     def passed(self) -> bool:
-        v = float(self.value)
-        if math.isnan(v):
+        v, b = float(self.value), float(self.bound)
+        if not (math.isfinite(v) and math.isfinite(b)):
             return False
-        return v <= self.bound if self.relation == "<=" else v >= self.bound
+        return v <= b if self.relation == "<=" else v >= b
 
     def to_dict(self) -> dict[str, object]:
         return {

@@ -747,7 +747,7 @@ def lmi_diagnostic_observer(
         Check("spectral radius of F = A_D − L C", spectral_radius(F), 1.0 - 1e-9, "<=", "F must be Schur"),
         Check(
             f"(J_η − γ) / γ, η = {eta}",
-            (j_model[eta] - bound) / bound if bound > 0 else 0.0,
+            (j_model[eta] - bound) / bound if not bound <= 0 else 0.0,  # a NaN γ gives NaN: fails
             SDP_BOUND_TOL,
             "<=",
             "the SDP's γ bounds J_η; the sweep may exceed it only by solver round-off",

@@ -139,12 +139,50 @@ fault names), ``status`` (0 processed, 1 skipped). All dense column vectors.
   fault_size[l], isolated, episode_open, diagnosis_left, samples, skipped,
   alarm_resets, ekf_reparameterisations, ekf_divergence_resets,
   nf_divergence_resets``.
+
+Limits (checked before anything is built or generated, at design time and
+again on reading a gain file; each keeps one resource bounded, with room for
+the documented problems — ship: ``N = 10``, ``N2 = 50``, 3 086 operations;
+drive train: ``N = 50``, ``N2 = 200``, 11 202 operations):
+
+* :data:`MAX_DIMENSION` states, inputs, outputs and parameters each;
+* :data:`MAX_WINDOW` for the WSSR window ``N``, :data:`MAX_CLASSIFIER_WINDOW`
+  for ``N2``, :data:`MAX_COUNT` for ``N1`` and ``T1`` (counters held in
+  doubles, exact far beyond);
+* :data:`MAX_STATE` entries in the diagnoser state (the layout is computed
+  from the sizes before any array exists, so ``window = 1e9`` is refused
+  without allocating it);
+* :data:`MAX_STEP_INSTRUCTIONS` operations in the step (checked on the SX
+  graph, before C is generated): the generated C grows by ~27 bytes per
+  operation and gcc ``-O2`` time grows faster than linearly (measured: 3 086
+  operations, 79 kB, 2 s; 18 921, 0.5 MB, 28 s; 38 237, 1.1 MB, 81 s);
+* :data:`MAX_STEP_WORK` doubles of CasADi work memory. CasADi generates an
+  SX step's work as local variables (its ``_SZ_W`` is 0), which gcc keeps in
+  registers or spills to the stack of ``<name>_step``, next to the wrapper's
+  ``next[NSTATE]`` copy of the state: the stack use is at most about
+  ``8·(MAX_STEP_WORK + MAX_STATE)`` bytes = 96 KiB. Measured with
+  ``gcc -O2 -fstack-usage``: ship 1.7 KiB, drive train 4.1 KiB, the ship
+  with ``N = 1000`` 9.5 KiB — the state copy dominates.
+
+Gain files. :func:`nafdf_payload` stores the model as data, not code:
+``f`` and ``h`` as lists of elementary operations
+(:func:`fdisyn.design.nonlinear.model_program`) that the reader validates
+entry by entry before it builds anything, never as CasADi serialised
+strings (deserialising untrusted bytes can crash inside CasADi, and a digest
+would only catch accidents: whoever edits the file can recompute it). The
+reader (:func:`nafdf_from_gain_file`) then checks every other field against
+what the payload implies — the settings as :func:`nafdf` checks them, the
+limits, the threshold table against the rule, the layout, the names, the
+initial state, the gain file's faults, sizes and fixed thresholds — and
+rebuilds and re-certifies the design; a file whose certificate did not pass
+is refused.
 """
 
 from __future__ import annotations
 
 import json
 import math
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, Literal
@@ -152,30 +190,66 @@ from typing import Any, Literal
 import casadi as ca
 import numpy as np
 import scipy.stats
-from fdisyn.design.certificate import Certificate, Check
+from fdisyn.design.certificate import Certificate, Check, worst
 from fdisyn.design.diagnoser import provenance
-from fdisyn.design.nonlinear import NonlinearPlant
+from fdisyn.design.nonlinear import (
+    NonlinearPlant,
+    function_from_program,
+    model_program,
+    short_repr,
+)
+from fdisyn.design.sampling import check_sample_time
 from fdisyn.design.step import register_step_builder
-from fdisyn.runtime.errors import GainFileError, ShapeError, SpecError
+from fdisyn.runtime.errors import FdisynError, GainFileError, ShapeError, SpecError
 from fdisyn.runtime.gainfile import GainFile, StepSpec
 
 __all__ = [
-    "nafdf_extra_metrics",
+    "MAX_CLASSIFIER_WINDOW",
+    "MAX_COUNT",
+    "MAX_DIMENSION",
+    "MAX_STATE",
+    "MAX_STEP_INSTRUCTIONS",
+    "MAX_STEP_WORK",
+    "MAX_WINDOW",
     "PAYLOAD_FORMAT",
     "PAYLOAD_VERSION",
     "NafdfDesign",
     "NafdfSettings",
     "StateLayout",
     "nafdf",
+    "nafdf_extra_metrics",
+    "nafdf_from_gain_file",
     "nafdf_from_payload",
+    "nafdf_gain_file",
     "nafdf_payload",
     "step_from_payload",
     "wssr_threshold_table",
 ]
 
 PAYLOAD_FORMAT = "fdisyn.nafdf"
-PAYLOAD_VERSION = 1
+PAYLOAD_VERSION = 2
+"""Version 2 stores the model as validated operation lists (version 1 held CasADi serialised strings)."""
 
+# Resource limits (module docstring).
+MAX_DIMENSION = 30
+"""Most states, inputs, outputs or parameters: the step unrolls LDLᵀ factorisations of n×n, p×p and l×l
+matrices (~k³/3 operations each), so ~30 already fills :data:`MAX_STEP_INSTRUCTIONS`."""
+MAX_WINDOW = 1000
+"""Largest WSSR window ``N``: the window costs ~16 operations per sample (shift, sum, threshold lookup)."""
+MAX_CLASSIFIER_WINDOW = 1000
+"""Largest ``N2``: the classifier and convergence windows cost ~35 operations per sample and parameter."""
+MAX_COUNT = 10**9
+"""Largest ``N1`` and ``T1``: sample counters held in doubles (exact to 2⁵³)."""
+MAX_STATE = 4096
+"""Most entries of the diagnoser state (32 KiB; the generated step keeps a copy on the stack)."""
+MAX_STEP_INSTRUCTIONS = 40_000
+"""Most operations of the step (≈ 1 MB of C that gcc -O2 compiles in about a minute)."""
+MAX_STEP_WORK = 8192
+"""Most doubles of CasADi work memory (64 KiB): locals of the generated step, in registers or on its stack."""
+
+# Names a payload may hold (the design's own and the signals'): identifiers of bounded length.
+_IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+_MAX_NAME = 64
 # The largest finite double: a threshold that can never be exceeded (JSON has no inf).
 _NEVER = float(np.finfo(float).max)
 # Variance floor of the classifier: keeps d_i finite when θ̂_i is constant to the last bit.
@@ -226,6 +300,9 @@ class NafdfSettings:
     """Largest range of each ``θ̂_i`` over ``N2`` samples for the NF to count as converged."""
     convergence_level: float
     """Significance of the NF innovation test inside the convergence check."""
+    u0: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    """Nominal input: with ``x0`` and ``θ0`` the point where the model must be finite and where the
+    certificate compares the AD Jacobians with central differences (not used by the step)."""
 
     def to_dict(self) -> dict[str, object]:
         out: dict[str, object] = {}
@@ -235,37 +312,6 @@ class NafdfSettings:
             else:
                 out[k] = v
         return out
-
-    @classmethod
-    def from_dict(cls, d: Mapping[str, Any], *, n: int, l: int) -> NafdfSettings:
-        def bound(key: str, inf: float) -> np.ndarray:
-            return np.array([inf if z is None else float(z) for z in d[key]], dtype=float)
-
-        rule = d["threshold_rule"]
-        if rule not in ("chi2", "beta0"):
-            raise GainFileError(f"settings.threshold_rule is {rule!r}; expected 'chi2' or 'beta0'")
-        return cls(
-            x0=_ro(np.array(d["x0"], dtype=float)),
-            P0=_ro(np.array(d["P0"], dtype=float).reshape(n, n)),
-            theta0=_ro(np.array(d["theta0"], dtype=float)),
-            R0=_ro(np.array(d["R0"], dtype=float).reshape(l, l)),
-            window=int(d["window"]),
-            threshold_rule=rule,
-            false_alarm_probability=float(d["false_alarm_probability"]),
-            beta0=None if d["beta0"] is None else float(d["beta0"]),
-            forgetting_initial=float(d["forgetting_initial"]),
-            forgetting_rate=float(d["forgetting_rate"]),
-            forgetting_final=float(d["forgetting_final"]),
-            theta_lower=_ro(bound("theta_lower", -np.inf)),
-            theta_upper=_ro(bound("theta_upper", np.inf)),
-            nominal_samples=int(d["nominal_samples"]),
-            classifier_window=int(d["classifier_window"]),
-            W1=float(d["W1"]),
-            W2=float(d["W2"]),
-            T1=int(d["T1"]),
-            convergence_tolerance=_ro(np.array(d["convergence_tolerance"], dtype=float)),
-            convergence_level=float(d["convergence_level"]),
-        )
 
 
 def _ro(a: np.ndarray) -> np.ndarray:
@@ -277,8 +323,8 @@ def _ro(a: np.ndarray) -> np.ndarray:
 def _float_array(value: object, name: str) -> np.ndarray:
     try:
         return np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise SpecError(f"{name} must be a number or an array of numbers; got {value!r}") from None
+    except (TypeError, ValueError, OverflowError):
+        raise SpecError(f"{name} must be a number or an array of numbers; got {short_repr(value)}") from None
 
 
 def _vec(value: object, name: str, size: int) -> np.ndarray:
@@ -288,6 +334,13 @@ def _vec(value: object, name: str, size: int) -> np.ndarray:
     arr = arr.reshape(-1)
     if arr.size != size:
         raise ShapeError(f"{name} has {arr.size} entries; expected {size}")
+    return arr
+
+
+def _finite_vec(value: object, name: str, size: int) -> np.ndarray:
+    arr = _vec(value, name, size)
+    if not np.all(np.isfinite(arr)):
+        raise SpecError(f"{name} must be finite; got {short_repr(arr.tolist())}")
     return arr
 
 
@@ -306,25 +359,36 @@ def _spd(value: object, name: str, size: int) -> np.ndarray:
     ev = np.linalg.eigvalsh(arr)
     if ev[0] <= 0.0:
         raise ShapeError(f"{name} must be positive definite; smallest eigenvalue {ev[0]:.3g}")
-    return 0.5 * (arr + arr.T)
+    return 0.5 * arr + 0.5 * arr.T  # halves first: 1e308 + 1e308 would overflow
 
 
-def _positive_int(value: object, name: str) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) or int(value) != value or int(value) < 1:
-        raise SpecError(f"{name} must be a positive integer; got {value!r}")
-    return int(value)
+def _positive_int(value: object, name: str, maximum: int = MAX_COUNT) -> int:
+    """A whole number in ``1..maximum`` (an integral float is accepted: TOML and JSON write ``1e3``)."""
+    whole: int | None = None
+    if isinstance(value, (int, np.integer)) and not isinstance(value, bool):
+        whole = int(value)
+    elif isinstance(value, (float, np.floating)) and math.isfinite(value) and float(value).is_integer():
+        whole = int(value)
+    if whole is None or whole < 1:
+        raise SpecError(f"{name} must be a positive integer; got {short_repr(value)}")
+    if whole > maximum:
+        raise SpecError(f"{name} is {whole}; at most {maximum} is allowed (see the limits in fdisyn.design.nafdf)")
+    return whole
 
 
 def _number(value: object, name: str) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise SpecError(f"{name} must be a number; got {value!r}")
-    return float(value)
+        raise SpecError(f"{name} must be a number; got {short_repr(value)}")
+    try:
+        return float(value)
+    except OverflowError:
+        raise SpecError(f"{name} must be a finite number; got {short_repr(value)}") from None
 
 
 def _unit_open(value: float, name: str) -> float:
     v = _number(value, name)
     if not 0.0 < v < 1.0:
-        raise SpecError(f"{name} must lie strictly between 0 and 1; got {value!r}")
+        raise SpecError(f"{name} must lie strictly between 0 and 1; got {short_repr(value)}")
     return v
 
 
@@ -863,40 +927,7 @@ class NafdfDesign:
 
     def init_state(self) -> np.ndarray:
         """The state of a freshly (re-)initialised diagnoser (the C side's ``_init``)."""
-        s, pl = self.settings, self.plant
-        n, l = pl.n, pl.l
-        blocks: dict[str, object] = {
-            "ekf_x": s.x0,
-            "ekf_P": s.P0,
-            "ekf_theta": pl.theta_nominal,
-            "wssr_buffer": np.zeros(s.window),
-            "wssr_count": 0.0,
-            "nf_x": s.x0,
-            "nf_P": s.P0,
-            "nf_theta": s.theta0,
-            "nf_R": s.R0,
-            "nf_W": np.zeros((n, l)),
-            "nf_gain": 1.0,
-            "nf_forgetting": s.forgetting_initial,
-            "nf_age": 0.0,
-            "nf_converged": 0.0,
-            "theta_window": np.zeros((l, s.classifier_window)),
-            "nis_window": np.zeros(s.classifier_window),
-            "nominal_count": 0.0,
-            "nominal_mean": np.zeros(l),
-            "nominal_m2": np.zeros(l),
-            "nominal_frozen": 0.0,
-            "count_w1": np.zeros(l),
-            "count_w2": np.zeros(l),
-            "fault_class": np.zeros(l),
-            "fault_size": np.zeros(l),
-            "isolated": -1.0,
-            "episode_open": 0.0,
-            "diagnosis_left": 0.0,
-        }
-        for c in ("samples", "skipped", "alarm_resets", "ekf_reparameterisations", "ekf_divergence_resets", "nf_divergence_resets"):
-            blocks[c] = 0.0
-        return self.layout.pack(blocks)
+        return _init_state(self.plant, self.settings, self.layout)
 
     def unpack_state(self, state: object) -> dict[str, np.ndarray | float]:
         return self.layout.unpack(state)
@@ -948,6 +979,7 @@ def nafdf(
     T1: int = 50,
     convergence_tolerance: object | None = None,
     convergence_level: float = 1e-3,
+    u0: object | None = None,
     name: str = "nafdf",
 ) -> NafdfDesign:
     """Design the NAFDF of seed 001 (fig. 1, eqs. (2.3)–(2.8)) for ``plant``.
@@ -955,62 +987,124 @@ def nafdf(
     Defaults: ``θ̂(0) = θ0`` (nominal), ``R(0) = I``, the paper's ``W1 = 50``,
     ``W2 = 350``, ``T1 = 50``; ``convergence_tolerance`` 5 % of ``|θ0_i|``
     (0.05 for a zero nominal) — set it to about twice the standard deviation
-    of the converged estimate, which depends on the noise and the input. The returned design carries a certificate
-    (AD Jacobians against central differences at ``x0``, the step evaluated
-    finite at the initial state, threshold table monotone) and refuses to
-    exist if it fails.
+    of the converged estimate, which depends on the noise and the input;
+    ``u0`` (the nominal input) zero. Every setting is validated and the
+    sizes are held to the module's limits before anything is built. The
+    model must be finite, with its Jacobians, at ``(x0, u0)`` for the nominal
+    ``θ`` (the EKF's start) and for ``θ̂(0)`` (the NF's start). The returned
+    design carries a certificate (AD Jacobians against central differences at
+    ``x0``, a first step from the initial state that neither diverges nor
+    skips, positive thresholds) and refuses to exist if it fails.
     """
-    n, l = plant.n, plant.l  # noqa: E741 — the paper's letter for dim θ
+    settings = _settings(
+        plant,
+        x0=x0,
+        P0=P0,
+        theta0=theta0,
+        R0=R0,
+        window=window,
+        threshold_rule=threshold_rule,
+        false_alarm_probability=false_alarm_probability,
+        beta0=beta0,
+        forgetting_initial=forgetting_initial,
+        forgetting_rate=forgetting_rate,
+        forgetting_final=forgetting_final,
+        theta_lower=theta_lower,
+        theta_upper=theta_upper,
+        nominal_samples=nominal_samples,
+        classifier_window=classifier_window,
+        W1=W1,
+        W2=W2,
+        T1=T1,
+        convergence_tolerance=convergence_tolerance,
+        convergence_level=convergence_level,
+        u0=u0,
+    )
+    if not isinstance(name, str) or not _IDENT.fullmatch(name) or len(name) > _MAX_NAME:
+        raise SpecError(f"name must be an identifier of at most {_MAX_NAME} characters; got {short_repr(name)}")
+    return _design(plant, settings, name=name)
+
+
+def _check_sizes(plant: NonlinearPlant, window: int, classifier_window: int) -> None:
+    """The limits that need no step: dimensions and state size (module docstring)."""
+    for what, count in (("states", plant.n), ("inputs", plant.m), ("outputs", plant.p), ("parameters", plant.l)):
+        if count > MAX_DIMENSION:
+            raise SpecError(f"the plant has {count} {what}; the NAFDF allows at most {MAX_DIMENSION}")
+    size = _layout(plant.n, plant.l, window, classifier_window).size
+    if size > MAX_STATE:
+        raise SpecError(
+            f"the diagnoser state would have {size} entries (window {window}, classifier_window {classifier_window}, "
+            f"{plant.n} states, {plant.l} parameters); at most {MAX_STATE} are allowed"
+        )
+
+
+def _settings(plant: NonlinearPlant, **kw: Any) -> NafdfSettings:
+    """Validate the keywords of :func:`nafdf` (also applied to a gain file's stored settings).
+
+    Sizes first (windows, counters, dimensions, state size), then every
+    vector and matrix: shapes, finiteness, definiteness, ranges, the box.
+    Raises :class:`SpecError` or :class:`ShapeError` naming the setting.
+    """
+    n, m, l = plant.n, plant.m, plant.l  # noqa: E741 — the paper's letter for dim θ
+    window = _positive_int(kw["window"], "window", MAX_WINDOW)
+    n2 = _positive_int(kw["classifier_window"], "classifier_window", MAX_CLASSIFIER_WINDOW)
+    _check_sizes(plant, window, n2)
     th_nom = np.asarray(plant.theta_nominal)
-    if threshold_rule not in ("chi2", "beta0"):
-        raise SpecError(f"threshold_rule must be 'chi2' or 'beta0'; got {threshold_rule!r}")
-    lo = np.full(l, -np.inf) if theta_lower is None else _vec(theta_lower, "theta_lower", l)
-    hi = np.full(l, np.inf) if theta_upper is None else _vec(theta_upper, "theta_upper", l)
-    if np.any(np.isnan(lo)) or np.any(np.isnan(hi)) or np.any(lo >= hi):
-        raise SpecError(f"theta_lower must be below theta_upper for every parameter; got {lo} and {hi}")
+    rule = kw["threshold_rule"]
+    if rule not in ("chi2", "beta0"):
+        raise SpecError(f"threshold_rule must be 'chi2' or 'beta0'; got {short_repr(rule)}")
+    lo = np.full(l, -np.inf) if kw["theta_lower"] is None else _vec(kw["theta_lower"], "theta_lower", l)
+    hi = np.full(l, np.inf) if kw["theta_upper"] is None else _vec(kw["theta_upper"], "theta_upper", l)
+    if np.any(np.isnan(lo)) or np.any(np.isnan(hi)) or np.any(lo >= hi) or np.any(lo == np.inf) or np.any(hi == -np.inf):
+        raise SpecError(f"theta_lower must be below theta_upper for every parameter; got {short_repr(lo.tolist())} and {short_repr(hi.tolist())}")
     tol = (
         np.where(th_nom != 0.0, 0.05 * np.abs(th_nom), 0.05)
-        if convergence_tolerance is None
-        else _vec(convergence_tolerance, "convergence_tolerance", l)
+        if kw["convergence_tolerance"] is None
+        else _vec(kw["convergence_tolerance"], "convergence_tolerance", l)
     )
     if np.any(~np.isfinite(tol)) or np.any(tol <= 0):
-        raise SpecError(f"convergence_tolerance must be positive and finite; got {tol}")
-    th0 = th_nom.copy() if theta0 is None else _vec(theta0, "theta0", l)
-    if np.any(~np.isfinite(th0)):
-        raise SpecError(f"theta0 must be finite; got {th0}")
+        raise SpecError(f"convergence_tolerance must be positive and finite; got {short_repr(tol.tolist())}")
+    th0 = th_nom.copy() if kw["theta0"] is None else _finite_vec(kw["theta0"], "theta0", l)
+    beta0 = None if kw["beta0"] is None else _number(kw["beta0"], "beta0")
+    if beta0 is not None and not (math.isfinite(beta0) and beta0 > 0):
+        raise SpecError(f"beta0 must be a positive finite number; got {short_repr(kw['beta0'])}")
     settings = NafdfSettings(
-        x0=_ro(_vec(x0, "x0", n)),
-        P0=_ro(_spd(P0, "P0", n)),
+        x0=_ro(_finite_vec(kw["x0"], "x0", n)),
+        P0=_ro(_spd(kw["P0"], "P0", n)),
         theta0=_ro(th0),
-        R0=_ro(_spd(np.eye(l) if R0 is None else R0, "R0", l)),
-        window=_positive_int(window, "window"),
-        threshold_rule=threshold_rule,
-        false_alarm_probability=_unit_open(false_alarm_probability, "false_alarm_probability"),
-        beta0=None if beta0 is None else _number(beta0, "beta0"),
-        forgetting_initial=_unit_interval(forgetting_initial, "forgetting_initial"),
-        forgetting_rate=_unit_open(forgetting_rate, "forgetting_rate"),
-        forgetting_final=_unit_interval(forgetting_final, "forgetting_final"),
+        R0=_ro(_spd(np.eye(l) if kw["R0"] is None else kw["R0"], "R0", l)),
+        window=window,
+        threshold_rule=rule,
+        false_alarm_probability=_unit_open(kw["false_alarm_probability"], "false_alarm_probability"),
+        beta0=beta0,
+        forgetting_initial=_unit_interval(kw["forgetting_initial"], "forgetting_initial"),
+        forgetting_rate=_unit_open(kw["forgetting_rate"], "forgetting_rate"),
+        forgetting_final=_unit_interval(kw["forgetting_final"], "forgetting_final"),
         theta_lower=_ro(lo),
         theta_upper=_ro(hi),
-        nominal_samples=_positive_int(nominal_samples, "nominal_samples"),
-        classifier_window=_positive_int(classifier_window, "classifier_window"),
-        W1=_number(W1, "W1"),
-        W2=_number(W2, "W2"),
-        T1=_positive_int(T1, "T1"),
+        nominal_samples=_positive_int(kw["nominal_samples"], "nominal_samples"),
+        classifier_window=n2,
+        W1=_number(kw["W1"], "W1"),
+        W2=_number(kw["W2"], "W2"),
+        T1=_positive_int(kw["T1"], "T1"),
         convergence_tolerance=_ro(tol),
-        convergence_level=_unit_open(convergence_level, "convergence_level"),
+        convergence_level=_unit_open(kw["convergence_level"], "convergence_level"),
+        u0=_ro(np.zeros(m) if kw["u0"] is None else _finite_vec(kw["u0"], "u0", m)),
     )
     if not 0.0 <= settings.W1 < settings.W2 or not math.isfinite(settings.W2):
-        raise SpecError(f"the classifier thresholds must satisfy 0 <= W1 < W2 < inf; got W1 = {W1}, W2 = {W2}")
+        raise SpecError(f"the classifier thresholds must satisfy 0 <= W1 < W2 < inf; got W1 = {kw['W1']}, W2 = {kw['W2']}")
     if np.any(settings.theta0 < lo) or np.any(settings.theta0 > hi):
-        raise SpecError(f"theta0 = {settings.theta0} lies outside the parameter box [{lo}, {hi}]")
-    return _design(plant, settings, name=name)
+        raise SpecError(
+            f"theta0 = {short_repr(settings.theta0.tolist())} lies outside the parameter box "
+            f"[{short_repr(lo.tolist())}, {short_repr(hi.tolist())}]"
+        )
+    return settings
 
 
 def _unit_interval(value: float, name: str) -> float:
     v = _number(value, name)
     if not 0.0 < v <= 1.0:
-        raise SpecError(f"{name} must lie in (0, 1]; got {value!r}")
+        raise SpecError(f"{name} must lie in (0, 1]; got {short_repr(value)}")
     return v
 
 
@@ -1029,6 +1123,8 @@ def _names_r_J(plant: NonlinearPlant) -> tuple[tuple[str, ...], tuple[str, ...]]
 
 
 def _design(plant: NonlinearPlant, settings: NafdfSettings, *, name: str, thresholds: np.ndarray | None = None) -> NafdfDesign:
+    """Check the model at the filters' starting points, build the step within the limits, certify."""
+    _check_model_finite(plant, settings)
     thr = (
         wssr_threshold_table(
             window=settings.window,
@@ -1041,6 +1137,7 @@ def _design(plant: NonlinearPlant, settings: NafdfSettings, *, name: str, thresh
         else np.asarray(thresholds, dtype=float)
     )
     step, layout = _build_step(plant, settings, thr, name)
+    _check_step_size(step, layout)
     r_names, J_names = _names_r_J(plant)
     draft = NafdfDesign(
         name=name,
@@ -1057,33 +1154,111 @@ def _design(plant: NonlinearPlant, settings: NafdfSettings, *, name: str, thresh
     return NafdfDesign(**{**draft.__dict__, "certificate": cert})
 
 
+def _check_model_finite(plant: NonlinearPlant, s: NafdfSettings) -> None:
+    """The model and its Jacobians are finite where the filters start: ``(x0, u0)`` with the nominal
+    ``θ`` (the EKF) and with ``θ̂(0)`` (the NF). Raises :class:`SpecError` naming the expression."""
+    where = f"x0 = {short_repr(s.x0.tolist())}, u0 = {short_repr(s.u0.tolist())}"
+    nominal = dict(zip(plant.parameters, plant.theta_nominal.tolist(), strict=True))
+    plant.check_finite(x=s.x0, u=s.u0, theta=plant.theta_nominal, point=f"the EKF's start ({where}, nominal θ = {short_repr(nominal)})")
+    if not np.array_equal(s.theta0, plant.theta_nominal):
+        start = dict(zip(plant.parameters, s.theta0.tolist(), strict=True))
+        plant.check_finite(x=s.x0, u=s.u0, theta=s.theta0, point=f"the NF's start ({where}, theta0 = {short_repr(start)})")
+
+
+def _check_step_size(step: ca.Function, layout: StateLayout) -> None:
+    """:data:`MAX_STEP_INSTRUCTIONS` and :data:`MAX_STEP_WORK`, on the SX graph, before any C exists."""
+    count, work = int(step.n_instructions()), int(step.sz_w())
+    if count > MAX_STEP_INSTRUCTIONS:
+        raise SpecError(
+            f"the NAFDF step has {count} operations; at most {MAX_STEP_INSTRUCTIONS} are allowed "
+            "(the generated C would take too long to compile): reduce window, classifier_window, "
+            "the number of states or parameters, or the size of the model"
+        )
+    if work > MAX_STEP_WORK:
+        raise SpecError(
+            f"the NAFDF step needs {work} doubles of work memory; at most {MAX_STEP_WORK} are allowed "
+            f"(they are locals of the generated C step, on its stack with the {layout.size}-entry state)"
+        )
+
+
+def _init_state(plant: NonlinearPlant, s: NafdfSettings, layout: StateLayout) -> np.ndarray:
+    """The state of a freshly (re-)initialised diagnoser, from the plant and the settings alone."""
+    n, l = plant.n, plant.l  # noqa: E741 — the paper's letter for dim θ
+    blocks: dict[str, object] = {
+        "ekf_x": s.x0,
+        "ekf_P": s.P0,
+        "ekf_theta": plant.theta_nominal,
+        "wssr_buffer": np.zeros(s.window),
+        "wssr_count": 0.0,
+        "nf_x": s.x0,
+        "nf_P": s.P0,
+        "nf_theta": s.theta0,
+        "nf_R": s.R0,
+        "nf_W": np.zeros((n, l)),
+        "nf_gain": 1.0,
+        "nf_forgetting": s.forgetting_initial,
+        "nf_age": 0.0,
+        "nf_converged": 0.0,
+        "theta_window": np.zeros((l, s.classifier_window)),
+        "nis_window": np.zeros(s.classifier_window),
+        "nominal_count": 0.0,
+        "nominal_mean": np.zeros(l),
+        "nominal_m2": np.zeros(l),
+        "nominal_frozen": 0.0,
+        "count_w1": np.zeros(l),
+        "count_w2": np.zeros(l),
+        "fault_class": np.zeros(l),
+        "fault_size": np.zeros(l),
+        "isolated": -1.0,
+        "episode_open": 0.0,
+        "diagnosis_left": 0.0,
+    }
+    for c in ("samples", "skipped", "alarm_resets", "ekf_reparameterisations", "ekf_divergence_resets", "nf_divergence_resets"):
+        blocks[c] = 0.0
+    return layout.pack(blocks)
+
+
 def _certify(design: NafdfDesign) -> Certificate:
+    """AD against central differences, a first step that neither diverges nor skips, positive thresholds.
+
+    Every aggregate goes through :func:`~fdisyn.design.certificate.worst`, so a
+    NaN anywhere in the comparison makes the check fail instead of vanishing
+    inside ``max``.
+    """
     pl, s = design.plant, design.settings
-    u0 = np.zeros(pl.m)
+    u0 = s.u0
     lin = pl.linearise(x=s.x0, u=u0, theta=pl.theta_nominal)
     fd = _central_difference_jacobians(pl, s.x0, u0, pl.theta_nominal)
-    worst = 0.0
+    gaps = []
     for key in ("F_x", "F_theta", "H_x", "H_theta"):
-        scale = max(1.0, float(np.max(np.abs(lin[key]), initial=0.0)))
-        worst = max(worst, float(np.max(np.abs(lin[key] - fd[key]), initial=0.0)) / scale)
+        scale = worst(1.0, float(np.max(np.abs(lin[key]), initial=0.0)))
+        gaps.append(float(np.max(np.abs(lin[key] - fd[key]), initial=0.0)) / scale)
+    gap = worst(*gaps)
     st0 = design.init_state()
-    outs = design.step(st0, u0, np.asarray(pl.h(s.x0, pl.theta_nominal)).reshape(-1))
-    finite = all(np.all(np.isfinite(np.asarray(o))) for o in outs)
+    outs = [np.asarray(o, dtype=float) for o in design.step(st0, u0, np.asarray(pl.h(s.x0, pl.theta_nominal)).reshape(-1))]
+    diverged = float(outs[2].reshape(-1)[list(design.J_names).index("diverged")])
+    first_ok = all(np.all(np.isfinite(o)) for o in outs) and diverged == 0.0 and float(outs[5].reshape(-1)[0]) == 0.0
     thr = design.thresholds
     checks = [
         Check(
             "AD Jacobians vs central differences at x0 (max relative)",
-            worst,
+            gap,
             1e-6,
             "<=",
             "central differences with a step of 1e-6 relative are accurate to ~1e-9 times the third derivative; "
             "a larger gap means the AD graph is not the model",
         ),
-        Check("step outputs finite at the initial state", 1.0 if finite else 0.0, 1.0, ">=", "the step must never emit NaN"),
+        Check(
+            "first step from the initial state on h(x0): finite, not diverged, not skipped",
+            1.0 if first_ok else 0.0,
+            1.0,
+            ">=",
+            "the filters start there; a step that diverges or skips at its own starting point would reset on every sample",
+        ),
         Check(
             "WSSR thresholds positive",
             float(np.min(thr)),
-            0.0,
+            float(np.finfo(float).tiny),
             ">=",
             "a χ² quantile (or β0) is positive; zero would alarm on every sample",
         ),
@@ -1091,6 +1266,7 @@ def _certify(design: NafdfDesign) -> Certificate:
     info = {
         "n_state": design.layout.size,
         "n_instructions": int(design.step.n_instructions()),
+        "work_doubles": int(design.step.sz_w()),
         "wssr_threshold_full_window": float(thr[-1]),
     }
     return Certificate.of(design.name, checks, info).require()
@@ -1131,12 +1307,15 @@ def _central_difference_jacobians(pl: NonlinearPlant, x: np.ndarray, u: np.ndarr
 def nafdf_payload(design: NafdfDesign) -> dict[str, object]:
     """A JSON-able description from which :func:`step_from_payload` rebuilds the identical step.
 
-    The model is stored as ``casadi.Function.serialize()`` strings of the SX
-    Functions ``f`` and ``h`` (exact: the serialised graph is the graph, bit
-    for bit, constants included); CasADi's version is recorded because its
-    serialisation format is versioned. Expression strings, when the plant came
-    from them, are kept alongside for people to read. The WSSR threshold table
-    is stored as numbers, so rebuilding needs no SciPy and cannot drift.
+    The model is stored as data: ``f`` and ``h`` as
+    :func:`~fdisyn.design.nonlinear.model_program` operation lists (exact:
+    CasADi's own operation sequence, constants to the bit), which the reader
+    validates entry by entry before building anything. Expression strings,
+    when the plant came from them, are kept alongside for people to read; the
+    reader re-parses them and refuses a file where they describe another
+    model. The WSSR threshold table is stored as numbers (and checked
+    against its rule on reading), so the rebuilt step is bit for bit the
+    designed one. CasADi's version is recorded for provenance only.
     """
     pl, s = design.plant, design.settings
     return {
@@ -1153,8 +1332,8 @@ def nafdf_payload(design: NafdfDesign) -> dict[str, object]:
             "Q1": np.asarray(pl.Q1).tolist(),
             "Q2": np.asarray(pl.Q2).tolist(),
             "Ts": pl.Ts,
-            "f": pl.f.serialize(),
-            "h": pl.h.serialize(),
+            "f": model_program(pl.f),
+            "h": model_program(pl.h),
             "expressions": None if pl.expressions is None else json.loads(json.dumps(pl.expressions)),
             "units": dict(pl.units),
         },
@@ -1169,43 +1348,311 @@ def nafdf_payload(design: NafdfDesign) -> dict[str, object]:
     }
 
 
-def nafdf_from_payload(payload: Mapping[str, object]) -> NafdfDesign:
-    """Rebuild the design (plant, settings, step) from :func:`nafdf_payload`'s output alone."""
-    if payload.get("format") != PAYLOAD_FORMAT:
-        raise GainFileError(f"payload format is {payload.get('format')!r}; expected {PAYLOAD_FORMAT!r}")
-    if payload.get("version") != PAYLOAD_VERSION:
-        raise GainFileError(f"payload version is {payload.get('version')!r}; expected {PAYLOAD_VERSION}")
-    pd = payload.get("plant")
-    if not isinstance(pd, Mapping):
-        raise GainFileError(f"payload has no 'plant' mapping; found {type(pd).__name__}")
+_PAYLOAD_FIELDS = frozenset(
+    {
+        "format",
+        "version",
+        "name",
+        "casadi_version",
+        "plant",
+        "settings",
+        "wssr_thresholds",
+        "state_layout",
+        "init_state",
+        "r_names",
+        "J_names",
+        "fault_names",
+        "certificate",
+    }
+)
+_PLANT_FIELDS = frozenset(
+    {"states", "inputs", "outputs", "parameters", "theta_nominal", "Q1", "Q2", "Ts", "f", "h", "expressions", "units"}
+)
+_SETTINGS_FIELDS = tuple(NafdfSettings.__dataclass_fields__)
+# The WSSR table is recomputed on reading and compared at this relative tolerance: SciPy's χ² quantile is
+# accurate to ~1e-14, so another SciPy version passes while any edit of the stored numbers is refused.
+_TABLE_RTOL = 1e-9
+
+
+class _Fields:
+    """Typed access to one JSON object of a payload; every failure names the field (one line)."""
+
+    def __init__(self, doc: object, where: str, *, required: frozenset[str] | tuple[str, ...], optional: frozenset[str] = frozenset()) -> None:
+        if not isinstance(doc, Mapping):
+            raise GainFileError(f"{where} must be an object; found {type(doc).__name__}")
+        missing = sorted(set(required) - set(doc))
+        unknown = sorted(str(k) for k in set(doc) - set(required) - set(optional))
+        if missing or unknown:
+            raise GainFileError(f"{where}: missing field(s) {missing}, unknown field(s) {short_repr(unknown)}")
+        self.doc, self.where = doc, where
+
+    def fail(self, key: str, expected: str) -> GainFileError:
+        return GainFileError(f"{self.where}.{key} must be {expected}; found {short_repr(self.doc.get(key))}")
+
+    def string(self, key: str) -> str:
+        v = self.doc[key]
+        if not isinstance(v, str):
+            raise self.fail(key, "a string")
+        return v
+
+    def integer(self, key: str) -> int:
+        v = self.doc[key]
+        if isinstance(v, bool) or not isinstance(v, int):
+            raise self.fail(key, "an integer")
+        return v
+
+    def number(self, key: str, *, allow_none: bool = False) -> float | None:
+        v = self.doc[key]
+        if v is None and allow_none:
+            return None
+        return _json_number(v, f"{self.where}.{key}")
+
+    def numbers(self, key: str, size: int, *, allow_none: bool = False) -> np.ndarray:
+        """A list of ``size`` finite numbers (``null`` → ±inf for the parameter box's open sides)."""
+        v = self.doc[key]
+        if not isinstance(v, list) or len(v) != size:
+            raise self.fail(key, f"a list of {size} numbers")
+        return np.array([np.nan if z is None and allow_none else _json_number(z, f"{self.where}.{key}") for z in v], dtype=float)
+
+    def matrix(self, key: str, rows: int, cols: int) -> np.ndarray:
+        v = self.doc[key]
+        if not isinstance(v, list) or len(v) != rows or not all(isinstance(r, list) and len(r) == cols for r in v):
+            raise self.fail(key, f"a {rows}×{cols} matrix (a list of {rows} rows of {cols} numbers)")
+        return np.array([[_json_number(z, f"{self.where}.{key}") for z in r] for r in v], dtype=float).reshape(rows, cols)
+
+    def names(self, key: str, *, allow_empty: bool = False) -> tuple[str, ...]:
+        v = self.doc[key]
+        if not isinstance(v, list) or not all(isinstance(z, str) for z in v):
+            raise self.fail(key, "a list of names")
+        if len(v) > MAX_DIMENSION or (not v and not allow_empty):
+            raise self.fail(key, f"a list of 1 to {MAX_DIMENSION} names")
+        bad = [z for z in v if not _IDENT.fullmatch(z) or len(z) > _MAX_NAME]
+        if bad or len(set(v)) != len(v):
+            raise self.fail(key, f"a list of distinct identifiers of at most {_MAX_NAME} characters")
+        return tuple(v)
+
+
+def _json_number(v: object, where: str) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise GainFileError(f"{where} must hold numbers; found {short_repr(v)}")
     try:
-        f = ca.Function.deserialize(pd["f"])
-        h = ca.Function.deserialize(pd["h"])
-    except (KeyError, RuntimeError) as exc:
-        raise GainFileError(
-            f"payload model cannot be read (written by CasADi {payload.get('casadi_version')}, "
-            f"this is {ca.CasadiMeta.version()}): {exc}"
-        ) from None
-    plant = NonlinearPlant.create(
-        f=f,
-        h=h,
-        states=pd["states"],
-        inputs=pd["inputs"],
-        outputs=pd["outputs"],
-        parameters=pd["parameters"],
-        nominal=dict(zip(pd["parameters"], pd["theta_nominal"], strict=False)),
-        Q1=np.array(pd["Q1"], dtype=float),
-        Q2=np.array(pd["Q2"], dtype=float),
-        Ts=pd["Ts"],
-        units=pd.get("units") or {},
-        expressions=pd.get("expressions"),
+        out = float(v)
+    except OverflowError:
+        out = math.inf
+    if not math.isfinite(out):
+        raise GainFileError(f"{where} must hold finite numbers; found {short_repr(v)}")
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class _Payload:
+    """A validated payload: everything the step is built from, nothing built yet."""
+
+    name: str
+    plant: NonlinearPlant
+    settings: NafdfSettings
+    thresholds: np.ndarray
+    layout: StateLayout
+    fixed_thresholds: list[float | None] | None
+
+
+def _wrap(where: str, fn: Any, *args: Any, **kw: Any) -> Any:
+    """Call ``fn``; an fdisyn error it raises becomes a :class:`GainFileError` prefixed by ``where``."""
+    try:
+        return fn(*args, **kw)
+    except GainFileError:
+        raise
+    except FdisynError as exc:
+        raise GainFileError(f"{where}: {exc}") from None
+
+
+def _read_plant(doc: object, where: str) -> NonlinearPlant:
+    """The plant of a payload: sizes first, then the model programs, then the plant's own checks."""
+    f = _Fields(doc, where, required=_PLANT_FIELDS)
+    states, outputs, parameters = f.names("states"), f.names("outputs"), f.names("parameters")
+    inputs = f.names("inputs", allow_empty=True)
+    n, m, p, l = len(states), len(inputs), len(outputs), len(parameters)
+    theta = f.numbers("theta_nominal", l)
+    q1, q2 = f.matrix("Q1", n, n), f.matrix("Q2", p, p)
+    ts = f.number("Ts", allow_none=True)
+    if ts is not None:
+        _wrap(f"{where}.Ts", check_sample_time, ts)
+    units = f.doc["units"]
+    if not isinstance(units, Mapping) or len(units) > 4 * MAX_DIMENSION or not all(
+        isinstance(k, str) and isinstance(v, str) and len(k) <= _MAX_NAME and len(v) <= _MAX_NAME for k, v in units.items()
+    ):
+        raise f.fail("units", f"an object of at most {4 * MAX_DIMENSION} short names and unit strings")
+    programs = {
+        "f": _wrap(f"{where}.f", function_from_program, f.doc["f"], name="f", in_names=("x", "u", "theta"), in_sizes=(n, m, l), out_name="x_next", out_size=n),
+        "h": _wrap(f"{where}.h", function_from_program, f.doc["h"], name="h", in_names=("x", "theta"), in_sizes=(n, l), out_name="y", out_size=p),
+    }
+    common = dict(
+        states=states, inputs=inputs, outputs=outputs, parameters=parameters, nominal=dict(zip(parameters, theta.tolist(), strict=True)),
+        Q1=q1, Q2=q2, Ts=ts, units=dict(units),
     )
-    settings = NafdfSettings.from_dict(payload["settings"], n=plant.n, l=plant.l)  # type: ignore[arg-type]
-    design = _design(plant, settings, name=str(payload["name"]), thresholds=np.array(payload["wssr_thresholds"], dtype=float))
-    stored = payload.get("state_layout")
-    if not isinstance(stored, list) or [list(e) for e in design.layout.entries] != [list(e) for e in stored]:
-        raise GainFileError("payload state layout does not match the rebuilt step's layout")
+    expressions = f.doc["expressions"]
+    e = None if expressions is None else _Fields(expressions, f"{where}.expressions", required=frozenset({"f", "h", "constants"}))
+    plant = _wrap(where, NonlinearPlant.create, f=programs["f"], h=programs["h"], expressions=expressions, **common)
+    if e is not None:
+        text = _wrap(f"{where}.expressions", NonlinearPlant.from_expressions, f=e.doc["f"], h=e.doc["h"], constants=e.doc["constants"], **common)
+        for key in ("f", "h"):
+            if model_program(getattr(text, key)) != model_program(getattr(plant, key)):
+                raise GainFileError(f"{where}.expressions.{key} describe another model than {where}.{key}; the file was edited")
+    return plant
+
+
+def _read_payload(payload: object, where: str, *, gain_file: bool) -> _Payload:
+    """Validate every field of a payload (and nothing built but the model's SX graph)."""
+    optional = frozenset() if gain_file else frozenset({"thresholds"})
+    required = _PAYLOAD_FIELDS | ({"thresholds"} if gain_file else frozenset())
+    if isinstance(payload, Mapping) and payload.get("format") != PAYLOAD_FORMAT:
+        raise GainFileError(f"{where}: payload format is {short_repr(payload.get('format'))}; expected {PAYLOAD_FORMAT!r}")
+    if isinstance(payload, Mapping) and payload.get("version") != PAYLOAD_VERSION:
+        raise GainFileError(
+            f"{where}: payload version is {short_repr(payload.get('version'))}; this fdisyn reads version {PAYLOAD_VERSION} "
+            "(the model as validated operation lists, not CasADi serialised strings): design it again"
+        )
+    top = _Fields(payload, where, required=frozenset(required), optional=optional)
+    name = top.string("name")
+    if not _IDENT.fullmatch(name) or len(name) > _MAX_NAME:
+        raise top.fail("name", f"an identifier of at most {_MAX_NAME} characters")
+    top.string("casadi_version")
+    plant = _read_plant(top.doc["plant"], f"{where}.plant")
+    n, m, l = plant.n, plant.m, plant.l  # noqa: E741 — the paper's letter for dim θ
+
+    sf = _Fields(top.doc["settings"], f"{where}.settings", required=_SETTINGS_FIELDS)
+    raw: dict[str, Any] = {
+        "x0": sf.numbers("x0", n),
+        "P0": sf.matrix("P0", n, n),
+        "theta0": sf.numbers("theta0", l),
+        "R0": sf.matrix("R0", l, l),
+        "window": sf.integer("window"),
+        "threshold_rule": sf.string("threshold_rule"),
+        "false_alarm_probability": sf.number("false_alarm_probability"),
+        "beta0": sf.number("beta0", allow_none=True),
+        "forgetting_initial": sf.number("forgetting_initial"),
+        "forgetting_rate": sf.number("forgetting_rate"),
+        "forgetting_final": sf.number("forgetting_final"),
+        "theta_lower": np.nan_to_num(sf.numbers("theta_lower", l, allow_none=True), nan=-np.inf),
+        "theta_upper": np.nan_to_num(sf.numbers("theta_upper", l, allow_none=True), nan=np.inf),
+        "nominal_samples": sf.integer("nominal_samples"),
+        "classifier_window": sf.integer("classifier_window"),
+        "W1": sf.number("W1"),
+        "W2": sf.number("W2"),
+        "T1": sf.integer("T1"),
+        "convergence_tolerance": sf.numbers("convergence_tolerance", l),
+        "convergence_level": sf.number("convergence_level"),
+        "u0": sf.numbers("u0", m),
+    }
+    settings: NafdfSettings = _wrap(f"{where}.settings", _settings, plant, **raw)
+
+    table = top.numbers("wssr_thresholds", settings.window)
+    truth = _wrap(
+        f"{where}.settings",
+        wssr_threshold_table,
+        window=settings.window,
+        n_outputs=plant.p,
+        rule=settings.threshold_rule,
+        false_alarm_probability=settings.false_alarm_probability,
+        beta0=settings.beta0,
+    )
+    if not np.allclose(table, truth, rtol=_TABLE_RTOL, atol=0.0):
+        k = int(np.argmax(np.abs(table - truth) > _TABLE_RTOL * np.abs(truth)))
+        raise GainFileError(
+            f"{where}.wssr_thresholds[{k}] is {float(table[k])!r}; the settings (rule {settings.threshold_rule!r}, "
+            f"P_f {settings.false_alarm_probability!r}, window {settings.window}) give {float(truth[k])!r}"
+        )
+    layout = _layout(n, l, settings.window, settings.classifier_window)
+    if top.doc["state_layout"] != [[nm, r, c] for nm, r, c in layout.entries]:
+        raise GainFileError(f"{where}.state_layout does not match the layout the settings imply ({layout.size} entries)")
+    init = top.numbers("init_state", layout.size)
+    expected = _init_state(plant, settings, layout)
+    if not np.array_equal(init, expected):
+        k = int(np.argmax(init != expected))
+        raise GainFileError(
+            f"{where}.init_state[{k}] ({layout.component_names()[k]}) is {float(init[k])!r}; the settings give {float(expected[k])!r}"
+        )
+    r_names, J_names = _names_r_J(plant)
+    for key, want in (("r_names", r_names), ("J_names", J_names), ("fault_names", plant.parameters)):
+        if top.doc[key] != list(want):
+            raise GainFileError(f"{where}.{key} is {short_repr(top.doc[key])}; the plant implies {short_repr(list(want))}")
+    cert = top.doc["certificate"]
+    if not isinstance(cert, Mapping) or cert.get("passed") is not True:
+        raise GainFileError(f"{where}.certificate did not pass (passed = {short_repr(cert.get('passed') if isinstance(cert, Mapping) else cert)}); a design that failed its verification is not built")
+    fixed = None
+    if "thresholds" in top.doc:
+        fixed = _fixed_thresholds(J_names, plant, table, settings.W1)
+        if top.doc["thresholds"] != fixed:
+            raise GainFileError(
+                f"{where}.thresholds is {short_repr(top.doc['thresholds'])}; expected {len(J_names)} entries "
+                "(the full-window WSSR threshold on wssr, W1 on each d_θ, null elsewhere)"
+            )
+    return _Payload(name=name, plant=plant, settings=settings, thresholds=table, layout=layout, fixed_thresholds=fixed)
+
+
+def _fixed_thresholds(J_names: tuple[str, ...], plant: NonlinearPlant, table: np.ndarray, W1: float) -> list[float | None]:
+    """The alarm threshold per statistic the C API exports: WSSR on ``wssr``, ``W1`` on each ``d_θ``."""
+    fixed = {"wssr": float(table[-1])} | {f"d_{q}": float(W1) for q in plant.parameters}
+    return [fixed.get(j) for j in J_names]
+
+
+def _build(parsed: _Payload, where: str) -> NafdfDesign:
+    """Build and re-certify a validated payload's design (limits and model checks included)."""
+    design = _wrap(where, _design, parsed.plant, parsed.settings, name=parsed.name, thresholds=parsed.thresholds)
+    if design.layout.entries != parsed.layout.entries:  # the step's own layout: a guard on _build_step itself
+        raise GainFileError(f"{where}: the rebuilt step's state layout differs from the payload's")
     return design
+
+
+def nafdf_from_payload(payload: Mapping[str, object]) -> NafdfDesign:
+    """Rebuild the design (plant, settings, step) from :func:`nafdf_payload`'s output alone.
+
+    Every field is validated before the step is built (module docstring);
+    the design is then re-certified. Raises :class:`GainFileError` naming the
+    field, with what it holds and what was expected.
+    """
+    return _build(_read_payload(payload, "payload", gain_file=False), "payload")
+
+
+def nafdf_from_gain_file(gf: GainFile) -> NafdfDesign:
+    """The design of a ``kind = "nafdf"`` gain file, validated against the whole file.
+
+    Beyond :func:`nafdf_from_payload`: the file's certificate must have
+    passed, and its inputs, outputs, faults, sample time, step sizes, names,
+    initial state and exported thresholds must be the ones the payload
+    implies (a ``faults`` list that disagrees, an all-zero ``init_state`` or
+    a short ``thresholds`` list is refused, not compiled).
+    """
+    where = "extensions.nafdf"
+    if not isinstance(gf.certificate, Mapping) or gf.certificate.get("passed") is not True:
+        passed = gf.certificate.get("passed") if isinstance(gf.certificate, Mapping) else None
+        raise GainFileError(f"certificate.passed is {short_repr(passed)}; a design that failed its verification is not built")
+    parsed = _read_payload(gf.extensions.get("nafdf"), where, gain_file=True)
+    pl = parsed.plant
+    r_names, J_names = _names_r_J(pl)
+    init = _init_state(pl, parsed.settings, parsed.layout)
+    st = gf.step
+    for field_name, found, want in (
+        ("inputs", gf.inputs, pl.inputs),
+        ("outputs", gf.outputs, pl.outputs),
+        ("faults", gf.faults, pl.parameters),
+        ("Ts", gf.Ts, float(pl.Ts) if pl.Ts else 1.0),
+        ("step.nu", st.nu, pl.m),
+        ("step.ny", st.ny, pl.p),
+        ("step.nr", st.nr, len(r_names)),
+        ("step.nj", st.nj, len(J_names)),
+        ("step.nstate", st.nstate, parsed.layout.size),
+        ("step.residual_names", st.residual_names, r_names),
+        ("step.statistic_names", st.statistic_names, J_names),
+    ):
+        if found != want:
+            raise GainFileError(f"{field_name} is {short_repr(found)}; {where} implies {short_repr(want)}")
+    if not np.array_equal(st.init_state, init):
+        k = int(np.argmax(st.init_state != init))
+        raise GainFileError(
+            f"step.init_state[{k}] ({parsed.layout.component_names()[k]}) is {float(st.init_state[k])!r}; {where} implies {float(init[k])!r}"
+        )
+    return _build(parsed, where)
 
 
 def step_from_payload(payload: Mapping[str, object]) -> ca.Function:
@@ -1228,8 +1675,7 @@ def nafdf_gain_file(
     """
     pl = design.plant
     payload = nafdf_payload(design)
-    fixed = {"wssr": float(design.thresholds[-1])} | {f"d_{q}": float(design.settings.W1) for q in pl.parameters}
-    payload["thresholds"] = [fixed.get(j) for j in design.J_names]
+    payload["thresholds"] = _fixed_thresholds(design.J_names, pl, design.thresholds, design.settings.W1)
     cert = design.certificate.to_dict()
     return GainFile(
         kind="nafdf",
@@ -1256,7 +1702,8 @@ def nafdf_gain_file(
     )
 
 
-register_step_builder("nafdf", lambda gf: step_from_payload(gf.extensions["nafdf"]))
+register_step_builder("nafdf", lambda gf: nafdf_from_gain_file(gf).step)
+
 
 def nafdf_extra_metrics(scenario: Any, gf: GainFile, runs: Mapping[str, np.ndarray]) -> dict[str, float | None]:
     """Monte Carlo figures of a NAFDF beyond detection (a problem's ``extra_metrics``).

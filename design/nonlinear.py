@@ -25,14 +25,48 @@ A plant can also be written as expression strings
         nominal={"a": -0.58, "b": 0.2},
         f={"x": "0.1*a*x^2 + x + 0.1*b*u"}, h={"y": "x"},
         Q1=0.0, Q2=0.01)
+
+Numbers are data: a model may hold no NaN or infinite constant. A literal
+that overflows (``1e999``), a constant subexpression that folds to one
+(``10**10**10``, ``log(-1.0)``) and a ``[model].constants`` entry that is not
+finite are refused where they enter, naming the expression.
+:meth:`NonlinearPlant.check_finite` evaluates ``f``, ``h`` and their AD
+Jacobians at a point (the designs call it at their initial state and the
+nominal ``θ``) and refuses a model that is not finite there — ``x/0``,
+``x**x`` at ``x = 0``.
+
+Limits, checked before anything is parsed or built (a plant file is data a
+user or an attacker controls; these keep every stage bounded):
+
+* an expression has at most :data:`MAX_EXPRESSION_CHARS` characters and
+  :data:`MAX_EXPRESSION_OPERATORS` operators (operator symbols, parentheses,
+  commas and keywords each count once): Python's parser nests once per
+  operator and builds its syntax tree recursively, so a 5000-term sum would
+  exhaust its recursion limit; a hand-written model expression has a few
+  dozen operators;
+* ``f`` and ``h`` have at most :data:`MAX_MODEL_INSTRUCTIONS` CasADi
+  operations each: the NAFDF step evaluates the model and its Jacobians four
+  times, so a larger model could not fit its step budget
+  (:data:`fdisyn.design.nafdf.MAX_STEP_INSTRUCTIONS`) anyway.
+
+:func:`model_program` writes ``f`` or ``h`` as a list of elementary
+operations (the form gain files store) and :func:`function_from_program`
+rebuilds it after validating every operation, index and constant, so a
+corrupted or crafted file never reaches CasADi's own deserialiser.
 """
 
 from __future__ import annotations
 
 import ast
+import io
+import keyword
+import math
 import re
+import reprlib
+import tokenize
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -42,7 +76,26 @@ from fdisyn.design.sampling import check_sample_time
 from fdisyn.runtime.errors import NominalValueError, NonDifferentiableError, ShapeError, SpecError
 from fdisyn.runtime.names import check_distinct
 
-__all__ = ["NONDIFFERENTIABLE_OPERATIONS", "SMOOTH_FUNCTIONS", "NonlinearPlant", "covariance_matrix"]
+__all__ = [
+    "MAX_EXPRESSION_CHARS",
+    "MAX_EXPRESSION_OPERATORS",
+    "MAX_MODEL_INSTRUCTIONS",
+    "NONDIFFERENTIABLE_OPERATIONS",
+    "SMOOTH_FUNCTIONS",
+    "SMOOTH_OPERATIONS",
+    "NonlinearPlant",
+    "covariance_matrix",
+    "function_from_program",
+    "model_program",
+    "short_repr",
+]
+
+MAX_EXPRESSION_CHARS = 10_000
+"""Longest expression string (characters); see the module docstring."""
+MAX_EXPRESSION_OPERATORS = 1_000
+"""Most operators in one expression: bounds the nesting of Python's recursive parser (module docstring)."""
+MAX_MODEL_INSTRUCTIONS = 10_000
+"""Most CasADi operations in ``f`` or in ``h`` (a quarter of the NAFDF step budget; module docstring)."""
 
 
 SMOOTH_FUNCTIONS: Mapping[str, Callable[..., ca.SX]] = {
@@ -88,6 +141,47 @@ NONDIFFERENTIABLE_OPERATIONS: Mapping[int, str] = {
     ca.OP_IF_ELSE_ZERO: "if_else",
 }
 """CasADi operations refused in a plant model (kinks or jumps: AD is undefined there)."""
+
+_BINARY_OPERATIONS: Mapping[str, int] = {
+    "add": ca.OP_ADD,
+    "sub": ca.OP_SUB,
+    "mul": ca.OP_MUL,
+    "div": ca.OP_DIV,
+    "pow": ca.OP_POW,
+    "constpow": ca.OP_CONSTPOW,
+    "atan2": ca.OP_ATAN2,
+    "hypot": ca.OP_HYPOT,
+}
+_UNARY_OPERATIONS: Mapping[str, int] = {
+    "neg": ca.OP_NEG,
+    "sq": ca.OP_SQ,
+    "twice": ca.OP_TWICE,
+    "inv": ca.OP_INV,
+    "sqrt": ca.OP_SQRT,
+    "exp": ca.OP_EXP,
+    "log": ca.OP_LOG,
+    "log1p": ca.OP_LOG1P,
+    "expm1": ca.OP_EXPM1,
+    "sin": ca.OP_SIN,
+    "cos": ca.OP_COS,
+    "tan": ca.OP_TAN,
+    "asin": ca.OP_ASIN,
+    "acos": ca.OP_ACOS,
+    "atan": ca.OP_ATAN,
+    "sinh": ca.OP_SINH,
+    "cosh": ca.OP_COSH,
+    "tanh": ca.OP_TANH,
+    "asinh": ca.OP_ASINH,
+    "acosh": ca.OP_ACOSH,
+    "atanh": ca.OP_ATANH,
+    "erf": ca.OP_ERF,
+    "erfinv": ca.OP_ERFINV,
+}
+SMOOTH_OPERATIONS: Mapping[str, int] = {**_BINARY_OPERATIONS, **_UNARY_OPERATIONS}
+"""Every CasADi operation a plant model may use, by the name a gain file stores (arithmetic and the
+functions smooth on the interior of their domain). Anything else — the kinks and jumps of
+:data:`NONDIFFERENTIABLE_OPERATIONS`, calls into other Functions — is refused."""
+_OPERATION_NAMES: Mapping[int, str] = {code: name for name, code in SMOOTH_OPERATIONS.items()}
 
 # Names a user may write but that denote a non-differentiable operation; the
 # parser refuses them by name, so the error says what to avoid.
@@ -151,7 +245,7 @@ def covariance_matrix(value: object, name: str, size: int, *, definite: bool) ->
     mat = as_matrix(arr, name, rows=size, cols=size)
     if not np.allclose(mat, mat.T, rtol=1e-12, atol=0.0):
         raise ShapeError(f"{name} must be symmetric; max |{name} − {name}ᵀ| = {np.max(np.abs(mat - mat.T)):.3g}")
-    mat = 0.5 * (mat + mat.T)
+    mat = 0.5 * mat + 0.5 * mat.T  # halves first: 1e308 + 1e308 would overflow
     ev = np.linalg.eigvalsh(mat) if size else np.zeros(0)
     scale = max(1.0, float(np.max(np.abs(ev)))) if ev.size else 1.0
     if definite and ev.size and ev[0] <= 0.0:
@@ -182,106 +276,337 @@ def _as_sx_function(fun: object, name: str, in_shapes: Sequence[int], out_size: 
     try:
         out = fun.expand()(*args) if fun.is_a("MXFunction") else fun(*args)
     except RuntimeError as exc:
-        raise SpecError(f"{name} cannot be evaluated on SX symbols (it must be expandable to SX): {exc}") from exc
+        first = next((ln.strip() for ln in str(exc).splitlines() if ln.strip()), type(exc).__name__)  # CasADi's text runs to many lines
+        raise SpecError(f"{name} cannot be evaluated on SX symbols (it must be expandable to SX): {short_repr(first, 200)}") from exc
     out = ca.densify(ca.reshape(ca.SX(out), out_size, 1))
     wrapped = ca.Function(name, sym, [out], list(in_names), [out_name])
-    _refuse_nondifferentiable(wrapped, name)
+    _check_model_function(wrapped, name)
     return wrapped
 
 
-def _refuse_nondifferentiable(fun: ca.Function, name: str) -> None:
-    """Raise :class:`NonDifferentiableError` if the SX Function ``fun`` uses a kink/jump operation."""
-    for k in range(fun.n_instructions()):
+def _check_model_function(fun: ca.Function, name: str) -> None:
+    """Refuse an SX model Function that is too large, uses an operation outside
+    :data:`SMOOTH_OPERATIONS` or holds a non-finite constant.
+
+    Raises :class:`NonDifferentiableError` for kinks and jumps (AD is undefined
+    there) and :class:`SpecError` otherwise; each names the instruction.
+    """
+    count = fun.n_instructions()
+    if count > MAX_MODEL_INSTRUCTIONS:
+        raise SpecError(
+            f"{name} has {count} operations; at most {MAX_MODEL_INSTRUCTIONS} are allowed "
+            "(the NAFDF step evaluates the model and its Jacobians four times within a bounded size)"
+        )
+    for k in range(count):
         op = fun.instruction_id(k)
+        if op in (ca.OP_INPUT, ca.OP_OUTPUT):
+            continue
+        if op == ca.OP_CONST:
+            value = float(fun.instruction_constant(k))
+            if not math.isfinite(value):
+                raise SpecError(f"{name} holds the constant {value!r} (instruction {k}); expected only finite numbers in a model")
+            continue
         if op in NONDIFFERENTIABLE_OPERATIONS:
             raise NonDifferentiableError(
                 f"{name} uses the non-differentiable operation {NONDIFFERENTIABLE_OPERATIONS[op]!r} "
                 f"(instruction {k}); expected only smooth operations ({', '.join(sorted(SMOOTH_FUNCTIONS))}, "
                 "+, −, ×, ÷, powers), because every Jacobian comes from automatic differentiation"
             )
+        if op not in _OPERATION_NAMES:
+            raise SpecError(
+                f"{name} uses CasADi operation {op} (instruction {k}), which a plant model may not hold; "
+                f"expected only {sorted(SMOOTH_OPERATIONS)}"
+            )
+
+
+def model_program(fun: ca.Function) -> dict[str, list[Any]]:
+    """``f`` or ``h`` of a :class:`NonlinearPlant` as plain data: ``{"ops": [...], "out": [...]}``.
+
+    Operation ``i`` defines value ``i``: ``["input", port, entry]``,
+    ``["const", number]``, ``[name, a]`` or ``[name, a, b]`` with ``name`` in
+    :data:`SMOOTH_OPERATIONS` and ``a``, ``b`` indices of earlier values;
+    ``out[k]`` is the value of output entry ``k``. It is CasADi's own
+    operation sequence, so :func:`function_from_program` rebuilds the
+    identical graph, and it holds nothing but names, indices and finite
+    numbers, so a reader can validate all of it before building anything.
+    """
+    ops: list[Any] = []
+    where: dict[int, int] = {}  # CasADi work-vector slot → index of the value it holds
+    out: list[int] = [0] * fun.nnz_out(0)
+    for k in range(fun.n_instructions()):
+        op = fun.instruction_id(k)
+        args = fun.instruction_input(k)
+        res = fun.instruction_output(k)
+        if op == ca.OP_OUTPUT:
+            out[res[1]] = where[args[0]]
+            continue
+        if op == ca.OP_INPUT:
+            ops.append(["input", int(args[0]), int(args[1])])
+        elif op == ca.OP_CONST:
+            ops.append(["const", float(fun.instruction_constant(k))])
+        else:
+            name = _OPERATION_NAMES[op]
+            arity = 2 if name in _BINARY_OPERATIONS else 1
+            ops.append([name, *[where[a] for a in args[:arity]]])
+        where[res[0]] = len(ops) - 1
+    return {"ops": ops, "out": list(out)}
+
+
+def function_from_program(
+    program: object, *, name: str, in_names: Sequence[str], in_sizes: Sequence[int], out_name: str, out_size: int
+) -> ca.Function:
+    """Rebuild an SX Function from :func:`model_program`'s data, validating all of it first.
+
+    Checked before any CasADi object is made: the structure, at most
+    :data:`MAX_MODEL_INSTRUCTIONS` operations, every operation name in
+    :data:`SMOOTH_OPERATIONS` with its arity, every index pointing to an
+    earlier value (so the graph is acyclic), every input entry within its
+    port, every constant a finite number, one output per entry. Raises
+    :class:`SpecError` naming the operation.
+    """
+    if not isinstance(program, Mapping) or set(program) != {"ops", "out"}:
+        raise SpecError(f"{name}: expected an object with the fields 'ops' and 'out'")
+    ops, out = program["ops"], program["out"]
+    if not isinstance(ops, list) or not isinstance(out, list):
+        raise SpecError(f"{name}: 'ops' and 'out' must be lists")
+    if len(ops) > MAX_MODEL_INSTRUCTIONS:
+        raise SpecError(f"{name} has {len(ops)} operations; at most {MAX_MODEL_INSTRUCTIONS} are allowed")
+    if len(out) != out_size:
+        raise SpecError(f"{name}.out has {len(out)} entries; expected {out_size}")
+
+    def index(v: object, limit: int, what: str) -> int:
+        if isinstance(v, bool) or not isinstance(v, int) or not 0 <= v < limit:
+            raise SpecError(f"{name}: {what} must be an integer in 0..{limit - 1}; found {short_repr(v)}")
+        return v
+
+    for i, op in enumerate(ops):
+        if not isinstance(op, list) or not op or not isinstance(op[0], str):
+            raise SpecError(f"{name}.ops[{i}] must be a list starting with an operation name; found {short_repr(op)}")
+        kind = op[0]
+        if kind == "input":
+            if len(op) != 3:
+                raise SpecError(f"{name}.ops[{i}]: 'input' takes a port and an entry; found {short_repr(op)}")
+            port = index(op[1], len(in_sizes), f"ops[{i}] port")
+            index(op[2], in_sizes[port], f"ops[{i}] entry of {in_names[port]}")
+        elif kind == "const":
+            if len(op) != 2 or isinstance(op[1], bool) or not isinstance(op[1], (int, float)) or not math.isfinite(op[1]):
+                raise SpecError(f"{name}.ops[{i}]: 'const' takes one finite number; found {short_repr(op)}")
+        elif kind in SMOOTH_OPERATIONS:
+            arity = 2 if kind in _BINARY_OPERATIONS else 1
+            if len(op) != arity + 1:
+                raise SpecError(f"{name}.ops[{i}]: {kind!r} takes {arity} operand(s); found {short_repr(op)}")
+            for v in op[1:]:
+                index(v, i, f"ops[{i}] operand (an earlier value)")
+        else:
+            raise SpecError(f"{name}.ops[{i}]: unknown operation {short_repr(kind)}; expected 'input', 'const' or one of {sorted(SMOOTH_OPERATIONS)}")
+    for k, v in enumerate(out):
+        index(v, len(ops), f"out[{k}]")
+
+    sym = [ca.SX.sym(nm, size) for nm, size in zip(in_names, in_sizes, strict=True)]
+    values: list[ca.SX] = []
+    for op in ops:
+        kind = op[0]
+        if kind == "input":
+            values.append(sym[op[1]][op[2]])
+        elif kind == "const":
+            values.append(ca.SX(float(op[1])))
+        elif kind in _BINARY_OPERATIONS:
+            values.append(ca.SX.binary(_BINARY_OPERATIONS[kind], values[op[1]], values[op[2]]))
+        else:
+            values.append(ca.SX.unary(_UNARY_OPERATIONS[kind], values[op[1]]))
+    result = ca.vertcat(*[values[v] for v in out]) if out else ca.SX(0, 1)
+    return ca.Function(name, sym, [ca.densify(result)], list(in_names), [out_name])
+
+
+_REPR = reprlib.Repr()
+_REPR.maxlevel, _REPR.maxlist, _REPR.maxdict, _REPR.maxstring, _REPR.maxother = 2, 4, 4, 40, 40
+
+
+def short_repr(value: object, limit: int = 60) -> str:
+    """A bounded ``repr(value)``: error messages stay one short line whatever a file holds
+    (``reprlib`` also stops at a nesting depth, where ``repr`` of a deeply nested list would recurse)."""
+    text = _REPR.repr(value)
+    return text if len(text) <= limit else text[: limit - 1] + "…"
+
+
+def _operator_count(text: str) -> int:
+    """Operators in ``text`` — operator and punctuation tokens and keywords — counted without parsing.
+
+    Each can add one level to the syntax tree, so this bounds the depth of
+    Python's recursive parser before it runs. Tokenizing is a loop, not a
+    recursion; counting stops just past the limit. Text that does not
+    tokenize is left to the parser, which reports the syntax error.
+    """
+    count = 0
+    try:
+        for tok in tokenize.generate_tokens(io.StringIO(text).readline):
+            if tok.type in (tokenize.OP, tokenize.ERRORTOKEN) or (tok.type == tokenize.NAME and keyword.iskeyword(tok.string)):
+                count += 1
+                if count > MAX_EXPRESSION_OPERATORS:
+                    break
+    except (tokenize.TokenError, SyntaxError):
+        pass
+    return count
 
 
 class _ExpressionCompiler:
-    """Turns one arithmetic expression string into an SX expression, refusing anything else."""
+    """Turns one arithmetic expression string into an SX expression, refusing anything else.
+
+    The syntax tree is walked with an explicit stack (no recursion), so the
+    only nesting limit is the parser's, which :data:`MAX_EXPRESSION_OPERATORS`
+    keeps out of reach. Every literal and every constant subexpression is
+    checked finite where it is formed (``1e999``, ``10**10**10``, ``log(-1.0)``).
+    """
 
     def __init__(self, symbols: Mapping[str, ca.SX], constants: Mapping[str, float], where: str) -> None:
         self.symbols = symbols
         self.constants = constants
         self.where = where
+        self.text = ""
+        self.source = ""
 
     def compile(self, text: str) -> ca.SX:
         if not isinstance(text, str) or not text.strip():
-            raise SpecError(f"{self.where}: expected a non-empty expression string; got {text!r}")
-        try:
-            # '^' is power in plant files; Python would parse it as xor with the wrong precedence
-            tree = ast.parse(text.strip().replace("^", "**"), mode="eval")
-        except SyntaxError as exc:
-            raise SpecError(f"{self.where}: cannot parse expression {text!r}: {exc.msg}") from None
+            raise SpecError(f"{self.where}: expected a non-empty expression string; got {short_repr(text)}")
         self.text = text
-        return self._node(tree.body)
+        if len(text) > MAX_EXPRESSION_CHARS:
+            raise SpecError(
+                f"{self.where}: the expression has {len(text)} characters; at most {MAX_EXPRESSION_CHARS} are allowed"
+            )
+        # '^' is power in plant files; Python would parse it as xor with the wrong precedence
+        self.source = text.strip().replace("^", "**")
+        ops = _operator_count(self.source)
+        if ops > MAX_EXPRESSION_OPERATORS:
+            raise SpecError(
+                f"{self.where}: the expression has more than {MAX_EXPRESSION_OPERATORS} operators; "
+                "split it with [model].constants or simplify it (Python's parser nests once per operator)"
+            )
+        try:
+            tree = ast.parse(self.source, mode="eval")
+        except SyntaxError as exc:
+            raise SpecError(f"{self.where}: cannot parse expression {short_repr(text)}: {exc.msg}") from None
+        except (RecursionError, MemoryError, ValueError) as exc:
+            # ValueError: an integer literal beyond Python's digit limit; the others: nesting too deep
+            raise SpecError(f"{self.where}: cannot parse expression {short_repr(text)}: {type(exc).__name__}") from None
+        return self._evaluate(tree.body)
 
     def _fail_nonsmooth(self, what: str) -> NonDifferentiableError:
         return NonDifferentiableError(
-            f"{self.where}: expression {self.text!r} uses {what}, which is not differentiable everywhere; "
+            f"{self.where}: expression {short_repr(self.text)} uses {what}, which is not differentiable everywhere; "
             f"expected only smooth operations ({', '.join(sorted(SMOOTH_FUNCTIONS))}, +, −, *, /, ^ or **), "
             "because every Jacobian comes from automatic differentiation"
         )
 
-    def _node(self, node: ast.AST) -> ca.SX:
+    def _segment(self, node: ast.AST) -> str:
+        seg = ast.get_source_segment(self.source, node)
+        return short_repr(seg if seg is not None else self.text)
+
+    def _evaluate(self, root: ast.AST) -> ca.SX:
+        """Post-order walk with an explicit stack: check each node on the way down, combine on the way up."""
+        stack: list[tuple[ast.AST, bool]] = [(root, False)]
+        done: list[ca.SX] = []
+        while stack:
+            node, children_done = stack.pop()
+            if children_done:
+                kids = self._children(node)
+                args = done[len(done) - len(kids) :] if kids else []
+                del done[len(done) - len(kids) :]
+                done.append(self._combine(node, args))
+            else:
+                self._admit(node)
+                stack.append((node, True))
+                stack.extend((child, False) for child in reversed(self._children(node)))
+        return done[0]
+
+    @staticmethod
+    def _children(node: ast.AST) -> list[ast.AST]:
         if isinstance(node, ast.BinOp):
-            left, right = self._node(node.left), self._node(node.right)
-            op = node.op
-            if isinstance(op, ast.Add):
-                return left + right
-            if isinstance(op, ast.Sub):
-                return left - right
-            if isinstance(op, ast.Mult):
-                return left * right
-            if isinstance(op, ast.Div):
-                return left / right
-            if isinstance(op, ast.Pow):
-                return left**right
-            if isinstance(op, (ast.Mod, ast.FloorDiv)):
-                raise self._fail_nonsmooth("the operator '%' or '//'")
-            raise SpecError(f"{self.where}: operator {type(op).__name__} is not allowed in {self.text!r}")
+            return [node.left, node.right]
         if isinstance(node, ast.UnaryOp):
-            val = self._node(node.operand)
-            if isinstance(node.op, ast.USub):
-                return -val
-            if isinstance(node.op, ast.UAdd):
-                return val
-            raise self._fail_nonsmooth(f"the operator {type(node.op).__name__}")
-        if isinstance(node, ast.Constant):
-            if isinstance(node.value, bool) or not isinstance(node.value, (int, float)):
-                raise SpecError(f"{self.where}: constant {node.value!r} in {self.text!r} is not a real number")
-            return ca.SX(float(node.value))
-        if isinstance(node, ast.Name):
-            if node.id in self.symbols:
-                return self.symbols[node.id]
-            if node.id in self.constants:
-                return ca.SX(float(self.constants[node.id]))
-            allowed = sorted([*self.symbols, *self.constants])
-            raise SpecError(f"{self.where}: unknown name {node.id!r} in {self.text!r}; allowed names are {allowed}")
+            return [node.operand]
         if isinstance(node, ast.Call):
+            return list(node.args)
+        return []
+
+    def _admit(self, node: ast.AST) -> None:
+        """Refuse a node that is not plain smooth arithmetic (before its operands are built)."""
+        if isinstance(node, ast.BinOp):
+            if isinstance(node.op, (ast.Mod, ast.FloorDiv)):
+                raise self._fail_nonsmooth("the operator '%' or '//'")
+            if not isinstance(node.op, (ast.Add, ast.Sub, ast.Mult, ast.Div, ast.Pow)):
+                raise SpecError(f"{self.where}: operator {type(node.op).__name__} is not allowed in {short_repr(self.text)}")
+        elif isinstance(node, ast.UnaryOp):
+            if not isinstance(node.op, (ast.USub, ast.UAdd)):
+                raise self._fail_nonsmooth(f"the operator {type(node.op).__name__}")
+        elif isinstance(node, ast.Constant):
+            if isinstance(node.value, bool) or not isinstance(node.value, (int, float)):
+                raise SpecError(f"{self.where}: constant {short_repr(node.value)} in {short_repr(self.text)} is not a real number")
+        elif isinstance(node, ast.Name):
+            if node.id not in self.symbols and node.id not in self.constants:
+                allowed = sorted([*self.symbols, *self.constants])
+                raise SpecError(f"{self.where}: unknown name {node.id!r} in {short_repr(self.text)}; allowed names are {allowed}")
+        elif isinstance(node, ast.Call):
             if not isinstance(node.func, ast.Name) or node.keywords:
-                raise SpecError(f"{self.where}: only plain calls such as sin(x) are allowed in {self.text!r}")
+                raise SpecError(f"{self.where}: only plain calls such as sin(x) are allowed in {short_repr(self.text)}")
             fname = node.func.id
             if fname in _NONSMOOTH_NAMES:
                 raise self._fail_nonsmooth(f"the function {fname}()")
             if fname not in SMOOTH_FUNCTIONS:
                 raise SpecError(
-                    f"{self.where}: unknown function {fname!r} in {self.text!r}; allowed: {sorted(SMOOTH_FUNCTIONS)}"
+                    f"{self.where}: unknown function {fname!r} in {short_repr(self.text)}; allowed: {sorted(SMOOTH_FUNCTIONS)}"
                 )
             arity = _BINARY_FUNCTIONS.get(fname, 1)
             if len(node.args) != arity:
                 raise SpecError(
                     f"{self.where}: {fname}() takes {arity} argument{'s' if arity > 1 else ''}, "
-                    f"got {len(node.args)} in {self.text!r}"
+                    f"got {len(node.args)} in {short_repr(self.text)}"
                 )
-            return SMOOTH_FUNCTIONS[fname](*[self._node(a) for a in node.args])
-        if isinstance(node, (ast.Compare, ast.BoolOp, ast.IfExp)):
+        elif isinstance(node, (ast.Compare, ast.BoolOp, ast.IfExp)):
             raise self._fail_nonsmooth("a comparison or a conditional")
-        raise SpecError(f"{self.where}: {type(node).__name__} is not allowed in the expression {self.text!r}")
+        else:
+            raise SpecError(f"{self.where}: {type(node).__name__} is not allowed in the expression {short_repr(self.text)}")
+
+    def _combine(self, node: ast.AST, args: list[ca.SX]) -> ca.SX:
+        if isinstance(node, ast.BinOp):
+            left, right = args
+            op = node.op
+            if isinstance(op, ast.Add):
+                out = left + right
+            elif isinstance(op, ast.Sub):
+                out = left - right
+            elif isinstance(op, ast.Mult):
+                out = left * right
+            elif isinstance(op, ast.Div):
+                out = left / right
+            else:
+                out = left**right
+        elif isinstance(node, ast.UnaryOp):
+            out = -args[0] if isinstance(node.op, ast.USub) else args[0]
+        elif isinstance(node, ast.Constant):
+            try:
+                value = float(node.value)  # type: ignore[arg-type]  # an int or float: _admit checked it
+            except OverflowError:
+                value = math.inf
+            if not math.isfinite(value):
+                raise SpecError(
+                    f"{self.where}: the number {self._segment(node)} in {short_repr(self.text)} is not a finite double; "
+                    "expected a finite number"
+                )
+            return ca.SX(value)
+        elif isinstance(node, ast.Name):
+            if node.id in self.symbols:
+                return self.symbols[node.id]
+            return ca.SX(float(self.constants[node.id]))
+        else:
+            assert isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
+            out = SMOOTH_FUNCTIONS[node.func.id](*args)
+        # CasADi folds constant operands at once: a non-finite result is a NaN/inf constant in the model
+        if out.is_constant() and not math.isfinite(float(out)):
+            raise SpecError(
+                f"{self.where}: the constant subexpression {self._segment(node)} in {short_repr(self.text)} evaluates to "
+                f"{float(out)!r}; expected a finite number"
+            )
+        return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -400,7 +725,9 @@ class NonlinearPlant:
             A parameter without a nominal value.
         SpecError
             Unknown names or functions, a missing or extra state/output
-            expression, a syntax error.
+            expression, a syntax error, a constant (named, literal or folded)
+            that is not a finite number, an expression beyond
+            :data:`MAX_EXPRESSION_CHARS` or :data:`MAX_EXPRESSION_OPERATORS`.
         """
         st = _names(states, "state")
         inp = _names(inputs, "input", allow_empty=True)
@@ -408,12 +735,14 @@ class NonlinearPlant:
         par = _names(parameters, "parameter")
         _distinct_names(st, inp, out, par)
         _nominal_vector(par, nominal)  # fail on missing nominal values before parsing anything
-        consts = {"pi": float(np.pi), **{str(k): float(v) for k, v in (constants or {}).items()}}
+        consts = {"pi": float(np.pi), **_constants(constants)}
         clash = sorted(set(consts) & set(st + inp + out + par))
         if clash:
             raise SpecError(f"constant names {clash} clash with signal or parameter names")
         for what, given, expected in (("f", f, st), ("h", h, out)):
-            wrong = {k: v for k, v in given.items() if not isinstance(v, str)}
+            if not isinstance(given, Mapping):
+                raise SpecError(f"{what}: expected a table of expression strings by name; got {short_repr(given)}")
+            wrong = {k: short_repr(v) for k, v in given.items() if not isinstance(v, str)}
             if wrong:
                 raise SpecError(f"{what}: expressions must be strings; got {wrong}")
             keys = set(given)
@@ -502,6 +831,34 @@ class NonlinearPlant:
         )
         return {k: np.array(v, dtype=float) for k, v in vals.items()}
 
+    def check_finite(self, *, x: object, u: object, theta: object | None = None, point: str = "the nominal point") -> None:
+        """Refuse a model that is not finite at ``(x, u, θ)`` (``θ`` defaults to nominal).
+
+        ``f``, ``h`` and the four AD Jacobians are evaluated there; the first
+        NaN or infinite entry raises :class:`SpecError` naming the state or
+        output expression, the derivative and the value. A design starts its
+        filters at such a point: a model that is not finite there (``x/0``,
+        ``log(x)`` at ``x = 0``, ``x**x`` whose derivative at ``x = 0`` is
+        ``0·∞``) would make the first step diverge and every later one reset.
+        """
+        vals = self.linearise(x=x, u=u, theta=theta)
+        rows = {"f": self.states, "h": self.outputs}
+        cols = {"x": self.states, "theta": self.parameters}
+        for key in ("f", "h", "F_x", "F_theta", "H_x", "H_theta"):
+            fun = key[0].lower()
+            bad = np.argwhere(~np.isfinite(vals[key]))
+            if not bad.size:
+                continue
+            i, j = (int(v) for v in bad[0])
+            row = rows[fun][i]
+            what = f"{fun}[{row!r}]" if "_" not in key else f"∂{fun}[{row!r}]/∂{cols[key.split('_', 1)[1]][j]}"
+            exprs = (self.expressions or {}).get(fun)
+            text = f" (the expression {short_repr(exprs[row])})" if isinstance(exprs, Mapping) and isinstance(exprs.get(row), str) else ""
+            raise SpecError(
+                f"the model is not finite at {point}: {what} = {float(vals[key][i, j])!r}{text}; "
+                "expected finite values of f, h and their Jacobians there"
+            )
+
     # simulation -------------------------------------------------------------
     def simulate(
         self,
@@ -548,6 +905,28 @@ class NonlinearPlant:
         meas = ca.Function("plant_measurement", [xs, thx], [self.h(xs, thx)]).map(T)
         y = np.array(meas(x.T, th.T), dtype=float).T + e
         return x, y
+
+
+def _constants(constants: object) -> dict[str, float]:
+    """``[model].constants``: identifier names with finite real values (a NaN or inf constant is refused here)."""
+    if constants is None:
+        return {}
+    if not isinstance(constants, Mapping):
+        raise SpecError(f"constants must be a table of names and numbers; got {short_repr(constants)}")
+    out: dict[str, float] = {}
+    for k, v in constants.items():
+        if not isinstance(k, str) or not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", k):
+            raise SpecError(f"constant name {short_repr(k)} is not an identifier (letters, digits, underscore; no leading digit)")
+        if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
+            raise SpecError(f"constant {k!r} must be a number; got {short_repr(v)}")
+        try:
+            fv = float(v)
+        except OverflowError:
+            fv = math.inf
+        if not math.isfinite(fv):
+            raise SpecError(f"constant {k!r} must be a finite number; got {short_repr(v)}")
+        out[k] = fv
+    return out
 
 
 def _vector(value: object, name: str, size: int) -> np.ndarray:

@@ -55,7 +55,7 @@ from typing import Literal
 
 import numpy as np
 import scipy.linalg as sla
-from fdisyn.design.certificate import Certificate, Check
+from fdisyn.design.certificate import Certificate, Check, worst
 from fdisyn.design.linalg import (
     as_matrix,
     normal_rank,
@@ -639,7 +639,7 @@ class CoInnerOuter:
         e1 = gi.C @ x @ gi.C.T + gi.D @ gi.D.T - np.eye(gi.n_out)
         scale = float(np.linalg.norm(x)) * max(float(np.linalg.norm(gi.C)), 1e-300)
         e2 = (gi.A @ x @ gi.C.T + gi.B @ gi.D.T) / max(scale, 1e-300)
-        return float(max(np.linalg.norm(e1), np.linalg.norm(e2)))
+        return worst(float(np.linalg.norm(e1)), float(np.linalg.norm(e2)))  # NaN stays NaN
 
 
 def co_inner_outer(*, A: object, B: object, C: object, D: object | None = None) -> CoInnerOuter:
@@ -901,8 +901,9 @@ def optimal_diagnostic_observer(
         return float(np.linalg.norm(res)) / max(sc, np.finfo(float).tiny)
 
     kap = dt.kappa
-    tol_res = max(RESIDUAL_TOL, KAPPA_FACTOR * kap)
-    tol_inner = max(INNER_TOL, KAPPA_FACTOR * kap)
+    # worst(), not max(): a NaN κ must give a NaN (failing) bound, not the floor
+    tol_res = worst(RESIDUAL_TOL, KAPPA_FACTOR * kap)
+    tol_inner = worst(INNER_TOL, KAPPA_FACTOR * kap)
     checks += [
         Check(
             "κ = cond(Nᵀ N), N Nᵀ = C X Cᵀ",
@@ -1005,7 +1006,7 @@ def optimal_diagnostic_observer(
             Check(
                 f"|J − J*| / J*, η = {eta}" + (" (on the ZOH model)" if design == "indirect" else ""),
                 0.0 if both_inf else abs(j_model[eta] - j_star[eta]) / j_star[eta],
-                max(OPTIMUM_TOL, KAPPA_FACTOR * kap),
+                worst(OPTIMUM_TOL, KAPPA_FACTOR * kap),
                 "<=",
                 "Theorem 1: the design attains J* = 1/‖G_do# G_f‖_η; the order-s generator and the "
                 "order-n formula must agree",

@@ -85,8 +85,9 @@ is written with ``time = "nonlinear"`` and designed by the NAFDF::
     window = 10                       # [simulation].x0), P0 (default 1), theta0, R0,
     theta0 = { a = 0.0, b = 0.0 }     # forgetting_initial/_rate/_final, theta_lower,
                                       # theta_upper, nominal_samples, classifier_window,
-                                      # W1, W2, T1, convergence_tolerance, convergence_level;
-                                      # per-parameter ones as a list or a table by name
+                                      # W1, W2, T1, convergence_tolerance, convergence_level,
+                                      # u0 (nominal input, default 0); per-parameter ones
+                                      # as a list or a table by name
     [simulation]
     duration = 20000; x0 = [0.0]; inputs = [{ kind = "square", offset = 5.0, amplitude = 4.0, period = 50 }]
     [[scenarios]]
@@ -532,6 +533,7 @@ _NAFDF_KEYS = {
     "T1": "T1",
     "convergence_tolerance": "convergence_tolerance",
     "convergence_level": "convergence_level",
+    "u0": "u0",
 }
 _PER_PARAMETER = {"theta0", "theta_lower", "theta_upper", "convergence_tolerance"}
 
@@ -595,12 +597,22 @@ def _nonlinear_problem(path: Path, top: _Section, name: str) -> Problem:
         raise SpecError(f"{path} [simulation].inputs: {plant.m} input signal(s) at most, got {len(u_sigs)}")
     u_sigs += [Signal()] * (plant.m - len(u_sigs))
     x0 = sim.vector("x0", plant.n)
+    if not np.all(np.isfinite(x0)):
+        raise SpecError(f"{path} [simulation].x0 must hold finite numbers, got {x0.tolist()}")
 
     des = _Section(top.get("design", {}), f"{path} [design]", {"method", *_NAFDF_KEYS})
     method = str(des.get("method", "nafdf"))
     if method != "nafdf":
         raise SpecError(f"{path} [design].method {method!r}: a nonlinear plant is designed by 'nafdf'")
     _diagnoser_name(name, method, path)
+    u0 = des.vector("u0", plant.m)
+    if not np.all(np.isfinite(u0)):
+        raise SpecError(f"{path} [design].u0 must hold finite numbers, got {u0.tolist()}")
+    # the model must be finite where the simulation starts (x/0, x**x at 0 …): refused here, before any data
+    try:
+        plant.check_finite(x=x0, u=u0, point=f"the nominal point ([simulation].x0 = {x0.tolist()}, u = {u0.tolist()}, nominal θ)")
+    except FdisynError as exc:
+        raise SpecError(f"{path} [model]: {exc}") from None
     kwargs: dict[str, Any] = {"x0": x0, "P0": 1.0}
     for key, kw in _NAFDF_KEYS.items():
         if key in des.doc:
@@ -629,6 +641,8 @@ def _nonlinear_problem(path: Path, top: _Section, name: str) -> Problem:
             if ("scale" in fs.doc) == ("value" in fs.doc):
                 raise SpecError(f"{w}.parameter_faults[{j}]: give either scale (θ → scale·θ0) or value (θ → value)")
             theta[q] = float(fs.number("value")) if "value" in fs.doc else float(fs.number("scale")) * theta[q]  # type: ignore[arg-type]
+            if not np.isfinite(theta[q]):
+                raise SpecError(f"{w}.parameter_faults[{j}]: the faulty {q} must be finite, got {theta[q]!r}")
         sizes = {q: theta[q] - float(plant.theta_nominal[k]) for k, q in enumerate(pars) if theta[q] != plant.theta_nominal[k]}
         onset = sc.number("onset")
         if sizes and onset is None:

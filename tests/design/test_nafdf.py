@@ -13,11 +13,13 @@ from fdisyn.design.nafdf import nafdf, nafdf_from_payload, nafdf_payload, step_f
 from fdisyn.design.nonlinear import NonlinearPlant
 from fdisyn.design.riccati import solve_filter_dare
 from fdisyn.problems import ship_propulsion as sp
-from fdisyn.runtime.errors import GainFileError, SpecError
+from fdisyn.runtime.errors import GainFileError, ShapeError, SpecError
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-NEVER_ALARM = dict(threshold_rule="beta0", beta0=1e300)  # the WSSR can never exceed it: filters run undisturbed
+NEVER_ALARM = dict(threshold_rule="beta0", beta0=1e300)
+SHIP_EXPR = dict(states=["x"], inputs=["u"], outputs=["y"], parameters=["a", "b"], nominal={"a": -0.58, "b": 0.2},
+                 f={"x": "0.1*a*x^2 + x + 0.1*b*u"}, h={"y": "x"}, Q1=0.0, Q2=0.01)  # the WSSR can never exceed it: filters run undisturbed
 
 
 @pytest.fixture(scope="module")
@@ -301,3 +303,87 @@ def test_payload_with_unbounded_parameters_and_the_beta0_rule() -> None:
     assert np.all(np.isneginf(rebuilt.settings.theta_lower))
     np.testing.assert_array_equal(rebuilt.thresholds, dsg.thresholds)
     assert rebuilt.step.serialize() == dsg.step.serialize()
+
+
+# --------------------------------------------------------------------------- limits and the starting point
+
+
+@pytest.mark.parametrize(
+    "kw, match",
+    [
+        (dict(window=100_000), "window is 100000; at most 1000"),
+        (dict(window=1e9), "window is 1000000000; at most 1000"),  # refused before any array of that size exists
+        (dict(window=float("inf")), "window must be a positive integer"),
+        (dict(classifier_window=float("nan")), "classifier_window must be a positive integer"),
+        (dict(T1=10**30), "T1 is 1000000000000000000000000000000; at most 1000000000"),
+        (dict(x0=[float("nan")]), "x0 must be finite"),
+        (dict(u0=[0.0, 1.0]), "u0 has 2 entries; expected 1"),
+        (dict(beta0=float("nan"), threshold_rule="beta0"), "beta0 must be a positive finite number"),
+        (dict(name="a b"), "name must be an identifier"),
+    ],
+)
+def test_limits_and_bad_numbers_are_refused_before_building(kw: dict, match: str) -> None:
+    base = dict(x0=[0.0], P0=100.0, theta0=[0.0, 0.0], R0=sp.R0)
+    with pytest.raises((SpecError, ShapeError), match=match) as info:
+        nafdf(sp.plant(), **{**base, **kw})
+    assert "\n" not in str(info.value)
+
+
+def test_state_size_is_checked_from_the_layout_before_the_step_is_built() -> None:
+    """Four parameters and N2 = 1000 make a 5000-entry state (the θ window alone is 4 × 1000):
+    refused from the sizes, without building anything (well under a second)."""
+    x, u, th = ca.SX.sym("x"), ca.SX.sym("u"), ca.SX.sym("theta", 4)
+    f = ca.Function("f", [x, u, th], [th[0] * x + th[1] * u + th[2] * x * u + th[3]])
+    h = ca.Function("h", [x, th], [x])
+    pl = NonlinearPlant.create(f=f, h=h, states=["x"], inputs=["u"], outputs=["y"], parameters=list("abcd"),
+                               nominal=dict(a=0.5, b=1.0, c=0.0, d=0.0), Q1=0.0, Q2=0.01)
+    with pytest.raises(SpecError, match=r"state would have 50\d\d entries .*; at most 4096"):
+        nafdf(pl, x0=[0.0], P0=1.0, classifier_window=1000)
+
+
+def test_step_operation_and_work_limits(monkeypatch) -> None:
+    """The step budget is checked on the SX graph before any C exists: the ship with N = N2 = 1000
+    has ~54 000 operations (> 40 000); lowering the work limit below the ship's own ~230 doubles
+    refuses the default ship design by its work memory (the C step's stack)."""
+    from fdisyn.design import nafdf as mod
+
+    with pytest.raises(SpecError, match=r"the NAFDF step has \d+ operations; at most 40000"):
+        nafdf(sp.plant(), x0=[0.0], P0=100.0, theta0=[0.0, 0.0], R0=sp.R0, window=1000, classifier_window=1000)
+    monkeypatch.setattr(mod, "MAX_STEP_WORK", 100)
+    with pytest.raises(SpecError, match=r"needs \d+ doubles of work memory; at most 100"):
+        sp.design()
+
+
+def test_stack_use_of_the_documented_problems_is_within_the_limits(ship_design) -> None:
+    """The C step's stack holds CasADi's work vector and the next state: both bounded by the limits."""
+    from fdisyn.design.nafdf import MAX_STATE, MAX_STEP_INSTRUCTIONS, MAX_STEP_WORK
+
+    assert ship_design.step.sz_w() <= MAX_STEP_WORK and ship_design.nstate <= MAX_STATE
+    assert ship_design.step.n_instructions() <= MAX_STEP_INSTRUCTIONS
+    assert ship_design.certificate.info["work_doubles"] == ship_design.step.sz_w()
+
+
+@pytest.mark.parametrize(
+    "f, theta0, where",
+    [
+        ("x**x + a*b*u", None, "the EKF's start"),  # ∂f/∂x = 0·∞ at x0 = 0
+        ("x + log(-a)*b*u", [0.0, 0.0], "the NF's start"),  # finite at a = −0.58, log(0) = −inf at θ̂(0)
+    ],
+)
+def test_model_not_finite_where_the_filters_start_is_refused(f: str, theta0, where: str) -> None:
+    pl = NonlinearPlant.from_expressions(**{**SHIP_EXPR, "f": {"x": f}})
+    with pytest.raises(SpecError, match=where) as info:
+        nafdf(pl, x0=[0.0], P0=1.0, theta0=theta0)
+    assert "\n" not in str(info.value)
+
+
+def test_certificate_fails_on_a_nan_jacobian_even_past_the_model_check(monkeypatch) -> None:
+    """Second line of defence: with the starting-point check disabled, x**x reaches the certificate,
+    whose AD-vs-difference gap is NaN — it fails (max(worst, nan) used to report 0 and pass)."""
+    from fdisyn.design import nafdf as mod
+    from fdisyn.runtime.errors import CertificateError
+
+    monkeypatch.setattr(mod, "_check_model_finite", lambda plant, s: None)
+    pl = NonlinearPlant.from_expressions(**{**SHIP_EXPR, "f": {"x": "x**x + a*b*u"}})
+    with pytest.raises(CertificateError, match=r"AD Jacobians vs central differences at x0 \(max relative\) = nan"):
+        nafdf(pl, x0=[0.0], P0=1.0)

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import json
+
 import casadi as ca
 import numpy as np
 import pytest
-from fdisyn.design.nonlinear import NonlinearPlant
+from fdisyn.design.nonlinear import NonlinearPlant, function_from_program, model_program
 from fdisyn.runtime.errors import NominalValueError, NonDifferentiableError, ShapeError, SpecError
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -181,3 +183,130 @@ def test_simulation_follows_the_model_and_the_time_convention() -> None:
     assert y.shape == (T, 1)
     # the noise is e ~ N(0, 0.01): 50 samples have sd within a factor 2 of 0.1 (chance < 1e-9 otherwise)
     assert 0.05 < float(np.std(y[:, 0] - x[:, 0])) < 0.2
+
+
+# --------------------------------------------------------------------------- numbers are data
+
+
+@pytest.mark.parametrize(
+    "expr, match",
+    [
+        ("x/0 + a*b*u", r"'x/0' .* evaluates to inf"),
+        ("log(-1.0) + x + a*b*u", r"'log\(-1.0\)' .* evaluates to nan"),
+        ("1e999*x + a*b*u", r"the number '1e999' .* is not a finite double"),
+        ("10**10**10*x + a*b*u", r"'10\*\*10\*\*10' .* evaluates to inf"),
+        ("10^400*x + a*b*u", r"'10\*\*400' .* evaluates to inf"),
+        ("1" + "0" * 400 + "*x + a*b*u", "is not a finite double"),
+        ("1e308*10*x + a*b*u", r"'1e308\*10' .* evaluates to inf"),
+        ("(1e308*x)*10 + a*b*u", "holds the constant inf"),  # CasADi folds the two constants itself
+    ],
+)
+def test_non_finite_constants_are_refused_where_they_enter(expr: str, match: str) -> None:
+    with pytest.raises(SpecError, match=match) as info:
+        NonlinearPlant.from_expressions(**{**SHIP, "f": {"x": expr}})
+    assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize("value", [float("nan"), float("inf"), -float("inf"), "1.0", True, [1.0]])
+def test_named_constants_must_be_finite_numbers(value: object) -> None:
+    with pytest.raises(SpecError, match="constant 'c' must be a"):
+        NonlinearPlant.from_expressions(**{**SHIP, "f": {"x": "c*x + a*b*u"}, "constants": {"c": value}})
+
+
+def test_a_function_holding_a_nan_constant_is_refused() -> None:
+    x, u, th = ca.SX.sym("x"), ca.SX.sym("u"), ca.SX.sym("th", 2)
+    f = ca.Function("f", [x, u, th], [th[0] * x + th[1] * u + ca.SX(float("nan")) * x])
+    h = ca.Function("h", [x, th], [x])
+    with pytest.raises(SpecError, match="holds the constant nan"):
+        NonlinearPlant.create(f=f, h=h, states=["x"], inputs=["u"], outputs=["y"], parameters=["a", "b"],
+                              nominal={"a": 1.0, "b": 1.0}, Q1=0.0, Q2=1.0)
+
+
+@pytest.mark.parametrize(
+    "f, h, point, match",
+    [
+        # d/dx x^x = x^x (ln x + 1): 0·∞ at x = 0 although x^x itself is 1 there
+        ({"x": "x**x + a*b*u"}, {"y": "x"}, [0.0], r"∂f\['x'\]/∂x = nan \(the expression 'x\*\*x \+ a\*b\*u'\)"),
+        ({"x": "log(x) + a*b*u"}, {"y": "x"}, [0.0], r"f\['x'\] = -inf"),
+        ({"x": "x + a*b*u"}, {"y": "sqrt(x)"}, [0.0], r"∂h\['y'\]/∂x = inf"),
+        ({"x": "x + a*b*u"}, {"y": "x/(x - a)"}, [-0.58], r"h\['y'\] = (-)?inf|h\['y'\] = nan"),
+    ],
+)
+def test_a_model_not_finite_at_the_point_is_refused(f: dict, h: dict, point: list, match: str) -> None:
+    """The model builds (nothing is constant), but evaluating f, h and the AD Jacobians at the point
+    finds the NaN/inf and names the expression; a regular point of the same model passes."""
+    pl = NonlinearPlant.from_expressions(**{**SHIP, "f": f, "h": h})
+    with pytest.raises(SpecError, match=match) as info:
+        pl.check_finite(x=point, u=[1.0])
+    assert "\n" not in str(info.value) and "not finite at the nominal point" in str(info.value)
+    pl.check_finite(x=[0.7], u=[1.0])
+
+
+# --------------------------------------------------------------------------- expression limits
+
+
+@pytest.mark.parametrize(
+    "expr, match",
+    [
+        ("+".join(["x"] * 5000), "10007 characters; at most 10000"),  # RecursionError in ast.parse before
+        ("+".join(["x"] * 3000), "more than 1000 operators"),
+        ("-" * 3000 + "x", "more than 1000 operators"),
+        ("x" + "*x" * 6000, "characters; at most 10000"),
+        ("sin(" * 300 + "x" + ")" * 300, "cannot parse"),  # Python's parser: too many nested parentheses
+    ],
+)
+def test_oversized_expressions_give_one_line(expr: str, match: str) -> None:
+    with pytest.raises(SpecError, match=match) as info:
+        NonlinearPlant.from_expressions(**{**SHIP, "f": {"x": expr + " + a*b*u"}})
+    assert "\n" not in str(info.value)
+
+
+def test_expressions_within_the_limits_compile_without_recursion() -> None:
+    """900 operators (a 450-term sum) and 150 nested calls: the compiler walks the tree with its own
+    stack. Truths: the sum of 450 copies of x is 450 x; sin∘…∘sin (150 times) by NumPy."""
+    pl = NonlinearPlant.from_expressions(**{**SHIP, "f": {"x": "+".join(["x"] * 449) + " + a*b*u"}})
+    lin = pl.linearise(x=[0.3], u=[0.0])
+    assert lin["F_x"][0, 0] == 449.0  # a sum of exact ones
+    assert lin["f"][0, 0] == pytest.approx(449 * 0.3, rel=1e-13)  # 449 roundings of the running sum
+    deep = NonlinearPlant.from_expressions(**{**SHIP, "f": {"x": "sin(" * 150 + "x" + ")" * 150 + " + a*b*u"}})
+    want = 0.3
+    for _ in range(150):
+        want = np.sin(want)
+    assert float(deep.linearise(x=[0.3], u=[0.0])["f"][0, 0]) == pytest.approx(want, rel=1e-14)  # same libm sin, 150 times
+
+
+# --------------------------------------------------------------------------- the model as data
+
+
+@pytest.mark.parametrize("spec", [SHIP, PENDULUM], ids=["ship", "pendulum"])
+def test_model_program_rebuilds_the_identical_function(spec: dict) -> None:
+    pl = NonlinearPlant.from_expressions(**spec)
+    n, m, l = pl.n, pl.m, pl.l
+    for fun, ins, sizes, out, size in ((pl.f, ("x", "u", "theta"), (n, m, l), "x_next", n), (pl.h, ("x", "theta"), (n, l), "y", pl.p)):
+        prog = json.loads(json.dumps(model_program(fun), allow_nan=False))  # strict JSON, as in a gain file
+        again = function_from_program(prog, name=fun.name(), in_names=ins, in_sizes=sizes, out_name=out, out_size=size)
+        assert again.serialize() == fun.serialize()
+
+
+@pytest.mark.parametrize(
+    "edit, match",
+    [
+        (lambda p: p["ops"].append(["fabs", 0]), "unknown operation 'fabs'"),
+        (lambda p: p["ops"].__setitem__(2, ["mul", 0, 5]), r"ops\[2\] operand \(an earlier value\) must be an integer in 0..1"),
+        (lambda p: p["ops"].__setitem__(2, ["mul", 0, True]), "must be an integer"),
+        (lambda p: p["ops"].__setitem__(1, ["input", 2, 7]), r"entry of theta must be an integer in 0..1"),
+        (lambda p: p["ops"].__setitem__(1, ["input", 3, 0]), r"port must be an integer in 0..2"),
+        (lambda p: p["ops"].__setitem__(0, ["const", "0.1"]), "takes one finite number"),
+        (lambda p: p["ops"].__setitem__(0, ["const", 1e400]), "takes one finite number"),
+        (lambda p: p["ops"].__setitem__(4, ["sq", 3, 3]), "takes 1 operand"),
+        (lambda p: p["out"].append(0), "out has 2 entries; expected 1"),
+        (lambda p: p["out"].__setitem__(0, 99), r"out\[0\] must be an integer in 0..11"),
+        (lambda p: p.__setitem__("ops", [["const", 1.0]] * 10_001), "10001 operations; at most 10000"),
+        (lambda p: p.__setitem__("extra", 1), "fields 'ops' and 'out'"),
+    ],
+)
+def test_a_corrupted_program_is_refused_before_casadi(edit, match: str) -> None:
+    prog = model_program(NonlinearPlant.from_expressions(**SHIP).f)
+    edit(prog)
+    with pytest.raises(SpecError, match=match):
+        function_from_program(prog, name="f", in_names=("x", "u", "theta"), in_sizes=(1, 1, 2), out_name="x_next", out_size=1)

@@ -76,6 +76,9 @@ def test_cli_design_codegen_and_replay(tmp_path) -> None:
     assert out["isolated"][-1] == 0
 
 
+F_SHIP = 'f = { x = "0.1*a*x^2'  # the start of the ship's f, where a test puts its own expression
+
+
 def _write(tmp_path: Path, old: str, new: str) -> Path:
     text = SHIP.read_text()
     assert old in text, old
@@ -104,11 +107,41 @@ def _write(tmp_path: Path, old: str, new: str) -> Path:
         ('states = ["x"]', "states = 3", r"\[signals\].states must be a list of names"),
         ("window = 10", 'window = "ten"', "window must be a positive integer"),
         ("P0 = 100.0", 'P0 = "big"', "P0 must be a number or an array of numbers"),
+        # numbers are data: NaN and inf are refused where they enter, naming the expression
+        (F_SHIP, 'f = { x = "x/0 + 0.1*a*x^2', r"\[model\]: f\['x'\]: the constant subexpression 'x/0' .* evaluates to inf"),
+        (F_SHIP, 'f = { x = "log(-1.0) + 0.1*a*x^2', r"'log\(-1.0\)' .* evaluates to nan"),
+        (F_SHIP, 'f = { x = "1e999*x + 0.1*a*x^2', "the number '1e999' .* is not a finite double"),
+        (F_SHIP, 'f = { x = "10**10**10*x + 0.1*a*x^2', r"'10\*\*10\*\*10' .* evaluates to inf"),
+        (F_SHIP, 'f = { x = "x**x + 0.1*a*x^2', r"not finite at the nominal point .*: ∂f\['x'\]/∂x = nan \(the expression"),
+        (F_SHIP, 'f = { x = "c*x + 0.1*a*x^2', "constant 'c' must be a finite number; got nan"),
+        (F_SHIP, 'f = { x = "' + "x+" * 4000 + '0.1*a*x^2', "more than 1000 operators"),
+        ("x0 = [0.0]", "x0 = [nan]", r"\[simulation\].x0 must hold finite numbers"),
+        ('{ parameter = "b", value = 0.3 }', '{ parameter = "b", value = inf }', "the faulty b must be finite"),
+        ("window = 10", "window = 100000", "window is 100000; at most 1000"),
+        ("window = 10", "window = 1e9", "window is 1000000000; at most 1000"),
+        ("window = 10", "window = inf", "window must be a positive integer"),
+        ("classifier_window = 50", "classifier_window = 5000", "classifier_window is 5000; at most 1000"),
+        ("window = 10", "window = 10\nu0 = [1.0, 2.0]", r"\[design\].u0 must have 1 entries"),
     ],
 )
 def test_bad_nonlinear_files_name_the_problem(tmp_path, old, new, match) -> None:
-    with pytest.raises(SpecError, match=match):
-        load_spec(_write(tmp_path, old, new)).design()
+    path = _write(tmp_path, old, new)
+    if "c*x" in new:  # the constant comes from [model].constants
+        path.write_text(path.read_text().replace("nominal = {", "constants = { c = nan }\nnominal = {", 1))
+    with pytest.raises(SpecError, match=match) as info:
+        load_spec(path).design()
+    assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize(
+    "old, new",
+    [(F_SHIP, 'f = { x = "x**x + 0.1*a*x^2'), (F_SHIP, 'f = { x = "' + "x+" * 5000 + '0.1*a*x^2'), ("window = 10", "window = 100000")],
+)
+def test_cli_refuses_with_status_2_and_one_line(tmp_path, capsys, old, new) -> None:
+    assert main(["design", str(_write(tmp_path, old, new)), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("fdisyn design: error: ") and "\n" not in err and "Traceback" not in err
+    assert not (tmp_path / "out" / "gains.json").exists()
 
 
 def test_square_signal_on_the_sample_grid() -> None:
