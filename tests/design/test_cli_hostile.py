@@ -283,3 +283,46 @@ def test_fuzz_plant_file_values(tmp_path, capsys, name, text, cases) -> None:
             assert status in (0, 2), (argv, mutated)
             if status == 2:
                 assert len(lines) == 1 and lines[0].startswith(f"fdisyn {argv[0]}: error: "), (lines, mutated)
+
+
+# --------------------------------------------------------------------------- the same checks below the CLI
+
+
+def test_runs_and_seeds_are_checked_by_the_api_too(tmp_path) -> None:
+    """``--runs`` and ``--seed`` are checked by argparse; the functions behind them refuse the
+    same values with a named error instead of NumPy's ValueError or a silent default."""
+    from fdisyn.design.evaluate import evaluate
+    from fdisyn.design.pipeline import reproduce_problem
+    from fdisyn.design.spec import load_spec
+    from fdisyn.runtime.errors import SpecError
+
+    prob = load_spec(DATA / "dc_motor.toml")
+    with pytest.raises(SpecError, match=r"seeds must be whole numbers ≥ 0; got \[-1\]"):
+        prob.run("fault_free", [-1])
+    with pytest.raises(SpecError, match="runs must be a whole number ≥ 1; got 0"):
+        evaluate(prob, {}, runs=0)
+    with pytest.raises(SpecError, match="seed0 must be a whole number ≥ 0"):
+        evaluate(prob, {}, runs=1, seed0=-3)
+    with pytest.raises(SpecError, match=r"runs must be a whole number ≥ 1 \(or None for the problem's 50\); got 0"):
+        reproduce_problem(prob, runs=0, reports=tmp_path / "r", workdir=tmp_path / "b")
+
+
+def test_an_oserror_about_another_file_is_not_the_users_and_keeps_its_traceback(tmp_path, monkeypatch) -> None:
+    """Only an OSError about a path the user named (or a full disk) becomes a one-line error; one
+    about any other file is a bug and propagates."""
+    import fdisyn.runtime.gainfile as gainfile
+
+    def broken(gf: object, path: object) -> None:
+        raise FileNotFoundError(2, "No such file or directory", "/usr/share/fdisyn/template.json")
+
+    monkeypatch.setattr(gainfile, "write_gain_file", broken)
+    with pytest.raises(FileNotFoundError):
+        main(["design", str(DATA / "dc_motor.toml"), "--out", str(tmp_path / "d")])
+
+
+def test_warnings_of_a_successful_command_are_one_line_each(tmp_path, capsys) -> None:
+    """A value that is valid but absurd (an input of 1e308 V) may overflow in the simulation: the
+    command succeeds, and NumPy's warnings come out as one line each, no source lines."""
+    spec = _file(tmp_path, MOTOR, "amplitude = 5.6", "amplitude = 1e308")
+    status, lines = _status_and_lines(capsys, ["simulate", spec, "--scenario", "fault_free", "--out", str(tmp_path / "t.csv")])
+    assert status == 0 and lines and all(ln.startswith("fdisyn simulate: warning: RuntimeWarning: ") for ln in lines), lines
