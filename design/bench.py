@@ -38,7 +38,7 @@ def machine_description() -> dict[str, str]:
                 break
     except OSError:
         pass
-    cc = subprocess.run([compiler(), "--version"], capture_output=True, text=True, check=False).stdout.splitlines()
+    cc = subprocess.run([*compiler(), "--version"], capture_output=True, text=True, check=False).stdout.splitlines()
     return {
         "cpu": cpu,
         "cores": str(os.cpu_count()),

@@ -14,35 +14,132 @@
 
 ``SPEC`` is a built-in problem name (``fdisyn list``) or the path of a TOML
 plant file (see the README). Errors a user can act on end the command with
-status 2 and one line naming what is wrong.
+status 2 and one line on stderr, ``fdisyn <command>: error: …``, naming what
+is wrong and what was expected: every :class:`FdisynError`, every usage error
+(argparse's own messages included, without the usage block), and an
+``OSError`` met while reading or writing a path the user named (a file given
+as a directory, no permission, a full disk). Other exceptions are bugs and
+keep their traceback.
 """
 
 from __future__ import annotations
 
 import argparse
+import errno
 import json
+import os
 import sys
-from collections.abc import Sequence
+import warnings
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 import numpy as np
 from fdisyn.runtime.errors import FdisynError, SpecError
 
 __all__ = ["main"]
 
+_DISK_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS, errno.EIO}
+"""Write failures that carry no file name (a full disk, a quota, a read-only or
+failing file system): they can only concern the files being written."""
+
 
 def _options(pairs: Sequence[str] | None) -> dict[str, Any]:
+    """``--option KEY=VALUE`` pairs; each value is JSON (``1e-3``, ``[1, 2]``,
+    ``"x"``) or, when it is not valid JSON, the plain string (``parameters=paper``).
+
+    Only the syntax is checked here; the problem validates each value against
+    the option's type and domain (:meth:`~fdisyn.design.problem.Problem.check_options`).
+    """
     out: dict[str, Any] = {}
     for pair in pairs or []:
-        if "=" not in pair:
+        k, eq, v = pair.partition("=")
+        k = k.strip()
+        if not eq or not k:
             raise SpecError(f"--option expects KEY=VALUE, got {pair!r}")
-        k, v = pair.split("=", 1)
+        if k in out:
+            raise SpecError(f"--option {k} is given twice; give each option once")
         try:
-            out[k.strip()] = json.loads(v)
-        except json.JSONDecodeError:
-            out[k.strip()] = v
+            out[k] = json.loads(v)
+        except (json.JSONDecodeError, RecursionError):  # RecursionError: JSON nested too deep to be an option value
+            out[k] = v
     return out
+
+
+def _whole(text: str, least: int, what: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = least - 1
+    if value < least:
+        raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}")
+    return value
+
+
+def _runs(text: str) -> int:
+    """``--runs``: Monte Carlo runs per scenario, a whole number ≥ 1 (0 is not "the default")."""
+    return _whole(text, 1, "a whole number of runs ≥ 1")
+
+
+def _seed(text: str) -> int:
+    """``--seed``: a whole number ≥ 0 (NumPy's generators take non-negative seeds only)."""
+    return _whole(text, 0, "a whole number ≥ 0 (NumPy seeds are non-negative)")
+
+
+def _under(name: str | bytes | int | None, root: Path) -> bool:
+    if not isinstance(name, (str, bytes)):
+        return False
+    p = Path(os.fsdecode(name)).absolute()
+    return p == root or root in p.parents
+
+
+@contextmanager
+def _user_paths(expected: str, *paths: tuple[str, str | Path]) -> Iterator[None]:
+    """Report an ``OSError`` about a path the user named (or a full disk while writing) as one line.
+
+    ``paths`` are ``(option, path)`` pairs, e.g. ``("--out", "build/motor")``;
+    the line names the option and path concerned and what was ``expected``.
+    An ``OSError`` about any other file is not the user's input and propagates
+    unchanged (a bug keeps its traceback).
+    """
+    roots = [(opt, str(path), Path(path).absolute()) for opt, path in paths]
+    try:
+        yield
+    except FdisynError:
+        raise
+    except OSError as exc:
+        hit = [(o, p) for o, p, r in roots if _under(exc.filename, r) or _under(exc.filename2, r)]
+        if not hit and not (exc.filename is None and exc.errno in _DISK_ERRNOS):
+            raise
+        label = " / ".join(f"{o} {p}" for o, p in (hit or [(o, p) for o, p, _ in roots]))
+        detail = f" ({exc.filename})" if exc.filename is not None and str(exc.filename) != hit[0][1] else ""
+        raise SpecError(f"{label}: {exc.strerror or exc}{detail}; expected {expected}") from exc
+
+
+def _output_dir(path: str, option: str) -> Path:
+    """``path`` as a directory that exists (created if needed) and is writable, checked before any work."""
+    d = Path(path)
+    if d.exists() and not d.is_dir():
+        raise SpecError(f"{option} {path} is a file: expected a directory")
+    with _user_paths("a directory fdisyn can create and write in", (option, path)):
+        d.mkdir(parents=True, exist_ok=True)
+    if not os.access(d, os.W_OK | os.X_OK):
+        raise SpecError(f"{option} {path}: no permission to write in it; expected a writable directory")
+    return d
+
+
+def _output_file(path: str, option: str) -> Path:
+    """``path`` as a file that can be written: not a directory, in a writable directory."""
+    f = Path(path)
+    if f.is_dir():
+        raise SpecError(f"{option} {path} is a directory: expected a file name")
+    if f.exists():  # an existing file (or device) only needs to be writable itself
+        if not os.access(f, os.W_OK):
+            raise SpecError(f"{option} {path}: no permission to write it; expected a writable file")
+    else:
+        _output_dir(str(f.parent), f"the directory of {option}")
+    return f
 
 
 def _problem(spec: str):  # noqa: ANN202 - Problem
@@ -54,9 +151,12 @@ def _problem(spec: str):  # noqa: ANN202 - Problem
 def _cmd_design(a: argparse.Namespace) -> None:
     from fdisyn.runtime.gainfile import write_gain_file
 
+    opts = _options(a.option)
+    out = _output_dir(a.out, "--out")
     prob = _problem(a.spec)
-    gf = prob.design(a.design, **_options(a.option))
-    path = write_gain_file(gf, Path(a.out) / "gains.json")
+    gf = prob.design(a.design, **opts)
+    with _user_paths("a writable directory with room for gains.json", ("--out", out)):
+        path = write_gain_file(gf, out / "gains.json")
     what = f"{len(gf.generators)} generators" if gf.kind == "linear" else f"a {gf.kind} step with {gf.step.nstate} states"
     print(f"wrote {path} ({gf.name}: {what}, certificate passed)")
 
@@ -64,7 +164,10 @@ def _cmd_design(a: argparse.Namespace) -> None:
 def _cmd_codegen(a: argparse.Namespace) -> None:
     from fdisyn.design.codegen import codegen
 
-    res = codegen(a.dir)
+    if Path(a.dir).exists() and not Path(a.dir).is_dir():
+        raise SpecError(f"DIR {a.dir} is a file: expected the directory holding gains.json (fdisyn design --out DIR)")
+    with _user_paths("a writable directory holding gains.json", ("DIR", a.dir)):
+        res = codegen(a.dir)
     print(f"wrote {res.c_dir}/, {res.library}, {res.replay}")
 
 
@@ -93,12 +196,15 @@ def _cmd_replay(a: argparse.Namespace) -> None:
 def _cmd_simulate(a: argparse.Namespace) -> None:
     from fdisyn.runtime.trace import Trace, write_trace
 
+    opts = _options(a.option)
+    out = _output_file(a.out, "--out")
     prob = _problem(a.spec)
-    batch = prob.run(a.scenario, [a.seed], **_options(a.option))
+    batch = prob.run(a.scenario, [a.seed], **opts)
     extra = {k: np.asarray(v)[0] for k, v in batch.extra.items()}
     extra["fault_active"] = batch.active.astype(float)
     tr = Trace(t=batch.t, inputs=batch.inputs, outputs=batch.outputs, U=batch.U[0], Y=batch.Y[0], extra=extra)
-    write_trace(tr, a.out)
+    with _user_paths("a writable file with room for the trace", ("--out", out)):
+        write_trace(tr, out)
     print(f"wrote {a.out}: {len(tr.t)} samples of scenario {a.scenario!r}, seed {a.seed}")
 
 
@@ -109,24 +215,32 @@ def _workdir(a: argparse.Namespace, problem: str, design: str) -> Path:
 def _cmd_evaluate(a: argparse.Namespace) -> None:
     from fdisyn.design.evaluate import build, evaluate, progress_printer
 
-    prob = _problem(a.spec)
     opts = _options(a.option)
-    say = progress_printer(f"{prob.name}/{a.design or prob.default_design}")
+    out = _output_file(a.out, "--out")
+    _output_dir(a.workdir, "--workdir")
+    prob = _problem(a.spec)
+    prob.check_options(opts)  # refuse a bad option before designing and compiling
     design = a.design or prob.default_design
+    say = progress_printer(f"{prob.name}/{design}")
     say("designing, exporting and compiling")
-    built = {design: build(prob, design, _workdir(a, prob.name, design), **opts)}
+    with _user_paths("a writable directory with room for the build", ("--workdir", a.workdir)):
+        built = {design: build(prob, design, _workdir(a, prob.name, design), **opts)}
     ev = evaluate(prob, built, runs=a.runs, seed0=a.seed, progress=say, **opts)
     doc = ev.to_dict()
     doc["gain_file"] = built[design].gain_file.name
-    Path(a.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(a.out).write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
+    with _user_paths("a writable file with room for the metrics", ("--out", out)):
+        out.write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
     print(f"wrote {a.out}")
 
 
 def _cmd_report(a: argparse.Namespace) -> None:
     from fdisyn.design.pipeline import reproduce_problem
 
-    out = reproduce_problem(_problem(a.spec), runs=a.runs, reports=Path(a.reports), workdir=Path(a.workdir))
+    _output_dir(a.reports, "--reports")
+    _output_dir(a.workdir, "--workdir")
+    prob = _problem(a.spec)
+    with _user_paths("writable directories with room for the report", ("--reports", a.reports), ("--workdir", a.workdir)):
+        out = reproduce_problem(prob, runs=a.runs, reports=Path(a.reports), workdir=Path(a.workdir))
     print(f"wrote {out}")
 
 
@@ -134,9 +248,12 @@ def _cmd_reproduce(a: argparse.Namespace) -> None:
     from fdisyn.design.pipeline import reproduce_problem
     from fdisyn.design.problem import problem_names
 
-    specs = a.specs or problem_names()
-    for spec in specs:
-        out = reproduce_problem(_problem(spec), runs=a.runs, reports=Path(a.reports), workdir=Path(a.workdir))
+    _output_dir(a.reports, "--reports")
+    _output_dir(a.workdir, "--workdir")
+    problems = [_problem(spec) for spec in a.specs or problem_names()]  # every SPEC is checked before the long run
+    for prob in problems:
+        with _user_paths("writable directories with room for the reports", ("--reports", a.reports), ("--workdir", a.workdir)):
+            out = reproduce_problem(prob, runs=a.runs, reports=Path(a.reports), workdir=Path(a.workdir))
         print(f"wrote {out}")
 
 
@@ -144,9 +261,12 @@ def _cmd_bench(a: argparse.Namespace) -> None:
     from fdisyn.design.bench import run_bench
     from fdisyn.design.problem import problem_names
 
+    out = _output_file(a.out, "--out")
+    _output_dir(a.workdir, "--workdir")
     specs = a.specs or problem_names()
-    out = run_bench([_problem(s) for s in specs], out=Path(a.out), workdir=Path(a.workdir))
-    print(f"wrote {out}")
+    with _user_paths("a writable file and directory with room for the benchmark", ("--out", out), ("--workdir", a.workdir)):
+        path = run_bench([_problem(s) for s in specs], out=out, workdir=Path(a.workdir))
+    print(f"wrote {path}")
 
 
 def _cmd_list(a: argparse.Namespace) -> None:
@@ -161,8 +281,21 @@ def _cmd_list(a: argparse.Namespace) -> None:
             print(f"  options:   {', '.join(f'{k}={v!r}' for k, v in p.options.items())}")
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with the command line's error format: one line, status 2.
+
+    argparse prints the usage block and then ``prog: error: message``; here
+    only the last line is printed (``--help`` still shows the usage), so that
+    a usage error looks like every other error of the command.
+    """
+
+    def error(self, message: str) -> NoReturn:
+        print(f"{self.prog}: error: {message} (see {self.prog} --help)", file=sys.stderr)
+        raise SystemExit(2)
+
+
 def _parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(prog="fdisyn", description="Design FDI diagnosers as optimisation problems, export them as C, judge them.")
+    ap = _Parser(prog="fdisyn", description="Design FDI diagnosers as optimisation problems, export them as C, judge them.")
     sub = ap.add_subparsers(dest="command", required=True)
 
     def opt(p: argparse.ArgumentParser) -> None:
@@ -191,7 +324,7 @@ def _parser() -> argparse.ArgumentParser:
     p = sub.add_parser("simulate", help="simulate one run of a scenario to a trace CSV")
     p.add_argument("spec")
     p.add_argument("--scenario", required=True)
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=_seed, default=0, help="seed of the run, a whole number ≥ 0 (default 0)")
     p.add_argument("--out", required=True)
     opt(p)
     p.set_defaults(fn=_cmd_simulate)
@@ -199,8 +332,8 @@ def _parser() -> argparse.ArgumentParser:
     p = sub.add_parser("evaluate", help="Monte Carlo metrics of one design over every scenario")
     p.add_argument("spec")
     p.add_argument("--design", default=None)
-    p.add_argument("--runs", type=int, default=100)
-    p.add_argument("--seed", type=int, default=0, help="seed of the first run (default 0)")
+    p.add_argument("--runs", type=_runs, default=100, help="Monte Carlo runs per scenario, ≥ 1 (default 100)")
+    p.add_argument("--seed", type=_seed, default=0, help="seed of the first run, ≥ 0 (default 0)")
     p.add_argument("--out", required=True)
     opt(p)
     work(p)
@@ -212,7 +345,7 @@ def _parser() -> argparse.ArgumentParser:
             p.add_argument("specs", nargs="*")
         else:
             p.add_argument("spec")
-        p.add_argument("--runs", type=int, default=None, help="Monte Carlo runs per scenario (default: the problem's)")
+        p.add_argument("--runs", type=_runs, default=None, help="Monte Carlo runs per scenario, ≥ 1 (default: the problem's)")
         p.add_argument("--reports", default="reports", help="report folder (default: reports)")
         work(p)
         p.set_defaults(fn=fn)
@@ -228,13 +361,32 @@ def _parser() -> argparse.ArgumentParser:
     return ap
 
 
+def _one_line(text: object) -> str:
+    """``text`` on one line (a compiler's or solver's message may span several)."""
+    return " ".join(str(text).split())
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    args = _parser().parse_args(argv)
+    """Run one command; return its exit status (0, or 2 after a one-line error on stderr).
+
+    Warnings raised while the command runs (NumPy, SciPy, CasADi) are held
+    back: after an error the error line says what went wrong and they are
+    dropped; after success each distinct one is printed as one line
+    ``fdisyn <command>: warning: …``.
+    """
     try:
-        args.fn(args)
-    except FdisynError as exc:
-        print(f"fdisyn {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+        args = _parser().parse_args(argv)
+    except SystemExit as exc:  # a usage error (already printed as one line) or --help
+        return exc.code if isinstance(exc.code, int) else 2
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("default")
+        try:
+            args.fn(args)
+        except FdisynError as exc:
+            print(f"fdisyn {args.command}: error: {_one_line(exc)}", file=sys.stderr)
+            return 2
+    for text in dict.fromkeys(f"{w.category.__name__}: {_one_line(w.message)}" for w in caught):
+        print(f"fdisyn {args.command}: warning: {text}", file=sys.stderr)
     return 0
 
 

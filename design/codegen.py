@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import os
 import re
+import shlex
 import shutil
 import subprocess
 from collections.abc import Mapping
@@ -81,12 +82,38 @@ class CodegenResult:
     replay: Path
 
 
-def compiler() -> str:
-    """The C compiler: ``$CC`` if set, else ``gcc``; refuses when none is found."""
+_CC_WORD = re.compile(r"^[A-Za-z0-9_./+=:,@%-]+$")
+"""One word of ``$CC``: a command or a flag. Quotes, spaces inside words, ``$``,
+``;``, ``|``, ``&``, ``<``, ``>``, backquotes, globs and the like are refused:
+``CC`` comes from the environment, and although it is never given to a shell,
+a value that only makes sense to one is not a compiler."""
+
+
+def compiler() -> list[str]:
+    """The C compiler command: ``$CC`` if set (a command and its flags, e.g.
+    ``gcc -m32``), else ``gcc``.
+
+    ``$CC`` is split like a shell would (``shlex``) but never run by one: each
+    word must match :data:`_CC_WORD`, and the first must be an executable on
+    ``PATH`` (or a path to one). Returns the argument vector (command, then flags).
+    """
     cc = os.environ.get("CC", "gcc")
-    if shutil.which(cc) is None:
-        raise BuildError(f"no C compiler {cc!r} on PATH; install gcc or set CC to a C99 compiler")
-    return cc
+    try:
+        words = shlex.split(cc)
+    except ValueError as exc:
+        raise BuildError(f"CC={cc!r} is not a command: {exc}; expected a compiler and its flags, e.g. CC='gcc -m32'") from None
+    if not words:
+        raise BuildError("CC is set but empty; expected a C99 compiler, e.g. CC=gcc, or unset it")
+    bad = [w for w in words if not _CC_WORD.match(w)]
+    if bad:
+        raise BuildError(
+            f"CC={cc!r}: {bad[0]!r} is not a plain command or flag (letters, digits and _ . / + = : , @ % - only); "
+            "expected a compiler and its flags, e.g. CC='gcc -m32'"
+        )
+    if shutil.which(words[0]) is None:
+        where = f" (from CC={cc!r})" if len(words) > 1 else ""
+        raise BuildError(f"no C compiler {words[0]!r} on PATH{where}; install gcc or set CC to a C99 compiler")
+    return words
 
 
 def _c_double(x: float) -> str:
@@ -223,10 +250,32 @@ def generate_sources(gf: GainFile, c_dir: str | Path, *, step: ca.Function | Non
     return c_dir / f"{gf.name}.h"
 
 
-def _run(cmd: list[str], what: str) -> None:
-    proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
+def _run(argv: list[str], what: str) -> None:
+    """Run one compiler command (``argv``: :func:`compiler`'s words, then the arguments).
+
+    The compiler's output is written to ``build.log`` next to the first C
+    source of the command (``DIR/c/build.log``), replaced by every compile, and
+    a failure is one line naming the output, the first error and the log; no
+    shell is involved.
+    """
+    sources = [Path(a) for a in argv[1:] if a.endswith(".c")]
+    log = (sources[0].parent if sources else Path(what).parent) / "build.log"
+    try:
+        proc = subprocess.run(argv, capture_output=True, text=True, errors="replace", check=False)
+    except OSError as exc:
+        raise BuildError(f"cannot run the C compiler {argv[0]!r} to build {what}: {exc.strerror or exc}") from exc
+    record = f"$ {shlex.join(argv)}\n{proc.stdout}{proc.stderr}exit status {proc.returncode}\n"
+    try:
+        log.write_text(record, encoding="utf-8")
+        saved = f"the compiler's output is in {log}"
+    except OSError as exc:
+        saved = f"its output could not be saved to {log} ({exc.strerror or exc})"
     if proc.returncode != 0:
-        raise BuildError(f"compiling {what} failed ({' '.join(cmd)}):\n{proc.stderr.strip()}")
+        lines = (proc.stderr or proc.stdout).splitlines()
+        first = next((ln for ln in lines if "error" in ln.lower()), lines[0] if lines else "no output")
+        raise BuildError(
+            f"compiling {what} failed (exit status {proc.returncode}): {first.strip()[:200]}; {saved}"
+        )
 
 
 def compile_sources(gf: GainFile, c_dir: str | Path, out_dir: str | Path) -> tuple[Path, Path]:
@@ -242,9 +291,9 @@ def compile_sources(gf: GainFile, c_dir: str | Path, out_dir: str | Path) -> tup
     lib = out_dir / f"lib{gf.name}.so"
     replay = out_dir / "replay"
     wrapper = str(c_dir / f"{gf.name}.c")
-    _run([cc, *CFLAGS, "-fPIC", "-shared", wrapper, "-o", str(lib), "-lm"], str(lib))
+    _run([*cc, *CFLAGS, "-fPIC", "-shared", wrapper, "-o", str(lib), "-lm"], str(lib))
     write_manifest(lib, gain_file_sha256(gf))
-    _run([cc, *CFLAGS, str(c_dir / "replay.c"), wrapper, "-o", str(replay), "-lm"], str(replay))
+    _run([*cc, *CFLAGS, str(c_dir / "replay.c"), wrapper, "-o", str(replay), "-lm"], str(replay))
     return lib, replay
 
 
@@ -252,7 +301,7 @@ def compile_bench(gf: GainFile, c_dir: str | Path, out: str | Path) -> Path:
     """Compile the benchmark driver (``-O2`` like the library)."""
     check_diagnoser_name(gf.name, "name", error=GainFileError)
     c_dir, out = Path(c_dir).absolute(), Path(out).absolute()
-    _run([compiler(), *CFLAGS, str(c_dir / "bench.c"), str(c_dir / f"{gf.name}.c"), "-o", str(out), "-lm"], str(out))
+    _run([*compiler(), *CFLAGS, str(c_dir / "bench.c"), str(c_dir / f"{gf.name}.c"), "-o", str(out), "-lm"], str(out))
     return out
 
 

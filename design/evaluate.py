@@ -19,6 +19,7 @@ from fdisyn.design.codegen import CodegenResult, codegen
 from fdisyn.design.metrics import ScenarioMetrics, scenario_metrics
 from fdisyn.design.problem import Batch, Problem, Scenario
 from fdisyn.runtime.compiled import CompiledDiagnoser
+from fdisyn.runtime.errors import SpecError
 from fdisyn.runtime.gainfile import GainFile, write_gain_file
 from fdisyn.runtime.reference import RunResult
 
@@ -109,8 +110,10 @@ def evaluate(
     **options: Any,
 ) -> Evaluation:
     """Monte Carlo of every scenario through every built diagnoser's C step."""
-    if runs < 1:
-        raise ValueError(f"runs must be at least 1; got {runs}")
+    if isinstance(runs, bool) or not isinstance(runs, int) or runs < 1:
+        raise SpecError(f"runs must be a whole number ≥ 1; got {runs!r}")
+    if isinstance(seed0, bool) or not isinstance(seed0, int) or seed0 < 0:
+        raise SpecError(f"seed0 must be a whole number ≥ 0 (NumPy seeds are non-negative); got {seed0!r}")
     names = list(scenarios) if scenarios is not None else list(problem.scenarios)
     metrics: dict[str, dict[str, ScenarioMetrics]] = {d: {} for d in built}
     examples: dict[str, dict[str, RunResult]] = {d: {} for d in built}

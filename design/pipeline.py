@@ -22,7 +22,7 @@ import numpy as np
 from fdisyn.design.evaluate import Built, Evaluation, build, evaluate, progress_printer
 from fdisyn.design.problem import Problem
 from fdisyn.design.step import step_function
-from fdisyn.runtime.errors import CertificateError
+from fdisyn.runtime.errors import CertificateError, SpecError
 from fdisyn.runtime.gainfile import GainFile, linear_state_layout
 from fdisyn.runtime.reference import LinearReference, RunResult
 
@@ -175,7 +175,9 @@ def reproduce_problem(problem: Problem, *, runs: int | None = None, reports: Pat
     from fdisyn.design.report import write_report
 
     say = progress_printer(problem.name)
-    runs = runs or problem.monte_carlo_runs
+    runs = problem.monte_carlo_runs if runs is None else runs  # 0 is refused by evaluate, not replaced
+    if isinstance(runs, bool) or not isinstance(runs, int) or runs < 1:
+        raise SpecError(f"runs must be a whole number ≥ 1 (or None for the problem's {problem.monte_carlo_runs}); got {runs!r}")
     variants = [("default", {}, None)] + [(v["label"], v.get("options", {}), v.get("scenarios")) for v in problem.variants]
     results = []
     for label, opts, scen in variants:

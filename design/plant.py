@@ -151,19 +151,21 @@ class LinearPlant:
         return self.Ts is not None
 
     # transformations --------------------------------------------------------
-    def discretise(self, Ts: float) -> LinearPlant:
+    def discretise(self, Ts: float, *, name: str = "Ts") -> LinearPlant:
         """Exact ZOH sampling of a continuous plant.
 
         ``A_D = e^{A Ts}``; ``B``, ``E`` and ``Fx`` become step-invariant
         (inputs, disturbances and faults held over the sample); ``Q`` becomes
         the covariance of the sampled process noise (Van Loan); ``C``, ``D``,
-        ``R`` are unchanged (sensors are sampled).
+        ``R`` are unchanged (sensors are sampled). A sample time so long that
+        ``e^{±A Ts}`` overflows is refused naming ``name`` (the key the caller
+        read it from) and the bound.
         """
         if self.is_discrete:
             raise ShapeError(f"the plant is already discrete (Ts = {self.Ts}); discretise a continuous plant")
-        ts = check_sample_time(Ts)
+        ts = check_sample_time(Ts, name)
         held = np.hstack([self.B, self.E, self.Fx])
-        ad, bd_all = zoh(self.A, held, ts)
+        ad, bd_all = zoh(self.A, held, ts, name=name)
         m, q = self.m, self.q
         return replace(
             self,
@@ -171,7 +173,7 @@ class LinearPlant:
             B=frozen_array(bd_all[:, :m]),
             E=frozen_array(bd_all[:, m : m + q]),
             Fx=frozen_array(bd_all[:, m + q :]),
-            Q=frozen_array(van_loan(self.A, self.Q, ts)),
+            Q=frozen_array(van_loan(self.A, self.Q, ts, name=name)),
             Ts=ts,
         )
 

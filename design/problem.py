@@ -11,6 +11,7 @@ code and never the other way round.
 from __future__ import annotations
 
 import importlib
+import math
 import pkgutil
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -20,7 +21,56 @@ import numpy as np
 from fdisyn.runtime.errors import SpecError
 from fdisyn.runtime.gainfile import GainFile
 
-__all__ = ["Scenario", "Batch", "Problem", "get_problem", "problem_names"]
+__all__ = ["Scenario", "Batch", "Problem", "get_problem", "problem_names", "OPTION_RULES", "check_option", "short_repr"]
+
+
+def short_repr(value: Any, limit: int = 60) -> str:
+    """``repr(value)`` cut to ``limit`` characters: error messages stay one readable line
+    whatever a user passed (``repr`` already escapes newlines)."""
+    text = repr(value)
+    return text if len(text) <= limit else text[: limit - 1] + "…"
+
+
+def _is_real(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def _is_count(v: Any) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool) and v >= 1
+
+
+OPTION_RULES: Mapping[str, tuple[str, Callable[[Any], bool]]] = {
+    "P_f": ("a false-alarm probability per statistic and sample: a number in (0, 1)", lambda v: _is_real(v) and 0.0 < v < 1.0),
+    "persistence": ("a whole number ≥ 1 of consecutive exceedances", _is_count),
+    "window": ("a whole number of samples ≥ 1", _is_count),
+}
+"""Options several problems share, with their domains. Values arrive as JSON
+from ``--option KEY=VALUE`` or from a plant file, so each is checked here
+rather than converted (``int(1.5)`` would silently become 1). Any other option
+must have the type of its default."""
+
+
+def check_option(key: str, value: Any, default: Any, where: str) -> Any:
+    """Validate one option value against :data:`OPTION_RULES` or, for other
+    options, the type of its default; return it (ints accepted for floats).
+
+    Raises :class:`SpecError` naming ``where``, the value and what is expected.
+    """
+    if key in OPTION_RULES:
+        what, ok = OPTION_RULES[key]
+    elif isinstance(default, bool):
+        what, ok = "true or false", lambda v: isinstance(v, bool)
+    elif isinstance(default, int):
+        what, ok = "a whole number", lambda v: isinstance(v, int) and not isinstance(v, bool)
+    elif isinstance(default, float):
+        what, ok = "a finite number", lambda v: _is_real(v) and math.isfinite(v)
+    elif isinstance(default, str):
+        what, ok = f"a string such as {default!r}", lambda v: isinstance(v, str)
+    else:
+        return value
+    if not ok(value):
+        raise SpecError(f"{where} = {short_repr(value)}: expected {what}")
+    return float(value) if isinstance(default, float) else value
 
 
 @dataclass(frozen=True)
@@ -118,14 +168,22 @@ class Problem:
         return self.scenarios[name]
 
     def run(self, scenario: str | Scenario, seeds: Sequence[int], **options: Any) -> Batch:
+        """Simulate ``scenario`` once per seed; seeds are whole numbers ≥ 0 (NumPy's
+        generators refuse negative ones, and a float seed would be truncated)."""
         sc = self.scenario(scenario) if isinstance(scenario, str) else scenario
+        bad = [s for s in seeds if isinstance(s, bool) or not isinstance(s, (int, np.integer)) or s < 0]
+        if bad:
+            raise SpecError(f"seeds must be whole numbers ≥ 0; got {short_repr(bad)}")
         return self.simulate(sc, tuple(int(s) for s in seeds), **self.check_options(options))
 
     def check_options(self, options: Mapping[str, Any]) -> dict[str, Any]:
+        """The problem's defaults updated by ``options``, each value validated by
+        :func:`check_option` (unknown names are refused with the list of known ones)."""
         unknown = sorted(set(options) - set(self.options))
         if unknown:
             raise SpecError(f"problem {self.name!r} has no option(s) {unknown}; options: {dict(self.options)}")
-        return {**self.options, **options}
+        checked = {k: check_option(k, v, self.options[k], f"problem {self.name!r}: option {k}") for k, v in options.items()}
+        return {**self.options, **checked}
 
 
 def problem_names() -> list[str]:
@@ -141,7 +199,13 @@ def problem_names() -> list[str]:
 
 
 def get_problem(name: str) -> Problem:
-    """The built-in problem ``name`` (error lists the valid names)."""
+    """The built-in problem ``name`` (error lists the valid names).
+
+    Only a plain identifier is looked up: the name becomes a module path, and a
+    dotted or empty one would import something else or fail inside importlib.
+    """
+    if not name.isidentifier():
+        raise SpecError(f"no built-in problem {name!r} (and no plant file by that name); problems: {problem_names()}")
     try:
         mod = importlib.import_module(f"fdisyn.problems.{name}")
     except ModuleNotFoundError:

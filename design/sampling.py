@@ -13,7 +13,7 @@ import scipy.linalg as sla
 from fdisyn.design.linalg import as_matrix
 from fdisyn.runtime.errors import ShapeError
 
-__all__ = ["zoh", "van_loan", "check_sample_time"]
+__all__ = ["zoh", "van_loan", "check_sample_time", "EXP_LIMIT"]
 
 
 def check_sample_time(h: float, name: str = "Ts") -> float:
@@ -27,7 +27,32 @@ def check_sample_time(h: float, name: str = "Ts") -> float:
     return hf
 
 
-def zoh(a: np.ndarray, b: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
+EXP_LIMIT = float(np.log(np.finfo(float).max))
+"""≈ 709.8: ``e^x`` overflows a double beyond it. Sampling computes ``e^{±A h}``,
+so ``max |Re λ(A)| · h`` must stay below it."""
+
+
+def _expm(big: np.ndarray, a: np.ndarray, h: float, name: str) -> np.ndarray:
+    """``expm(big · h)``, refused by name when it overflows.
+
+    ``big`` holds ``A`` (and, for Van Loan, ``−A``): a sample time so long that
+    ``e^{|Re λ| h}`` exceeds the largest double gives infinities (and NumPy
+    warnings) instead of a model. The error names ``name`` and its bound
+    ``h ≤ EXP_LIMIT / max |Re λ(A)|``.
+    """
+    with np.errstate(over="ignore", invalid="ignore"):
+        e = sla.expm(big * h)
+    if not np.all(np.isfinite(e)):
+        rate = float(np.max(np.abs(np.linalg.eigvals(a).real), initial=0.0)) if np.all(np.isfinite(a)) else float("inf")
+        bound = EXP_LIMIT / rate if rate > 0 else float("inf")
+        raise ShapeError(
+            f"{name} = {h:g} s is too long to sample this model: e^(±A·{name}) overflows (the fastest mode has "
+            f"|Re λ| = {rate:.4g} 1/s, and |Re λ|·{name} = {rate * h:.3g} > {EXP_LIMIT:.0f}); expected {name} < {bound:.4g} s"
+        )
+    return e
+
+
+def zoh(a: np.ndarray, b: np.ndarray, h: float, *, name: str = "Ts") -> tuple[np.ndarray, np.ndarray]:
     """Step-invariant sampling: ``A_D = e^{A h}``, ``B_D = ∫₀ʰ e^{Aτ} dτ B``.
 
     Computed from one matrix exponential of ``[[A, B], [0, 0]] h`` (exact up to
@@ -35,7 +60,7 @@ def zoh(a: np.ndarray, b: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]
     such as a free rigid-body mode is fine). Seed 004 writes ``B_D`` as
     ``B_uD``; seed 000 needs it for its ZOH model (SEEDS.md 000, erratum (c)).
     """
-    h = check_sample_time(h)
+    h = check_sample_time(h, name)
     a = as_matrix(a, "A")
     n = a.shape[0]
     b = as_matrix(b, "B", rows=n)
@@ -43,18 +68,18 @@ def zoh(a: np.ndarray, b: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]
     big = np.zeros((n + m, n + m))
     big[:n, :n] = a
     big[:n, n:] = b
-    e = sla.expm(big * h)
+    e = _expm(big, a, h, name)
     return e[:n, :n], e[:n, n:]
 
 
-def van_loan(a: np.ndarray, w: np.ndarray, h: float) -> np.ndarray:
+def van_loan(a: np.ndarray, w: np.ndarray, h: float, *, name: str = "Ts") -> np.ndarray:
     """``∫₀ʰ e^{Aτ} W e^{Aᵀτ} dτ`` by Van Loan's block exponential.
 
     With ``W = B Bᵀ`` this is ``B_J B_Jᵀ`` of seed 004, Lemma 1; with ``W`` the
     intensity of continuous white noise it is the covariance of the sampled
     noise ``w_k = ∫ e^{A(h−τ)} dW`` (Van Loan, IEEE TAC 23(3), 1978).
     """
-    h = check_sample_time(h)
+    h = check_sample_time(h, name)
     a = as_matrix(a, "A")
     n = a.shape[0]
     w = as_matrix(w, "W", rows=n, cols=n)
@@ -62,7 +87,7 @@ def van_loan(a: np.ndarray, w: np.ndarray, h: float) -> np.ndarray:
     big[:n, :n] = -a
     big[:n, n:] = w
     big[n:, n:] = a.T
-    e = sla.expm(big * h)
+    e = _expm(big, a, h, name)
     phi22 = e[n:, n:]  # e^{Aᵀh}
     q = phi22.T @ e[:n, n:]
     return 0.5 * (q + q.T)

@@ -49,7 +49,7 @@ names are accepted too: ``Bu``, ``Bd``, ``Bf`` and ``h`` for ``B``, ``E``,
     inputs = [{ kind = "sine", amplitude = 1.0, period = 10.0 }]      # one per input
     unknown_inputs = [{ kind = "gauss_markov", amplitude = 0.5, period = 2.0 }]
 
-    [[scenarios]]                     # faulty scenarios (a fault-free one is always added)
+    [[scenarios]]                     # faulty scenarios (a fault-free one, "fault_free", is always added)
     name = "y1_offset"
     duration = 100.0
     fault = "y1"                      # the fault class the diagnoser should isolate
@@ -57,6 +57,10 @@ names are accepted too: ``Bu``, ``Bd``, ``Bf`` and ``h`` for ``B``, ``E``,
     end = 80.0                        # optional
     sensor_faults = [{ sensor = "y1", kind = "offset", value = 0.5 }]   # stuck | gain | offset | drift
     component_faults = [{ fault = "f", value = 10.0 }]                   # a step of the fault input
+
+Every duration lasts at least one sample and at most 10⁶ samples
+(:data:`MAX_SAMPLES`); a scenario with a fault has an onset inside it (and an
+end after the onset), and scenario names are unique.
 
 Signal kinds: constant (offset), step (offset, amplitude, start), sine (offset,
 amplitude, period), square (offset ± amplitude, period), prbs (offset,
@@ -111,11 +115,11 @@ from fdisyn.design.certificate import Certificate
 from fdisyn.design.diagnoser import FaultClass, default_fault_classes, linear_diagnoser
 from fdisyn.design.lmi import lmi_diagnostic_observer
 from fdisyn.design.plant import LinearPlant
-from fdisyn.design.problem import Batch, Problem, Scenario, get_problem
+from fdisyn.design.problem import Batch, Problem, Scenario, check_option, get_problem, short_repr
 from fdisyn.design.residual import embed_outputs, residual_covariance
-from fdisyn.design.sampled_data import SampledDataPlant, optimal_diagnostic_observer
+from fdisyn.design.sampled_data import ETAS, SampledDataPlant, optimal_diagnostic_observer
 from fdisyn.design.sampling import van_loan
-from fdisyn.design.simulate import SensorFaultSpec, Signal, simulate_linear
+from fdisyn.design.simulate import SENSOR_FAULT_KINDS, SensorFaultSpec, Signal, simulate_linear
 from fdisyn.design.uio import kalman_uio, pole_placement_uio
 from fdisyn.runtime.errors import FdisynError, ShapeError, SpecError
 from fdisyn.runtime.gainfile import GainFile, Generator
@@ -202,21 +206,44 @@ def register_method(name: str, fn: MethodFn, *, keys: tuple[str, ...] = ()) -> N
 
 
 def load_spec(spec: str | Path) -> Problem:
-    """A built-in problem by name, or the problem a ``.toml`` file describes."""
+    """A built-in problem by name, or the problem a ``.toml`` file describes.
+
+    ``SPEC`` comes from the command line: a path that exists but is not a file
+    (a directory, a device) is refused by name instead of being looked up as a
+    problem, and a string no file system accepts (a NUL byte, a name too long)
+    is an unknown problem, not an OSError.
+    """
     s = str(spec)
-    if s.endswith(".toml") or Path(s).is_file():
+    try:
+        is_file, exists = Path(s).is_file(), Path(s).exists()
+    except (OSError, ValueError):
+        is_file = exists = False
+    if s.endswith(".toml") or is_file:
         return problem_from_toml(Path(s))
+    if exists and s.strip():  # "" is the current directory to pathlib, but no SPEC at all
+        raise SpecError(f"{s} is not a file: SPEC must be a TOML plant file or a built-in problem name (fdisyn list)")
     return get_problem(s)
+
+
+MAX_SAMPLES = 10**6
+"""Most samples one simulated run of a plant file may have. A run is simulated,
+diagnosed and kept whole in memory: the Monte Carlo simulates 25 runs at a
+time with every state, input, output and noise sample (8 bytes each), so at
+10⁶ samples a ten-signal plant already needs ~2 GB per batch. Longer
+durations are refused where they are read instead of failing in NumPy's
+allocator."""
 
 
 class _Section:
     def __init__(self, doc: Any, where: str, allowed: set[str]) -> None:
         if not isinstance(doc, Mapping):
-            raise SpecError(f"{where} must be a table (key = value pairs), got {doc!r}")
+            raise SpecError(f"{where} must be a table (key = value pairs), got {short_repr(doc)}")
         unknown = sorted(set(doc) - allowed)
         if unknown:
             raise SpecError(f"{where}: unknown key(s) {unknown}; allowed: {sorted(allowed)}")
         self.doc, self.where = doc, where
+        self.aliases: dict[str, str] = {}
+        """Key read → key the file wrote (``Bu``, ``Bd``, ``Bf``, ``h``), for error messages."""
 
     def get(self, key: str, default: Any = None, *, required: bool = False) -> Any:
         if key not in self.doc:
@@ -232,44 +259,66 @@ class _Section:
             raise SpecError(f"{self.where}.{key} must be a list, got {v!r}")
         return v
 
-    def duration(self, key: str, default: float | None = None) -> float:
-        """A positive, finite length of time (required when ``default`` is None)."""
+    def duration(self, key: str, default: float | None = None, *, Ts: float | None = None) -> float:
+        """A positive, finite length of time (required when ``default`` is None).
+
+        With the sample time ``Ts``: at least one sample (a shorter run has no
+        data to diagnose) and at most :data:`MAX_SAMPLES` samples.
+        """
         v = self.number(key, default, required=default is None)
-        if v is None or not np.isfinite(v) or v <= 0:
+        if v is None or v <= 0:
             raise SpecError(f"{self.where}.{key} must be a positive, finite time, got {v!r}")
+        if Ts is not None:
+            samples = v / Ts
+            if samples < 1.0 - 1e-9:  # 1e-9: a duration written as exactly Ts may round below it
+                raise SpecError(f"{self.where}.{key} = {v:g} s is shorter than one sample: expected at least Ts = {Ts:g} s")
+            if samples > MAX_SAMPLES:
+                raise SpecError(
+                    f"{self.where}.{key} = {v:g} s is {samples:.3g} samples at Ts = {Ts:g} s: "
+                    f"expected at most {MAX_SAMPLES:.0e} samples per run ({MAX_SAMPLES * Ts:g} s)"
+                )
         return v
 
     def number(self, key: str, default: float | None = None, *, required: bool = False) -> float | None:
+        """A finite number (TOML's ``nan`` and ``inf`` are refused: no setting of a
+        plant file means either, and a NaN would pass every ``<`` check after it)."""
         v = self.get(key, default, required=required)
         if v is None:
             return None
         if isinstance(v, bool) or not isinstance(v, (int, float)):
-            raise SpecError(f"{self.where}.{key} must be a number, got {v!r}")
+            raise SpecError(f"{self.where}.{key} must be a number, got {short_repr(v)}")
+        if not np.isfinite(v):
+            raise SpecError(f"{self.where}.{key} must be a finite number, got {v!r}")
         return float(v)
 
     def vector(self, key: str, size: int) -> np.ndarray:
-        """A list of ``size`` numbers (default: zeros)."""
+        """A list of ``size`` finite numbers (default: zeros)."""
         v = self.get(key, [0.0] * size)
         try:
             a = np.asarray(v, dtype=float)
         except (TypeError, ValueError):
-            raise SpecError(f"{self.where}.{key} must be a list of {size} numbers, got {v!r}") from None
+            raise SpecError(f"{self.where}.{key} must be a list of {size} numbers, got {short_repr(v)}") from None
         if a.shape != (size,):
             raise SpecError(f"{self.where}.{key} must have {size} entries, got {a.size}")
+        if not np.all(np.isfinite(a)):
+            raise SpecError(f"{self.where}.{key} must hold finite numbers, got {short_repr(v)}")
         return a
 
     def matrix(self, key: str, *, required: bool = False) -> np.ndarray | None:
+        """A matrix of numbers (a list of rows; a plain list is one column of an
+        input matrix or one row otherwise); errors name the key the file wrote."""
         v = self.get(key, None, required=required)
         if v is None:
             return None
+        label = f"{self.where}.{self.aliases.get(key, key)}"
         try:
             a = np.asarray(v, dtype=float)
         except (TypeError, ValueError):
-            raise SpecError(f"{self.where}.{key} must be a matrix of numbers (a list of rows)") from None
+            raise SpecError(f"{label} must be a matrix of numbers (a list of rows), got {short_repr(v)}") from None
         if a.ndim == 1:
             a = a.reshape(-1, 1) if key in ("B", "E", "Fx") else a.reshape(1, -1)
         if a.ndim != 2:
-            raise SpecError(f"{self.where}.{key} must be a matrix (a list of rows), got {a.ndim} dimensions")
+            raise SpecError(f"{label} must be a matrix (a list of rows), got {short_repr(v)}")
         return a
 
 
@@ -277,12 +326,16 @@ def _signal(d: Any, where: str) -> Signal:
     if not isinstance(d, Mapping):
         raise SpecError(f"{where} must be a table like {{ kind = \"sine\", amplitude = 1.0, period = 10.0 }}")
     sec = _Section(d, where, {"kind", "offset", "amplitude", "period", "start"})
+    kind = sec.get("kind", "constant")
+    if kind not in Signal.KINDS:
+        raise SpecError(f"{where}.kind must be one of {list(Signal.KINDS)}, got {short_repr(kind)}")
+    # every value is read as written: 0 is a value, not "use the default"
     return Signal(
-        kind=str(sec.get("kind", "constant")),
-        offset=sec.number("offset", 0.0) or 0.0,
-        amplitude=sec.number("amplitude", 0.0) or 0.0,
-        period=sec.number("period", 1.0) or 1.0,
-        start=sec.number("start", 0.0) or 0.0,
+        kind=kind,
+        offset=float(sec.number("offset", 0.0)),  # type: ignore[arg-type]
+        amplitude=float(sec.number("amplitude", 0.0)),  # type: ignore[arg-type]
+        period=sec.duration("period", 1.0),
+        start=float(sec.number("start", 0.0)),  # type: ignore[arg-type]
     )
 
 
@@ -292,6 +345,10 @@ def problem_from_toml(path: Path) -> Problem:
         doc = tomllib.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise SpecError(f"no plant file at {path}") from None
+    except UnicodeDecodeError as exc:
+        raise SpecError(f"{path} is not a text file (byte {exc.start} is not UTF-8): a TOML plant file is expected") from None
+    except OSError as exc:
+        raise SpecError(f"cannot read plant file {path}: {exc.strerror or exc}") from None
     except tomllib.TOMLDecodeError as exc:
         raise SpecError(f"{path} is not valid TOML: {exc}") from exc
     return problem_from_document(doc, path)
@@ -319,20 +376,25 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
             raise SpecError(f"{path} [model] gives both {ours!r} and {theirs!r}: they are the same matrix, give one")
         if ours in mod.doc:
             mod.doc = {**mod.doc, theirs: mod.doc[ours]}
+            mod.aliases[theirs] = ours
     time = mod.get("time", "continuous")
     if time not in ("continuous", "discrete"):
-        raise SpecError(f"{path} [model].time must be 'continuous', 'discrete' or 'nonlinear', got {time!r}")
+        raise SpecError(f"{path} [model].time must be 'continuous', 'discrete' or 'nonlinear', got {short_repr(time)}")
     ts = mod.number("Ts", required=True)
+    if ts is None or ts <= 0:  # number() has refused NaN and ±inf
+        raise SpecError(f"{path} [model].{mod.aliases.get('Ts', 'Ts')} must be a positive sample time in seconds, got {ts!r}")
+    # read (and name) every matrix first: a wrong one is reported once, by the key the file wrote
+    mats = {k: mod.matrix(k, required=k in ("A", "C")) for k in ("A", "B", "C", "D", "E", "Fx", "Q", "R")}
     try:
         plant = LinearPlant.create(
-            A=mod.matrix("A", required=True),
-            B=mod.matrix("B"),
-            C=mod.matrix("C", required=True),
-            D=mod.matrix("D"),
-            E=mod.matrix("E"),
-            Fx=mod.matrix("Fx"),
-            Q=mod.matrix("Q"),
-            R=mod.matrix("R"),
+            A=mats["A"],
+            B=mats["B"],
+            C=mats["C"],
+            D=mats["D"],
+            E=mats["E"],
+            Fx=mats["Fx"],
+            Q=mats["Q"],
+            R=mats["R"],
             Ts=ts if time == "discrete" else None,
             states=sig.get("states"),
             inputs=sig.get("inputs"),
@@ -340,16 +402,39 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
             outputs=sig.get("outputs"),
             component_faults=sig.get("component_faults"),
         )
-        physical = plant if time == "discrete" else plant.discretise(ts)  # type: ignore[arg-type]
+        physical = plant if time == "discrete" else plant.discretise(ts, name=mod.aliases.get("Ts", "Ts"))
     except FdisynError as exc:
         raise SpecError(f"{path} [model]: {exc}") from exc
     scale = mod.get("state_scale")
-    design_plant = physical.scaled(scale) if scale is not None else physical
+    try:
+        design_plant = physical.scaled(scale) if scale is not None else physical
+    except FdisynError as exc:
+        raise SpecError(f"{path} [model].state_scale: {exc}") from exc
     des = _Section(top.get("design", {}), f"{path} [design]", set(_DESIGN_KEYS))
-    method = str(des.get("method", "kalman_uio"))
-    if method not in LINEAR_METHODS:
-        raise SpecError(f"{path} [design].method {method!r} is not one of {sorted(LINEAR_METHODS)}")
+    method = des.get("method", "kalman_uio")
+    if not isinstance(method, str) or method not in LINEAR_METHODS:
+        raise SpecError(f"{path} [design].method {short_repr(method)} is not one of {sorted(LINEAR_METHODS)}")
     _diagnoser_name(name, method, path)
+    white = method in ("sampled_data_observer", "lmi")
+    if white and time != "continuous":
+        raise SpecError(f"{path} [design].method {method!r} designs for a continuous plant sampled at Ts: set [model].time = \"continuous\"")
+    if white and not np.any(plant.E):
+        raise SpecError(
+            f"{path} [model].{mod.aliases.get('E', 'E')} is zero: method {method!r} normalises by the disturbance's effect "
+            "on the outputs (Qiu, Wen & Jiang, Control Theory & Applications, 2010, eq. (19)), so it needs a nonzero "
+            "disturbance direction; or use a UIO method"
+        )
+    P_f = check_option("P_f", des.get("P_f", 1e-3), 1e-3, f"{path} [design].P_f")
+    persistence = check_option("persistence", des.get("persistence", 1), 1, f"{path} [design].persistence")
+    for key, users in (("poles", ("uio_pole_placement",)), ("eta", ("lmi",)), ("sampling", ("sampled_data_observer",))):
+        if key in des.doc and method not in users:
+            raise SpecError(f"{path} [design].{key} is read only by method {users[0]!r}, not by {method!r}: remove it")
+    if method == "uio_pole_placement":
+        _poles(des.get("poles", required=True), design_plant.n, f"{path} [design].poles")
+    if "eta" in des.doc and des.get("eta") not in ETAS:
+        raise SpecError(f"{path} [design].eta must be one of {list(ETAS)} (the fault measure), got {short_repr(des.get('eta'))}")
+    if "sampling" in des.doc and des.get("sampling") not in ("direct", "indirect"):
+        raise SpecError(f"{path} [design].sampling must be 'direct' (Theorem 1) or 'indirect' (ZOH first), got {short_repr(des.get('sampling'))}")
     groups = des.entries("bank") or [list(physical.outputs)]
     bank = []
     for gi, g in enumerate(groups):
@@ -369,7 +454,10 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
                 continuous=None if continuous_plant is None else continuous_plant.scaled(scale) if scale is not None else continuous_plant,
                 options=design_opts,
             )
-            gen, sig, cert = LINEAR_METHODS[method](ctx)
+            try:
+                gen, sig, cert = LINEAR_METHODS[method](ctx)
+            except FdisynError as exc:  # the same error, naming the group of the bank it concerns
+                raise type(exc)(f"{path} [design].bank[{gi}]: {exc}") from exc
             gens.append(gen)
             sigmas.append(sig)
             certs.append(cert)
@@ -380,10 +468,10 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
             plant=design_plant,
             generators=gens,
             sigma_r=sigmas,
-            P_f=float(des.number("P_f", 1e-3) or 1e-3),
+            P_f=P_f,
             faults=listed if listed is not None else default_fault_classes(design_plant, gens),
             certificates=certs,
-            persistence=int(des.get("persistence", 1)),
+            persistence=persistence,
             options={"spec": str(path), "method": method, **design_opts},
         )
 
@@ -395,16 +483,26 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
     if len(u_sigs) != physical.m or len(d_sigs) != physical.q:
         raise SpecError(f"{path} [simulation]: {physical.m} input and {physical.q} unknown-input signals at most")
     x0 = sim.vector("x0", physical.n)
-    scenarios = {"fault_free": Scenario("fault_free", "No fault.", sim.duration("duration", 100.0))}
+    scenarios = {"fault_free": Scenario("fault_free", "No fault.", sim.duration("duration", 100.0, Ts=ts))}
     sources = set(physical.outputs) | set(physical.component_faults)
+    known = {f.name for f in listed} if listed is not None else None
+    first: dict[str, int] = {}
     for i, sd in enumerate(top.entries("scenarios")):
         w = f"{path} [[scenarios]][{i}]"
         sc = _Section(sd, w, {"name", "description", "duration", "fault", "onset", "end", "sensor_faults", "component_faults"})
+        sname = sc.get("name", required=True)
+        if sname == "fault_free":
+            raise SpecError(f"{w}.name 'fault_free' is the built-in fault-free scenario ([simulation]); choose another name")
+        if isinstance(sname, str) and sname in first:
+            raise SpecError(f"{w}.name {sname!r} is already the name of [[scenarios]][{first[sname]}]; scenario names must be unique")
+        sname = _scenario_name(sname, scenarios, w)
+        first[sname] = i
         fname = sc.get("fault")
         # a listed class, or (default classes) a sensor/component name or a merged "a|b" group of them
-        known = {f.name for f in listed} if listed is not None else None
-        if fname is not None and (fname not in known if known is not None else not set(str(fname).split("|")) <= sources):
-            raise SpecError(f"{w}.fault {fname!r} is not a fault class; classes: {sorted(known or sources)}")
+        if fname is not None and (
+            not isinstance(fname, str) or (fname not in known if known is not None else not set(fname.split("|")) <= sources)
+        ):
+            raise SpecError(f"{w}.fault {short_repr(fname)} is not a fault class; classes: {sorted(known or sources)}")
         cfs = []
         for j, f in enumerate(sc.entries("component_faults")):
             fs = _Section(f, f"{w}.component_faults[{j}]", {"fault", "value"})
@@ -415,24 +513,28 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
         sfs = []
         for j, f in enumerate(sc.entries("sensor_faults")):
             fs = _Section(f, f"{w}.sensor_faults[{j}]", {"sensor", "kind", "value"})
-            sensor = str(fs.get("sensor", required=True))
-            physical.output_index(sensor)
-            sfs.append(SensorFaultSpec(sensor, str(fs.get("kind", required=True)), float(fs.number("value", required=True))))  # type: ignore[arg-type]
-        scen = Scenario(
-            name=_scenario_name(sc.get("name", required=True), scenarios, w),
+            sensor, kind = fs.get("sensor", required=True), fs.get("kind", required=True)
+            if sensor not in physical.outputs:
+                raise SpecError(f"{w}.sensor_faults[{j}].sensor {short_repr(sensor)} is not an output; outputs are {list(physical.outputs)}")
+            if kind not in SENSOR_FAULT_KINDS:
+                raise SpecError(f"{w}.sensor_faults[{j}].kind must be one of {list(SENSOR_FAULT_KINDS)}, got {short_repr(kind)}")
+            sfs.append(SensorFaultSpec(sensor, kind, float(fs.number("value", required=True))))  # type: ignore[arg-type]
+        duration = sc.duration("duration", Ts=ts)
+        onset, end = sc.number("onset"), sc.number("end")
+        _check_fault_window(w, fname, onset, end, duration, bool(cfs or sfs))
+        scenarios[sname] = Scenario(
+            name=sname,
             description=str(sc.get("description", "")),
-            duration=sc.duration("duration"),
+            duration=duration,
             fault=fname,
-            onset=sc.number("onset"),
-            end=sc.number("end"),
+            onset=onset,
+            end=end,
             params={"sensor_faults": sfs, "component_faults": cfs},
         )
-        scenarios[scen.name] = scen
 
-    white = method in ("sampled_data_observer", "lmi")
     if white:
         # seed 004's disturbance: continuous white noise of unit intensity, sampled exactly into the process noise
-        w_d = van_loan(np.asarray(plant.A), np.asarray(plant.E) @ np.asarray(plant.E).T, float(ts))  # type: ignore[arg-type]
+        w_d = van_loan(np.asarray(plant.A), np.asarray(plant.E) @ np.asarray(plant.E).T, ts)
         sim_plant = physical.with_noise(Q=np.asarray(physical.Q) + w_d)
         d_sigs = [Signal()] * physical.q
     else:
@@ -451,6 +553,37 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
         simulate=simulate,
         monte_carlo_runs=50,
     )
+
+
+def _poles(value: Any, n: int, where: str) -> list[float]:
+    """``[design].poles``: ``n`` real numbers strictly inside the unit circle (one per state).
+
+    TOML has no complex numbers, so complex pairs cannot be written; a string or
+    a nested list would otherwise reach NumPy's ``complex()`` and fail there.
+    """
+    if not isinstance(value, list) or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in value):
+        raise SpecError(f"{where} must be a list of {n} real numbers inside (-1, 1), one per state; got {short_repr(value)}")
+    if len(value) != n:
+        raise SpecError(f"{where} must have {n} poles (one per state), got {len(value)}")
+    if not all(np.isfinite(x) and abs(x) < 1.0 for x in value):
+        raise SpecError(f"{where} must lie strictly inside the unit circle (a discrete observer's poles), got {value}")
+    return [float(x) for x in value]
+
+
+def _check_fault_window(where: str, fault: str | None, onset: float | None, end: float | None, duration: float, injects: bool) -> None:
+    """A faulty scenario's fault is active on ``onset ≤ t < end``; anything else in
+    a scenario would be silently ignored (faults without a window never act, a
+    window without a fault class is never evaluated) or never happen."""
+    if injects and fault is None:
+        raise SpecError(f"{where}: sensor_faults and component_faults act only while the fault is active: give fault (the class to isolate) and onset")
+    if fault is not None and onset is None:
+        raise SpecError(f"{where}: fault {fault!r} needs an onset (the time in seconds it starts)")
+    if fault is None and (onset is not None or end is not None):
+        raise SpecError(f"{where}: onset and end belong to a fault: give fault (the class to isolate) or remove them")
+    if onset is not None and not 0.0 <= onset < duration:
+        raise SpecError(f"{where}.onset = {onset:g} s must lie in [0, duration = {duration:g} s)")
+    if onset is not None and end is not None and end <= onset:
+        raise SpecError(f"{where}.end = {end:g} s must come after onset = {onset:g} s")
 
 
 def _faults(spec: Any, plant: LinearPlant, where: str) -> list[FaultClass]:
@@ -572,6 +705,8 @@ def _nonlinear_problem(path: Path, top: _Section, name: str) -> Problem:
     for key in ("f", "h", "nominal"):
         if not isinstance(mod.get(key, required=True), Mapping):
             raise SpecError(f"{path} [model].{key} must be a table such as {{ x = \"...\" }}")
+    if not isinstance(mod.get("constants", {}), Mapping):
+        raise SpecError(f"{path} [model].constants must be a table such as {{ g = 9.81 }}, got {short_repr(mod.get('constants'))}")
     try:
         plant = NonlinearPlant.from_expressions(
             states=names["states"],
@@ -627,7 +762,7 @@ def _nonlinear_problem(path: Path, top: _Section, name: str) -> Problem:
         return nafdf_gain_file(dsg, problem=name, design_name=method, name=f"{name}_{method}", options={"spec": str(path)})
 
     scenarios = {
-        "fault_free": Scenario("fault_free", "No fault.", sim.duration("duration", 1000.0 * step_ts))
+        "fault_free": Scenario("fault_free", "No fault.", sim.duration("duration", 1000.0 * step_ts, Ts=step_ts))
     }
     for i, sd in enumerate(top.entries("scenarios")):
         w = f"{path} [[scenarios]][{i}]"
@@ -650,7 +785,7 @@ def _nonlinear_problem(path: Path, top: _Section, name: str) -> Problem:
         scen = Scenario(
             name=_scenario_name(sc.get("name", required=True), scenarios, w),
             description=str(sc.get("description", "")),
-            duration=sc.duration("duration"),
+            duration=sc.duration("duration", Ts=step_ts),
             fault="+".join(sizes) if sizes else None,
             onset=onset if sizes else None,
             end=sc.number("end"),

@@ -44,7 +44,7 @@ from fdisyn.design.linalg import dlyap, rank, rel_diff, spectral_radius, unobser
 from fdisyn.design.plant import LinearPlant
 from fdisyn.design.residual import internal_form
 from fdisyn.design.riccati import solve_filter_dare
-from fdisyn.runtime.errors import ExistenceError, ShapeError, SolverError
+from fdisyn.runtime.errors import CertificateError, ExistenceError, ShapeError, SolverError
 from fdisyn.runtime.gainfile import Generator
 
 __all__ = [
@@ -54,6 +54,7 @@ __all__ = [
     "kalman_uio",
     "pole_placement_uio",
     "uio_error_covariance",
+    "ce_condition",
 ]
 
 # Tolerances, each with its reason (used in the certificates below).
@@ -71,6 +72,14 @@ solvers give ~n·eps ≈ 1e-15; 1e-10 flags a genuinely wrong solution."""
 STABILITY_MARGIN = 1e-9
 """F must be Schur: spectral radius ≤ 1 − 1e-9 (a root on the circle to
 round-off is not stable)."""
+CE_CONDITION_MAX = 1e6
+"""Largest ``κ = ‖C‖‖E‖ / σ_min(C E)`` a UIO is built for. ``T = I − E (C E)⁺ C``
+carries ``κ`` into its round-off, so ``T E = 0`` holds to ~1e-15·κ; at 1e6 that
+reaches :data:`DECOUPLING_TOL` and the decoupling can no longer be certified."""
+CE_CONDITION_HINT = 1e3
+"""From this ``κ`` on, a failed UIO design names a weak ``C E`` as the likely
+cause (measured: the motor example fails from κ ≈ 4e3 on, IPOPT not converging
+or a singular Lyapunov equation; the built-in banks have κ ≤ 533)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -116,6 +125,9 @@ def uio_structure(plant: LinearPlant) -> UIOStructure:
                 f"rank(C E) = {rce} ≠ rank(E) = {q}: the unknown input cannot be decoupled from the outputs "
                 f"{list(plant.outputs)} (seed 000, eq. (3): rank(C E) = rank(E))"
             )
+        kappa = ce_condition(plant)
+        if kappa > CE_CONDITION_MAX:
+            raise ExistenceError(f"the UIO cannot be built: {_weak_ce(plant, kappa)}")
         m = np.linalg.pinv(c @ e)
     if p <= q:
         raise ExistenceError(
@@ -127,6 +139,40 @@ def uio_structure(plant: LinearPlant) -> UIOStructure:
     a1 = t @ np.asarray(plant.A)
     _check_detectable(a1, c, plant)
     return UIOStructure(M=m, H=h, T=t, A1=a1, G=t @ np.asarray(plant.B), Cbar=np.eye(p) - c @ h)
+
+
+def ce_condition(plant: LinearPlant) -> float:
+    """``κ = ‖C‖₂ ‖E‖₂ / σ_min(C E)``: how weakly the unknown input reaches the outputs.
+
+    ``rank(C E)`` is judged relative to ``C E`` itself, so a tiny but nonzero
+    ``C E`` passes it; ``κ`` measures it against ``C`` and ``E``, i.e. the
+    amplification ``‖H‖‖C‖`` of the decoupling (1 when ``E`` enters the
+    measured states directly). ``inf`` when ``C E`` has lower rank.
+    """
+    c, e = np.asarray(plant.C), np.asarray(plant.E)
+    if e.size == 0:
+        return 1.0
+    sv = np.linalg.svd(c @ e, compute_uv=False)
+    return float(np.linalg.norm(c, 2) * np.linalg.norm(e, 2) / sv[-1]) if sv[-1] > 0 else float("inf")
+
+
+def _weak_ce(plant: LinearPlant, kappa: float) -> str:
+    """The explanation and remedies of a weak ``C E`` (for error messages)."""
+    return (
+        f"C E is nearly zero for the outputs {list(plant.outputs)} (‖C‖·‖E‖ / σ_min(C E) = {kappa:.3g}): the unknown input "
+        "barely reaches them within a sample, and decoupling it amplifies their noise by that factor; remedy: give this "
+        "group of the bank a sensor the unknown input reaches directly, drop the group, or sample more slowly (a longer Ts)"
+    )
+
+
+def _in_context(exc: Exception, plant: LinearPlant) -> Exception:
+    """``exc`` (a failure after the structure was built) as the same fdisyn error, naming
+    the outputs the UIO was designed for and, when ``C E`` is weak, the cause and remedy.
+    A ``LinAlgError`` (a singular Lyapunov or Riccati system) becomes a :class:`SolverError`."""
+    kappa = ce_condition(plant)
+    hint = f"; {_weak_ce(plant, kappa)}" if kappa >= CE_CONDITION_HINT else ""
+    cls = type(exc) if isinstance(exc, (SolverError, CertificateError, ExistenceError)) else SolverError
+    return cls(f"UIO for the outputs {list(plant.outputs)}: {exc}{hint}")
 
 
 def _check_detectable(a1: np.ndarray, c: np.ndarray, plant: LinearPlant) -> None:
@@ -378,8 +424,20 @@ def kalman_uio(plant: LinearPlant, *, variant: Literal["optimal", "paper"] = "op
     certified as the recursion's fixed point; its true covariance is still the
     exact one. It is suboptimal in general — even for ``R = σ² I``, where the
     cross term vanishes, its covariance step optimises a different quantity.
+
+    A failure after the structure is built (solver, certificate) names the
+    outputs and, when ``C E`` is weak (:func:`ce_condition`), the likely cause.
     """
     st = uio_structure(plant)
+    if variant not in ("optimal", "paper"):
+        raise ValueError(f"variant must be 'optimal' or 'paper'; got {variant!r}")
+    try:
+        return _kalman_uio(plant, st, variant)
+    except (SolverError, CertificateError, ExistenceError, np.linalg.LinAlgError) as exc:
+        raise _in_context(exc, plant) from exc
+
+
+def _kalman_uio(plant: LinearPlant, st: UIOStructure, variant: str) -> UIODesign:
     c, q, r = np.asarray(plant.C), np.asarray(plant.Q), np.asarray(plant.R)
     ptruth = solve_filter_dare(st.A1, c, st.T @ q @ st.T.T + st.H @ r @ st.H.T, r)
     paper = ptruth.L
@@ -401,8 +459,6 @@ def kalman_uio(plant: LinearPlant, *, variant: Literal["optimal", "paper"] = "op
         sig_opt, _ = uio_error_covariance(st, l_truth, q, r, c)
         paper_info: dict[str, object] = {"trace_Sigma_optimal": float(np.trace(sig_opt)), "recursion_distance_after_iterations": distance}
         return _finish(plant, st, paper, "kalman_uio", "paper", checks, paper_info)
-    if variant != "optimal":
-        raise ValueError(f"variant must be 'optimal' or 'paper'; got {variant!r}")
     l_red0 = red.V.T @ paper @ red.Uc
     lt_nlp, stats = _nlp_gain(red, l_red0)
     l_nlp = red.V @ lt_nlp @ red.Uc.T
@@ -546,7 +602,10 @@ def pole_placement_uio(plant: LinearPlant, *, poles: Sequence[complex]) -> UIODe
     circle, be closed under conjugation and number ``n``.
     """
     st = uio_structure(plant)
-    pl = np.asarray(poles, dtype=complex).reshape(-1)
+    try:
+        pl = np.asarray(poles, dtype=complex).reshape(-1)
+    except (TypeError, ValueError):
+        raise ShapeError(f"poles must be {plant.n} numbers (complex ones in conjugate pairs); got {poles!r}") from None
     if pl.size != plant.n:
         raise ShapeError(f"poles: expected {plant.n} poles (one per state), got {pl.size}")
     if np.any(np.abs(pl) >= 1.0):
@@ -569,4 +628,7 @@ def pole_placement_uio(plant: LinearPlant, *, poles: Sequence[complex]) -> UIODe
             "eigenvalue sensitivity of the assigned closed loop; KNV assignment is accurate well below this",
         )
     ]
-    return _finish(plant, st, gain, "uio_pole_placement", "poles", checks, {"poles": [complex(z) for z in pl]})
+    try:
+        return _finish(plant, st, gain, "uio_pole_placement", "poles", checks, {"poles": [complex(z) for z in pl]})
+    except (CertificateError, ExistenceError, np.linalg.LinAlgError) as exc:
+        raise _in_context(exc, plant) from exc

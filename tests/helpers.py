@@ -61,3 +61,43 @@ def random_stable(rng: np.random.Generator, n: int, m: int, p: int, *, radius: f
         C=rng.standard_normal((p, n)),
         D=0.3 * rng.standard_normal((p, m)) if d else np.zeros((p, m)),
     )
+
+
+def check_values(certificate: object) -> dict[str, list[float]]:
+    """``name → values`` of every check in a :class:`Certificate` or a gain file's certificate
+    document (its generators' and its bank's checks), for tests that judge the values
+    themselves: a design whose certificate failed has raised, so ``passed`` is always true."""
+    if hasattr(certificate, "checks"):
+        rows = [(c.name, float(c.value)) for c in certificate.checks]  # type: ignore[attr-defined]
+    else:
+        doc = dict(certificate)  # type: ignore[call-overload]
+        parts = [*doc.get("generators", []), *([doc["bank"]] if "bank" in doc else []), doc]
+        rows = [(c["name"], float(c["value"])) for part in parts for c in part.get("checks", [])]
+    out: dict[str, list[float]] = {}
+    for name, value in rows:
+        out.setdefault(name, []).append(value)
+    return out
+
+
+def coupling_markov(plant: dict, gen: object, count: int | None = None) -> tuple[float, float]:
+    """How much ``u`` and ``d`` reach a generator's residual through the plant, computed here
+    from the matrices alone: the largest Markov parameter of ``u → r`` and ``d → r`` of
+    plant-in-series-with-generator, relative to the product of the norms that form it
+    (0 for exact decoupling; round-off leaves ~1e-16)."""
+    a, b, c, d, e = (np.asarray(plant[k], dtype=float) for k in ("A", "B", "C", "D", "E"))
+    ar, bu, by, cr, du, dy = (np.asarray(getattr(gen, k), dtype=float) for k in ("Ar", "Bu", "By", "Cr", "Du", "Dy"))
+    n, ns = a.shape[0], ar.shape[0]
+    big_a = np.block([[a, np.zeros((n, ns))], [by @ c, ar]])
+    big_c = np.hstack([dy @ c, cr])
+    inputs = {"u": (np.vstack([b, by @ d + bu]), dy @ d + du), "d": (np.vstack([e, np.zeros((ns, e.shape[1]))]), np.zeros((cr.shape[0], e.shape[1])))}
+    out = []
+    for bb, dd in inputs.values():
+        scale = max(np.linalg.norm(dy) * np.linalg.norm(d) + np.linalg.norm(du), np.finfo(float).tiny)
+        worst = float(np.linalg.norm(dd)) / scale
+        power = np.eye(n + ns)
+        for _ in range(count or 2 * (n + ns)):
+            term = big_c @ power @ bb
+            worst = max(worst, float(np.linalg.norm(term)) / max(np.linalg.norm(big_c) * np.linalg.norm(power) * np.linalg.norm(bb), np.finfo(float).tiny))
+            power = power @ big_a
+        out.append(worst)
+    return out[0], out[1]

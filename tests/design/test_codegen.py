@@ -8,7 +8,7 @@ import subprocess
 
 import numpy as np
 import pytest
-from fdisyn.design.codegen import CFLAGS
+from fdisyn.design.codegen import CFLAGS, compiler
 from fdisyn.design.pipeline import EXPORT_TOL, check_export
 from fdisyn.runtime.compiled import CompiledDiagnoser
 from fdisyn.runtime.errors import BuildError, GainFileError
@@ -24,8 +24,27 @@ def _with_bad_samples(U, Y):
     return U, Y
 
 
-def test_flags_are_the_contract():
-    assert CFLAGS == ("-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-pedantic")
+def test_flags_are_the_contract(wt_built, tmp_path):
+    """What the flags do, observed through the compiler rather than compared with their spelling:
+    C99 without GNU extensions, optimised, no fast-math (which may remove the non-finite checks),
+    and every warning of -Wall, -Wextra and -pedantic an error. The build used them."""
+    cc = compiler()
+
+    def builds(source: str, *flags: str) -> bool:
+        c = tmp_path / "probe.c"
+        c.write_text(source, encoding="utf-8")
+        return subprocess.run([*cc, *flags, "-c", str(c), "-o", str(tmp_path / "probe.o")], capture_output=True, check=False).returncode == 0
+
+    modes = "#if __STDC_VERSION__ != 199901L || !defined(__STRICT_ANSI__) || !__OPTIMIZE__ || defined(__FAST_MATH__)\n#error\n#endif\nint f(void) { return 0; }\n"
+    assert builds(modes, *CFLAGS) and not builds(modes, *CFLAGS, "-ffast-math")
+    for warning in (
+        "int f(void) { int unused; return 0; }\n",  # -Wall
+        "int f(int unused) { return 0; }\n",  # -Wextra
+        "int f(void) { return ({ 0; }); }\n",  # -pedantic: a GNU statement expression
+    ):
+        assert builds(warning) and not builds(warning, *CFLAGS), warning
+    log = (wt_built.directory / "c" / "build.log").read_text(encoding="utf-8")
+    assert f" {' '.join(CFLAGS)} " in log.splitlines()[0] and "-ffast-math" not in log
 
 
 def test_c_agrees_with_both_python_references_on_1e4_samples(wt_built, wt_trace):

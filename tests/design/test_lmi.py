@@ -31,8 +31,11 @@ from tests.helpers import random_stable
 # 1e-6 relative (Clarabel at 1e-11, falling back to 1e-9, on problems scaled
 # to O(1): measured ≤ 4e-11 for H∞/H2 over 60 random systems).
 NORM_AGREE = 1e-6
-# The issue's contract for the design: J within 1 % of Theorem 1's optimum.
-DESIGN_AGREE = 1e-2
+# The design's contract is J within 1 % of Theorem 1's optimum; the SDPs reach it far closer:
+# measured ≤ 3.3e-7 over the random plants below (Clarabel's 1e-9 gap on the squared bound,
+# amplified by the conditioning of the H₋ problem) and ≤ 6e-13 on the paper's example, so
+# 1e-6 catches a loss of accuracy long before it could approach the contract.
+DESIGN_AGREE = 1e-6
 
 
 @settings(derandomize=True, max_examples=10, deadline=None)
@@ -142,7 +145,11 @@ def test_lmi_design_reaches_theorem1_on_the_paper_example(paper_plant: SampledDa
     opt = optimal_diagnostic_observer(plant=paper_plant)
     for eta in ETAS:
         des = lmi_diagnostic_observer(plant=paper_plant, eta=eta)
-        assert des.certificate.passed
+        # the certificate's values, judged here (a failed certificate would have raised): the
+        # bound γ the SDP proved is attained (measured ≤ 1.2e-11; the certificate allows 1e-4)
+        checks = {c.name: c.value for c in des.certificate.checks}
+        assert abs(checks[f"(J_η − γ) / γ, η = {eta}"]) <= 1e-9
+        assert checks["spectral radius of F = A_D − L C"] == pytest.approx(max(abs(np.linalg.eigvals(des.F))), abs=1e-15)
         gap = des.J[eta] / opt.J_star[eta] - 1.0
         assert -1e-9 <= gap <= DESIGN_AGREE  # J* is a lower bound (to sweep round-off)
         # Measured ≤ 1e-11: Clarabel's gap 1e-9 on the squared bound.
@@ -194,7 +201,7 @@ def test_lmi_design_with_a_band_limited_fault_measure(paper_plant: SampledDataPl
 
 
 def test_lmi_design_of_an_unstable_plant() -> None:
-    """A_D unstable: J is evaluated on the error form; still within 1 % of Theorem 1."""
+    """A_D unstable: J is evaluated on the error form; still at Theorem 1's optimum (measured 2e-12)."""
     rng = np.random.default_rng(5)
     pl = SampledDataPlant.create(
         A=[[0.4, 1.0], [0.0, -1.0]], Bu=[[0.0], [1.0]], Bd=rng.standard_normal((2, 2)), Bf=[[1.0], [0.5]], C=np.eye(2), h=0.5
