@@ -123,9 +123,15 @@ def rank(a: np.ndarray) -> int:
 def dlyap(a: np.ndarray, q: np.ndarray) -> np.ndarray:
     """Solve ``X = A X Aᵀ + Q`` (discrete Lyapunov) and symmetrise the result.
 
-    Uses SciPy's Bartels–Stewart based solver; the caller checks stability.
+    SciPy's bilinear method: the Cayley transform to a continuous Lyapunov
+    equation, solved by Bartels–Stewart (Schur form). Its Kronecker
+    ("direct") method is not used even for small ``n``: for a strongly
+    non-normal ``A`` (‖A‖₂ = 328 at ρ(A) = 0.34, met by minimum-variance
+    UIOs of random plants) it lost 2.6e-8 of relative accuracy in
+    ``trace X`` where Bartels–Stewart and a doubling iteration agree to 1e-10.
+    The caller checks stability.
     """
-    x = sla.solve_discrete_lyapunov(a, q, method="bilinear" if a.shape[0] > 10 else "direct")
+    x = sla.solve_discrete_lyapunov(a, q, method="bilinear")
     return 0.5 * (x + x.T)
 
 
