@@ -136,8 +136,13 @@ _CLARABEL_TIGHT = {
 _NORM_LADDER = ((_CLARABEL_TIGHT, True), (_CLARABEL, False))
 SDP_BOUND_TOL = 1e-4
 """Achieved J (sweep) against the SDP's bound γ: the LMIs hold to Clarabel's
-feasibility tolerance 1e-9 times the size of their entries, which reaches
-~1e4·γ² in the nearly decoupled (singular) case; measured excess ≤ 2e-5."""
+feasibility tolerance 1e-9 times the size of their entries; measured excess
+≤ 2e-5 when ``G_d`` has full row normal rank."""
+SDP_BOUND_TOL_SINGULAR = 1e-3
+"""The same when ``G_d`` has normal rank below ``p`` (nearly decoupled
+residuals): the entries reach ~1e4·γ² and more, and the excess depends on the
+BLAS kernel — measured on the paper's ZOH model 2e-5 (OpenBLAS SkylakeX,
+Haswell, Zen) and 1.8e-4 (SandyBridge); 1e-3 leaves a factor 5."""
 
 
 @dataclass(frozen=True)
@@ -1125,7 +1130,7 @@ def lmi_diagnostic_observer(
         Check(
             f"(J_η − γ) / γ, η = {eta}",
             (j_model[eta] - bound) / bound if bound > 0 else 0.0,
-            SDP_BOUND_TOL,
+            SDP_BOUND_TOL_SINGULAR if singular else SDP_BOUND_TOL,
             "<=",
             "the SDP's γ bounds J_η; the sweep may exceed it only by solver round-off",
         ),
