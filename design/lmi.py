@@ -442,11 +442,15 @@ HMINUS_TOL = 1e-10
 
 The LMI determines ``β²`` for the whole system (its multipliers see every
 frequency, not only the band's) scaled to ``‖G‖ ~ 1``, so its natural
-accuracy is absolute in ``β²`` relative to the whole circle's ``‖G‖∞²``:
-Clarabel's iterates at gap/feasibility 1e-11 prove ``β²`` to ≤ 1e-10 of it
-(measured: median 3e-12 over 60 random interior bands). In ``β`` that is
-≤ 5e-11 relative when ``β ≈ ‖G‖∞`` and ``≤ 5e-11·‖G‖∞²/β`` absolute in general
-(at worst ``1e-5·‖G‖∞``, when ``β ≈ 1e-5·‖G‖∞``)."""
+accuracy is absolute in ``β²`` relative to the whole circle's ``‖G‖∞²``. In
+``β`` that is ≤ 5e-11 relative when ``β ≈ ‖G‖∞`` and ``5e-11·‖G‖∞²/β``
+absolute in general (at worst ``1e-5·‖G‖∞``, when ``β ≈ 1e-5·‖G‖∞``).
+Measured over 100 random systems each (n ≤ 10, spectral radius ≤ 0.99) on the
+OpenBLAS kernels SkylakeX, Haswell, Zen and SandyBridge, none refused: median
+``(β_hi² − β_lo²)/‖G‖∞²`` 4e-14 (whole circle), 5e-13 (half bands), 2e-12
+(interior bands, 7–8 of 100 through the level repair of :func:`_prove`); on
+100 harder ones (n ≤ 16, radius ≤ 0.995) 5e-12, 2–3 needing the complex
+multiplier."""
 
 _PHI = np.array([[1.0, 0.0], [0.0, -1.0]])
 """``[z; 1]ᴴ Φ [z; 1] = |z|² − 1``: zero on the unit circle (the multiplier ``P``)."""
@@ -485,8 +489,9 @@ def _hminus_routes(lo: float, hi: float) -> list[tuple[str, list[np.ndarray]]]:
     ``HMINUS_TOL``). The single-arc complex multiplier of Iwasaki & Hara,
     necessary and sufficient, is the interior band's second route: its real
     ``2(n+m)`` embedding is the SDP on which Clarabel stalls most (status
-    "solved" on 1 of 60 random interior bands, the rest InsufficientProgress or
-    AlmostSolved at an accuracy that depends on the BLAS kernel).
+    "solved" on at most 7 of 60 random interior bands, the rest
+    InsufficientProgress or AlmostSolved at an accuracy that depends on the
+    BLAS kernel), while the strip reaches "solved" on ~90 %.
     """
     if lo == 0.0 and hi == math.pi:
         return [("kyp", [])]
