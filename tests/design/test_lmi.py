@@ -27,11 +27,11 @@ from hypothesis import strategies as st
 
 from tests.helpers import random_stable
 
-# The issue's contract: LMI norms agree with the independent evaluation to
+# The contract: LMI norms agree with the independent evaluation to
 # 1e-6 relative (Clarabel at 1e-11, falling back to 1e-9, on problems scaled
 # to O(1): measured ≤ 4e-11 for H∞/H2 over 60 random systems).
 NORM_AGREE = 1e-6
-# The issue's contract for the design: J within 1 % of Theorem 1's optimum.
+# The contract for the design: J within 1 % of Theorem 1's optimum.
 DESIGN_AGREE = 1e-2
 
 
