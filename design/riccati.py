@@ -149,7 +149,15 @@ def solve_filter_dare(
     try:
         aa, bb, alpha, beta, _, z = sla.ordqz(m2, n2, sort="iuc", output="real")
     except (ValueError, np.linalg.LinAlgError) as exc:
-        raise SolverError(f"QZ decomposition of the DARE pencil failed: {exc}") from exc
+        # Reordering by |λ| < 1 is ill conditioned exactly when eigenvalues lie
+        # on the unit circle; LAPACK's tgsen then fails with some BLAS kernels
+        # (OpenBLAS SandyBridge) and not others. The unordered eigenvalues tell
+        # whether that, the existence condition below, is the cause.
+        alpha, beta = sla.eigvals(m2, n2, homogeneous_eigvals=True)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            mod = np.where(np.abs(beta) > 0, np.abs(alpha) / np.abs(beta), np.inf)
+        if not np.any(np.abs(mod - 1.0) < UNIT_CIRCLE_TOL):
+            raise SolverError(f"QZ decomposition of the DARE pencil failed: {exc}") from exc
     with np.errstate(divide="ignore", invalid="ignore"):
         mod = np.where(np.abs(beta) > 0, np.abs(alpha) / np.abs(beta), np.inf)
     on_circle = np.abs(mod - 1.0) < UNIT_CIRCLE_TOL

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import scipy.linalg
 from fdisyn.design.riccati import dare_residual, solve_filter_dare
-from fdisyn.runtime.errors import ExistenceError
+from fdisyn.runtime.errors import ExistenceError, SolverError
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -85,3 +85,18 @@ def test_mode_on_the_unit_circle_without_noise_is_refused():
     q = np.diag([0.0, 1.0])  # the marginal mode is seen but never excited: pencil eigenvalues on the circle
     with pytest.raises(ExistenceError, match="unit circle"):
         solve_filter_dare(a, c, q, np.eye(1))
+
+
+def test_a_failed_reordering_of_a_pencil_with_unit_circle_eigenvalues_names_the_circle(monkeypatch):
+    """LAPACK's reordering may fail on such a pencil (it does with OpenBLAS's SandyBridge
+    kernel); the existence condition, not the solver, is then what the user is told."""
+
+    def failing_ordqz(*args, **kwargs):
+        raise ValueError("Reordering of (A, B) failed")
+
+    monkeypatch.setattr(scipy.linalg, "ordqz", failing_ordqz)
+    a, c, q = np.diag([1.0, 0.5]), np.array([[1.0, 1.0]]), np.diag([0.0, 1.0])
+    with pytest.raises(ExistenceError, match="eigenvalue\\(s\\) on the unit circle"):
+        solve_filter_dare(a, c, q, np.eye(1))
+    with pytest.raises(SolverError, match="QZ decomposition of the DARE pencil failed: Reordering"):
+        solve_filter_dare(np.diag([0.9, 0.5]), c, np.eye(2), np.eye(1))
