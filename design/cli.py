@@ -118,14 +118,23 @@ def _user_paths(expected: str, *paths: tuple[str, str | Path]) -> Iterator[None]
 
 
 def _output_dir(path: str, option: str) -> Path:
-    """``path`` as a directory that exists (created if needed) and is writable, checked before any work."""
+    """``path`` as a directory fdisyn can write in or create, checked before any work.
+
+    Nothing is created here (a command that fails later leaves no empty
+    folder behind): the nearest existing ancestor must be a directory that is
+    writable; the writers create what is missing.
+    """
     d = Path(path)
     if d.exists() and not d.is_dir():
         raise SpecError(f"{option} {path} is a file: expected a directory")
-    with _user_paths("a directory fdisyn can create and write in", (option, path)):
-        d.mkdir(parents=True, exist_ok=True)
-    if not os.access(d, os.W_OK | os.X_OK):
-        raise SpecError(f"{option} {path}: no permission to write in it; expected a writable directory")
+    probe = d.absolute()
+    while not probe.exists():
+        probe = probe.parent
+    if not probe.is_dir():
+        raise SpecError(f"{option} {path}: {probe} is a file, so the directory cannot be created; expected a directory path")
+    if not os.access(probe, os.W_OK | os.X_OK):
+        what = "write in it" if probe == d.absolute() else f"create it in {probe}"
+        raise SpecError(f"{option} {path}: no permission to {what}; expected a writable directory")
     return d
 
 
@@ -229,6 +238,7 @@ def _cmd_evaluate(a: argparse.Namespace) -> None:
     doc = ev.to_dict()
     doc["gain_file"] = built[design].gain_file.name
     with _user_paths("a writable file with room for the metrics", ("--out", out)):
+        out.parent.mkdir(parents=True, exist_ok=True)
         out.write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
     print(f"wrote {a.out}")
 

@@ -162,7 +162,7 @@ def test_an_output_that_cannot_be_written_is_one_line(tmp_path, capsys) -> None:
     a_file = tmp_path / "a_file.txt"
     a_file.write_text("x")
     _fails_with(capsys, ["design", spec, "--out", str(a_file)], f"--out {a_file} is a file: expected a directory")
-    _fails_with(capsys, ["design", spec, "--out", str(a_file / "sub")], f"--out {a_file / 'sub'}:", "expected a directory fdisyn can create and write in")
+    _fails_with(capsys, ["design", spec, "--out", str(a_file / "sub")], f"--out {a_file / 'sub'}:", "is a file, so the directory cannot be created; expected a directory path")
     _fails_with(capsys, ["simulate", spec, "--scenario", "fault_free", "--out", str(tmp_path)], "is a directory: expected a file name")
     _fails_with(capsys, ["simulate", spec, "--scenario", "fault_free", "--out", str(a_file / "t.csv")], f"the directory of --out {a_file} is a file")
     # /dev/full accepts the open and fails every write with ENOSPC: a full disk

@@ -63,8 +63,8 @@ def _motor(edit) -> object:  # noqa: ANN001 - a function editing the document
         (lambda d: d["design"].__setitem__("bank", [[]]), r"\[design\].bank\[0\] must be a non-empty list of output names"),
         # scenario names become report file names; a second scenario of the same name would replace the first
         (lambda d: d["scenarios"][0].__setitem__("name", "../../etc/x"), r"\[\[scenarios\]\]\[0\].name '../../etc/x' is not a label"),
-        (lambda d: d["scenarios"][0].__setitem__("name", "fault_free"), r"name 'fault_free' is taken"),
-        (lambda d: d["scenarios"].append(dict(d["scenarios"][0])), r"\[\[scenarios\]\]\[1\].name 'speed_sensor_offset' is taken"),
+        (lambda d: d["scenarios"][0].__setitem__("name", "fault_free"), r"name 'fault_free' is the built-in fault-free scenario"),
+        (lambda d: d["scenarios"].append(dict(d["scenarios"][0])), r"\[\[scenarios\]\]\[1\].name 'speed_sensor_offset' is already the name of \[\[scenarios\]\]\[0\]"),
     ],
 )
 def test_plant_file_names_are_refused_where_they_enter(edit, message):

@@ -116,7 +116,7 @@ def _write(tmp_path: Path, old: str, new: str) -> Path:
         (F_SHIP, 'f = { x = "c*x + 0.1*a*x^2', "constant 'c' must be a finite number; got nan"),
         (F_SHIP, 'f = { x = "' + "x+" * 4000 + '0.1*a*x^2', "more than 1000 operators"),
         ("x0 = [0.0]", "x0 = [nan]", r"\[simulation\].x0 must hold finite numbers"),
-        ('{ parameter = "b", value = 0.3 }', '{ parameter = "b", value = inf }', "the faulty b must be finite"),
+        ('{ parameter = "b", value = 0.3 }', '{ parameter = "b", value = inf }', r"parameter_faults\[1\].value must be a finite number"),
         ("window = 10", "window = 100000", "window is 100000; at most 1000"),
         ("window = 10", "window = 1e9", "window is 1000000000; at most 1000"),
         ("window = 10", "window = inf", "window must be a positive integer"),
