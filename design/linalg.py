@@ -123,15 +123,21 @@ def rank(a: np.ndarray) -> int:
 def dlyap(a: np.ndarray, q: np.ndarray) -> np.ndarray:
     """Solve ``X = A X Aᵀ + Q`` (discrete Lyapunov) and symmetrise the result.
 
-    SciPy's bilinear method: the Cayley transform to a continuous Lyapunov
-    equation, solved by Bartels–Stewart (Schur form). Its Kronecker
-    ("direct") method is not used even for small ``n``: for a strongly
-    non-normal ``A`` (‖A‖₂ = 328 at ρ(A) = 0.34, met by minimum-variance
-    UIOs of random plants) it lost 2.6e-8 of relative accuracy in
-    ``trace X`` where Bartels–Stewart and a doubling iteration agree to 1e-10.
-    The caller checks stability.
+    SciPy's Kronecker solver for ``n ≤ 10`` (its bilinear, Bartels–Stewart
+    route above), then one step of iterative refinement: the residual
+    ``A X Aᵀ + Q − X`` is solved for a correction. For a strongly non-normal
+    ``A`` (‖A‖₂ = 464 at ρ(A) = 0.34, met by minimum-variance UIOs of random
+    plants) the unrefined Kronecker solution was 1.4e-6 off in ``trace X``
+    and the bilinear one 8.5e-10, with residuals at round-off in both cases;
+    the refined solutions agree with the Riccati solution to ≤ 2e-10. The
+    caller checks stability.
     """
-    x = sla.solve_discrete_lyapunov(a, q, method="bilinear")
+    method = "bilinear" if a.shape[0] > 10 else "direct"
+    x = sla.solve_discrete_lyapunov(a, q, method=method)
+    x = 0.5 * (x + x.T)
+    r = a @ x @ a.T + q - x
+    dx = sla.solve_discrete_lyapunov(a, 0.5 * (r + r.T), method=method)
+    x = x + 0.5 * (dx + dx.T)
     return 0.5 * (x + x.T)
 
 

@@ -69,10 +69,11 @@ def test_structure_identities(seed):
 @pytest.mark.parametrize("seed", range(25))
 def test_optimal_gain_certificate_on_random_plants(seed):
     """Every promised check is in the certificate, and each round-off check sits far inside its
-    bound (a failed one would have raised: ``passed`` is always true here). Fixed seeds: about
-    one random plant in 150 makes the minimum-variance NLP fail loudly (IPOPT reports the
-    problem infeasible, or its optimum misses the DARE's trace by more than 1e-8), which a
-    fresh draw would turn into a red suite without a regression."""
+    bound (a failed one would have raised: ``passed`` is always true here). Fixed seeds: over
+    402 random plants (seeds 0–199, 47942, 1353417274 and 200 drawn ones) one design still
+    fails loudly (IPOPT reaches its iteration limit from both of its starts), which a fresh
+    draw could turn into a red suite without a regression; the worst check sat at 0.11 of its
+    bound there, so the 1e-3 margin below is for these seeds only."""
     plant = random_plant(seed)
     d = kalman_uio(plant)
     checks = {c.name: c for c in d.certificate.checks}
@@ -95,6 +96,20 @@ def test_optimal_gain_certificate_on_random_plants(seed):
     # the stability check against the eigenvalues computed here
     assert checks["spectral radius of F"].value == pytest.approx(max(abs(np.linalg.eigvals(d.F))), rel=1e-12)
     assert checks["spectral radius of F"].value < 1.0
+
+
+def test_plants_that_once_failed_the_minimum_variance_design():
+    """47942: IPOPT left the stabilising region from the paper's gain (local infeasibility); the
+    second start designs it. 1353417274: F = A1 − L C is strongly non-normal (‖F‖₂ = 328 at
+    ρ = 0.34) and an unrefined Lyapunov solve missed the optimal trace by 2.6e-8 (bound 1e-8)."""
+    d = kalman_uio(random_plant(47942))
+    assert d.certificate.info["nlp_start"] == "midpoint of the paper and Riccati gains"
+    d = kalman_uio(random_plant(1353417274))
+    checks = {c.name: c for c in d.certificate.checks}
+    # measured 1.1e-9 (cond Σ = 7e5 amplifies round-off in evaluating the trace): half the bound
+    # fails if the unrefined solve (2.6e-8) comes back
+    assert checks["trace Σ: NLP vs DARE"].value <= 0.5 * checks["trace Σ: NLP vs DARE"].bound
+    assert checks["Lyapunov residual of Σ"].value <= 0.5 * checks["Lyapunov residual of Σ"].bound
 
 
 def test_a_wrong_gain_fails_the_certificate(monkeypatch):
