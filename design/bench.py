@@ -127,7 +127,8 @@ def run_bench(problems: list[Problem], *, out: Path, workdir: Path) -> Path:
 
 
 def _sdp_section() -> list[str]:
-    """SDP solve times of the LMI toolkit (seed 004) for n = 2, 4, 8, 16."""
+    """SDP solve times of the LMI toolkit for n = 2, 4, 8, 16 (the sampled-data design of Qiu, Wen &
+    Jiang, Control Theory & Applications 27(8), 2010)."""
     rows = sdp_timings(sizes=(2, 4, 8, 16))
     lines = [
         "",

@@ -56,7 +56,7 @@ to any model error and amplify round-off in ``r`` by ``sqrt(cond Σ_r)``."""
 
 
 def chi2_evaluator(generator: int, sigma_r: np.ndarray, P_f: float, *, rank_rtol: float = CHI2_RANK_RTOL) -> Evaluator:
-    """χ² evaluator ``J = rᵀ W r`` (seed 000, eqs. (18)–(19)).
+    """χ² evaluator ``J = rᵀ W r`` (Hu, Sun, Jiang, He & Zhang, Acta Automatica Sinica 39(8), 2013, eqs. (18)–(19)).
 
     ``W`` is the pseudo-inverse of ``Σ_r`` on the eigen-directions with variance
     above ``rank_rtol`` times the largest, and ``dof`` their number, so that

@@ -1,6 +1,9 @@
-"""Nonlinear adaptive fault-detection filter, NAFDF (seed 001, fig. 1), as one CasADi step.
+"""Nonlinear adaptive fault-detection filter, NAFDF (Zhou, Xi & Zhang 1991, fig. 1), as one CasADi step.
 
-The four blocks of seed 001's fig. 1 run inside one CasADi ``Function``
+Zhou, Xi & Zhang, "Detection and diagnostics of parameter jump for a class of
+nonlinear systems", Shanghai Jiao Tong University, c. 1991 (equation and
+figure numbers below are theirs). The four blocks of their fig. 1 run inside
+one CasADi ``Function``
 ``(state, u, y) → (state_next, r, J, alarm, isolated, status)``, the step
 contract shared with every fdisyn diagnoser. It is pure SX with hand-unrolled
 LDLᵀ factorisations (no linear-solver plugin), so it code-generates to
@@ -73,8 +76,8 @@ Block 3 — modified Bayes classifier (2.6)–(2.8). Nominal statistics (2.6):
 the mean ``μ̂_i0`` and variance ``σ̂²_i0`` (divided by the sample count) of
 ``θ̂_i`` over the first ``N1`` samples on which the NF has converged outside
 an alarm episode, by Welford's recursion. The diagnoser must be started on a
-healthy plant (seed 001 assumes faults are infrequent). A WSSR alarm ends an
-unfinished learning phase: with at least ``N2`` samples their statistics are
+healthy plant (Zhou, Xi & Zhang 1991 assume faults are infrequent, section 2).
+A WSSR alarm ends an unfinished learning phase: with at least ``N2`` samples their statistics are
 used, otherwise they are discarded and learning restarts after the episode —
 learning on through an episode would take a faulty plant as nominal. Window statistics (2.7) over ``θ̂(t−1..t−N2)`` and
 ``d_i = σ²_i1/σ²_i0 − ln(σ²_i1/σ²_i2) − 1``, evaluated (and reported)
@@ -168,7 +171,7 @@ Gain files. :func:`nafdf_payload` stores the model as data, not code:
 ``f`` and ``h`` as lists of elementary operations
 (:func:`fdisyn.design.nonlinear.model_program`) that the reader validates
 entry by entry before it builds anything, never as CasADi serialised
-strings (deserialising untrusted bytes can crash inside CasADi, and a digest
+strings (deserialising untrusted bytes can crash inside CasADi, and a checksum
 would only catch accidents: whoever edits the file can recompute it). The
 reader (:func:`nafdf_from_gain_file`) then checks every other field against
 what the payload implies — the settings as :func:`nafdf` checks them, the
@@ -270,13 +273,13 @@ class NafdfSettings:
     """Every design choice of the NAFDF, validated (see the module docstring for their meaning)."""
 
     x0: np.ndarray
-    """Initial state estimate of both filters (seed 001: ``x̂(0)``)."""
+    """Initial state estimate of both filters (the paper's ``x̂(0)``, section 3)."""
     P0: np.ndarray
-    """Initial (and reset) state covariance of both filters (seed 001: ``P(0)``)."""
+    """Initial (and reset) state covariance of both filters (the paper's ``P(0)``)."""
     theta0: np.ndarray
-    """Initial (and reset) NF parameter estimate (seed 001: ``θ̂(0)``)."""
+    """Initial (and reset) NF parameter estimate (the paper's ``θ̂(0)``)."""
     R0: np.ndarray
-    """Initial (and reset) NF information matrix (seed 001: ``R(0)``)."""
+    """Initial (and reset) NF information matrix (the paper's ``R(0)``, eq. (2.5))."""
     window: int
     """WSSR window ``N`` (2.4)."""
     threshold_rule: Literal["chi2", "beta0"]
@@ -982,7 +985,7 @@ def nafdf(
     u0: object | None = None,
     name: str = "nafdf",
 ) -> NafdfDesign:
-    """Design the NAFDF of seed 001 (fig. 1, eqs. (2.3)–(2.8)) for ``plant``.
+    """Design the NAFDF of Zhou, Xi & Zhang 1991 (fig. 1, eqs. (2.3)–(2.8)) for ``plant``.
 
     Defaults: ``θ̂(0) = θ0`` (nominal), ``R(0) = I``, the paper's ``W1 = 50``,
     ``W2 = 350``, ``T1 = 50``; ``convergence_tolerance`` 5 % of ``|θ0_i|``

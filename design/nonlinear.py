@@ -1,4 +1,7 @@
-"""The nonlinear plant of the adaptive fault-detection filter (seed 001, eq. (2.1)).
+"""The nonlinear plant of the adaptive fault-detection filter (Zhou, Xi & Zhang 1991, eq. (2.1)).
+
+Zhou, Xi & Zhang, "Detection and diagnostics of parameter jump for a class of
+nonlinear systems", Shanghai Jiao Tong University, c. 1991.
 
 ``NonlinearPlant`` holds
 
@@ -6,7 +9,7 @@
     y(t)   = h(x(t), θ) + e(t),           e ~ N(0, Q2)
 
 with named states, inputs, outputs and parameters ``θ``, and a nominal value
-for every parameter. Seed 001 writes the measurement as ``H(θ) X`` (its
+for every parameter. Zhou, Xi & Zhang write the measurement as ``H(θ) X`` (their
 assumption A3, a linear measurement); ``h(x, θ)`` contains that case.
 
 ``f`` and ``h`` are CasADi ``Function`` objects. Every Jacobian and parameter
@@ -611,7 +614,7 @@ class _ExpressionCompiler:
 
 @dataclass(frozen=True, eq=False)
 class NonlinearPlant:
-    """``x⁺ = f(x, u, θ) + v``, ``y = h(x, θ) + e`` (seed 001, eq. (2.1)), with nominal ``θ``.
+    """``x⁺ = f(x, u, θ) + v``, ``y = h(x, θ) + e`` (Zhou, Xi & Zhang 1991, eq. (2.1)), with nominal ``θ``.
 
     Build with :meth:`create` (CasADi Functions) or :meth:`from_expressions`
     (strings). ``f`` has ports ``(x, u, theta) → x_next`` and ``h`` has
@@ -628,9 +631,9 @@ class NonlinearPlant:
     theta_nominal: np.ndarray
     """Nominal parameter values, in the order of :attr:`parameters`."""
     Q1: np.ndarray
-    """Process-noise covariance (seed 001: ``Q1``)."""
+    """Process-noise covariance (``Q1`` of eq. (2.1))."""
     Q2: np.ndarray
-    """Measurement-noise covariance (seed 001: ``Q2``); positive definite."""
+    """Measurement-noise covariance (``Q2`` of eq. (2.1)); positive definite."""
     Ts: float | None = None
     """Sample time in seconds (informational; the model is already discrete)."""
     expressions: Mapping[str, object] | None = None
@@ -714,7 +717,7 @@ class NonlinearPlant:
         Expressions are arithmetic in the state, input, parameter and constant
         names (``+ − * / ^ **``, parentheses, numbers, ``pi``) and the smooth
         functions of :data:`SMOOTH_FUNCTIONS`. The output expressions may not
-        use inputs (seed 001's measurement is ``H(θ) X``, no feedthrough).
+        use inputs (the measurement of eq. (2.1) is ``H(θ) X``, no feedthrough).
 
         Raises
         ------
@@ -802,7 +805,7 @@ class NonlinearPlant:
     def derivatives(self) -> ca.Function:
         """``(x, u, theta) → (f, F_x, F_theta, h, H_x, H_theta)`` by CasADi AD.
 
-        ``F_x = ∂f/∂x`` (seed 001's ``F_t``), ``F_theta = ∂f/∂θ``,
+        ``F_x = ∂f/∂x`` (the paper's ``F_t``), ``F_theta = ∂f/∂θ``,
         ``H_x = ∂h/∂x`` (``H_t``), ``H_theta = ∂h/∂θ`` — the Jacobians of the
         EKF and the sensitivities of the joint state/parameter filter (2.5).
         """

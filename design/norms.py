@@ -3,8 +3,8 @@
 ``DiscreteLTI`` is the small state-space type the sampled-data design and
 the LMI toolkit share: ``x⁺ = A x + B u``, ``y = C x + D u``. The norms here
 are the *independent* evaluations that the LMI characterisations
-(:mod:`fdisyn.design.lmi`) and the analytic optimum of seed 004 are checked
-against:
+(:mod:`fdisyn.design.lmi`) and the analytic optimum of Qiu, Wen & Jiang
+(Control Theory & Applications 27(8), 2010, Theorem 1) are checked against:
 
 ``hinf_norm``
     ``‖G‖∞ = sup_ω σ_max(G(e^{jω}))`` by a frequency sweep (uniform grid plus
@@ -18,7 +18,7 @@ against:
     over a stated band ``Ω = [ω₁, ω₂] ⊆ [0, π]`` (default: the whole circle),
     by the same sweep-and-refine on local minima.
 
-Conventions (seed 004, section 2.2, made precise): for a real system
+Conventions (Qiu, Wen & Jiang 2010, section 2.2, made precise): for a real system
 ``σ(G(e^{−jω})) = σ(G(e^{jω}))``, so ``[0, π]`` covers the circle. The H₋
 index is the paper's ``inf_{‖u‖=1} ‖G u‖`` frequency by frequency: the
 ``m``-th singular value, which is zero for a wide system (``p < m``, a kernel

@@ -1,6 +1,10 @@
-"""Optimal diagnostic observer for sampled-data systems (seed 004).
+"""Optimal diagnostic observer for sampled-data systems (Qiu, Wen & Jiang 2010).
 
-Continuous plant, sampled output, held input (seed 004, eqs. (1)–(3))::
+Qiu, Wen & Jiang, "Optimal diagnostic observer for sampled-data systems",
+Control Theory & Applications 27(8), 2010; equation, lemma and theorem
+numbers below are theirs.
+
+Continuous plant, sampled output, held input (eqs. (1)–(3))::
 
     ẋ = A x + Bu u + Bd d + Bf f,   y = C x,   ψ(k) = y(kh),   u(t) = v(k) on [kh, (k+1)h)
 
@@ -25,7 +29,7 @@ Dy = V``. What is here:
   method) or ``"indirect"`` (ZOH-discretise the plant first, the paper's
   comparison), with a :class:`~fdisyn.design.certificate.Certificate`.
 
-Interpretations of the paper (see also SEEDS.md, 004):
+Interpretations of the paper:
 
 * "Hurwitz" in eq. (8) and Theorem 1 means Schur (discrete time).
 * The factor ``B_J`` is not unique; fdisyn uses the full-column-rank
@@ -134,7 +138,7 @@ STABILITY_MARGIN = 1e-9
 
 
 def norm_invariant_discretisation(*, A: object, B: object, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Seed 004, Lemma 1 (eq. (5)): ``(A_D, B_J, W)`` with ``‖S G‖_η = ‖G_J‖_η``.
+    """Lemma 1 (eq. (5)): ``(A_D, B_J, W)`` with ``‖S G‖_η = ‖G_J‖_η``.
 
     ``A_D = e^{Ah}``, ``W = ∫₀ʰ e^{Aτ} B Bᵀ e^{Aᵀτ} dτ`` (Van Loan's block
     exponential) and ``B_J`` the full-column-rank factor ``B_J B_Jᵀ = W``
@@ -155,7 +159,7 @@ def norm_invariant_discretisation(*, A: object, B: object, h: float) -> tuple[np
 
 @dataclass(frozen=True, eq=False)
 class SampledDataPlant:
-    """Seed 004, eqs. (1)–(3): continuous plant, sampler, ZOH; with its discretisations.
+    """Eqs. (1)–(3): continuous plant, sampler, ZOH; with its discretisations.
 
     ``A_D``, ``B_uD`` (step-invariant, eq. (13)), ``B_dJ``, ``B_fJ`` (Lemma 1)
     and, for the paper's indirect comparison, ``B_dD``, ``B_fD`` (ZOH of the
@@ -221,7 +225,7 @@ class SampledDataPlant:
         if plant.is_discrete:
             raise ShapeError(f"the sampled-data design needs a continuous plant; this one has Ts = {plant.Ts}")
         if np.any(plant.D != 0):
-            raise ShapeError("the sampled-data plant must be strictly proper (D = 0, seed 004 eq. (1))")
+            raise ShapeError("the sampled-data plant must be strictly proper (D = 0, Qiu, Wen & Jiang 2010, eq. (1))")
         return cls.create(A=plant.A, Bu=plant.B, Bd=plant.E, Bf=plant.Fx, C=plant.C, h=h)
 
     @property
@@ -325,7 +329,7 @@ def check_sampling(*, A: object, C: object, h: float, allow_pathological: bool =
     if bad:
         raise ExistenceError(
             f"(A, C) is not detectable: the mode(s) λ = {[complex(round(z.real, 9), round(z.imag, 9)) for z in bad]} "
-            "with Re λ ≥ 0 are unobservable from C (seed 004, Theorem 1 assumes (A, C) detectable)"
+            "with Re λ ≥ 0 are unobservable from C (Theorem 1 of Qiu, Wen & Jiang 2010 assumes (A, C) detectable)"
         )
     ad = sla.expm(a * h)
     undetectable = unobservable_modes(ad, c, region="unstable-discrete")
@@ -335,7 +339,7 @@ def check_sampling(*, A: object, C: object, h: float, allow_pathological: bool =
         raise ExistenceError(
             f"pathological sampling: h = {h:g} maps the eigenvalues λ = {l1:.6g} and {l2:.6g} of A "
             f"(h(λ1 − λ2) = 2π·{k}·j) onto one eigenvalue e^(λh) = {np.exp(l1 * h):.6g} of A_D, and {lost} mode(s) "
-            "become unobservable from C (seed 004, Theorem 1 assumes non-pathological sampling); "
+            "become unobservable from C (Theorem 1 of Qiu, Wen & Jiang 2010 assumes non-pathological sampling); "
             "choose h with h·|Im(λ1 − λ2)| ≠ 2πk"
             + ("" if undetectable else ", or pass allow_pathological=True (the lost modes are stable)")
         )
@@ -420,7 +424,7 @@ def simulate_sampled_data(
 
 @dataclass(frozen=True, eq=False)
 class Dtars:
-    """Stabilising solution ``(X, M)`` of the DTARS (seed 004, Lemma 4 and eq. (20))::
+    """Stabilising solution ``(X, M)`` of the DTARS (Lemma 4 and eq. (20))::
 
         [[A X Aᵀ − X + B Bᵀ,  A X Cᵀ + B Dᵀ],
          [C X Aᵀ + D Bᵀ,      C X Cᵀ + D Dᵀ]] [I; M] = 0,   A + Mᵀ C Schur.
@@ -484,13 +488,13 @@ def _explain_no_solution(
     if uncontrollable:
         return ExistenceError(
             f"G has uncontrollable mode(s) on the unit circle at z = {_fmt_points(uncontrollable)}: the DTARS has no "
-            "stabilising solution (seed 004, Lemma 4 / Theorem 1 assume none)"
+            "stabilising solution (Lemma 4 and Theorem 1 of Qiu, Wen & Jiang 2010 assume none)"
         )
     if zeros:
         return ExistenceError(
             f"G has invariant zero(s) on the unit circle at z = {_fmt_points(zeros)}: the DTARS (eq. (20)) has no "
-            "stabilising solution, so G has no co-inner–outer factorisation (seed 004, Lemma 4 / Theorem 1 assume "
-            "no zeros on the unit circle)"
+            "stabilising solution, so G has no co-inner–outer factorisation (Lemma 4 and Theorem 1 of Qiu, Wen & "
+            "Jiang 2010 assume no zeros on the unit circle)"
         )
     return exc
 
@@ -526,7 +530,7 @@ def _value_recursion(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray,
 
 
 def solve_dtars(*, A: object, B: object, C: object, D: object | None = None) -> Dtars:
-    """Seed 004, Lemma 4 / eq. (20): stabilising solution of the DTARS.
+    """Lemma 4 / eq. (20): stabilising solution of the DTARS.
 
     The DTARS is the filtering DARE with ``Q = B Bᵀ``, ``R = D Dᵀ`` (zero for
     the strictly proper ``G_dJ``), ``S = B Dᵀ`` and ``M = −Lᵀ``; it is solved
@@ -553,7 +557,7 @@ def solve_dtars(*, A: object, B: object, C: object, D: object | None = None) -> 
     if bad:
         raise ExistenceError(
             f"(A, C) is not detectable: mode(s) {[complex(round(z.real, 9), round(z.imag, 9)) for z in bad]} with "
-            "|λ| ≥ 1 are unobservable, so the DTARS has no stabilising solution (seed 004, Lemma 4)"
+            "|λ| ≥ 1 are unobservable, so the DTARS has no stabilising solution (Qiu, Wen & Jiang 2010, Lemma 4)"
         )
     r = normal_rank(a, b, c, d)
     if r == p:
@@ -580,7 +584,7 @@ def solve_dtars(*, A: object, B: object, C: object, D: object | None = None) -> 
     if spectral_radius(acl) >= 1.0 - 1e-12:
         err = ExistenceError(
             f"the DTARS has no stabilising solution: A + Mᵀ C has spectral radius {spectral_radius(acl):.6g} ≥ 1 "
-            "(seed 004, Lemma 4)"
+            "(Qiu, Wen & Jiang 2010, Lemma 4)"
         )
         raise _explain_no_solution(a, b, c, d, err)
     w = c @ x @ c.T + d @ d.T
@@ -612,14 +616,14 @@ def solve_dtars(*, A: object, B: object, C: object, D: object | None = None) -> 
 
 @dataclass(frozen=True, eq=False)
 class CoInnerOuter:
-    """``G = G_o G_i`` (seed 004, Lemma 4) with ``G_o#`` a stable left inverse of ``G_o``.
+    """``G = G_o G_i`` (Lemma 4) with ``G_o#`` a stable left inverse of ``G_o``.
 
     ``G_o = (A, −Mᵀ N, C, N)`` (outer), ``G_i = (A + MᵀC, B + MᵀD, N#C, N#D)``
     (co-inner: ``G_i G_i~ = I``), ``G_o# = (A + MᵀC, Mᵀ, N#C, N#)``.
-    Erratum: the paper prints ``B − MᵀD`` in ``G_i``; ``G_i = G_o# G`` by
-    Lemma 3 with ``K = −Mᵀ`` gives ``B − K D = B + MᵀD`` (the tests check
-    ``G = G_o G_i`` with ``D ≠ 0``). For the sampled-data case ``D = 0`` and
-    the two agree.
+    Qiu, Wen & Jiang 2010 print ``B − MᵀD`` in ``G_i``; fdisyn uses
+    ``B + MᵀD``, because ``G_i = G_o# G`` and Lemma 3 with ``K = −Mᵀ`` gives
+    ``B − K D = B + MᵀD`` (the tests check ``G = G_o G_i`` with ``D ≠ 0``).
+    For the sampled-data case ``D = 0`` and the two agree.
     """
 
     G: DiscreteLTI
@@ -631,8 +635,10 @@ class CoInnerOuter:
     def co_inner_residual(self) -> float:
         """``max(‖N# C X Cᵀ N#ᵀ − I‖, ‖(A + MᵀC) X Cᵀ N#ᵀ‖ / ‖X‖)`` — both vanish iff ``G_i`` is co-inner.
 
-        With ``X`` the Gramian of ``(A + MᵀC, B − MᵀD)``, these are the
-        discrete co-inner conditions ``C_i X C_iᵀ + D_i D_iᵀ = I`` and
+        ``X`` (the DTARS solution) is the controllability Gramian of
+        ``G_i``'s ``(A + MᵀC, B + MᵀD)``: the DTARS rearranges to
+        ``X = (A + MᵀC) X (A + MᵀC)ᵀ + (B + MᵀD)(B + MᵀD)ᵀ``. With it these are
+        the discrete co-inner conditions ``C_i X C_iᵀ + D_i D_iᵀ = I`` and
         ``A_i X C_iᵀ + B_i D_iᵀ = 0``.
         """
         gi, x = self.G_i, self.dtars.X
@@ -643,7 +649,7 @@ class CoInnerOuter:
 
 
 def co_inner_outer(*, A: object, B: object, C: object, D: object | None = None) -> CoInnerOuter:
-    """Seed 004, Lemma 4: co-inner–outer factorisation from the DTARS (:func:`solve_dtars`)."""
+    """Lemma 4: co-inner–outer factorisation from the DTARS (:func:`solve_dtars`)."""
     g = DiscreteLTI.create(A=A, B=B, C=C, D=D)
     dt = solve_dtars(A=g.A, B=g.B, C=g.C, D=g.D)
     mt, nn, npi = dt.M.T, dt.N, dt.N_pinv
@@ -675,7 +681,7 @@ def performance(
     model: Literal["norm_invariant", "zoh"] = "norm_invariant",
     band: tuple[float, float] | None = None,
 ) -> float:
-    """Seed 004, eq. (19): ``J = ‖G_rψ G_dJ‖∞ / ‖G_rψ G_fJ‖_η`` (independent evaluation).
+    """Eq. (19): ``J = ‖G_rψ G_dJ‖∞ / ‖G_rψ G_fJ‖_η`` (independent evaluation).
 
     Both products are formed as series connections of ``G_rψ`` with the plant
     (``model="norm_invariant"``: Lemma 1's ``G_dJ``, ``G_fJ`` — the true
@@ -753,7 +759,7 @@ class DiagnosticObserver:
         return residual_dynamics(F=self.F, L=self.L, W=self.W, V=self.V)
 
     def generator(self, *, name: str = "sampled_data_observer") -> Generator:
-        """Canonical form ``Ar = F, Bu = E, By = L, Cr = −W, Du = −Q, Dy = V`` (ARCHITECTURE.md)."""
+        """Canonical form ``Ar = F, Bu = E, By = L, Cr = −W, Du = −Q, Dy = V`` (the gain file's ``generators``, README)."""
         dt = self.factorisation.dtars
         method = {"name": "sampled_data_observer", "design": self.design, "T": self.T, "X": dt.X, "M": dt.M, "N": dt.N}
         return canonical_generator(
@@ -790,7 +796,7 @@ def canonical_generator(
 
 
 def _extra_block(a_d: np.ndarray, y: np.ndarray, ad: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Seed 004, eq. (21): ``L_d = −g(A_d) Y``, ``T_d = [Y, A_d Y, …, A_d^{n−1} Y] J``.
+    """Eq. (21): ``L_d = −g(A_d) Y``, ``T_d = [Y, A_d Y, …, A_d^{n−1} Y] J``.
 
     ``g(z) = det(zI − A_D) = Σ a_j z^j``; block row ``i`` of ``J`` is
     ``Σ_{j=i+1}^{n} a_j C A_D^{j−i−1}`` (``i = 0..n−1``). Then
@@ -829,7 +835,7 @@ def optimal_diagnostic_observer(
     T_t: object | None = None,
     allow_pathological: bool = False,
 ) -> DiagnosticObserver:
-    """Seed 004, Theorem 1 (eqs. (20)–(26)): the optimal diagnostic observer of order ``s ≥ n``.
+    """Theorem 1 (eqs. (20)–(26)): the optimal diagnostic observer of order ``s ≥ n``.
 
     ``design="direct"`` factorises Lemma 1's ``G_dJ = (A_D, B_dJ, C, 0)``;
     ``"indirect"`` factorises the ZOH model ``(A_D, B_dD, C, 0)`` (the paper's

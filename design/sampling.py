@@ -2,7 +2,8 @@
 
 ``zoh`` is the step-invariant (zero-order-hold) discretisation; ``van_loan``
 samples continuous white noise exactly, the integral that also gives the
-norm-invariant input matrix of seed 004, Lemma 1:
+norm-invariant input matrix of Qiu, Wen & Jiang (Control Theory &
+Applications 27(8), 2010), Lemma 1:
 ``B_J B_Jᵀ = ∫₀ʰ e^{Aτ} B Bᵀ e^{Aᵀτ} dτ``.
 """
 
@@ -57,8 +58,10 @@ def zoh(a: np.ndarray, b: np.ndarray, h: float, *, name: str = "Ts") -> tuple[np
 
     Computed from one matrix exponential of ``[[A, B], [0, 0]] h`` (exact up to
     the accuracy of ``expm``; no inverse of ``A`` is needed, so singular ``A``
-    such as a free rigid-body mode is fine). Seed 004 writes ``B_D`` as
-    ``B_uD``; seed 000 needs it for its ZOH model (SEEDS.md 000, erratum (c)).
+    such as a free rigid-body mode is fine). Qiu, Wen & Jiang 2010 write ``B_D``
+    as ``B_uD`` (eq. (13)); the wind-turbine drive train of Hu, Sun, Jiang, He
+    & Zhang (Acta Automatica Sinica 39(8), 2013) is continuous while their
+    method is discrete-time (eqs. (1), (12)), so it is sampled this way.
     """
     h = check_sample_time(h, name)
     a = as_matrix(a, "A")
@@ -75,7 +78,7 @@ def zoh(a: np.ndarray, b: np.ndarray, h: float, *, name: str = "Ts") -> tuple[np
 def van_loan(a: np.ndarray, w: np.ndarray, h: float, *, name: str = "Ts") -> np.ndarray:
     """``∫₀ʰ e^{Aτ} W e^{Aᵀτ} dτ`` by Van Loan's block exponential.
 
-    With ``W = B Bᵀ`` this is ``B_J B_Jᵀ`` of seed 004, Lemma 1; with ``W`` the
+    With ``W = B Bᵀ`` this is ``B_J B_Jᵀ`` of Qiu, Wen & Jiang 2010, Lemma 1; with ``W`` the
     intensity of continuous white noise it is the covariance of the sampled
     noise ``w_k = ∫ e^{A(h−τ)} dW`` (Van Loan, IEEE TAC 23(3), 1978).
     """

@@ -38,9 +38,10 @@ The TOML format (every key is validated; errors name the key)::
                                       # default: one per sensor and component fault, merged when alike
 
 For the UIO methods ``E`` holds unknown inputs to decouple; for the
-sampled-data methods (seed 004) it holds the disturbance, continuous white
-noise of unit intensity, and ``Fx`` the faults to be sensitive to. Seed 004's
-names are accepted too: ``Bu``, ``Bd``, ``Bf`` and ``h`` for ``B``, ``E``,
+sampled-data methods (Qiu, Wen & Jiang, Control Theory & Applications 27(8),
+2010) it holds the disturbance, continuous white noise of unit intensity, and
+``Fx`` the faults to be sensitive to. That paper's names (its eq. (1)) are
+accepted too: ``Bu``, ``Bd``, ``Bf`` and ``h`` for ``B``, ``E``,
 ``Fx`` and ``Ts`` (one name per matrix in a file).
 
     [simulation]                      # for simulate / evaluate / report
@@ -69,7 +70,8 @@ correlation time). For the sampled-data methods the disturbance is white
 noise of unit intensity, sampled exactly by the simulator
 ([simulation].unknown_inputs is not used).
 
-A nonlinear plant (seed 001, ``x(k+1) = f(x, u, θ) + v``, ``y = h(x, θ) + e``)
+A nonlinear plant (Zhou, Xi & Zhang, Shanghai Jiao Tong University, c. 1991,
+eq. (2.1): ``x(k+1) = f(x, u, θ) + v``, ``y = h(x, θ) + e``)
 is written with ``time = "nonlinear"`` and designed by the NAFDF::
 
     [signals]
@@ -191,8 +193,8 @@ LINEAR_METHODS: dict[str, MethodFn] = {
 }
 """Design methods a TOML file may name."""
 
-SEED_004_KEYS = {"Bu": "B", "Bd": "E", "Bf": "Fx", "h": "Ts"}
-"""Seed 004 writes a sampled-data plant as ``ẋ = A x + Bu u + Bd d + Bf f``,
+SAMPLED_DATA_LETTERS = {"Bu": "B", "Bd": "E", "Bf": "Fx", "h": "Ts"}
+"""Qiu, Wen & Jiang 2010 (eq. (1)) write a sampled-data plant as ``ẋ = A x + Bu u + Bd d + Bf f``,
 ``y = C x`` sampled every ``h``: those names are accepted for ``B``, ``E``,
 ``Fx`` and ``Ts``."""
 
@@ -369,9 +371,9 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
     mod = _Section(
         top.get("model", required=True),
         f"{path} [model]",
-        {"time", "Ts", "A", "B", "C", "D", "E", "Fx", "Q", "R", "state_scale", *SEED_004_KEYS},
+        {"time", "Ts", "A", "B", "C", "D", "E", "Fx", "Q", "R", "state_scale", *SAMPLED_DATA_LETTERS},
     )
-    for ours, theirs in SEED_004_KEYS.items():
+    for ours, theirs in SAMPLED_DATA_LETTERS.items():
         if ours in mod.doc and theirs in mod.doc:
             raise SpecError(f"{path} [model] gives both {ours!r} and {theirs!r}: they are the same matrix, give one")
         if ours in mod.doc:
@@ -533,7 +535,7 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
         )
 
     if white:
-        # seed 004's disturbance: continuous white noise of unit intensity, sampled exactly into the process noise
+        # the sampled-data disturbance (Qiu, Wen & Jiang 2010): continuous white noise of unit intensity, sampled exactly into the process noise
         w_d = van_loan(np.asarray(plant.A), np.asarray(plant.E) @ np.asarray(plant.E).T, ts)
         sim_plant = physical.with_noise(Q=np.asarray(physical.Q) + w_d)
         d_sigs = [Signal()] * physical.q
@@ -642,7 +644,7 @@ def _scenario_name(value: Any, scenarios: Mapping[str, Scenario], where: str) ->
     return sname
 
 
-# --------------------------------------------------------------------------- nonlinear plants (seed 001)
+# --------------------------------------------------------------------------- nonlinear plants (Zhou, Xi & Zhang 1991)
 
 _NAFDF_KEYS = {
     # TOML key → keyword of fdisyn.design.nafdf.nafdf
@@ -683,7 +685,7 @@ def _per_parameter(value: Any, parameters: tuple[str, ...], where: str) -> Any:
 
 
 def _nonlinear_problem(path: Path, top: _Section, name: str) -> Problem:
-    """A ``time = "nonlinear"`` plant file: seed 001's model and the NAFDF (format in the README)."""
+    """A ``time = "nonlinear"`` plant file: the model of Zhou, Xi & Zhang 1991 (eq. (2.1)) and the NAFDF (format in the README)."""
     from fdisyn.design.nafdf import nafdf, nafdf_extra_metrics, nafdf_gain_file
     from fdisyn.design.nonlinear import NonlinearPlant, covariance_matrix
 
@@ -815,7 +817,7 @@ def _nonlinear_problem(path: Path, top: _Section, name: str) -> Problem:
     return Problem(
         name=name,
         title=str(top.get("title", name)),
-        summary=f"Nonlinear plant described by {path.name}; the adaptive fault detection filter (NAFDF, seed 001).",
+        summary=f"Nonlinear plant described by {path.name}; the adaptive fault detection filter (NAFDF, Zhou, Xi & Zhang 1991).",
         designs={method: design_fn},
         default_design=method,
         scenarios=scenarios,

@@ -1,7 +1,13 @@
-"""Unknown-input observers with minimum-variance gains (seed 000).
+"""Unknown-input observers with minimum-variance gains (Hu et al. 2013).
+
+Hu, Sun, Jiang, He & Zhang, "An optimal unknown input observer based fault
+diagnosis method", Acta Automatica Sinica 39(8), 2013; equation and section
+numbers below are theirs. The existence conditions ``rank(C E) = rank(E)``
+and ``(C, A1)`` detectable are stated as necessary and sufficient by Long &
+Wang, Aeroengine 43(5), 2017, section 1.
 
 Plant ``x⁺ = A x + B u + E d + w``, ``y = C x + D u + v`` (discrete).
-Construction (seed 000, eqs. (3)–(11))::
+Construction (eqs. (3)–(11))::
 
     M C E = I            (M: the Moore–Penrose inverse of C E)
     H = E M,  T = I − H C,  A1 = T A,  G = T B
@@ -14,7 +20,12 @@ steady-state covariance solves the Lyapunov equation
 ``Σ = F Σ Fᵀ + T Q Tᵀ + K R Kᵀ`` and the residual ``r = C ε + (I − CH) v``
 has covariance ``Σ_r = C Σ Cᵀ + (I − CH) R (I − CH)ᵀ`` (``ε(k)`` does not
 depend on ``v(k)``). The paper's covariance step (eq. (16)) drops the
-correlation between ``−H v`` and ``−L v``; see SEEDS.md 000, "Erratum".
+correlation between ``−H v(k)`` (inside the error) and ``−L v(k)``, adding
+``H R Hᵀ`` and ``L R Lᵀ`` as if independent, so its gain minimises another
+quantity than the true error covariance — even when the cross term
+``S = −A1 H R (I − CH)ᵀ`` vanishes (``R = σ² I`` with the Moore–Penrose
+``M``). fdisyn minimises the exact covariance above and keeps the paper's
+recursion as ``variant="paper"``.
 
 Gains:
 
@@ -63,9 +74,12 @@ DECOUPLING_TOL = 1e-9
 point they are round-off, ~1e-15 times cond(C E). 1e-9 leaves six orders of
 margin while still catching any real coupling."""
 GAIN_TOL = 1e-8
-"""Agreement of the optimised gain with the analytic Riccati gain (issue
-contract). IPOPT is run to a KKT tolerance of 1e-14, which puts the gain within
-~cond(Hessian)·1e-14 of the optimum."""
+"""Agreement of the optimised gain with the analytic Riccati gain. The NLP
+and the Riccati solution are independent routes to the same optimum, so their
+gap is the NLP's error; it guards against a gain that is optimal to only a
+few digits (a stalled or local IPOPT solution). IPOPT is run to a KKT
+tolerance of 1e-14, which puts the gain within ~cond(Hessian)·1e-14 of the
+optimum: 1e-8 leaves room for a Hessian condition number up to 1e6."""
 RESIDUAL_TOL = 1e-10
 """Relative residual of a Riccati or Lyapunov equation: backward-stable
 solvers give ~n·eps ≈ 1e-15; 1e-10 flags a genuinely wrong solution."""
@@ -84,7 +98,7 @@ or a singular Lyapunov equation; the built-in banks have κ ≤ 533)."""
 
 @dataclass(frozen=True, eq=False)
 class UIOStructure:
-    """The decoupling part of a UIO (seed 000, eqs. (3), (8), (11))."""
+    """The decoupling part of a UIO (Hu et al. 2013, eqs. (3), (8), (11))."""
 
     M: np.ndarray
     """Left inverse of ``C E`` (Moore–Penrose), eq. (3)."""
@@ -104,7 +118,7 @@ def uio_structure(plant: LinearPlant) -> UIOStructure:
     """Check the existence conditions and build ``M, H, T, A1, G``.
 
     Raises :class:`ExistenceError` naming the failed condition:
-    ``rank(C E) = rank(E) = q`` (seed 000, eq. (3)), ``p > q`` (otherwise no
+    ``rank(C E) = rank(E) = q`` (Hu et al. 2013, eq. (3)), ``p > q`` (otherwise no
     residual is left), and detectability of ``(C, A1)``.
     """
     if not plant.is_discrete:
@@ -118,12 +132,12 @@ def uio_structure(plant: LinearPlant) -> UIOStructure:
         if re_ != q:
             raise ExistenceError(
                 f"rank(E) = {re_} but E has q = {q} columns: the unknown inputs are not independent; "
-                "merge dependent columns of E (seed 000, eq. (3) needs rank(E) = q)"
+                "merge dependent columns of E (Hu et al. 2013, eq. (3) needs rank(E) = q)"
             )
         if rce != q:
             raise ExistenceError(
                 f"rank(C E) = {rce} ≠ rank(E) = {q}: the unknown input cannot be decoupled from the outputs "
-                f"{list(plant.outputs)} (seed 000, eq. (3): rank(C E) = rank(E))"
+                f"{list(plant.outputs)} (Hu et al. 2013, eq. (3): rank(C E) = rank(E))"
             )
         kappa = ce_condition(plant)
         if kappa > CE_CONDITION_MAX:
@@ -181,7 +195,7 @@ def _check_detectable(a1: np.ndarray, c: np.ndarray, plant: LinearPlant) -> None
         lam = bad[0]
         raise ExistenceError(
             f"(C, A1) is not detectable: the mode λ = {lam:.6g} (|λ| = {abs(lam):.6g}) of A1 = T A "
-            f"is unobservable from outputs {list(plant.outputs)} (seed 000, existence condition 2)"
+            f"is unobservable from outputs {list(plant.outputs)} (a UIO needs (C, A1) detectable: Long & Wang 2017, section 1)"
         )
 
 
@@ -408,7 +422,7 @@ def _finish(
 
 
 def kalman_uio(plant: LinearPlant, *, variant: Literal["optimal", "paper"] = "optimal") -> UIODesign:
-    """Minimum-variance UIO (seed 000, section 1.2), verified against a Riccati solution.
+    """Minimum-variance UIO (Hu et al. 2013, section 1.2), verified against a Riccati solution.
 
     ``variant="optimal"`` (default) poses the gain as the NLP
     ``min_L trace Σ  s.t.  Σ = F Σ Fᵀ + T Q Tᵀ + K R Kᵀ`` (the exact, correlated
@@ -506,7 +520,7 @@ def _kalman_uio(plant: LinearPlant, st: UIOStructure, variant: str) -> UIODesign
 def _paper_recursion_check(
     st: UIOStructure, c: np.ndarray, q: np.ndarray, r: np.ndarray, p_ss: np.ndarray, *, iterations: int = 20_000
 ) -> tuple[float, float]:
-    """Seed 000 eqs. (14), (16): ``L = A1 P Cᵀ (C P Cᵀ + R)⁻¹``,
+    """Hu et al. 2013, eqs. (14), (16): ``L = A1 P Cᵀ (C P Cᵀ + R)⁻¹``,
     ``P⁺ = A1 P A1ᵀ + T Q Tᵀ + H R Hᵀ − L C P A1ᵀ``.
 
     Returns the relative change of one step from the steady state ``p_ss`` (a
@@ -606,7 +620,7 @@ def _nlp_gain(red: ReducedProblem, lt0: np.ndarray) -> tuple[np.ndarray, dict[st
 
 
 def pole_placement_uio(plant: LinearPlant, *, poles: Sequence[complex]) -> UIODesign:
-    """The plain UIO: ``L`` assigns ``eig(A1 − L C) = poles`` (seed 000's baseline).
+    """The plain UIO: ``L`` assigns ``eig(A1 − L C) = poles`` (the baseline of Hu et al. 2013, fig. 1).
 
     Uses SciPy's robust pole assignment (Kautsky–Nichols–Van Dooren) on the
     dual pair ``(A1ᵀ, Cᵀ)``. ``poles`` must lie strictly inside the unit

@@ -1,4 +1,8 @@
-"""Seed 004's example: the optimal diagnostic observer of a sampled-data system.
+"""The example of Qiu, Wen & Jiang 2010: the optimal diagnostic observer of a sampled-data system.
+
+Qiu, Wen & Jiang, "Optimal diagnostic observer for sampled-data systems",
+Control Theory & Applications 27(8), 2010, section 4; equation, lemma,
+theorem and figure numbers below are theirs.
 
 Continuous plant ``ẋ = A x + Bu u + Bd d + Bf f``, ``y = C x`` with
 ``A = [[−1, 5], [0, −2]]``, ``Bu = [0, 1]ᵀ``, ``Bd = [0.1, 1]ᵀ``,
@@ -41,7 +45,7 @@ PAPER: Mapping[str, Any] = {
     "C": np.eye(2),
     "h": 1.0,
 }
-"""Seed 004, section 4: the example plant."""
+"""Qiu, Wen & Jiang 2010, section 4: the example plant."""
 
 PAPER_GAINS: Mapping[str, np.ndarray] = {
     "L": np.array([[0.38, 1.16], [0.0, 0.14]]),
@@ -116,7 +120,8 @@ SCENARIOS = {
     "fault_free": Scenario("fault_free", "u a unit step, d continuous white noise of unit intensity, no fault.", DURATION),
     "paper": Scenario(
         "paper",
-        f"Seed 004, section 4: u a unit step, d white of unit intensity, f a step of {FAULT_SIZE:g} at {FAULT_TIME:g} s.",
+        f"Qiu, Wen & Jiang 2010, section 4: u a unit step, d white of unit intensity, f a step of {FAULT_SIZE:g} "
+        f"at {FAULT_TIME:g} s.",
         DURATION,
         fault="f",
         onset=FAULT_TIME,
@@ -212,7 +217,7 @@ def _report(ctx: ReportContext) -> list[tuple[str, str]]:
                     f"fig{fig_no}_{design}",
                     fig,
                     f"Run 0 of the paper's scenario through the generated C, {design} design: residual and χ² statistic "
-                    f"(cf. seed 004, fig. {fig_no}).",
+                    f"(cf. Qiu, Wen & Jiang 2010, fig. {fig_no}).",
                 )
             )
         m = v.evaluation.metrics
@@ -262,7 +267,7 @@ PROBLEM = Problem(
     summary=(
         "A continuous plant sampled at h = 1 s: the diagnostic observer designed directly for the sampled-data system "
         "(co-inner–outer factorisation of Lemma 1's norm-invariant model, Theorem 1), against discretising first and "
-        "against an LMI synthesis (seed 004, Qiu, Wen & Jiang, Control Theory & Applications 27(8), 2010)."
+        "against an LMI synthesis (Qiu, Wen & Jiang, Control Theory & Applications 27(8), 2010)."
     ),
     designs=_designs(),
     default_design="direct",

@@ -1,4 +1,8 @@
-"""Ship propulsion (seed 001, section 3, eq. (3.1)): a parameter-jump plant for the NAFDF.
+"""Ship propulsion (Zhou, Xi & Zhang 1991, section 3, eq. (3.1)): a parameter-jump plant for the NAFDF.
+
+Zhou, Xi & Zhang, "Detection and diagnostics of parameter jump for a class of
+nonlinear systems", Shanghai Jiao Tong University, c. 1991; equation, section
+and figure numbers below are theirs.
 
     x(t+1) = 0.1 a x(t)² + x(t) + 0.1 b u(t) + v(t),     v ~ N(0, Q1), Q1 = 0
     y(t)   = x(t) + e(t),                                 e ~ N(0, Q2), Q2 = 0.01
@@ -55,7 +59,7 @@ __all__ = [
 ]
 
 NOMINAL: Mapping[str, float] = {"a": -0.58, "b": 0.2}
-"""Nominal parameters ``a0``, ``b0`` (seed 001, section 3)."""
+"""Nominal parameters ``a0``, ``b0`` (section 3)."""
 
 FAULT_TIME = 701
 """The paper's fault time: ``a → a0/2`` from ``t = 701``."""
@@ -74,7 +78,7 @@ PAPER: Mapping[str, object] = {
     "W2": 350.0,
     "T1": 50,
 }
-"""What seed 001 reports for its fault scenario (section 3, figs. 3–4)."""
+"""What Zhou, Xi & Zhang 1991 report for their fault scenario (section 3, figs. 3–4)."""
 
 # The paper's filter initialisation (section 3).
 X0 = 0.0
@@ -421,7 +425,7 @@ def _report(ctx: ReportContext) -> list[tuple[str, str]]:
                     fig,
                     "Run 0 of the paper's scenario through the generated C: the NF's parameter estimates against the "
                     "truth (re-tracking after the reset), the WSSR statistic against its χ² threshold, and the "
-                    "classifier's distances against W1 and W2 (cf. seed 001, figs. 2–4).",
+                    "classifier's distances against W1 and W2 (cf. Zhou, Xi & Zhang 1991, figs. 2–4).",
                 ),
             )
         )
@@ -465,8 +469,8 @@ PROBLEM = Problem(
     summary=(
         "An EKF with a WSSR detector, a recursive prediction-error joint state/parameter filter, a modified Bayes "
         "classifier and their mutual re-initialisation, all derivatives by CasADi AD, exported as one C step "
-        "(seed 001, Zhou, Xi & Zhang). Plant x⁺ = 0.1 a x² + x + 0.1 b u + v, y = x + e; faults are jumps of the "
-        "hull resistance a and the engine efficiency b."
+        "(Zhou, Xi & Zhang, Shanghai Jiao Tong University, c. 1991). Plant x⁺ = 0.1 a x² + x + 0.1 b u + v, "
+        "y = x + e; faults are jumps of the hull resistance a and the engine efficiency b."
     ),
     designs={"nafdf": _gain_file},
     default_design="nafdf",

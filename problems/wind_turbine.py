@@ -1,4 +1,8 @@
-"""Wind-turbine drive train: sensor FDI with a bank of optimal UIOs (seed 000).
+"""Wind-turbine drive train: sensor FDI with a bank of optimal UIOs (Hu et al. 2013).
+
+Hu, Sun, Jiang, He & Zhang, "An optimal unknown input observer based fault
+diagnosis method", Acta Automatica Sinica 39(8), 2013; equation, table,
+figure and section numbers below are theirs.
 
 Two-mass drive train of the Odgaard–Stoustrup–Kinnaert benchmark (IFAC
 Safeprocess 2009), states ``x = [ω_r, ω_g, θ_Δ]`` (rotor speed, generator
@@ -13,10 +17,15 @@ the paper's set has none)::
     J_g ω̇_g = η B_dt/N_g ω_r − (η B_dt/N_g² + B_g) ω_g + η K_dt/N_g θ_Δ − τ_g
     θ̇_Δ = ω_r − ω_g/N_g
 
-Choices fixed here (SEEDS.md 000 errata): ``A`` is built from the parameters
-with ``K_dt = 2.7e9`` (the paper's printed rows disagree); ``B[1] = −1/J_g``;
-exact ZOH at 100 Hz; one unknown input (``E`` has one column); states scaled
-by their operating magnitudes for the design.
+Choices fixed here where the paper's section 3 prints something else: ``A``
+is built from the parameters with ``K_dt = 2.7e9`` (the printed numeric ``A``
+uses ``K_dt/J_r = 49.09`` in row 1 but ``η K_dt/(N_g J_g) = 706.88`` in row 2,
+which needs ``K_dt = 2.7e7``: the two rows disagree); ``B[1] = −1/J_g`` (the
+paper prints ``+2.564e-3``); the continuous model is sampled by exact ZOH at
+the benchmark's 100 Hz (the drive train is continuous, the paper's plant
+form, eqs. (1) and (12), discrete); one unknown input (the printed ``E_d`` has a zero
+second column); states scaled by their operating magnitudes for the design
+(the physical entries span 1e-9 to 7e4).
 """
 
 from __future__ import annotations
@@ -52,7 +61,7 @@ TS = 0.01
 OUTPUTS = ("omega_r_m1", "omega_r_m2", "omega_g_m1", "omega_g_m2")
 STATES = ("omega_r", "omega_g", "theta_delta")
 BANK = ((0, 2), (0, 3), (1, 2), (1, 3))
-"""One observer per sensor pair (ω_r,mi, ω_g,mj), i, j ∈ {1, 2} (seed 000, eq. (20))."""
+"""One observer per sensor pair (ω_r,mi, ω_g,mj), i, j ∈ {1, 2} (eq. (20))."""
 
 
 @dataclass(frozen=True)
@@ -99,7 +108,7 @@ PARAMETER_SETS: dict[str, DriveTrain] = {
         sigma_tau_s=2.0e4,
     ),
     "paper": DriveTrain(
-        label="seed 000 (Hu et al. 2013), parameters as printed",
+        label="Hu et al. 2013, parameters as printed",
         B_dt=9.45,
         B_r=0.0,
         B_g=0.0,
@@ -298,7 +307,7 @@ SCENARIOS: dict[str, Scenario] = {
         Scenario("fault_free", "No fault; turbulent aerodynamic torque, sensor and process noise.", 200.0),
         Scenario(
             "paper_F1",
-            "Seed 000, table 1, F1: omega_r_m1 stuck at 2 rad/s from t = 100 s.",
+            "Hu et al. 2013, table 1, F1: omega_r_m1 stuck at 2 rad/s from t = 100 s.",
             200.0,
             fault="omega_r_m1",
             onset=100.0,
@@ -306,7 +315,7 @@ SCENARIOS: dict[str, Scenario] = {
         ),
         Scenario(
             "paper_F2",
-            "Seed 000, table 1, F2: omega_r_m2 reads 1.05 times the measured speed for 100–150 s.",
+            "Hu et al. 2013, table 1, F2: omega_r_m2 reads 1.05 times the measured speed for 100–150 s.",
             200.0,
             fault="omega_r_m2",
             onset=100.0,
@@ -394,7 +403,7 @@ def _block_max(t: np.ndarray, j: np.ndarray, block: int = 25) -> tuple[np.ndarra
 
 
 def _report(ctx: ReportContext) -> list[tuple[str, str]]:
-    """Figures in the spirit of seed 000's figs. 1–3, and the paper's numbers beside ours."""
+    """Figures in the spirit of figs. 1–3 of Hu et al. 2013, and the paper's numbers beside ours."""
     sections = []
     for v in ctx.variants:
         if v.label not in ("default", "paper parameter set"):
@@ -421,7 +430,7 @@ def _report(ctx: ReportContext) -> list[tuple[str, str]]:
                     f"fig1_residuals_{tag}",
                     fig,
                     "Fault-free residual of the observer on (omega_r_m1, omega_g_m1), 50–60 s: plain UIO (pole placement) "
-                    "against the minimum-variance UIO (cf. seed 000, fig. 1).",
+                    "against the minimum-variance UIO (cf. Hu et al. 2013, fig. 1).",
                 )
             )
         for scen, fig_no, xlim in (("paper_F1", 2, None), ("paper_F2", 3, (95.0, 155.0))):
@@ -449,7 +458,7 @@ def _report(ctx: ReportContext) -> list[tuple[str, str]]:
                     f"fig{fig_no}_{scen}_{tag}",
                     fig,
                     f"{SCENARIOS[scen].description} χ² statistics of the four optimal UIOs (maximum over 0.25 s blocks) "
-                    f"against J_th, and the isolated fault (cf. seed 000, fig. {fig_no}).",
+                    f"against J_th, and the isolated fault (cf. Hu et al. 2013, fig. {fig_no}).",
                 )
             )
         for scen in ("benchmark_stuck", "benchmark_gain_pair"):
@@ -505,16 +514,20 @@ def _report(ctx: ReportContext) -> list[tuple[str, str]]:
             s_pp = float(np.std(ex["uio_pole_placement"]["fault_free"].r[:, 0]))
             s_opt = float(np.std(ex["kalman_uio"]["fault_free"].r[:, 0]))
             rows.append(["plain UIO residual noisier than the optimal one", "yes (fig. 1)", f"std {fmt(s_pp)} vs {fmt(s_opt)} rad/s", v.label])
-    sections.append(("The paper's results beside fdisyn's", table(["claim (seed 000)", "paper", "fdisyn", "variant"], rows, left=4)))
+    sections.append(("The paper's results beside fdisyn's", table(["claim (Hu et al. 2013)", "paper", "fdisyn", "variant"], rows, left=4)))
     return sections
 
 
 NOTES = (
     "A is built from the physical parameters with K_dt = 2.7e9 N·m/rad: the paper's printed matrix uses K_dt/J_r = 49.09 in "
-    "row 1 but η K_dt/(N_g J_g) = 706.88 in row 2, which needs K_dt = 2.7e7 (SEEDS.md 000, erratum a).",
-    "B = [0, −1/J_g, 0]ᵀ (the paper prints +2.564e-3); one unknown input τ_r through E = [1/J_r, 0, 0]ᵀ (errata b, d).",
-    "The continuous model is sampled exactly (ZOH) at the benchmark's 100 Hz; forward Euler is unstable for this plant (erratum c).",
-    "States are scaled by their operating magnitudes [ω_r, ω_g, θ_Δ] for the design (erratum e); the residual generators are "
+    "row 1 but η K_dt/(N_g J_g) = 706.88 in row 2, which needs K_dt = 2.7e7: the two printed rows disagree, and fdisyn "
+    "follows the stated parameter.",
+    "B = [0, −1/J_g, 0]ᵀ as the physics gives (the paper prints +2.564e-3); one unknown input τ_r through "
+    "E = [1/J_r, 0, 0]ᵀ (the paper's E_d has a second, zero column).",
+    "The drive train is continuous but the paper's method is discrete-time (its eqs. (1), (12)): the model is sampled "
+    "exactly (ZOH) at the benchmark's 100 Hz; forward Euler is unstable for this plant.",
+    "States are scaled by their operating magnitudes [ω_r, ω_g, θ_Δ] for the design (the physical entries span 1e-9 "
+    "to 7e4); the residual generators are "
     "input/output objects, so the scaling changes only the conditioning (the certificates hold in either coordinates). "
     "M is the Moore–Penrose inverse of C E.",
     "Default parameter set: the benchmark's (B_dt = 775.49, B_r = 7.11, B_g = 45.6); the paper's set (B_dt = 9.45, no friction) "
@@ -550,7 +563,7 @@ PROBLEM = Problem(
         "Four unknown-input observers, one per pair of rotor- and generator-speed sensors, decouple the "
         "turbulent aerodynamic torque exactly; their minimum-variance gains are designed as an NLP and "
         "verified against the Riccati solution; χ² statistics and the bank's alarm pattern isolate the "
-        "faulty sensor (seed 000, Hu et al., Acta Automatica Sinica 39(8), 2013)."
+        "faulty sensor (Hu, Sun, Jiang, He & Zhang, Acta Automatica Sinica 39(8), 2013)."
     ),
     designs=_designs(),
     default_design="kalman_uio",

@@ -1,7 +1,10 @@
-"""Wind-turbine drive train with its efficiency ``η`` as the NAFDF parameter (seed 000's plant).
+"""Wind-turbine drive train with its efficiency ``η`` as the NAFDF parameter.
 
-The Odgaard–Stoustrup–Kinnaert benchmark drive train (SEEDS.md, section 000,
-the "benchmark" parameter set), continuous in time,
+The plant of Hu, Sun, Jiang, He & Zhang (Acta Automatica Sinica 39(8), 2013)
+with the NAFDF of Zhou, Xi & Zhang (Shanghai Jiao Tong University, c. 1991):
+the Odgaard–Stoustrup–Kinnaert benchmark drive train (IFAC Safeprocess 2009;
+the "benchmark" parameter set of :mod:`fdisyn.problems.wind_turbine`),
+continuous in time,
 
     J_r ω̇_r = τ_r − (B_dt + B_r) ω_r + (B_dt/N_g) ω_g − K_dt θ_Δ
     J_g ω̇_g = (η B_dt/N_g) ω_r − (η B_dt/N_g² + B_g) ω_g + (η K_dt/N_g) θ_Δ − τ_g
@@ -70,7 +73,7 @@ BENCHMARK: Mapping[str, float] = {
     "J_r": 55e6,
     "N_g": 95.0,
 }
-"""Odgaard's benchmark drive-train parameters (SEEDS.md 000)."""
+"""The benchmark's drive-train parameters (the "benchmark" set of :mod:`fdisyn.problems.wind_turbine`)."""
 TS = 0.01
 """Sample time (the benchmark's 100 Hz)."""
 ETA_NOMINAL = 0.97
@@ -322,8 +325,8 @@ PROBLEM = Problem(
     name="wind_turbine_efficiency",
     title="Wind-turbine drive-train efficiency: the NAFDF on a second plant",
     summary=(
-        "The same NAFDF code path (seed 001) on the drive train of the wind_turbine problem, with the efficiency η "
-        "as the parameter: detect and estimate the benchmark's η: 0.97 → 0.92 jump."
+        "The same NAFDF code path (Zhou, Xi & Zhang 1991) on the drive train of the wind_turbine problem, with the "
+        "efficiency η as the parameter: detect and estimate the benchmark's η: 0.97 → 0.92 jump."
     ),
     designs={"nafdf": _gain_file},
     default_design="nafdf",

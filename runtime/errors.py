@@ -24,7 +24,8 @@ class ExistenceError(FdisynError, ValueError):
     """A condition the method needs does not hold for this plant.
 
     Example: ``rank(C E) = rank(E)`` for an unknown-input observer
-    (seed 000, eq. (3)), or detectability of ``(C, A1)``.
+    (Hu, Sun, Jiang, He & Zhang, Acta Automatica Sinica 39(8), 2013, eq. (3)),
+    or detectability of ``(C, A1)``.
     """
 
 
@@ -61,7 +62,8 @@ class BuildError(FdisynError, OSError):
 class NominalValueError(SpecError):
     """A model parameter has no (finite) nominal value.
 
-    The nonlinear adaptive fault-detection filter (seed 001) runs its EKF on
+    The nonlinear adaptive fault-detection filter (Zhou, Xi & Zhang, Shanghai
+    Jiao Tong University, c. 1991) runs its EKF on
     the nominal model, so every parameter ``θ_i`` needs one. The message names
     the parameters without a value and the ones that were given.
     """

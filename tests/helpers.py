@@ -33,7 +33,8 @@ def random_plant(seed: int, *, n: int | None = None, p: int | None = None, q: in
     )
 
 
-# Seed 004, section 4: the paper's continuous plant, sampled at h = 1 s.
+# Qiu, Wen & Jiang, Control Theory & Applications 27(8), 2010, section 4: the paper's continuous plant,
+# sampled at h = 1 s.
 PAPER = {
     "A": np.array([[-1.0, 5.0], [0.0, -2.0]]),
     "Bu": np.array([[0.0], [1.0]]),

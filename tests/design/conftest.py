@@ -10,5 +10,6 @@ from tests.helpers import PAPER
 
 @pytest.fixture(scope="session")
 def paper_plant() -> SampledDataPlant:
-    """Seed 004's example plant, sampled at h = 1 s."""
+    """The example plant of Qiu, Wen & Jiang (Control Theory & Applications 27(8), 2010, section 4),
+    sampled at h = 1 s."""
     return SampledDataPlant.create(**PAPER)

@@ -1,4 +1,4 @@
-"""Generated C: compiled with the contract's flags, loaded and compared numerically."""
+"""Generated C: compiled with the flags the README documents, loaded and compared numerically."""
 
 from __future__ import annotations
 
@@ -57,7 +57,7 @@ def test_c_agrees_with_both_python_references_on_1e4_samples(wt_built, wt_trace)
         assert max(v["r"], v["J"], v["state"]) <= EXPORT_TOL, (ref, v)
         assert v["decisions_equal"], ref
     res = wt_built.diagnoser.run(U, Y)
-    # and plainly normwise relative to the reference (the contract's figure): residuals are ~0.1
+    # and plainly normwise relative to the reference (the figure a user would compute first): residuals are ~0.1
     # differences of ~150-sized terms, so summation order alone leaves ~1e-13
     ref = LinearReference(wt_built.gain_file).run(U, Y)
     for name in ("r", "J", "state"):

@@ -1,4 +1,5 @@
-"""NAFDF (seed 001) against truths: Riccati, Cramér–Rao, χ² law; skip, divergence and latching contracts."""
+"""NAFDF (Zhou, Xi & Zhang, Shanghai Jiao Tong University, c. 1991) against truths: Riccati,
+Cramér–Rao, χ² law; skip, divergence and latching contracts."""
 
 from __future__ import annotations
 
@@ -59,8 +60,9 @@ def linear_plant(rng: np.random.Generator, n: int, p: int) -> tuple[NonlinearPla
 def test_ekf_steady_gain_equals_dare_kalman_gain(seed: int, n: int, p: int) -> None:
     """On a linear plant the EKF's covariance recursion is the Riccati recursion; its limit is the DARE.
 
-    Bound 1e-9 (the issue's): the recursion contracts like ρ(A − LC)² per step, so 1500 steps
-    leave nothing but round-off (~1e-13 relative) for these well-conditioned random systems.
+    Bound 1e-9: the recursion contracts like ρ(A − LC)² per step, so 1500 steps leave nothing but
+    round-off (~1e-13 relative) for these well-conditioned random systems; 1e-9 leaves four orders
+    of margin above it, while a wrong covariance recursion would converge to another gain altogether.
     """
     rng = np.random.default_rng(seed)
     pl, m = linear_plant(rng, n, p)

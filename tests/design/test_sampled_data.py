@@ -1,4 +1,5 @@
-"""Seed 004: Lemma 1, Lemma 4 (DTARS, co-inner–outer) and Theorem 1 against independent truths."""
+"""Qiu, Wen & Jiang, Control Theory & Applications 27(8), 2010: Lemma 1, Lemma 4 (DTARS, co-inner–outer)
+and Theorem 1 against independent truths."""
 
 from __future__ import annotations
 
@@ -191,7 +192,9 @@ def test_lemma4_strictly_proper_wide(n: int, p: int, seed: int, unstable: bool) 
 @settings(derandomize=True, max_examples=15, deadline=None)
 @given(n=st.integers(1, 4), q=st.integers(1, 3), h=st.floats(0.1, 2.0), seed=st.integers(0, 2**16))
 def test_dtars_closed_form_with_identity_output(n: int, q: int, h: float, seed: int) -> None:
-    """``C = I``: ``X = B_dJ B_dJᵀ``, ``M = −A_Dᵀ`` (SEEDS.md 004), whether ``B_dJ`` has rank n or less."""
+    """``C = I``: ``X = B_dJ B_dJᵀ``, ``M = −A_Dᵀ`` (eq. (20) with ``C = I``: ``M = −A_Dᵀ`` solves the second
+    block row ``X A_Dᵀ + X M = 0``, and the first then reduces to ``X = B_dJ B_dJᵀ``), whether ``B_dJ`` has
+    rank n or less."""
     rng = np.random.default_rng(seed)
     pl = SampledDataPlant.create(
         A=rng.standard_normal((n, n)), Bu=np.zeros((n, 1)), Bd=rng.standard_normal((n, q)), Bf=np.ones((n, 1)), C=np.eye(n), h=h

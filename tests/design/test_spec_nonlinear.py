@@ -1,4 +1,5 @@
-"""A nonlinear plant file (``time = "nonlinear"``) designs the NAFDF of seed 001.
+"""A nonlinear plant file (``time = "nonlinear"``) designs the NAFDF of Zhou, Xi & Zhang
+(Shanghai Jiao Tong University, c. 1991).
 
 The truth for the TOML route is the built-in ``ship_propulsion`` problem:
 ``tests/data/ship.toml`` writes the same plant, the same settings and the

@@ -1,4 +1,5 @@
-"""Unknown-input observers (seed 000): existence, decoupling, optimality, the paper's erratum."""
+"""Unknown-input observers (Hu, Sun, Jiang, He & Zhang, Acta Automatica Sinica 39(8), 2013): existence,
+decoupling, optimality, and the correlation the paper's covariance step (eq. (16)) drops."""
 
 from __future__ import annotations
 
@@ -210,7 +211,8 @@ def test_paper_gain_is_never_better_than_the_optimum(seed):
 
 
 def test_isotropic_noise_removes_the_cross_term_but_not_the_paper_suboptimality():
-    # SEEDS.md 000: with R = σ² I and the Moore–Penrose M, S = −A1 H R (I − CH)ᵀ = 0 ...
+    # with R = σ² I and the Moore–Penrose M the cross term S = −A1 H R (I − CH)ᵀ vanishes: C H = C E M is an
+    # orthogonal projector and H (I − CH) = E (M − M C E M) = 0 ...
     base = random_plant(11, n=4, p=3, q=1)
     iso = base.with_noise(R=0.3 * np.eye(3))
     s = kalman_uio(iso).structure

@@ -1,4 +1,5 @@
-"""Seed 004's example through the pipeline: designs, the χ² law, detection, C export, the TOML route."""
+"""The example of Qiu, Wen & Jiang (Control Theory & Applications 27(8), 2010) through the pipeline:
+designs, the χ² law, detection, C export, the TOML route."""
 
 from __future__ import annotations
 

@@ -1,4 +1,5 @@
-"""Ship propulsion (seed 001, section 3): the paper's scenario and the other faults, reproduced."""
+"""Ship propulsion (Zhou, Xi & Zhang, Shanghai Jiao Tong University, c. 1991, section 3): the paper's
+scenario and the other faults, reproduced."""
 
 from __future__ import annotations
 
@@ -107,7 +108,8 @@ def test_compiled_step_equals_casadi_over_a_5000_step_faulty_run(ship_built):
     Y[[100, 2500, 4000], 0] = [np.nan, np.inf, -np.inf]
     chk = check_export(ship_built, U, Y)
     v = chk.references["casadi"]
-    # the same SX graph compiled: agreement to round-off of a different evaluation order (issue bound 1e-10)
+    # the same SX graph compiled: agreement to round-off of a different evaluation order (bound 1e-10: far
+    # above that round-off, far below what a wrongly generated operation would change)
     assert max(v["r"], v["J"], v["state"]) <= 1e-10 and v["decisions_equal"]
     assert chk.nonfinite_samples == 3
 
