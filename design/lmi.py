@@ -357,7 +357,7 @@ def hinf_norm_lmi(sys: DiscreteLTI) -> SdpResult:
 
     A band-limited version by the generalised KYP lemma is not offered: with
     Clarabel it ends ``optimal_inaccurate`` (errors ~3e-6) on interior bands,
-    outside the 1e-6 contract; the sweep :func:`fdisyn.design.norms.hinf_norm`
+    outside the 1e-6 relative agreement with the sweep that the norm LMIs are held to; the sweep :func:`fdisyn.design.norms.hinf_norm`
     takes a band.
     """
     _require_stable(sys, "H∞ norm LMI")
@@ -1036,7 +1036,7 @@ def lmi_diagnostic_observer(
     model: Literal["norm_invariant", "zoh"] = "norm_invariant",
     max_peak_iterations: int = 20,
 ) -> LmiObserver:
-    """The ratio problem of seed 004, eq. (19), as SDPs (module docstring, steps 1–2).
+    """The ratio problem of Qiu, Wen & Jiang (Control Theory & Applications 27(8), 2010), eq. (19), as SDPs (module docstring, steps 1–2).
 
     ``band`` restricts the fault measure (``η ∈ {"inf", "-"}``) to
     ``[ω₁, ω₂]`` rad/sample. ``model="zoh"`` designs on the ZOH model (the

@@ -5,9 +5,10 @@ The filtering DARE, the form every fdisyn method needs::
     X = A X Aᵀ + Q − (A X Cᵀ + S)(C X Cᵀ + R)⁺ (A X Cᵀ + S)ᵀ
     L = (A X Cᵀ + S)(C X Cᵀ + R)⁺,   A − L C  Schur stable.
 
-``R`` may be singular — the optimal unknown-input observer of seed 000 has the
-rank-``p − q`` measurement term ``(I − CH) R (I − CH)ᵀ`` and a cross term
-``S``, and the DTARS of seed 004 (Lemma 4) has ``R = 0``. Forming
+``R`` may be singular — the optimal unknown-input observer of Hu et al.
+(Acta Automatica Sinica 39(8), 2013) has the rank-``p − q`` measurement term
+``(I − CH) R (I − CH)ᵀ`` and a cross term ``S``, and the DTARS of Qiu, Wen &
+Jiang (Control Theory & Applications 27(8), 2010, Lemma 4) has ``R = 0``. Forming
 ``(C X Cᵀ + R)⁻¹`` inside the algorithm would fail there, so the solution is
 computed from the deflating subspace of the extended (``2n + p``) symplectic
 pencil, which never inverts ``R`` (Arnold & Laub, Proc. IEEE 72(12), 1984;
@@ -88,7 +89,8 @@ def _reduced_pencil(a: np.ndarray, c: np.ndarray, q: np.ndarray, r: np.ndarray, 
     nn[n : 2 * n, n : 2 * n] = a
     nn[2 * n :, n : 2 * n] = -b.T
     # Balance with a diagonal similarity diag(D, D⁻¹, Dp) that keeps the
-    # symplectic structure (Benner, 1997): powers of two, so no rounding.
+    # symplectic structure (Benner, "Symplectic balancing of Hamiltonian matrices", SIAM J. Sci.
+    # Comput. 22(5), 2001): powers of two, so no rounding.
     mag = np.abs(mm) + np.abs(nn)
     np.fill_diagonal(mag, 0.0)
     _, (sca, _) = sla.matrix_balance(mag, separate=True, permute=False)

@@ -27,14 +27,14 @@ from hypothesis import strategies as st
 
 from tests.helpers import random_stable
 
-# The contract: LMI norms agree with the independent evaluation to
+# LMI norms must agree with the independent evaluation (sweep, slycot) to
 # 1e-6 relative (Clarabel at 1e-11, falling back to 1e-9, on problems scaled
 # to O(1): measured ≤ 4e-11 for H∞/H2 over 60 random systems).
 NORM_AGREE = 1e-6
-# The design's contract is J within 1 % of Theorem 1's optimum; the SDPs reach it far closer:
+# A design within 1 % of Theorem 1's optimum (Qiu, Wen & Jiang 2010) is the aim; the SDPs reach it far closer:
 # measured ≤ 3.3e-7 over the random plants below (Clarabel's 1e-9 gap on the squared bound,
 # amplified by the conditioning of the H₋ problem) and ≤ 6e-13 on the paper's example, so
-# 1e-6 catches a loss of accuracy long before it could approach the contract.
+# 1e-6 catches a loss of accuracy long before it could approach that 1 %.
 DESIGN_AGREE = 1e-6
 
 

@@ -23,7 +23,8 @@ def test_scalar_closed_form():
 
 
 def test_zero_measurement_noise_full_state_closed_form():
-    # C = I, R = 0, S = 0: X = A X Aᵀ + Q − A X X⁻¹ X Aᵀ = Q and L = A (deadbeat); the DTARS of seed 004
+    # C = I, R = 0, S = 0: X = A X Aᵀ + Q − A X X⁻¹ X Aᵀ = Q and L = A (deadbeat); the DTARS of
+    # Qiu, Wen & Jiang (Control Theory & Applications 27(8), 2010, Lemma 4)
     rng = np.random.default_rng(0)
     a = rng.standard_normal((3, 3))
     b = rng.standard_normal((3, 3))
