@@ -453,6 +453,8 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
         raise SpecError(f"{path} [design].eta must be one of {list(ETAS)} (the fault measure), got {short_repr(des.get('eta'))}")
     if "sampling" in des.doc and des.get("sampling") not in ("direct", "indirect"):
         raise SpecError(f"{path} [design].sampling must be 'direct' (Theorem 1) or 'indirect' (ZOH first), got {short_repr(des.get('sampling'))}")
+    if "bank" in des.doc and des.entries("bank") == []:  # not replaced by the default: an empty bank is a mistake
+        raise SpecError(f"{path} [design].bank is empty; expected groups of outputs, one observer each, or no key for one observer on all outputs")
     groups = des.entries("bank") or [list(physical.outputs)]
     bank = []
     for gi, g in enumerate(groups):

@@ -78,6 +78,7 @@ PLANT_CASES: list[tuple[str, str, str, str, list[str], tuple[str, ...]]] = [
     ("Ts negative", MOTOR, "Ts = 0.001 ", "Ts = -0.001 ", ["design"], ("[model].Ts must be a positive sample time",)),
     ("x0 nan", MOTOR, "x0 = [0.4, 0.0, 0.0]", "x0 = [nan, 0.0, 0.0]", ["simulate"], ("[simulation].x0 must hold finite numbers",)),
     ("bank unknown output", MOTOR, '["w_meas", "theta_meas"]]', '["w_meas", "rpm"]]', ["design"], ("[design].bank[1][1]: no output 'rpm'",)),
+    ("bank empty", MOTOR, 'bank = [["i_meas", "theta_meas"], ["w_meas", "theta_meas"]]', "bank = []", ["design"], ("[design].bank is empty; expected groups of outputs",)),
     ("bank repeats", MOTOR, '["w_meas", "theta_meas"]]', '["w_meas", "w_meas"]]', ["design"], ("[design].bank[1] names output 'w_meas' twice",)),
     # a group whose sensors the load reaches only through ~1e-7 of a sample: named, with the remedy
     ("weak C E", MOTOR.replace("duration = 10.0", "duration = 0.1").replace("onset = 5.0", "onset = 0.05"), "Ts = 0.001 ", "Ts = 0.00001 ", ["design"],
