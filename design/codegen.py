@@ -231,7 +231,11 @@ def generate_sources(gf: GainFile, c_dir: str | Path, *, step: ca.Function | Non
             f"at most {STACK_LIMIT_BYTES} are allowed"
         )
     c_dir = Path(c_dir)
+    if c_dir.is_symlink():
+        raise BuildError(f"{c_dir} is a symbolic link; expected a folder of its own for the generated C (remove the link)")
     c_dir.mkdir(parents=True, exist_ok=True)
+    for generated in (f"{gf.name}_casadi.c", f"{gf.name}_casadi.h", f"{gf.name}.h", f"{gf.name}.c", "replay.c", "bench.c", "CMakeLists.txt"):
+        fresh_path(c_dir / generated)
     ins: list[Any] = list(fn.sx_in() if fn.is_a("SXFunction") else fn.mx_in())
     named = ca.Function(f"{gf.name}_casadi_step", ins, fn.call(ins), list(fn.name_in()), list(fn.name_out()))
     # the generated header carries the <f>_SZ_* work-size macros the wrapper uses
@@ -250,6 +254,21 @@ def generate_sources(gf: GainFile, c_dir: str | Path, *, step: ca.Function | Non
     return c_dir / f"{gf.name}.h"
 
 
+def fresh_path(path: Path) -> Path:
+    """``path`` cleared for a new file: an entry already there, unless a folder, is removed first.
+
+    The folder may have been received from someone else: writing to a name
+    that is a symbolic link (``c/replay.c`` → ``~/.bashrc``) would follow it
+    and overwrite the file it points to. Removed first, a link is never
+    followed and its target stays as it was; a folder in the way is refused.
+    """
+    if path.is_symlink() or path.exists():
+        if path.is_dir() and not path.is_symlink():
+            raise BuildError(f"{path} is a folder; expected the name of a file `fdisyn codegen` writes")
+        path.unlink()
+    return path
+
+
 def _run(argv: list[str], what: str) -> None:
     """Run one compiler command (``argv``: :func:`compiler`'s words, then the arguments).
 
@@ -266,7 +285,7 @@ def _run(argv: list[str], what: str) -> None:
         raise BuildError(f"cannot run the C compiler {argv[0]!r} to build {what}: {exc.strerror or exc}") from exc
     record = f"$ {shlex.join(argv)}\n{proc.stdout}{proc.stderr}exit status {proc.returncode}\n"
     try:
-        log.write_text(record, encoding="utf-8")
+        fresh_path(log).write_text(record, encoding="utf-8")
         saved = f"the compiler's output is in {log}"
     except OSError as exc:
         saved = f"its output could not be saved to {log} ({exc.strerror or exc})"

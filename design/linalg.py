@@ -6,6 +6,7 @@ stated tolerance, discrete Lyapunov solves, and Markov parameters.
 
 from __future__ import annotations
 
+import reprlib
 from collections.abc import Sequence
 
 import numpy as np
@@ -13,6 +14,7 @@ import scipy.linalg as sla
 from fdisyn.runtime.errors import ShapeError
 
 __all__ = [
+    "real_array",
     "as_matrix",
     "check_shape",
     "as_square",
@@ -31,14 +33,38 @@ __all__ = [
 ]
 
 
+def real_array(value: object, name: str) -> np.ndarray:
+    """``value`` (a number, nested lists of numbers or a numeric array) as a float array.
+
+    Numbers only: NumPy's ``asarray(…, dtype=float)`` would read the string
+    ``"1.5"`` as 1.5 and ``true`` as 1.0, and raise ``OverflowError`` on an
+    integer beyond the double range — values of a plant file are refused
+    here instead (:class:`ShapeError` naming ``name``), never converted.
+    """
+    if isinstance(value, np.ndarray) and value.dtype.kind in "fiu":
+        return value.astype(float)
+    try:
+        leaves = np.asarray(value, dtype=object)
+    except ValueError:  # rows of different lengths
+        raise ShapeError(f"{name} must be a number or a matrix of numbers (rows of one length)") from None
+    for x in leaves.flat:
+        if isinstance(x, (bool, np.bool_)) or not isinstance(x, (int, float, np.integer, np.floating)):
+            raise ShapeError(f"{name} must hold numbers only; found {reprlib.repr(x)}")
+    try:
+        return leaves.astype(float)
+    except OverflowError:
+        raise ShapeError(f"{name} holds an integer beyond the range of a double; expected a finite number") from None
+
+
 def as_matrix(value: object, name: str, *, rows: int | None = None, cols: int | None = None) -> np.ndarray:
     """Convert ``value`` to a finite 2-D float array, checking its shape.
 
     ``rows``/``cols`` of ``None`` accept any size. A 1-D input is read as a
     column when ``cols == 1`` and as a row when ``rows == 1``; otherwise it is
-    refused, because guessing the orientation hides mistakes.
+    refused, because guessing the orientation hides mistakes. Entries must
+    be numbers (:func:`real_array`).
     """
-    a = np.asarray(value, dtype=float)
+    a = real_array(value, name)
     if a.ndim == 0:
         a = a.reshape(1, 1)
     elif a.ndim == 1:

@@ -195,6 +195,7 @@ import numpy as np
 import scipy.stats
 from fdisyn.design.certificate import Certificate, Check, worst
 from fdisyn.design.diagnoser import provenance
+from fdisyn.design.linalg import real_array
 from fdisyn.design.nonlinear import (
     NonlinearPlant,
     function_from_program,
@@ -325,8 +326,8 @@ def _ro(a: np.ndarray) -> np.ndarray:
 
 def _float_array(value: object, name: str) -> np.ndarray:
     try:
-        return np.asarray(value, dtype=float)
-    except (TypeError, ValueError, OverflowError):
+        return real_array(value, name)  # numbers only: "100" or true are refused, not converted
+    except ShapeError:
         raise SpecError(f"{name} must be a number or an array of numbers; got {short_repr(value)}") from None
 
 

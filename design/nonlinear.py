@@ -73,7 +73,7 @@ from typing import Any
 
 import casadi as ca
 import numpy as np
-from fdisyn.design.linalg import as_matrix
+from fdisyn.design.linalg import as_matrix, real_array
 from fdisyn.design.plant import frozen_array, identifier_names
 from fdisyn.design.sampling import check_sample_time
 from fdisyn.runtime.errors import NominalValueError, NonDifferentiableError, ShapeError, SpecError
@@ -237,10 +237,7 @@ def covariance_matrix(value: object, name: str, size: int, *, definite: bool) ->
     Raises :class:`ShapeError` naming ``name`` for non-numbers, a wrong
     shape, asymmetry, or an eigenvalue below zero (``definite``: not above).
     """
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ShapeError(f"{name} must be a number or a matrix of numbers; got {value!r}") from None
+    arr = real_array(value, name)  # numbers only: "1e-2" or true are refused, not converted
     if arr.ndim == 0:
         arr = float(arr) * np.eye(size)
     elif arr.ndim == 1 and arr.size == size:
@@ -960,10 +957,14 @@ def _nominal_vector(parameters: Sequence[str], nominal: Mapping[str, float]) -> 
         raise NominalValueError(f"nominal values given for unknown parameters {extra}; parameters are {list(parameters)}")
     vals = []
     for p in parameters:
+        raw = nominal[p]
+        # float() would read the string "0.2" and true; an integer beyond the double range overflows
+        if isinstance(raw, (bool, np.bool_)) or not isinstance(raw, (int, float, np.integer, np.floating)):
+            raise NominalValueError(f"nominal value of parameter {p!r} must be a number; found {short_repr(raw)}")
         try:
-            v = float(nominal[p])
-        except (TypeError, ValueError):
-            raise NominalValueError(f"nominal value of parameter {p!r} must be a number; found {nominal[p]!r}") from None
+            v = float(raw)
+        except OverflowError:
+            v = math.inf
         if not np.isfinite(v):
             raise NominalValueError(f"nominal value of parameter {p!r} must be finite; found {v!r}")
         vals.append(v)

@@ -19,7 +19,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from fdisyn.design.linalg import as_matrix, as_square, as_symmetric
+from fdisyn.design.linalg import as_matrix, as_square, as_symmetric, real_array
 from fdisyn.design.sampling import check_sample_time, van_loan, zoh
 from fdisyn.runtime.errors import ShapeError
 from fdisyn.runtime.names import check_distinct, check_signal_names
@@ -185,8 +185,8 @@ class LinearPlant:
         matrices improves when ``scale`` holds typical state magnitudes.
         """
         try:
-            s = np.asarray(scale, dtype=float).reshape(-1)
-        except (TypeError, ValueError):
+            s = real_array(scale, "state scaling").reshape(-1)  # numbers only: "10" or true are refused
+        except ShapeError:
             raise ShapeError(f"state scaling must be {self.n} positive finite numbers; got {scale!r}") from None
         if s.shape != (self.n,) or not np.all(np.isfinite(s)) or np.any(s <= 0):
             raise ShapeError(f"state scaling must be {self.n} positive finite numbers; got {scale!r}")

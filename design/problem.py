@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 from fdisyn.runtime.errors import SpecError
-from fdisyn.runtime.gainfile import GainFile
+from fdisyn.runtime.gainfile import LIMITS, GainFile
 
 __all__ = ["Scenario", "Batch", "Problem", "get_problem", "problem_names", "OPTION_RULES", "check_option", "short_repr"]
 
@@ -41,7 +41,10 @@ def _is_count(v: Any) -> bool:
 
 OPTION_RULES: Mapping[str, tuple[str, Callable[[Any], bool]]] = {
     "P_f": ("a false-alarm probability per statistic and sample: a number in (0, 1)", lambda v: _is_real(v) and 0.0 < v < 1.0),
-    "persistence": ("a whole number ≥ 1 of consecutive exceedances", _is_count),
+    "persistence": (
+        f"a whole number ≥ 1 of consecutive exceedances, at most {LIMITS['persistence']}",
+        lambda v: _is_count(v) and v <= LIMITS["persistence"],  # a count in a double; the gain file's limit
+    ),
     "window": ("a whole number of samples ≥ 1", _is_count),
 }
 """Options several problems share, with their domains. Values arrive as JSON

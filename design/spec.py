@@ -124,7 +124,7 @@ from fdisyn.design.sampling import van_loan
 from fdisyn.design.simulate import SENSOR_FAULT_KINDS, SensorFaultSpec, Signal, simulate_linear
 from fdisyn.design.uio import kalman_uio, pole_placement_uio
 from fdisyn.runtime.errors import FdisynError, ShapeError, SpecError
-from fdisyn.runtime.gainfile import GainFile, Generator
+from fdisyn.runtime.gainfile import LIMITS, GainFile, Generator, read_regular_file
 from fdisyn.runtime.names import (
     DIAGNOSER_NAME_MAX,
     SHORT_LABEL_MAX,
@@ -296,10 +296,12 @@ class _Section:
     def vector(self, key: str, size: int) -> np.ndarray:
         """A list of ``size`` finite numbers (default: zeros)."""
         v = self.get(key, [0.0] * size)
+        if not isinstance(v, list) or not all(_is_number(x) for x in v):
+            raise SpecError(f"{self.where}.{key} must be a list of {size} numbers, got {short_repr(v)}")
         try:
             a = np.asarray(v, dtype=float)
-        except (TypeError, ValueError):
-            raise SpecError(f"{self.where}.{key} must be a list of {size} numbers, got {short_repr(v)}") from None
+        except OverflowError:
+            raise SpecError(f"{self.where}.{key} must hold finite numbers, got {short_repr(v)}") from None
         if a.shape != (size,):
             raise SpecError(f"{self.where}.{key} must have {size} entries, got {a.size}")
         if not np.all(np.isfinite(a)):
@@ -313,15 +315,25 @@ class _Section:
         if v is None:
             return None
         label = f"{self.where}.{self.aliases.get(key, key)}"
+        # numbers only: NumPy would turn "1.5" and true into 1.5 and 1.0 without a word
+        if not (_is_number(v) or (isinstance(v, list) and all(_is_number(x) or (isinstance(x, list) and all(map(_is_number, x))) for x in v))):
+            raise SpecError(f"{label} must be a matrix of numbers (a list of rows), got {short_repr(v)}")
         try:
             a = np.asarray(v, dtype=float)
-        except (TypeError, ValueError):
-            raise SpecError(f"{label} must be a matrix of numbers (a list of rows), got {short_repr(v)}") from None
+        except ValueError:  # rows of different lengths
+            raise SpecError(f"{label} must be a matrix of numbers (a list of rows of one length), got {short_repr(v)}") from None
+        except OverflowError:  # an integer beyond the double range
+            raise SpecError(f"{label} must hold finite numbers, got {short_repr(v)}") from None
         if a.ndim == 1:
             a = a.reshape(-1, 1) if key in ("B", "E", "Fx") else a.reshape(1, -1)
         if a.ndim != 2:
             raise SpecError(f"{label} must be a matrix (a list of rows), got {short_repr(v)}")
         return a
+
+
+def _is_number(x: Any) -> bool:
+    """An integer or a float as TOML writes them: a boolean or a string is no number, whatever NumPy makes of it."""
+    return isinstance(x, (int, float)) and not isinstance(x, bool)
 
 
 def _signal(d: Any, where: str) -> Signal:
@@ -344,15 +356,21 @@ def _signal(d: Any, where: str) -> Signal:
 def problem_from_toml(path: Path) -> Problem:
     """Parse and validate a TOML plant file (format in the module docstring)."""
     try:
-        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+        # a regular file of bounded size: a name leading to /dev/zero or a FIFO would never end
+        text = read_regular_file(path, LIMITS["file_bytes"], "a TOML plant file", error=SpecError).decode("utf-8")
+        doc = tomllib.loads(text)
     except FileNotFoundError:
         raise SpecError(f"no plant file at {path}") from None
+    except IsADirectoryError:
+        raise SpecError(f"{path} is a directory: SPEC must be a TOML plant file or a built-in problem name (fdisyn list)") from None
     except UnicodeDecodeError as exc:
         raise SpecError(f"{path} is not a text file (byte {exc.start} is not UTF-8): a TOML plant file is expected") from None
     except OSError as exc:
         raise SpecError(f"cannot read plant file {path}: {exc.strerror or exc}") from None
     except tomllib.TOMLDecodeError as exc:
         raise SpecError(f"{path} is not valid TOML: {exc}") from exc
+    except RecursionError:  # tomllib recurses once per nested array or inline table
+        raise SpecError(f"{path}: its TOML is nested too deeply to be a plant file (a matrix is a list of rows)") from None
     return problem_from_document(doc, path)
 
 
@@ -437,6 +455,8 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
         raise SpecError(f"{path} [design].eta must be one of {list(ETAS)} (the fault measure), got {short_repr(des.get('eta'))}")
     if "sampling" in des.doc and des.get("sampling") not in ("direct", "indirect"):
         raise SpecError(f"{path} [design].sampling must be 'direct' (Theorem 1) or 'indirect' (ZOH first), got {short_repr(des.get('sampling'))}")
+    if "bank" in des.doc and des.entries("bank") == []:  # not replaced by the default: an empty bank is a mistake
+        raise SpecError(f"{path} [design].bank is empty; expected groups of outputs, one observer each, or no key for one observer on all outputs")
     groups = des.entries("bank") or [list(physical.outputs)]
     bank = []
     for gi, g in enumerate(groups):

@@ -33,12 +33,13 @@ from pathlib import Path
 
 import numpy as np
 from fdisyn.runtime.errors import BuildError
-from fdisyn.runtime.gainfile import GainFile, gain_file_sha256
+from fdisyn.runtime.gainfile import GainFile, gain_file_sha256, read_regular_file
 from fdisyn.runtime.reference import RunResult, StepOutput, sample_block, sample_vector, step_state
 
 __all__ = ["CompiledDiagnoser", "MANIFEST_FORMAT", "library_path", "manifest_path", "write_manifest", "file_sha256"]
 
 MANIFEST_FORMAT = "fdisyn.build/1"
+_MANIFEST_BYTES = 1 << 16  # a manifest holds two hashes and a file name: ~250 bytes
 
 _D = ctypes.POINTER(ctypes.c_double)
 _I = ctypes.POINTER(ctypes.c_int)
@@ -73,6 +74,8 @@ def write_manifest(library: str | Path, gain_sha256: str) -> Path:
         "gain_file_sha256": gain_sha256,
     }
     out = manifest_path(lib)
+    if out.is_symlink():  # a planted link would be followed and its target overwritten
+        out.unlink()
     out.write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
     return out
 
@@ -81,8 +84,13 @@ def _check_before_loading(path: Path, gain_sha: str) -> None:
     """The manifest checks of steps 1–2 (module docstring): nothing unchecked reaches ``dlopen``."""
     again = f"run `fdisyn codegen {path.parent}`"
     man = manifest_path(path)
+    # regular files only: a library or manifest that leads to /dev/zero or a FIFO would be read forever
+    if not path.is_file():
+        raise BuildError(f"{path} is not a regular file (a device, a FIFO or a directory); {again}")
     try:
-        doc = json.loads(man.read_text(encoding="utf-8"))
+        doc = json.loads(read_regular_file(man, _MANIFEST_BYTES, "a build manifest", error=BuildError).decode("utf-8"))
+    except BuildError as exc:
+        raise BuildError(f"{exc}; {again}") from None
     except FileNotFoundError:
         raise BuildError(f"{path} has no build manifest {man.name}: it was not built by `fdisyn codegen` or its build did not finish; {again}") from None
     except (OSError, UnicodeDecodeError, ValueError) as exc:

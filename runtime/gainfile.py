@@ -43,13 +43,15 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import os
+import stat
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, NoReturn
 
 import numpy as np
-from fdisyn.runtime.errors import GainFileError
+from fdisyn.runtime.errors import FdisynError, GainFileError
 from fdisyn.runtime.names import (
     SHORT_LABEL_MAX,
     check_diagnoser_name,
@@ -75,6 +77,7 @@ __all__ = [
     "check_limits",
     "step_coefficients",
     "gain_file_sha256",
+    "read_regular_file",
 ]
 
 FORMAT = "fdisyn.gains/1"
@@ -96,6 +99,7 @@ LIMITS: Mapping[str, int] = {
     "plant_states": 512,
     "unknown_inputs": 256,
     "coefficients": 10_000,
+    "persistence": 10**9,
 }
 """Size limits of a gain file, checked by the reader before anything costly.
 
@@ -110,7 +114,10 @@ of the state on the stack at 16 KiB; ``generator_states`` ≤ 256 bounds the
 stability check (an eigenvalue problem per generator); the signal, fault,
 generator and residual counts (``step_outputs``: residual and statistic names of any kind) bound the
 name tables and the replay program's stack arrays; ``file_bytes`` bounds what
-the reader parses at all. Other kinds add their own limits to their payload."""
+the reader parses at all. ``persistence`` ≤ 10⁹ consecutive exceedances: the
+step counts them in a double, and beyond 2⁵³ a count no longer grows, so a
+larger one could never alarm (10⁹, like the NAFDF's sample counters, is 11
+days of samples at 1 kHz). Other kinds add their own limits to their payload."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -360,6 +367,8 @@ def write_gain_file(gf: GainFile, path: str | Path) -> Path:
     """Write ``gf`` as JSON (floats with full round-trip precision)."""
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
+    if p.is_symlink():  # a link planted in a received folder would be followed and its target overwritten
+        p.unlink()
     try:
         text = json.dumps(gf.to_dict(), indent=1, allow_nan=False)
     except ValueError as exc:
@@ -384,16 +393,38 @@ def gain_file_sha256(gf: GainFile) -> str:
     return hashlib.sha256(text.encode("ascii")).hexdigest()
 
 
+def read_regular_file(path: str | Path, limit: int, what: str, *, error: type[FdisynError] = GainFileError) -> bytes:
+    """The bytes of ``path``, which must be a regular file of at most ``limit`` bytes.
+
+    A file is data a user may have received: a name that leads (perhaps by a
+    symbolic link) to a device such as ``/dev/zero`` would be read without
+    end, a FIFO would block, so anything but a regular file is refused, and
+    no more than ``limit + 1`` bytes are ever read (a file that grows while
+    it is read cannot exceed it either). ``error`` names ``what`` the file
+    is; a missing file keeps its ``FileNotFoundError`` and other system
+    refusals their ``OSError`` for the caller to word.
+    """
+    p = Path(path)
+    fd = os.open(p, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))  # a FIFO opens without waiting for a writer
+    with os.fdopen(fd, "rb") as fh:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode):
+            raise error(f"{p} is not a regular file (a device, a FIFO or a directory); expected {what}")
+        data = fh.read(limit + 1)
+    if len(data) > limit:
+        raise error(f"{p} has {max(st.st_size, len(data))} bytes; {what} may have at most {limit} (see the size limits)")
+    return data
+
+
 def read_gain_file(path: str | Path) -> GainFile:
     """Read and validate a gain file; refuse other formats and versions."""
     p = Path(path)
     try:
-        size = p.stat().st_size
-        if size > LIMITS["file_bytes"]:
-            raise GainFileError(f"{p} has {size} bytes; a gain file may have at most {LIMITS['file_bytes']} (see the size limits)")
-        text = p.read_text(encoding="utf-8")
+        text = read_regular_file(p, LIMITS["file_bytes"], "a gain file").decode("utf-8")
     except FileNotFoundError:
         raise GainFileError(f"no gain file at {p}") from None
+    except IsADirectoryError:
+        raise GainFileError(f"{p} is a directory; expected a gain file") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise GainFileError(f"cannot read gain file {p}: {exc}") from exc
     try:
@@ -444,6 +475,7 @@ def gain_file_from_dict(doc: object, *, source: str = "gain file") -> GainFile:
             f"{source}: certificate.passed is {shown(certificate['passed'])}, not true: the design did not pass its "
             "verification, so it is neither compiled nor run; re-run `fdisyn design` and read the certificate's failed checks"
         )
+    _check_certificate_checks(certificate, f"{source}: certificate")
     kind = r.string("kind")
     step_doc = r.obj("step")
     sr = _Reader(step_doc, f"{source}: step")
@@ -514,6 +546,54 @@ def gain_file_from_dict(doc: object, *, source: str = "gain file") -> GainFile:
         )
     except GainFileError as exc:
         raise GainFileError(f"{source}: {exc}") from None
+
+
+def _check_holds(value: object, bound: object, relation: object) -> bool:
+    """``value <relation> bound`` with both finite numbers (booleans and strings are not numbers)."""
+    if isinstance(value, bool) or isinstance(bound, bool) or not isinstance(value, (int, float)) or not isinstance(bound, (int, float)):
+        return False
+    try:
+        if not (math.isfinite(value) and math.isfinite(bound)):
+            return False
+    except OverflowError:  # an integer beyond the double range
+        return False
+    if relation == "<=":
+        return value <= bound
+    return relation == ">=" and value >= bound
+
+
+def _check_certificate_checks(node: object, where: str, depth: int = 0) -> None:
+    """Every verdict inside the certificate must be a pass, and every check must hold by its own numbers.
+
+    ``certificate.passed = true`` alone is one flag: an edited file could keep
+    it while a generator's or a check's ``passed`` is false, or while a check's
+    ``value`` no longer meets its ``bound``. So every object in the tree that
+    holds ``passed`` must hold ``true``, and every check (an object with
+    ``relation``) must have finite numbers ``value`` and ``bound`` that satisfy
+    it — the rule of ``fdisyn.design.certificate.Check``. The writer nests a
+    few levels; a tree deeper than 64 is refused before it could exhaust
+    Python's recursion limit.
+    """
+    if depth > 64:
+        _fail(f"{where}: the certificate is nested more than 64 levels deep; expected the structure `fdisyn design` writes")
+    if isinstance(node, dict):
+        if "passed" in node and node["passed"] is not True:
+            _fail(
+                f"{where}.passed is {shown(node['passed'])}, not true: the design did not pass this part of its "
+                "verification, so it is neither compiled nor run; re-run `fdisyn design`"
+            )
+        if "relation" in node:
+            v, b, rel = node.get("value"), node.get("bound"), node.get("relation")
+            if not _check_holds(v, b, rel):
+                _fail(
+                    f"{where} ({shown(node.get('name'))}): value {shown(v)} {shown(rel)} bound {shown(b)} does not hold; "
+                    "expected finite numbers meeting the relation '<=' or '>=' (an edited certificate)"
+                )
+        for k, v in node.items():
+            _check_certificate_checks(v, f"{where}.{k}", depth + 1)
+    elif isinstance(node, list):
+        for i, v in enumerate(node):
+            _check_certificate_checks(v, f"{where}[{i}]", depth + 1)
 
 
 class _Reader:
@@ -712,6 +792,11 @@ def check_limits(gf: GainFile) -> None:
     for key, what, count in sizes:
         if count > LIMITS[key]:
             _fail(f"{what}: {count}; at most {LIMITS[key]} are supported (see the size limits)")
+    if gf.decision is not None and gf.decision.persistence > LIMITS["persistence"]:
+        _fail(
+            f"decision.persistence: {gf.decision.persistence}; at most {LIMITS['persistence']} consecutive exceedances are "
+            "supported (the step counts them in a double: a larger persistence could never alarm)"
+        )
     coeffs = step_coefficients(gf.generators, gf.evaluators)
     if coeffs > LIMITS["coefficients"]:
         _fail(

@@ -48,6 +48,7 @@ from __future__ import annotations
 import math
 import os
 import re
+import stat
 import tempfile
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -455,6 +456,17 @@ class _AtomicOutput:
 
     def __init__(self, target: str | Path) -> None:
         self.target = str(target)
+        try:
+            mode: int | None = os.lstat(self.target).st_mode
+        except (OSError, ValueError):
+            mode = None  # no such file yet (or a name the system refuses: reported by mkstemp below)
+        if mode is not None and not stat.S_ISREG(mode) and not stat.S_ISDIR(mode):
+            # the rename replaces the name itself: a symbolic link (/dev/stdout), a device node (/dev/full)
+            # or a FIFO would become a plain file
+            raise TraceError(
+                f"{self.target} is not a regular file (a symbolic link, a device, a FIFO or a socket); "
+                "expected the path of a file to create or replace"
+            )
         folder, base = os.path.split(self.target)
         try:
             fd, self.tmp = tempfile.mkstemp(prefix=base + ".", dir=folder or ".")

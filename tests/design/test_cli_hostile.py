@@ -9,6 +9,7 @@ another exception.
 
 from __future__ import annotations
 
+import os
 import re
 from collections.abc import Callable
 from pathlib import Path
@@ -77,6 +78,7 @@ PLANT_CASES: list[tuple[str, str, str, str, list[str], tuple[str, ...]]] = [
     ("Ts negative", MOTOR, "Ts = 0.001 ", "Ts = -0.001 ", ["design"], ("[model].Ts must be a positive sample time",)),
     ("x0 nan", MOTOR, "x0 = [0.4, 0.0, 0.0]", "x0 = [nan, 0.0, 0.0]", ["simulate"], ("[simulation].x0 must hold finite numbers",)),
     ("bank unknown output", MOTOR, '["w_meas", "theta_meas"]]', '["w_meas", "rpm"]]', ["design"], ("[design].bank[1][1]: no output 'rpm'",)),
+    ("bank empty", MOTOR, 'bank = [["i_meas", "theta_meas"], ["w_meas", "theta_meas"]]', "bank = []", ["design"], ("[design].bank is empty; expected groups of outputs",)),
     ("bank repeats", MOTOR, '["w_meas", "theta_meas"]]', '["w_meas", "w_meas"]]', ["design"], ("[design].bank[1] names output 'w_meas' twice",)),
     # a group whose sensors the load reaches only through ~1e-7 of a sample: named, with the remedy
     ("weak C E", MOTOR.replace("duration = 10.0", "duration = 0.1").replace("onset = 5.0", "onset = 0.05"), "Ts = 0.001 ", "Ts = 0.00001 ", ["design"],
@@ -85,6 +87,20 @@ PLANT_CASES: list[tuple[str, str, str, str, list[str], tuple[str, ...]]] = [
     ("Bd zero", SAMPLED, "Bd = [[0.1], [1.0]]", "Bd = [[0.0], [0.0]]", ["design"], ("[model].Bd is zero: method 'sampled_data_observer'",)),
     ("h huge", SAMPLED, "h = 1.0", "h = 1e5", ["design"], ("[model]: h = 100000 s is too long to sample this model", "expected h < 354.9 s")),
     ("eta unknown", SAMPLED, 'method = "sampled_data_observer"', 'method = "lmi"\neta = "1"', ["design"], ("[design].eta must be one of ['inf', '2', '-']",)),
+    ("persistence beyond a count", MOTOR, "P_f = 1e-4 ", "P_f = 1e-4\npersistence = 1000000000000 ", ["design"], ("[design].persistence = 1000000000000: expected a whole number ≥ 1 of consecutive exceedances, at most 1000000000",)),
+    # numbers are numbers: NumPy would read "-100.0" and true as floats, and overflow on a huge integer
+    ("A a string entry", MOTOR, "[[-100.0, -5.0, 0.0]", '[["-100.0", -5.0, 0.0]', ["design"], ("[model].A must be a matrix of numbers (a list of rows), got [['-100.0'",)),
+    ("A a boolean entry", MOTOR, "[[-100.0, -5.0, 0.0]", "[[true, -5.0, 0.0]", ["design"], ("[model].A must be a matrix of numbers (a list of rows), got [[True",)),
+    ("A a huge integer", MOTOR, "[[-100.0, -5.0, 0.0]", "[[-1" + "0" * 400 + ", -5.0, 0.0]", ["design"], ("[model].A must hold finite numbers",)),
+    ("x0 a boolean", MOTOR, "x0 = [0.4, 0.0, 0.0]", "x0 = [true, 0.0, 0.0]", ["simulate"], ("[simulation].x0 must be a list of 3 numbers",)),
+    ("state_scale a string", MOTOR, "state_scale = [1.0, 10.0, 1.0]", 'state_scale = ["1.0", 10.0, 1.0]', ["design"], ("[model].state_scale: state scaling must be 3 positive finite numbers",)),
+    ("a matrix nested too deeply", MOTOR, "A = [[-100.0, -5.0, 0.0]", "A = " + "[" * 3000 + "1.0" + "]" * 3000 + "\nA0 = [[-100.0, -5.0, 0.0]", ["design"], ("its TOML is nested too deeply to be a plant file",)),
+    ("ship Q a string", SHIP, "Q = [[0.0]]", 'Q = [["0.0"]]', ["design"], ("[model].Q must hold numbers only; found '0.0'",)),
+    ("ship Q a huge integer", SHIP, "Q = [[0.0]]", "Q = [[" + "9" * 400 + "]]", ["design"], ("[model].Q holds an integer beyond the range of a double",)),
+    ("ship nominal a string", SHIP, "nominal = { a = -0.58", 'nominal = { a = "-0.58"', ["design"], ("nominal value of parameter 'a' must be a number; found '-0.58'",)),
+    ("ship nominal a huge integer", SHIP, "nominal = { a = -0.58", "nominal = { a = -" + "9" * 400, ["design"], ("nominal value of parameter 'a' must be finite",)),
+    ("ship P0 a string", SHIP, "P0 = 100.0", 'P0 = "100"', ["design"], ("[design]: P0 must be a number or an array of numbers; got '100'",)),
+    ("ship theta0 a boolean", SHIP, "theta0 = { a = 0.0", "theta0 = { a = false", ["design"], ("[design]: theta0 must be a number or an array of numbers",)),
     ("constants a string", SHIP, 'time = "nonlinear"', 'time = "nonlinear"\nconstants = "g"', ["design"], ("[model].constants must be a table",)),
 ]
 
@@ -152,6 +168,16 @@ def test_a_binary_or_non_utf8_spec_is_one_line(tmp_path, capsys) -> None:
     garbage = tmp_path / "garbage.toml"
     garbage.write_text("name = \n[[[", encoding="utf-8")
     _fails_with(capsys, ["design", str(garbage), "--out", str(tmp_path / "d")], "is not valid TOML")
+
+
+def test_a_spec_that_leads_to_a_device_or_a_fifo_is_one_line(tmp_path, capsys) -> None:
+    """``x.toml`` linked to /dev/zero was read until memory ran out; a FIFO blocked for ever."""
+    zero = tmp_path / "zero.toml"
+    zero.symlink_to("/dev/zero")
+    _fails_with(capsys, ["design", str(zero), "--out", str(tmp_path / "d")], "zero.toml is not a regular file (a device, a FIFO or a directory); expected a TOML plant file")
+    fifo = tmp_path / "fifo.toml"
+    os.mkfifo(fifo)
+    _fails_with(capsys, ["simulate", str(fifo), "--scenario", "fault_free", "--out", str(tmp_path / "t.csv")], "fifo.toml is not a regular file")
 
 
 # --------------------------------------------------------------------------- output paths

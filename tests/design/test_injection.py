@@ -19,7 +19,7 @@ import sys
 import pytest
 from fdisyn.design import codegen as cg
 from fdisyn.design.cli import main
-from fdisyn.runtime.errors import GainFileError
+from fdisyn.runtime.errors import BuildError, GainFileError
 from fdisyn.runtime.gainfile import gain_file_sha256, read_gain_file, write_gain_file
 
 from tests.runtime.test_reference import toy
@@ -161,3 +161,32 @@ def test_a_valid_gain_file_round_trips_its_names_through_the_writer(tmp_path):
     src = (tmp_path / "c" / "toy.c").read_text()
     assert 'toy_fault_names[] = {"y0", "y1", "both", 0};' in src
     assert 'toy_input_names[] = {"u", 0};' in src
+
+
+def test_codegen_never_writes_through_a_link_planted_in_the_folder(tmp_path):
+    """A received folder may hold links where codegen writes (``c/replay.c``, ``c/build.log``, the
+    manifest, CasADi's file): followed, they would overwrite any file of the user (``~/.bashrc``).
+    Each is replaced by a fresh file; the files they point to stay as they were."""
+    gf = toy()
+    d = tmp_path / "toy"
+    write_gain_file(gf, d / "gains.json")
+    victims = {}
+    for rel in ("c/replay.c", "c/build.log", f"c/{gf.name}_casadi.c", f"c/{gf.name}.h", f"lib{gf.name}.manifest.json"):
+        victim = tmp_path / f"victim_{len(victims)}.txt"
+        victim.write_text("mine\n")
+        (d / rel).parent.mkdir(exist_ok=True)
+        (d / rel).symlink_to(victim)
+        victims[rel] = victim
+    assert main(["codegen", str(d)]) == 0
+    for rel, victim in victims.items():
+        assert victim.read_text() == "mine\n", rel
+        assert not (d / rel).is_symlink() and (d / rel).stat().st_size > 0, rel
+    # the folder for the C is the tool's own: a link there is refused, not followed
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    d2 = tmp_path / "toy2"
+    write_gain_file(gf, d2 / "gains.json")
+    (d2 / "c").symlink_to(elsewhere)
+    with pytest.raises(BuildError, match=r"c is a symbolic link; expected a folder of its own for the generated C"):
+        cg.generate_sources(read_gain_file(d2 / "gains.json"), d2 / "c")
+    assert list(elsewhere.iterdir()) == []

@@ -98,6 +98,9 @@ def test_layout_and_key_order_do_not_matter(built_copy):
         ("flip", "is not the library `fdisyn codegen` built"),
         ("no manifest", "has no build manifest libwind_turbine_kalman_uio.manifest.json"),
         ("bad manifest", "cannot read the build manifest"),
+        # links to a device: hashing or reading them would never end
+        ("library a device", r"libwind_turbine_kalman_uio.so is not a regular file \(a device, a FIFO or a directory\); run `fdisyn codegen"),
+        ("manifest a device", r"manifest.json is not a regular file .*expected a build manifest; run `fdisyn codegen"),
     ],
 )
 def test_a_damaged_library_never_reaches_dlopen(built_copy, wt_trace, damage, message):
@@ -109,6 +112,12 @@ def test_a_damaged_library_never_reaches_dlopen(built_copy, wt_trace, damage, me
         lib.write_bytes(data[:4096] + bytes([data[4096] ^ 0xFF]) + data[4097:])
     elif damage == "no manifest":
         manifest_path(lib).unlink()
+    elif damage == "library a device":
+        lib.unlink()
+        lib.symlink_to("/dev/zero")
+    elif damage == "manifest a device":
+        manifest_path(lib).unlink()
+        manifest_path(lib).symlink_to("/dev/zero")
     else:
         manifest_path(lib).write_text("{")
     _, U, Y = wt_trace

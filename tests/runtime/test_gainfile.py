@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 
 import numpy as np
 import pytest
@@ -117,6 +118,15 @@ def _weight_edit(scale_w: float = 1.0, w=None, dof=None):  # noqa: ANN001, ANN20
         (lambda d: d["certificate"].__setitem__("passed", "true"), "certificate.passed is 'true', not true"),
         (lambda d: d["certificate"].pop("passed"), "certificate has no 'passed' field"),
         (lambda d: d.__setitem__("certificate", []), "field 'certificate' must be an object"),
+        # every verdict inside it too, and every check by its own numbers: the top flag alone is one edit away
+        (lambda d: d["certificate"]["generators"][1]["checks"][0].__setitem__("passed", False), r"certificate.generators\[1\].checks\[0\].passed is False, not true"),
+        (lambda d: d["certificate"]["bank"].__setitem__("passed", None), r"certificate.bank.passed is None, not true"),
+        (lambda d: d["certificate"]["generators"][0]["checks"][0].__setitem__("value", 1e9), r"certificate.generators\[0\].checks\[0\] \(.*\): value 1000000000.0 '<=' bound .* does not hold"),
+        (lambda d: d["certificate"]["generators"][0]["checks"][0].__setitem__("value", "nan"), r"value 'nan' '<=' bound .* does not hold"),
+        (lambda d: d["certificate"]["generators"][0]["checks"][0].__setitem__("relation", "<"), r"value .* '<' bound .* does not hold"),
+        (lambda d: d["certificate"]["generators"][0]["checks"][0].__setitem__("bound", 10**400), r"value .* '<=' bound 1000.* does not hold"),
+        # a persistence beyond what a count in a double can reach would never alarm
+        (lambda d: d["decision"].__setitem__("persistence", 10**30), r"decision.persistence: 10{30}; at most 1000000000 consecutive exceedances"),
         # χ² weights: a negative-definite W gives a statistic that can never alarm
         (_weight_edit(-1.0), r"evaluators\[0\].W must be positive semidefinite and nonzero \(smallest eigenvalue -81.2"),
         (_weight_edit(w=[[0.0, 0.0], [0.0, 0.0]]), r"evaluators\[0\].W must be positive semidefinite and nonzero"),
@@ -157,6 +167,18 @@ def test_json_nested_too_deeply_is_refused(tmp_path):
     p.write_text('{"format": "fdisyn.gains/1", "x": ' + "[" * 100_000 + "]" * 100_000 + "}")
     with pytest.raises(GainFileError, match="nested too deeply"):
         read_gain_file(p)
+
+
+def test_a_gain_file_that_is_no_regular_file_is_refused_without_reading(tmp_path):
+    """A received directory may hold a link to a device or a FIFO: read, it would never end (or block)."""
+    link = tmp_path / "zero.json"
+    link.symlink_to("/dev/zero")
+    with pytest.raises(GainFileError, match=r"zero.json is not a regular file \(a device, a FIFO or a directory\); expected a gain file"):
+        read_gain_file(link)
+    fifo = tmp_path / "fifo.json"
+    os.mkfifo(fifo)
+    with pytest.raises(GainFileError, match=r"fifo.json is not a regular file"):
+        read_gain_file(fifo)  # opened without waiting for a writer: no test hangs here
 
 
 def test_an_oversized_file_is_refused_before_it_is_read(doc, tmp_path, monkeypatch):

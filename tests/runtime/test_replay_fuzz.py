@@ -15,6 +15,7 @@ import contextlib
 import io
 import os
 import re
+import stat
 import subprocess
 from dataclasses import dataclass
 from fractions import Fraction
@@ -284,6 +285,30 @@ def test_a_failed_replay_leaves_an_existing_output_untouched(motor, tmp_path):
         assert run(motor, src, out).status == 2
         assert out.read_bytes() == b"previous\n"
         assert sorted(os.listdir(tmp_path)) == ["in.csv", "keep.csv"]
+
+
+def test_an_output_that_is_a_link_a_device_or_a_fifo_is_refused_and_left_as_it_was(motor, tmp_path):
+    """The rename at the end replaces the name itself: OUT.csv = /dev/full or /dev/stdout (a link) would
+    become a plain file (as root, the device node is gone), a link to a file would lose its target."""
+    good = tmp_path / "good.csv"
+    good.write_bytes(csv(*ROWS))
+    target = tmp_path / "target.csv"
+    target.write_bytes(b"previous\n")
+    link = tmp_path / "link.csv"
+    link.symlink_to(target)
+    device = tmp_path / "null.csv"
+    device.symlink_to("/dev/null")  # a link to a device: nothing here ever renames over /dev itself
+    fifo = tmp_path / "fifo.csv"
+    os.mkfifo(fifo)
+    for out in (link, device, fifo):
+        c, p = replay_c(motor, good, out), replay_py(motor, good, out)
+        assert (c.status, c.message) == (p.status, p.message) == (
+            2,
+            f"{out} is not a regular file (a symbolic link, a device, a FIFO or a socket); expected the path of a file to create or replace",
+        )
+    assert link.is_symlink() and device.is_symlink() and stat.S_ISFIFO(os.lstat(fifo).st_mode)
+    assert target.read_bytes() == b"previous\n"
+    assert sorted(os.listdir(tmp_path)) == ["fifo.csv", "good.csv", "link.csv", "null.csv", "target.csv"]  # no temporary file
 
 
 def test_io_errors_end_with_status_1_and_the_same_line(motor, tmp_path):
