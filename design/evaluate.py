@@ -98,6 +98,13 @@ class Evaluation:
         }
 
 
+MONTE_CARLO_MEMORY = 4 * 2**30
+"""Bytes the per-run results of one scenario may take: every run's alarm flags,
+isolated faults and statistics are kept for the metrics (16 + 8·nj bytes per
+sample and design). 4 GiB fits a laptop; larger campaigns are refused with the
+number of runs that fits, instead of running out of memory hours in."""
+
+
 def evaluate(
     problem: Problem,
     built: Mapping[str, Built],
@@ -115,6 +122,15 @@ def evaluate(
     if isinstance(seed0, bool) or not isinstance(seed0, int) or seed0 < 0:
         raise SpecError(f"seed0 must be a whole number ≥ 0 (NumPy seeds are non-negative); got {seed0!r}")
     names = list(scenarios) if scenarios is not None else list(problem.scenarios)
+    for sname in names:  # refuse a campaign whose kept results cannot fit before simulating anything
+        sc = problem.scenario(sname)
+        per_run = sum((int(sc.duration / b.gain_file.Ts) + 1) * (16 + 8 * b.gain_file.step.nj) for b in built.values())
+        if runs * per_run > MONTE_CARLO_MEMORY:
+            raise SpecError(
+                f"runs = {runs}: scenario {sname!r} would keep {runs * per_run / 2**30:.1f} GiB of per-run results "
+                f"(alarm, isolated fault and statistics of every sample); expected at most "
+                f"{MONTE_CARLO_MEMORY // per_run} runs ({MONTE_CARLO_MEMORY // 2**30} GiB)"
+            )
     metrics: dict[str, dict[str, ScenarioMetrics]] = {d: {} for d in built}
     examples: dict[str, dict[str, RunResult]] = {d: {} for d in built}
     batches: dict[str, Batch] = {}
