@@ -123,8 +123,8 @@ def evaluate(
         raise SpecError(f"seed0 must be a whole number ≥ 0 (NumPy seeds are non-negative); got {seed0!r}")
     names = list(scenarios) if scenarios is not None else list(problem.scenarios)
     for sname in names:  # refuse a campaign whose kept results cannot fit before simulating anything
-        sc = problem.scenario(sname)
-        per_run = sum((int(sc.duration / b.gain_file.Ts) + 1) * (16 + 8 * b.gain_file.step.nj) for b in built.values())
+        duration = problem.scenario(sname).duration
+        per_run = sum((int(duration / b.gain_file.Ts) + 1) * (16 + 8 * b.gain_file.step.nj) for b in built.values())
         if runs * per_run > MONTE_CARLO_MEMORY:
             raise SpecError(
                 f"runs = {runs}: scenario {sname!r} would keep {runs * per_run / 2**30:.1f} GiB of per-run results "
