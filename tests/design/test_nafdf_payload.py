@@ -8,9 +8,9 @@ import json
 from collections.abc import Callable
 from pathlib import Path
 
+import fdisyn.design.nafdf as nafdf_module
 import numpy as np
 import pytest
-import fdisyn.design.nafdf as nafdf_module
 from fdisyn.design.cli import main
 from fdisyn.design.nafdf import nafdf_from_gain_file, nafdf_gain_file
 from fdisyn.design.step import step_function

@@ -563,7 +563,7 @@ def _j_star_sweep(pl: SampledDataPlant) -> dict[str, float]:
     for eta, pick, sign in (("inf", -1, -1.0), ("-", 0, 1.0)):
         k = int(np.argmin(sign * ev[:, pick]))
         lo, hi = grid[max(k - 1, 0)], grid[min(k + 1, len(grid) - 1)]
-        fine = scipy.optimize.minimize_scalar(lambda w: sign * _spectral_density(pl, w)[pick], bounds=(lo, hi), method="bounded", options={"xatol": 1e-12})
+        fine = scipy.optimize.minimize_scalar(lambda w, sign=sign, pick=pick: sign * _spectral_density(pl, w)[pick], bounds=(lo, hi), method="bounded", options={"xatol": 1e-12})
         best = sign * min(sign * ev[k, pick], float(fine.fun))
         out[eta] = 1.0 / math.sqrt(best) if best > 0 else math.inf
     circle = np.linspace(-math.pi, math.pi, 4096, endpoint=False)
