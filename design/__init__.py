@@ -1,1 +1,61 @@
-"""fdisyn.design — everything offline: plants, synthesis, verification, export, evaluation."""
+"""fdisyn — fault detection and isolation diagnosers designed as optimisation problems,
+verified against independent truths and deployed as generated C.
+
+The public Python API (see the README's "Python" section)::
+
+    plant = fdisyn.LinearPlant.from_control(sys, n_unknown=1, Q=Q, R=R)
+    gf = fdisyn.design(plant, method="kalman_uio", P_f=1e-4)   # a certified GainFile
+    fdisyn.export(gf, "build/motor")                            # gains.json, C sources, library, replay
+    mon = fdisyn.load("build/motor")                            # a Monitor
+    fdisyn.methods()                                            # the registered method names
+
+The package root is light: the names above are imported on first use, so
+``fdisyn.runtime`` (which never imports the design side) loads without CasADi
+or cvxpy.
+"""
+
+from __future__ import annotations
+
+from importlib import metadata as _metadata
+from typing import TYPE_CHECKING, Any
+
+try:
+    __version__ = _metadata.version("fdisyn")
+except _metadata.PackageNotFoundError:  # pragma: no cover - running from a source tree without an install
+    __version__ = "0+unknown"
+
+_PUBLIC = {
+    "design": "fdisyn.app.api",
+    "export": "fdisyn.app.api",
+    "load": "fdisyn.app.api",
+    "methods": "fdisyn.app.api",
+    "LinearPlant": "fdisyn.models.linear",
+    "NonlinearPlant": "fdisyn.models.nonlinear",
+    "SampledDataPlant": "fdisyn.models.sampled_data",
+    "GainFile": "fdisyn.runtime.gainfile",
+    "Monitor": "fdisyn.runtime.monitor",
+}
+
+__all__ = ["__version__", *_PUBLIC]
+
+if TYPE_CHECKING:
+    from fdisyn.app.api import design, export, load, methods  # noqa: F401
+    from fdisyn.models.linear import LinearPlant  # noqa: F401
+    from fdisyn.models.nonlinear import NonlinearPlant  # noqa: F401
+    from fdisyn.models.sampled_data import SampledDataPlant  # noqa: F401
+    from fdisyn.runtime.gainfile import GainFile  # noqa: F401
+    from fdisyn.runtime.monitor import Monitor  # noqa: F401
+
+
+def __getattr__(name: str) -> Any:
+    if name in _PUBLIC:
+        import importlib
+
+        value = getattr(importlib.import_module(_PUBLIC[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'fdisyn' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_PUBLIC))

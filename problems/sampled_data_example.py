@@ -25,15 +25,17 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
-from fdisyn.design.diagnoser import FaultClass, linear_diagnoser
-from fdisyn.design.lmi import lmi_diagnostic_observer
-from fdisyn.design.plant import LinearPlant
-from fdisyn.design.problem import Batch, Problem, Scenario
-from fdisyn.design.report import ReportContext, plt, shade, table
-from fdisyn.design.residual import residual_covariance
-from fdisyn.design.sampled_data import ETAS, SampledDataPlant, optimal_diagnostic_observer, simulate_sampled_data
-from fdisyn.design.sampling import van_loan
+from fdisyn.app.report import ReportContext, plt, shade, table
+from fdisyn.evaluation.sampled_data_simulation import simulate_sampled_data
+from fdisyn.models.linear import LinearPlant
+from fdisyn.models.problem import Batch, Problem, Scenario
+from fdisyn.models.sampled_data import SampledDataPlant
+from fdisyn.models.sampling import van_loan
 from fdisyn.runtime.gainfile import GainFile
+from fdisyn.synthesis.linear_diagnoser import FaultClass, linear_diagnoser
+from fdisyn.synthesis.lmi_observer import lmi_diagnostic_observer
+from fdisyn.synthesis.residual import residual_covariance
+from fdisyn.synthesis.sampled_data_observer import ETAS, optimal_diagnostic_observer
 
 __all__ = ["PAPER", "PAPER_GAINS", "PLANT", "PROBLEM", "noise_plant"]
 

@@ -36,13 +36,14 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from fdisyn.design.nafdf import NafdfDesign, nafdf, nafdf_extra_metrics, nafdf_gain_file
-from fdisyn.design.nonlinear import NonlinearPlant
-from fdisyn.design.problem import Batch, Problem
-from fdisyn.design.problem import Scenario as PipelineScenario
-from fdisyn.design.report import ReportContext, plt, shade, table, timeline
+from fdisyn.app.report import ReportContext, plt, shade, table, timeline
+from fdisyn.models.nonlinear import NonlinearPlant
+from fdisyn.models.problem import Batch, Problem
+from fdisyn.models.problem import Scenario as PipelineScenario
 from fdisyn.runtime.errors import SpecError
 from fdisyn.runtime.gainfile import GainFile
+from fdisyn.synthesis.nafdf.design import NafdfDesign, nafdf, nafdf_extra_metrics
+from fdisyn.synthesis.nafdf.payload import nafdf_gain_file
 
 __all__ = [
     "PROBLEM",

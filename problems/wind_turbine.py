@@ -34,14 +34,14 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from fdisyn.design.diagnoser import FaultClass, linear_diagnoser
-from fdisyn.design.plant import LinearPlant
-from fdisyn.design.problem import Batch, Problem, Scenario
-from fdisyn.design.report import ReportContext, fmt, plt, shade, table, timeline
-from fdisyn.design.simulate import Signal, simulate_linear
-from fdisyn.design.uio import kalman_uio, pole_placement_uio
+from fdisyn.app.report import ReportContext, fmt, plt, shade, table, timeline
+from fdisyn.evaluation.simulate import Signal, simulate_linear
+from fdisyn.models.linear import LinearPlant
+from fdisyn.models.problem import Batch, Problem, Scenario
 from fdisyn.runtime.errors import SpecError
 from fdisyn.runtime.gainfile import GainFile
+from fdisyn.synthesis.linear_diagnoser import FaultClass, linear_diagnoser
+from fdisyn.synthesis.uio import kalman_uio, pole_placement_uio
 
 __all__ = [
     "DriveTrain",

@@ -10,7 +10,7 @@ import pytest
 @pytest.fixture(scope="session")
 def wt_built(tmp_path_factory: pytest.TempPathFactory):
     """The default wind-turbine bank, designed, written and compiled once."""
-    from fdisyn.design.evaluate import build
+    from fdisyn.evaluation.evaluate import build
     from fdisyn.problems.wind_turbine import PROBLEM
 
     return build(PROBLEM, "kalman_uio", tmp_path_factory.mktemp("wt") / "kalman_uio")

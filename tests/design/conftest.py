@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import pytest
-from fdisyn.design.sampled_data import SampledDataPlant
+from fdisyn.models.sampled_data import SampledDataPlant
 
 from tests.helpers import PAPER
 

@@ -1,4 +1,4 @@
-"""The command line end to end, in-process (``fdisyn.design.cli.main``)."""
+"""The command line end to end, in-process (``fdisyn.app.cli.main``)."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from fdisyn.design.cli import main
+from fdisyn.app.cli import main
 from fdisyn.runtime.gainfile import read_gain_file
 
 DATA = Path(__file__).parents[1] / "data"

@@ -1,4 +1,4 @@
-"""Hostile input through the command line, in-process (``fdisyn.design.cli.main``).
+"""Hostile input through the command line, in-process (``fdisyn.app.cli.main``).
 
 Every case ends with status 2 and exactly one line on stderr, ``fdisyn <command>: error: …``,
 naming what is wrong and what was expected: no traceback, no value silently replaced. Two
@@ -16,9 +16,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from fdisyn.design.cli import main
-from fdisyn.design.evaluate import MONTE_CARLO_MEMORY
-from fdisyn.design.spec import load_spec
+from fdisyn.app.cli import main
+from fdisyn.app.plant_file import load_spec
+from fdisyn.evaluation.evaluate import MONTE_CARLO_MEMORY
 from fdisyn.runtime.gainfile import read_gain_file
 
 DATA = Path(__file__).parents[1] / "data"
@@ -334,9 +334,9 @@ def test_a_campaign_beyond_the_memory_budget_is_refused_before_simulating(tmp_pa
 def test_runs_and_seeds_are_checked_by_the_api_too(tmp_path) -> None:
     """``--runs`` and ``--seed`` are checked by argparse; the functions behind them refuse the
     same values with a named error instead of NumPy's ValueError or a silent default."""
-    from fdisyn.design.evaluate import evaluate
-    from fdisyn.design.pipeline import reproduce_problem
-    from fdisyn.design.spec import load_spec
+    from fdisyn.app.pipeline import reproduce_problem
+    from fdisyn.app.plant_file import load_spec
+    from fdisyn.evaluation.evaluate import evaluate
     from fdisyn.runtime.errors import SpecError
 
     prob = load_spec(DATA / "dc_motor.toml")

@@ -8,8 +8,8 @@ import subprocess
 
 import numpy as np
 import pytest
-from fdisyn.design.codegen import CFLAGS, compiler
-from fdisyn.design.pipeline import EXPORT_TOL, check_export
+from fdisyn.app.pipeline import EXPORT_TOL, check_export
+from fdisyn.codegen.library import CFLAGS, compiler
 from fdisyn.runtime.compiled import CompiledDiagnoser
 from fdisyn.runtime.errors import BuildError, GainFileError
 from fdisyn.runtime.gainfile import read_gain_file
@@ -208,8 +208,8 @@ def test_one_absurd_input_does_not_leave_the_bank_stuck(wt_built, wt_trace):
 
 
 def test_the_generator_refuses_sizes_beyond_the_limits_before_writing(wt_built, tmp_path, monkeypatch):
-    from fdisyn.design import codegen
-    from fdisyn.design.step import step_function
+    from fdisyn.codegen import library as codegen
+    from fdisyn.codegen.step import step_function
     from fdisyn.runtime import gainfile
 
     gf = wt_built.gain_file

@@ -9,9 +9,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from fdisyn.design.evaluate import build, evaluate
-from fdisyn.design.metrics import binomial_interval
-from fdisyn.design.spec import load_spec
+from fdisyn.app.plant_file import load_spec
+from fdisyn.evaluation.evaluate import build, evaluate
+from fdisyn.evaluation.metrics import binomial_interval
 
 ROOT = Path(__file__).parents[2]
 EXAMPLE = ROOT / "tests" / "data" / "dc_motor.toml"

@@ -17,8 +17,8 @@ import subprocess
 import sys
 
 import pytest
-from fdisyn.design import codegen as cg
-from fdisyn.design.cli import main
+from fdisyn.app.cli import main
+from fdisyn.codegen import library as cg
 from fdisyn.runtime.errors import BuildError, GainFileError
 from fdisyn.runtime.gainfile import gain_file_sha256, read_gain_file, write_gain_file
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from fdisyn.design.linalg import normal_rank, psd_factor, unobservable_modes
+from fdisyn.numerics.linalg import normal_rank, psd_factor, unobservable_modes
 from fdisyn.runtime.errors import ShapeError
 from hypothesis import given, settings
 from hypothesis import strategies as st

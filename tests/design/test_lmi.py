@@ -9,23 +9,19 @@ import control
 import cvxpy as cp
 import numpy as np
 import pytest
-from fdisyn.design import lmi
-from fdisyn.design.lmi import (
-    h2_norm_lmi,
-    hinf_bound_lmi,
-    hinf_norm_lmi,
-    hminus_index_lmi,
-    lmi_diagnostic_observer,
-    sdp_timings,
-)
-from fdisyn.design.norms import DiscreteLTI, NormValue, h2_norm, hinf_norm, hminus_index, singular_values
-from fdisyn.design.residual import internal_form
-from fdisyn.design.sampled_data import ETAS, SampledDataPlant, optimal_diagnostic_observer, random_sampled_data_plant
+from fdisyn.app.bench import sdp_timings
+from fdisyn.models.sampled_data import SampledDataPlant
+from fdisyn.numerics import lmi_norms as lmi
+from fdisyn.numerics.lmi_norms import h2_norm_lmi, hinf_bound_lmi, hinf_norm_lmi, hminus_index_lmi
+from fdisyn.numerics.norms import DiscreteLTI, NormValue, h2_norm, hinf_norm, hminus_index, singular_values
 from fdisyn.runtime.errors import CertificateError, ExistenceError, SolverError
+from fdisyn.synthesis.lmi_observer import lmi_diagnostic_observer
+from fdisyn.synthesis.residual import internal_form
+from fdisyn.synthesis.sampled_data_observer import ETAS, optimal_diagnostic_observer
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from tests.helpers import random_stable
+from tests.helpers import random_sampled_data_plant, random_stable
 
 # LMI norms must agree with the independent evaluation (sweep, slycot) to
 # 1e-6 relative (Clarabel at 1e-11, falling back to 1e-9, on problems scaled

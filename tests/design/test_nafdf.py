@@ -9,12 +9,14 @@ import casadi as ca
 import numpy as np
 import pytest
 import scipy.stats
-from fdisyn.design.linalg import rel_diff
-from fdisyn.design.nafdf import nafdf, nafdf_from_payload, nafdf_payload, step_from_payload, wssr_threshold_table
-from fdisyn.design.nonlinear import NonlinearPlant
-from fdisyn.design.riccati import solve_filter_dare
+from fdisyn.evaluators.wssr import wssr_threshold_table
+from fdisyn.models.nonlinear import NonlinearPlant
+from fdisyn.numerics.linalg import rel_diff
+from fdisyn.numerics.riccati import solve_filter_dare
 from fdisyn.problems import ship_propulsion as sp
 from fdisyn.runtime.errors import GainFileError, ShapeError, SpecError
+from fdisyn.synthesis.nafdf.design import nafdf
+from fdisyn.synthesis.nafdf.payload import nafdf_from_payload, nafdf_payload, step_from_payload
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -347,7 +349,7 @@ def test_step_operation_and_work_limits(monkeypatch) -> None:
     """The step budget is checked on the SX graph before any C exists: the ship with N = N2 = 1000
     has ~54 000 operations (> 40 000); lowering the work limit below the ship's own ~230 doubles
     refuses the default ship design by its work memory (the C step's stack)."""
-    from fdisyn.design import nafdf as mod
+    from fdisyn.synthesis.nafdf import design as mod
 
     with pytest.raises(SpecError, match=r"the NAFDF step has \d+ operations; at most 40000"):
         nafdf(sp.plant(), x0=[0.0], P0=100.0, theta0=[0.0, 0.0], R0=sp.R0, window=1000, classifier_window=1000)
@@ -358,7 +360,7 @@ def test_step_operation_and_work_limits(monkeypatch) -> None:
 
 def test_stack_use_of_the_documented_problems_is_within_the_limits(ship_design) -> None:
     """The C step's stack holds CasADi's work vector and the next state: both bounded by the limits."""
-    from fdisyn.design.nafdf import MAX_STATE, MAX_STEP_INSTRUCTIONS, MAX_STEP_WORK
+    from fdisyn.synthesis.nafdf.settings import MAX_STATE, MAX_STEP_INSTRUCTIONS, MAX_STEP_WORK
 
     assert ship_design.step.sz_w() <= MAX_STEP_WORK and ship_design.nstate <= MAX_STATE
     assert ship_design.step.n_instructions() <= MAX_STEP_INSTRUCTIONS
@@ -382,8 +384,8 @@ def test_model_not_finite_where_the_filters_start_is_refused(f: str, theta0, whe
 def test_certificate_fails_on_a_nan_jacobian_even_past_the_model_check(monkeypatch) -> None:
     """Second line of defence: with the starting-point check disabled, x**x reaches the certificate,
     whose AD-vs-difference gap is NaN — it fails (max(worst, nan) used to report 0 and pass)."""
-    from fdisyn.design import nafdf as mod
     from fdisyn.runtime.errors import CertificateError
+    from fdisyn.synthesis.nafdf import design as mod
 
     monkeypatch.setattr(mod, "_check_model_finite", lambda plant, s: None)
     pl = NonlinearPlant.from_expressions(**{**SHIP_EXPR, "f": {"x": "x**x + a*b*u"}})

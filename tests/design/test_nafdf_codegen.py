@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from fdisyn.design.codegen import codegen
-from fdisyn.design.nafdf import NafdfDesign, nafdf_gain_file
+from fdisyn.codegen.library import codegen
 from fdisyn.problems import ship_propulsion as sp
 from fdisyn.problems import wind_turbine_efficiency as wt
 from fdisyn.runtime.compiled import CompiledDiagnoser
 from fdisyn.runtime.gainfile import write_gain_file
+from fdisyn.synthesis.nafdf.design import NafdfDesign
+from fdisyn.synthesis.nafdf.payload import nafdf_gain_file
 
 KEYS = ("state", "r", "J", "alarm", "isolated", "status")
 

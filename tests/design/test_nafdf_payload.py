@@ -8,15 +8,15 @@ import json
 from collections.abc import Callable
 from pathlib import Path
 
-import fdisyn.design.nafdf as nafdf_module
+import fdisyn.synthesis.nafdf.design as nafdf_module
 import numpy as np
 import pytest
-from fdisyn.design.cli import main
-from fdisyn.design.nafdf import nafdf_from_gain_file, nafdf_gain_file
-from fdisyn.design.step import step_function
+from fdisyn.app.cli import main
+from fdisyn.codegen.step import step_function
 from fdisyn.problems import ship_propulsion as sp
 from fdisyn.runtime.errors import GainFileError
 from fdisyn.runtime.gainfile import read_gain_file
+from fdisyn.synthesis.nafdf.payload import nafdf_from_gain_file, nafdf_gain_file
 
 
 @pytest.fixture(scope="module")

@@ -167,12 +167,12 @@ def sweep(base: dict) -> list[tuple[str, bytes]]:
 
 def run_mutations(seed: int, count: int, workdir: str) -> None:
     """The child: build a valid gain file, then for each mutation report start and outcome as JSON lines."""
-    from fdisyn.design.codegen import generate_sources
-    from fdisyn.design.nafdf import nafdf_gain_file
-    from fdisyn.design.step import step_function
+    from fdisyn.codegen.library import generate_sources
+    from fdisyn.codegen.step import step_function
     from fdisyn.problems import ship_propulsion as sp
     from fdisyn.runtime.errors import FdisynError
     from fdisyn.runtime.gainfile import read_gain_file, write_gain_file
+    from fdisyn.synthesis.nafdf.payload import nafdf_gain_file
 
     work = Path(workdir)
     base_path = write_gain_file(nafdf_gain_file(sp.design(), problem="ship_propulsion"), work / "base.json")

@@ -13,10 +13,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from fdisyn.design.cli import main
-from fdisyn.design.nonlinear import NonlinearPlant
-from fdisyn.design.plant import LinearPlant
-from fdisyn.design.spec import problem_from_document
+from fdisyn.app.cli import main
+from fdisyn.app.plant_file import problem_from_document
+from fdisyn.models.linear import LinearPlant
+from fdisyn.models.nonlinear import NonlinearPlant
 from fdisyn.runtime.errors import ShapeError, SpecError, TraceError
 from fdisyn.runtime.trace import Trace
 

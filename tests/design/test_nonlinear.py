@@ -7,7 +7,7 @@ import json
 import casadi as ca
 import numpy as np
 import pytest
-from fdisyn.design.nonlinear import NonlinearPlant, function_from_program, model_program
+from fdisyn.models.nonlinear import NonlinearPlant, function_from_program, model_program
 from fdisyn.runtime.errors import NominalValueError, NonDifferentiableError, ShapeError, SpecError
 from hypothesis import given, settings
 from hypothesis import strategies as st

@@ -7,15 +7,7 @@ import math
 import control
 import numpy as np
 import pytest
-from fdisyn.design.norms import (
-    DiscreteLTI,
-    h2_norm,
-    hinf_norm,
-    hminus_index,
-    series,
-    singular_values,
-    system_norm,
-)
+from fdisyn.numerics.norms import DiscreteLTI, h2_norm, hinf_norm, hminus_index, series, singular_values, system_norm
 from fdisyn.runtime.errors import ExistenceError, ShapeError
 from hypothesis import given, settings
 from hypothesis import strategies as st

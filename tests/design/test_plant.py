@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from fdisyn.design.linalg import markov_parameters
-from fdisyn.design.plant import LinearPlant
+from fdisyn.models.linear import LinearPlant
+from fdisyn.numerics.linalg import markov_parameters
 from fdisyn.runtime.errors import ShapeError
 
 from tests.helpers import random_plant

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.linalg
-from fdisyn.design.riccati import dare_residual, solve_filter_dare
+from fdisyn.numerics.riccati import dare_residual, solve_filter_dare
 from fdisyn.runtime.errors import ExistenceError, SolverError
 from hypothesis import given, settings
 from hypothesis import strategies as st

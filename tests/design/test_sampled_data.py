@@ -11,31 +11,20 @@ import pytest
 import scipy.integrate as sint
 import scipy.linalg as sla
 import scipy.optimize
-from fdisyn.design.linalg import spectral_radius
-from fdisyn.design.norms import DiscreteLTI, h2_norm, hinf_norm
-from fdisyn.design.plant import LinearPlant
-from fdisyn.design.residual import internal_form
-from fdisyn.design.riccati import solve_filter_dare
-from fdisyn.design.sampled_data import (
-    ETAS,
-    SampledDataPlant,
-    _extra_block,
-    check_sampling,
-    co_inner_outer,
-    norm_invariant_discretisation,
-    optimal_diagnostic_observer,
-    performance,
-    random_sampled_data_plant,
-    residual_dynamics,
-    sampled_disturbance,
-    simulate_sampled_data,
-    solve_dtars,
-)
+from fdisyn.evaluation.sampled_data_simulation import sampled_disturbance, simulate_sampled_data
+from fdisyn.models.linear import LinearPlant
+from fdisyn.models.sampled_data import SampledDataPlant, check_sampling, norm_invariant_discretisation
+from fdisyn.numerics.factorisation import co_inner_outer, solve_dtars
+from fdisyn.numerics.linalg import spectral_radius
+from fdisyn.numerics.norms import DiscreteLTI, h2_norm, hinf_norm
+from fdisyn.numerics.riccati import solve_filter_dare
 from fdisyn.runtime.errors import CertificateError, ExistenceError, ShapeError
+from fdisyn.synthesis.residual import internal_form
+from fdisyn.synthesis.sampled_data_observer import ETAS, _extra_block, optimal_diagnostic_observer, performance, residual_dynamics
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from tests.helpers import PAPER, PAPER_GAINS
+from tests.helpers import PAPER, PAPER_GAINS, random_sampled_data_plant
 
 # Grid of frequencies (rad/sample) for transfer-function identities.
 W_TEST = np.array([0.0, 0.3, 1.1, 2.0, math.pi])
@@ -593,7 +582,7 @@ def test_a_wrong_factorisation_fails_the_certificate(paper_plant: SampledDataPla
     is refused, although its Luenberger identities still hold (F, L, T are formed from that M)."""
     import dataclasses
 
-    from fdisyn.design import sampled_data as sd
+    from fdisyn.synthesis import sampled_data_observer as sd
 
     factor = sd.co_inner_outer
 

@@ -7,8 +7,8 @@ import pytest
 import scipy.integrate
 import scipy.linalg
 import scipy.signal
-from fdisyn.design.plant import LinearPlant
-from fdisyn.design.sampling import van_loan, zoh
+from fdisyn.models.linear import LinearPlant
+from fdisyn.models.sampling import van_loan, zoh
 from fdisyn.runtime.errors import ShapeError
 from hypothesis import given, settings
 from hypothesis import strategies as st

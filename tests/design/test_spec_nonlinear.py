@@ -16,13 +16,13 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from fdisyn.design.cli import main
-from fdisyn.design.nafdf import nafdf_extra_metrics
-from fdisyn.design.simulate import Signal
-from fdisyn.design.spec import load_spec, problem_from_document
+from fdisyn.app.cli import main
+from fdisyn.app.plant_file import load_spec, problem_from_document
+from fdisyn.evaluation.simulate import Signal
 from fdisyn.problems import ship_propulsion as sp
 from fdisyn.runtime.errors import FdisynError, SpecError
 from fdisyn.runtime.gainfile import read_gain_file
+from fdisyn.synthesis.nafdf.design import nafdf_extra_metrics
 
 DATA = Path(__file__).parents[1] / "data"
 SHIP = DATA / "ship.toml"

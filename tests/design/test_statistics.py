@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.stats
-from fdisyn.design.evaluate import build
-from fdisyn.design.metrics import binomial_interval
+from fdisyn.evaluation.evaluate import build
+from fdisyn.evaluation.metrics import binomial_interval
 from fdisyn.problems.wind_turbine import PROBLEM
 
 ALPHA = 1e-6

@@ -6,10 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.linalg
-from fdisyn.design.linalg import dlyap
-from fdisyn.design.plant import LinearPlant
-from fdisyn.design.uio import GAIN_TOL, kalman_uio, pole_placement_uio, uio_error_covariance, uio_structure
+from fdisyn.models.linear import LinearPlant
+from fdisyn.numerics.linalg import dlyap
 from fdisyn.runtime.errors import CertificateError, ExistenceError, ShapeError
+from fdisyn.synthesis.uio import GAIN_TOL, kalman_uio, pole_placement_uio, uio_error_covariance, uio_structure
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -115,7 +115,7 @@ def test_plants_that_once_failed_the_minimum_variance_design():
 
 def test_a_wrong_gain_fails_the_certificate(monkeypatch):
     """The certificate has teeth: an NLP gain off by 1e-6 (relative) is refused by name."""
-    import fdisyn.design.uio as uio
+    import fdisyn.synthesis.uio as uio
 
     solve = uio._nlp_gain
 
@@ -131,7 +131,7 @@ def test_a_wrong_gain_fails_the_certificate(monkeypatch):
 def test_an_unstable_gain_fails_the_certificate():
     """Poles on the unit circle are refused by the caller; an assignment that leaves F unstable is
     refused by the certificate's stability check (here: a gain scaled after the design)."""
-    import fdisyn.design.uio as uio
+    import fdisyn.synthesis.uio as uio
 
     plant = random_plant(2, n=3, p=2, q=1)
     d = pole_placement_uio(plant, poles=[0.1, 0.2, 0.3])

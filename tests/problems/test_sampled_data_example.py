@@ -8,10 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 import scipy.stats
-from fdisyn.design.cli import main
-from fdisyn.design.evaluate import build
-from fdisyn.design.metrics import binomial_interval
-from fdisyn.design.pipeline import EXPORT_TOL, check_export, export_trace
+from fdisyn.app.cli import main
+from fdisyn.app.pipeline import EXPORT_TOL, check_export, export_trace
+from fdisyn.evaluation.evaluate import build
+from fdisyn.evaluation.metrics import binomial_interval
 from fdisyn.problems.sampled_data_example import PROBLEM
 from fdisyn.runtime.gainfile import read_gain_file
 

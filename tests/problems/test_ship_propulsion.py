@@ -83,7 +83,7 @@ def test_fault_free_run_isolates_nothing(design) -> None:
 
 @pytest.fixture(scope="module")
 def ship_built(tmp_path_factory):
-    from fdisyn.design.evaluate import build
+    from fdisyn.evaluation.evaluate import build
     from fdisyn.problems.ship_propulsion import PROBLEM
 
     return build(PROBLEM, "nafdf", tmp_path_factory.mktemp("ship") / "nafdf")
@@ -99,7 +99,7 @@ def test_gain_file_round_trip_rebuilds_the_same_step(ship_built):
 
 
 def test_compiled_step_equals_casadi_over_a_5000_step_faulty_run(ship_built):
-    from fdisyn.design.pipeline import check_export
+    from fdisyn.app.pipeline import check_export
     from fdisyn.problems.ship_propulsion import PROBLEM
 
     b = PROBLEM.run("both_a0.5_b0.7", [4])
@@ -117,7 +117,7 @@ def test_compiled_step_equals_casadi_over_a_5000_step_faulty_run(ship_built):
 def test_replay_through_the_command_line(ship_built, tmp_path):
     import subprocess
 
-    from fdisyn.design.cli import main
+    from fdisyn.app.cli import main
 
     trace = tmp_path / "t.csv"
     assert main(["simulate", "ship_propulsion", "--scenario", "paper_a_half", "--seed", "1", "--out", str(trace)]) == 0
@@ -132,7 +132,7 @@ def test_replay_through_the_command_line(ship_built, tmp_path):
 def test_small_monte_carlo_through_the_compiled_step(ship_built):
     """20 seeds through the pipeline's evaluation (the full study is `fdisyn reproduce`): every paper
     fault detected, at least 18 isolated as a and none as b, no isolation on healthy runs."""
-    from fdisyn.design.evaluate import evaluate
+    from fdisyn.evaluation.evaluate import evaluate
     from fdisyn.problems.ship_propulsion import PROBLEM
 
     ev = evaluate(PROBLEM, {"nafdf": ship_built}, runs=20, scenarios=["paper_a_half", "fault_free"])

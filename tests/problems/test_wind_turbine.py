@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.stats
-from fdisyn.design.evaluate import build, evaluate
+from fdisyn.evaluation.evaluate import build, evaluate
 from fdisyn.problems.wind_turbine import PARAMETER_SETS, PROBLEM, continuous_model, design_model, discrete_model, operating_point
 
 from tests.helpers import check_values, coupling_markov

@@ -5,7 +5,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 import pytest
-from fdisyn.design.sampling import zoh
+from fdisyn.models.sampling import zoh
 from fdisyn.problems import wind_turbine_efficiency as wt
 
 

@@ -11,8 +11,8 @@ import sys
 
 import numpy as np
 import pytest
-from fdisyn.design.cli import main
-from fdisyn.design.codegen import codegen
+from fdisyn.app.cli import main
+from fdisyn.codegen.library import codegen
 from fdisyn.runtime.compiled import CompiledDiagnoser, manifest_path
 from fdisyn.runtime.errors import BuildError, ShapeError
 from fdisyn.runtime.gainfile import (
@@ -46,7 +46,7 @@ def _trace_csv(gf: GainFile, U: np.ndarray, Y: np.ndarray, path) -> str:  # noqa
 
 def _cli(*args: str) -> subprocess.CompletedProcess:
     """``fdisyn`` in a fresh process: a crash in C shows as a negative return code, not a dead test run."""
-    return subprocess.run([sys.executable, "-m", "fdisyn.design.cli", *args], capture_output=True, text=True, timeout=120)
+    return subprocess.run([sys.executable, "-m", "fdisyn.app.cli", *args], capture_output=True, text=True, timeout=120)
 
 
 # ------------------------------------------------------------------ the library is bound to its gain file

@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from fdisyn.design.codegen import generate_sources
+from fdisyn.codegen.library import generate_sources
 from fdisyn.runtime.errors import FdisynError
 from fdisyn.runtime.gainfile import read_gain_file
 from fdisyn.runtime.trace import Trace, write_trace
@@ -151,7 +151,7 @@ def _one_line(exc: FdisynError) -> None:
 def _end_to_end(directory: Path, trace: Path) -> None:
     """`fdisyn codegen` and `fdisyn replay` in fresh processes: status 0, or 2 with one line; never a signal."""
     for args in (["codegen", str(directory)], ["replay", str(directory), str(trace), str(directory / "out.csv")]):
-        proc = subprocess.run([sys.executable, "-m", "fdisyn.design.cli", *args], capture_output=True, text=True, timeout=300)
+        proc = subprocess.run([sys.executable, "-m", "fdisyn.app.cli", *args], capture_output=True, text=True, timeout=300)
         assert proc.returncode in (0, 2), (args, proc.returncode, proc.stderr[-2000:])
         if proc.returncode == 2:
             assert proc.stderr.count("\n") == 1, proc.stderr

@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from fdisyn.design.cli import main
+from fdisyn.app.cli import main
 from fdisyn.runtime import trace
 from fdisyn.runtime.trace import MAX_COLUMNS, MAX_LINE_BYTES, MAX_NAME_BYTES
 
@@ -36,8 +36,8 @@ ROWS = [b"%.3f,6,0.615,107.7,%.4f,ok" % (0.001 * k, 0.1077 * k) for k in range(1
 @pytest.fixture(scope="session")
 def motor(tmp_path_factory: pytest.TempPathFactory):
     """The DC-motor plant file's default design (4 outputs of 2 generators), compiled once."""
-    from fdisyn.design.evaluate import build
-    from fdisyn.design.spec import load_spec
+    from fdisyn.app.plant_file import load_spec
+    from fdisyn.evaluation.evaluate import build
 
     prob = load_spec(str(DATA / "dc_motor.toml"))
     return build(prob, prob.default_design, tmp_path_factory.mktemp("motor") / "kalman_uio")

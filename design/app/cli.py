@@ -50,7 +50,7 @@ def _options(pairs: Sequence[str] | None) -> dict[str, Any]:
     ``"x"``) or, when it is not valid JSON, the plain string (``parameters=paper``).
 
     Only the syntax is checked here; the problem validates each value against
-    the option's type and domain (:meth:`~fdisyn.design.problem.Problem.check_options`).
+    the option's type and domain (:meth:`~fdisyn.models.problem.Problem.check_options`).
     """
     out: dict[str, Any] = {}
     for pair in pairs or []:
@@ -152,7 +152,7 @@ def _output_file(path: str, option: str) -> Path:
 
 
 def _problem(spec: str):  # noqa: ANN202 - Problem
-    from fdisyn.design.spec import load_spec
+    from fdisyn.app.plant_file import load_spec
 
     return load_spec(spec)
 
@@ -171,7 +171,7 @@ def _cmd_design(a: argparse.Namespace) -> None:
 
 
 def _cmd_codegen(a: argparse.Namespace) -> None:
-    from fdisyn.design.codegen import codegen
+    from fdisyn.codegen.library import codegen
 
     if Path(a.dir).exists() and not Path(a.dir).is_dir():
         raise SpecError(f"DIR {a.dir} is a file: expected the directory holding gains.json (fdisyn design --out DIR)")
@@ -222,7 +222,7 @@ def _workdir(a: argparse.Namespace, problem: str, design: str) -> Path:
 
 
 def _cmd_evaluate(a: argparse.Namespace) -> None:
-    from fdisyn.design.evaluate import build, evaluate, progress_printer
+    from fdisyn.evaluation.evaluate import build, evaluate, progress_printer
 
     opts = _options(a.option)
     out = _output_file(a.out, "--out")
@@ -244,7 +244,7 @@ def _cmd_evaluate(a: argparse.Namespace) -> None:
 
 
 def _cmd_report(a: argparse.Namespace) -> None:
-    from fdisyn.design.pipeline import reproduce_problem
+    from fdisyn.app.pipeline import reproduce_problem
 
     _output_dir(a.reports, "--reports")
     _output_dir(a.workdir, "--workdir")
@@ -255,8 +255,8 @@ def _cmd_report(a: argparse.Namespace) -> None:
 
 
 def _cmd_reproduce(a: argparse.Namespace) -> None:
-    from fdisyn.design.pipeline import reproduce_problem
-    from fdisyn.design.problem import problem_names
+    from fdisyn.app.pipeline import reproduce_problem
+    from fdisyn.models.problem import problem_names
 
     _output_dir(a.reports, "--reports")
     _output_dir(a.workdir, "--workdir")
@@ -268,8 +268,8 @@ def _cmd_reproduce(a: argparse.Namespace) -> None:
 
 
 def _cmd_bench(a: argparse.Namespace) -> None:
-    from fdisyn.design.bench import run_bench
-    from fdisyn.design.problem import problem_names
+    from fdisyn.app.bench import run_bench
+    from fdisyn.models.problem import problem_names
 
     out = _output_file(a.out, "--out")
     _output_dir(a.workdir, "--workdir")
@@ -280,7 +280,7 @@ def _cmd_bench(a: argparse.Namespace) -> None:
 
 
 def _cmd_list(a: argparse.Namespace) -> None:
-    from fdisyn.design.problem import get_problem, problem_names
+    from fdisyn.models.problem import get_problem, problem_names
 
     for name in problem_names():
         p = get_problem(name)

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.linalg as sla
-from fdisyn.design.linalg import as_matrix
+from fdisyn.numerics.linalg import as_matrix
 from fdisyn.runtime.errors import ShapeError
 
 __all__ = ["zoh", "van_loan", "check_sample_time", "EXP_LIMIT"]

@@ -33,7 +33,7 @@ Gains:
     ``L`` minimises ``trace Σ(L)`` subject to the exact Lyapunov equation, a
     CasADi/IPOPT NLP over ``L``. Verified against the stabilising solution of
     the filtering DARE with the cross term ``S = −A1 H R (I − CH)ᵀ`` and the
-    singular ``(I − CH) R (I − CH)ᵀ`` (:mod:`fdisyn.design.riccati`).
+    singular ``(I − CH) R (I − CH)ᵀ`` (:mod:`fdisyn.numerics.riccati`).
 ``kalman_uio(variant="paper")``
     The steady state of the paper's recursion (eqs. (14), (16)), from the DARE
     in ``(A1, C, T Q Tᵀ + H R Hᵀ, R)``, certified as the recursion's fixed point.
@@ -50,13 +50,13 @@ from typing import Any, Literal
 import casadi as ca
 import numpy as np
 import scipy.signal
-from fdisyn.design.certificate import Certificate, Check
-from fdisyn.design.linalg import dlyap, rank, rel_diff, spectral_radius, unobservable_modes
-from fdisyn.design.plant import LinearPlant
-from fdisyn.design.residual import internal_form
-from fdisyn.design.riccati import solve_filter_dare
+from fdisyn.models.linear import LinearPlant
+from fdisyn.numerics.linalg import dlyap, rank, rel_diff, spectral_radius, unobservable_modes
+from fdisyn.numerics.riccati import solve_filter_dare
 from fdisyn.runtime.errors import CertificateError, ExistenceError, ShapeError, SolverError
 from fdisyn.runtime.gainfile import Generator
+from fdisyn.synthesis.certificate import Certificate, Check
+from fdisyn.synthesis.residual import internal_form
 
 __all__ = [
     "UIOStructure",

@@ -3,7 +3,7 @@
 ``DiscreteLTI`` is the small state-space type the sampled-data design and
 the LMI toolkit share: ``x⁺ = A x + B u``, ``y = C x + D u``. The norms here
 are the *independent* evaluations that the LMI characterisations
-(:mod:`fdisyn.design.lmi`) and the analytic optimum of Qiu, Wen & Jiang
+(:mod:`fdisyn.numerics.lmi_norms`) and the analytic optimum of Qiu, Wen & Jiang
 (Control Theory & Applications 27(8), 2010, Theorem 1) are checked against:
 
 ``hinf_norm``
@@ -27,7 +27,7 @@ exists). This is the convention under which the paper's inequality (4),
 operator ``S G`` always has a kernel (its lifted input space is infinite
 dimensional), so Lemma 1's ``‖S G‖₋ = ‖G_J‖₋`` is read on the orthogonal
 complement of that kernel, whose coordinates are the inputs of ``G_J`` when
-``B_J`` has full column rank (:func:`fdisyn.design.linalg.psd_factor`).
+``B_J`` has full column rank (:func:`fdisyn.numerics.linalg.psd_factor`).
 """
 
 from __future__ import annotations
@@ -38,7 +38,7 @@ from typing import Literal
 
 import numpy as np
 import scipy.optimize as sopt
-from fdisyn.design.linalg import as_matrix, spectral_radius
+from fdisyn.numerics.linalg import as_matrix, spectral_radius
 from fdisyn.runtime.errors import ExistenceError, ShapeError
 
 __all__ = [

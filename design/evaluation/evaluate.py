@@ -15,9 +15,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from fdisyn.design.codegen import CodegenResult, codegen
-from fdisyn.design.metrics import ScenarioMetrics, scenario_metrics
-from fdisyn.design.problem import Batch, Problem, Scenario
+from fdisyn.codegen.library import CodegenResult, codegen
+from fdisyn.evaluation.metrics import ScenarioMetrics, scenario_metrics
+from fdisyn.models.problem import Batch, Problem, Scenario
 from fdisyn.runtime.compiled import CompiledDiagnoser
 from fdisyn.runtime.errors import SpecError
 from fdisyn.runtime.gainfile import GainFile, write_gain_file

@@ -40,7 +40,7 @@ from typing import Any
 import casadi as ca
 import fdisyn.runtime
 import numpy as np
-from fdisyn.design.step import step_function
+from fdisyn.codegen.step import step_function
 from fdisyn.runtime.compiled import write_manifest
 from fdisyn.runtime.errors import BuildError, GainFileError
 from fdisyn.runtime.gainfile import FORMAT, GainFile, check_limits, gain_file_sha256, read_gain_file

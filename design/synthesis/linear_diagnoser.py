@@ -16,12 +16,10 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from fdisyn.design.certificate import Certificate, Check
-from fdisyn.design.linalg import rank_tol, transfer_size
-from fdisyn.design.plant import LinearPlant
-from fdisyn.design.residual import dc_gain_y, internal_form
-from fdisyn.design.thresholds import chi2_threshold
-from fdisyn.runtime.errors import ExistenceError, ShapeError
+from fdisyn.evaluators.chi2 import chi2_evaluator
+from fdisyn.models.linear import LinearPlant
+from fdisyn.numerics.linalg import transfer_size
+from fdisyn.runtime.errors import ShapeError
 from fdisyn.runtime.gainfile import (
     Decision,
     Evaluator,
@@ -30,8 +28,10 @@ from fdisyn.runtime.gainfile import (
     StepSpec,
     linear_state_layout,
 )
+from fdisyn.synthesis.certificate import Certificate, Check
+from fdisyn.synthesis.residual import dc_gain_y, internal_form
 
-__all__ = ["FaultClass", "chi2_evaluator", "default_fault_classes", "linear_diagnoser", "provenance"]
+__all__ = ['FaultClass', 'default_fault_classes', 'linear_diagnoser', 'provenance']
 
 
 @dataclass(frozen=True)
@@ -47,39 +47,6 @@ class FaultClass:
     components: tuple[str, ...] = ()
 
 
-CHI2_RANK_RTOL = 1e-6
-"""Residual directions whose variance is below this fraction of the largest are
-left out of the χ² statistic. Such a direction is not driven by noise in any
-useful sense (for a plain UIO it is an exact function of the previous
-residual); dividing by its variance would make the statistic hypersensitive
-to any model error and amplify round-off in ``r`` by ``sqrt(cond Σ_r)``."""
-
-
-def chi2_evaluator(generator: int, sigma_r: np.ndarray, P_f: float, *, rank_rtol: float = CHI2_RANK_RTOL) -> Evaluator:
-    """χ² evaluator ``J = rᵀ W r`` (Hu, Sun, Jiang, He & Zhang, Acta Automatica Sinica 39(8), 2013, eqs. (18)–(19)).
-
-    ``W`` is the pseudo-inverse of ``Σ_r`` on the eigen-directions with variance
-    above ``rank_rtol`` times the largest, and ``dof`` their number, so that
-    ``J ~ χ²(dof)`` for Gaussian ``r`` with covariance ``Σ_r``; the threshold
-    is the ``1 − P_f`` quantile.
-    """
-    s = 0.5 * (np.asarray(sigma_r, dtype=float) + np.asarray(sigma_r, dtype=float).T)
-    lam, vec = np.linalg.eigh(s)
-    top = float(lam[-1]) if lam.size else 0.0
-    keep = lam > max(rank_rtol * top, rank_tol(s))
-    dof = int(np.sum(keep))
-    if dof == 0:
-        raise ExistenceError(f"the residual of generator {generator} has zero covariance: no χ² statistic exists")
-    w = (vec[:, keep] / lam[keep]) @ vec[:, keep].T
-    return Evaluator(
-        kind="chi2",
-        generator=generator,
-        P_f=float(P_f),
-        dof=dof,
-        threshold=chi2_threshold(P_f, dof),
-        Sigma_r=s,
-        W=0.5 * (w + w.T),
-    )
 
 
 def provenance(**extra: object) -> dict[str, object]:

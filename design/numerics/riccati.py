@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg as sla
-from fdisyn.design.linalg import as_matrix, as_square, as_symmetric, rank_tol, unobservable_modes
+from fdisyn.numerics.linalg import as_matrix, as_square, as_symmetric, rank_tol, unobservable_modes
 from fdisyn.runtime.errors import ExistenceError, SolverError
 
 __all__ = ["DareSolution", "solve_filter_dare", "dare_residual", "dare_pencil_eigenvalues"]

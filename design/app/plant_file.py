@@ -86,7 +86,7 @@ is written with ``time = "nonlinear"`` and designed by the NAFDF::
     Q = [[0.0]]                       # covariance of v per sample (scalar, diagonal or matrix)
     R = [[0.01]]                      # covariance of e per sample
     [design]
-    method = "nafdf"                  # every keyword of fdisyn.design.nafdf.nafdf:
+    method = "nafdf"                  # every keyword of fdisyn.synthesis.nafdf.design.nafdf:
     P_f = 1e-4                        # P_f, window, threshold_rule, beta0, x0 (default
     window = 10                       # [simulation].x0), P0 (default 1), theta0, R0,
     theta0 = { a = 0.0, b = 0.0 }     # forgetting_initial/_rate/_final, theta_lower,
@@ -113,16 +113,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from fdisyn.design.certificate import Certificate
-from fdisyn.design.diagnoser import FaultClass, default_fault_classes, linear_diagnoser
-from fdisyn.design.lmi import lmi_diagnostic_observer
-from fdisyn.design.plant import LinearPlant
-from fdisyn.design.problem import Batch, Problem, Scenario, check_option, get_problem, short_repr
-from fdisyn.design.residual import embed_outputs, residual_covariance
-from fdisyn.design.sampled_data import ETAS, SampledDataPlant, optimal_diagnostic_observer
-from fdisyn.design.sampling import van_loan
-from fdisyn.design.simulate import SENSOR_FAULT_KINDS, SensorFaultSpec, Signal, simulate_linear
-from fdisyn.design.uio import kalman_uio, pole_placement_uio
+from fdisyn.evaluation.simulate import SENSOR_FAULT_KINDS, SensorFaultSpec, Signal, simulate_linear
+from fdisyn.models.linear import LinearPlant
+from fdisyn.models.problem import Batch, Problem, Scenario, check_option, get_problem, short_repr
+from fdisyn.models.sampled_data import SampledDataPlant
+from fdisyn.models.sampling import van_loan
 from fdisyn.runtime.errors import FdisynError, ShapeError, SpecError
 from fdisyn.runtime.gainfile import LIMITS, GainFile, Generator, read_regular_file
 from fdisyn.runtime.names import (
@@ -134,6 +129,12 @@ from fdisyn.runtime.names import (
     check_label,
     check_signal_names,
 )
+from fdisyn.synthesis.certificate import Certificate
+from fdisyn.synthesis.linear_diagnoser import FaultClass, default_fault_classes, linear_diagnoser
+from fdisyn.synthesis.lmi_observer import lmi_diagnostic_observer
+from fdisyn.synthesis.residual import embed_outputs, residual_covariance
+from fdisyn.synthesis.sampled_data_observer import ETAS, optimal_diagnostic_observer
+from fdisyn.synthesis.uio import kalman_uio, pole_placement_uio
 
 __all__ = ["load_spec", "problem_from_toml", "problem_from_document", "LINEAR_METHODS", "register_method"]
 
@@ -667,7 +668,7 @@ def _scenario_name(value: Any, scenarios: Mapping[str, Scenario], where: str) ->
 # --------------------------------------------------------------------------- nonlinear plants (Zhou, Xi & Zhang 1991)
 
 _NAFDF_KEYS = {
-    # TOML key → keyword of fdisyn.design.nafdf.nafdf
+    # TOML key → keyword of fdisyn.synthesis.nafdf.design.nafdf
     "P_f": "false_alarm_probability",
     "window": "window",
     "threshold_rule": "threshold_rule",
@@ -706,8 +707,9 @@ def _per_parameter(value: Any, parameters: tuple[str, ...], where: str) -> Any:
 
 def _nonlinear_problem(path: Path, top: _Section, name: str) -> Problem:
     """A ``time = "nonlinear"`` plant file: the model of Zhou, Xi & Zhang 1991 (eq. (2.1)) and the NAFDF (format in the README)."""
-    from fdisyn.design.nafdf import nafdf, nafdf_extra_metrics, nafdf_gain_file
-    from fdisyn.design.nonlinear import NonlinearPlant, covariance_matrix
+    from fdisyn.models.nonlinear import NonlinearPlant, covariance_matrix
+    from fdisyn.synthesis.nafdf.design import nafdf, nafdf_extra_metrics
+    from fdisyn.synthesis.nafdf.payload import nafdf_gain_file
 
     sig = _Section(top.get("signals", {}), f"{path} [signals]", {"states", "inputs", "outputs", "parameters"})
     mod = _Section(top.get("model", required=True), f"{path} [model]", {"time", "Ts", "f", "h", "nominal", "constants", "Q", "R"})

@@ -12,9 +12,9 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.signal
-from fdisyn.design.linalg import psd_factor
-from fdisyn.design.plant import LinearPlant
-from fdisyn.design.problem import Batch, Scenario
+from fdisyn.models.linear import LinearPlant
+from fdisyn.models.problem import Batch, Scenario
+from fdisyn.numerics.linalg import psd_factor
 from fdisyn.runtime.errors import SpecError
 
 __all__ = ["SensorFaultSpec", "apply_sensor_faults", "gauss_markov", "Signal", "simulate_linear"]

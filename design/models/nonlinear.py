@@ -50,7 +50,7 @@ user or an attacker controls; these keep every stage bounded):
 * ``f`` and ``h`` have at most :data:`MAX_MODEL_INSTRUCTIONS` CasADi
   operations each: the NAFDF step evaluates the model and its Jacobians four
   times, so a larger model could not fit its step budget
-  (:data:`fdisyn.design.nafdf.MAX_STEP_INSTRUCTIONS`) anyway.
+  (:data:`fdisyn.synthesis.nafdf.settings.MAX_STEP_INSTRUCTIONS`) anyway.
 
 :func:`model_program` writes ``f`` or ``h`` as a list of elementary
 operations (the form gain files store) and :func:`function_from_program`
@@ -73,9 +73,9 @@ from typing import Any
 
 import casadi as ca
 import numpy as np
-from fdisyn.design.linalg import as_matrix, real_array
-from fdisyn.design.plant import frozen_array, identifier_names
-from fdisyn.design.sampling import check_sample_time
+from fdisyn.models.linear import frozen_array, identifier_names
+from fdisyn.models.sampling import check_sample_time
+from fdisyn.numerics.linalg import as_matrix, real_array
 from fdisyn.runtime.errors import NominalValueError, NonDifferentiableError, ShapeError, SpecError
 from fdisyn.runtime.names import check_distinct
 

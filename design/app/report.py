@@ -21,9 +21,9 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from fdisyn.design.codegen import CFLAGS  # noqa: E402
-from fdisyn.design.evaluate import recovery_samples  # noqa: E402
-from fdisyn.design.problem import Problem  # noqa: E402
+from fdisyn.codegen.library import CFLAGS
+from fdisyn.evaluation.evaluate import recovery_samples
+from fdisyn.models.problem import Problem
 from fdisyn.runtime.gainfile import write_gain_file  # noqa: E402
 
 __all__ = ["ReportContext", "write_report", "table", "fmt"]

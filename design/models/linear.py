@@ -19,8 +19,8 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from fdisyn.design.linalg import as_matrix, as_square, as_symmetric, real_array
-from fdisyn.design.sampling import check_sample_time, van_loan, zoh
+from fdisyn.models.sampling import check_sample_time, van_loan, zoh
+from fdisyn.numerics.linalg import as_matrix, as_square, as_symmetric, real_array
 from fdisyn.runtime.errors import ShapeError
 from fdisyn.runtime.names import check_distinct, check_signal_names
 

@@ -19,8 +19,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from fdisyn.design.linalg import dlyap, spectral_radius, transfer_size
-from fdisyn.design.plant import LinearPlant
+from fdisyn.models.linear import LinearPlant
+from fdisyn.numerics.linalg import dlyap, spectral_radius, transfer_size
 from fdisyn.runtime.errors import ExistenceError, ShapeError
 from fdisyn.runtime.gainfile import Generator
 
@@ -46,7 +46,7 @@ class InternalForm:
 
     def coupling(self, channel: str) -> float:
         """Largest normalised Markov parameter from ``channel`` to ``r``
-        (:func:`fdisyn.design.linalg.transfer_size`): zero exactly when the
+        (:func:`fdisyn.numerics.linalg.transfer_size`): zero exactly when the
         channel is decoupled, of order ``eps`` for an exactly decoupled
         generator computed in floating point, independently of units."""
         b = getattr(self, "B" + channel)

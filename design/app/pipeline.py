@@ -19,9 +19,9 @@ from typing import Any
 
 import casadi as ca
 import numpy as np
-from fdisyn.design.evaluate import Built, Evaluation, build, evaluate, progress_printer
-from fdisyn.design.problem import Problem
-from fdisyn.design.step import step_function
+from fdisyn.codegen.step import step_function
+from fdisyn.evaluation.evaluate import Built, Evaluation, build, evaluate, progress_printer
+from fdisyn.models.problem import Problem
 from fdisyn.runtime.errors import CertificateError, SpecError
 from fdisyn.runtime.gainfile import GainFile, linear_state_layout
 from fdisyn.runtime.reference import LinearReference, RunResult
@@ -172,7 +172,7 @@ class VariantResult:
 
 def reproduce_problem(problem: Problem, *, runs: int | None = None, reports: Path = Path("reports"), workdir: Path = Path("build")) -> Path:
     """Run the whole pipeline for ``problem`` and write its report; return the page's path."""
-    from fdisyn.design.report import write_report
+    from fdisyn.app.report import write_report
 
     say = progress_printer(problem.name)
     runs = problem.monte_carlo_runs if runs is None else runs  # 0 is refused by evaluate, not replaced

@@ -30,7 +30,7 @@ STEP_INPUTS = ("state", "u", "y")
 STEP_OUTPUTS = ("state_next", "r", "J", "alarm", "isolated", "status")
 
 _BUILDERS: dict[str, Callable[[GainFile], ca.Function]] = {}
-_BUILDER_MODULES = {"nafdf": "fdisyn.design.nafdf"}
+_BUILDER_MODULES = {"nafdf": "fdisyn.synthesis.nafdf"}
 """Kinds whose builder registers itself when its module is imported (on demand)."""
 
 

@@ -1,0 +1,2 @@
+"""The application: command line, plant files, the reproduce pipeline, reports, benchmarks.
+"""

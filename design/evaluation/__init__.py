@@ -1,0 +1,2 @@
+"""Simulation, Monte Carlo evaluation and detection metrics.
+"""

@@ -1,0 +1,2 @@
+"""Residual evaluators and their thresholds from the statistics' laws (χ², WSSR).
+"""

@@ -1,0 +1,3 @@
+"""Plant models: linear (discrete or continuous), sampled-data, nonlinear (CasADi), exact sampling, and the
+reference-problem interface.
+"""

@@ -1,0 +1,429 @@
+"""The NAFDF's gain-file payload: writing, reading and validating it, and rebuilding the step from it.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import casadi as ca
+import numpy as np
+from fdisyn.evaluators.wssr import wssr_threshold_table
+from fdisyn.models.nonlinear import NonlinearPlant, function_from_program, model_program, short_repr
+from fdisyn.models.sampling import check_sample_time
+from fdisyn.runtime.errors import FdisynError, GainFileError
+from fdisyn.runtime.gainfile import GainFile, StepSpec
+from fdisyn.synthesis.linear_diagnoser import provenance
+from fdisyn.synthesis.nafdf.design import NafdfDesign, _design, _init_state, _names_r_J
+from fdisyn.synthesis.nafdf.settings import _IDENT, _MAX_NAME, MAX_DIMENSION, NafdfSettings, StateLayout, _layout, _settings
+
+__all__ = ['PAYLOAD_FORMAT', 'PAYLOAD_VERSION', 'nafdf_from_gain_file', 'nafdf_from_payload', 'nafdf_gain_file', 'nafdf_payload', 'step_from_payload']
+
+PAYLOAD_FORMAT = "fdisyn.nafdf"
+PAYLOAD_VERSION = 2
+"""Version 2 stores the model as validated operation lists (version 1 held CasADi serialised strings)."""
+
+
+# --------------------------------------------------------------------------- payload
+
+
+def nafdf_payload(design: NafdfDesign) -> dict[str, object]:
+    """A JSON-able description from which :func:`step_from_payload` rebuilds the identical step.
+
+    The model is stored as data: ``f`` and ``h`` as
+    :func:`~fdisyn.models.nonlinear.model_program` operation lists (exact:
+    CasADi's own operation sequence, constants to the bit), which the reader
+    validates entry by entry before building anything. Expression strings,
+    when the plant came from them, are kept alongside for people to read; the
+    reader re-parses them and refuses a file where they describe another
+    model. The WSSR threshold table is stored as numbers (and checked
+    against its rule on reading), so the rebuilt step is bit for bit the
+    designed one. CasADi's version is recorded for provenance only.
+    """
+    pl, s = design.plant, design.settings
+    return {
+        "format": PAYLOAD_FORMAT,
+        "version": PAYLOAD_VERSION,
+        "name": design.name,
+        "casadi_version": ca.CasadiMeta.version(),
+        "plant": {
+            "states": list(pl.states),
+            "inputs": list(pl.inputs),
+            "outputs": list(pl.outputs),
+            "parameters": list(pl.parameters),
+            "theta_nominal": [float(v) for v in pl.theta_nominal],
+            "Q1": np.asarray(pl.Q1).tolist(),
+            "Q2": np.asarray(pl.Q2).tolist(),
+            "Ts": pl.Ts,
+            "f": model_program(pl.f),
+            "h": model_program(pl.h),
+            "expressions": None if pl.expressions is None else json.loads(json.dumps(pl.expressions)),
+            "units": dict(pl.units),
+        },
+        "settings": s.to_dict(),
+        "wssr_thresholds": [float(v) for v in design.thresholds],
+        "state_layout": [[nm, r, c] for nm, r, c in design.layout.entries],
+        "init_state": [float(v) for v in design.init_state()],
+        "r_names": list(design.r_names),
+        "J_names": list(design.J_names),
+        "fault_names": list(design.fault_names),
+        "certificate": design.certificate.to_dict(),
+    }
+
+
+_PAYLOAD_FIELDS = frozenset(
+    {
+        "format",
+        "version",
+        "name",
+        "casadi_version",
+        "plant",
+        "settings",
+        "wssr_thresholds",
+        "state_layout",
+        "init_state",
+        "r_names",
+        "J_names",
+        "fault_names",
+        "certificate",
+    }
+)
+_PLANT_FIELDS = frozenset(
+    {"states", "inputs", "outputs", "parameters", "theta_nominal", "Q1", "Q2", "Ts", "f", "h", "expressions", "units"}
+)
+_SETTINGS_FIELDS = tuple(NafdfSettings.__dataclass_fields__)
+# The WSSR table is recomputed on reading and compared at this relative tolerance: SciPy's χ² quantile is
+# accurate to ~1e-14, so another SciPy version passes while any edit of the stored numbers is refused.
+_TABLE_RTOL = 1e-9
+
+
+class _Fields:
+    """Typed access to one JSON object of a payload; every failure names the field (one line)."""
+
+    def __init__(self, doc: object, where: str, *, required: frozenset[str] | tuple[str, ...], optional: frozenset[str] = frozenset()) -> None:
+        if not isinstance(doc, Mapping):
+            raise GainFileError(f"{where} must be an object; found {type(doc).__name__}")
+        missing = sorted(set(required) - set(doc))
+        unknown = sorted(str(k) for k in set(doc) - set(required) - set(optional))
+        if missing or unknown:
+            raise GainFileError(f"{where}: missing field(s) {missing}, unknown field(s) {short_repr(unknown)}")
+        self.doc, self.where = doc, where
+
+    def fail(self, key: str, expected: str) -> GainFileError:
+        return GainFileError(f"{self.where}.{key} must be {expected}; found {short_repr(self.doc.get(key))}")
+
+    def string(self, key: str) -> str:
+        v = self.doc[key]
+        if not isinstance(v, str):
+            raise self.fail(key, "a string")
+        return v
+
+    def integer(self, key: str) -> int:
+        v = self.doc[key]
+        if isinstance(v, bool) or not isinstance(v, int):
+            raise self.fail(key, "an integer")
+        return v
+
+    def number(self, key: str, *, allow_none: bool = False) -> float | None:
+        v = self.doc[key]
+        if v is None and allow_none:
+            return None
+        return _json_number(v, f"{self.where}.{key}")
+
+    def numbers(self, key: str, size: int, *, allow_none: bool = False) -> np.ndarray:
+        """A list of ``size`` finite numbers (``null`` → ±inf for the parameter box's open sides)."""
+        v = self.doc[key]
+        if not isinstance(v, list) or len(v) != size:
+            raise self.fail(key, f"a list of {size} numbers")
+        return np.array([np.nan if z is None and allow_none else _json_number(z, f"{self.where}.{key}") for z in v], dtype=float)
+
+    def matrix(self, key: str, rows: int, cols: int) -> np.ndarray:
+        v = self.doc[key]
+        if not isinstance(v, list) or len(v) != rows or not all(isinstance(r, list) and len(r) == cols for r in v):
+            raise self.fail(key, f"a {rows}×{cols} matrix (a list of {rows} rows of {cols} numbers)")
+        return np.array([[_json_number(z, f"{self.where}.{key}") for z in r] for r in v], dtype=float).reshape(rows, cols)
+
+    def names(self, key: str, *, allow_empty: bool = False) -> tuple[str, ...]:
+        v = self.doc[key]
+        if not isinstance(v, list) or not all(isinstance(z, str) for z in v):
+            raise self.fail(key, "a list of names")
+        if len(v) > MAX_DIMENSION or (not v and not allow_empty):
+            raise self.fail(key, f"a list of 1 to {MAX_DIMENSION} names")
+        bad = [z for z in v if not _IDENT.fullmatch(z) or len(z) > _MAX_NAME]
+        if bad or len(set(v)) != len(v):
+            raise self.fail(key, f"a list of distinct identifiers of at most {_MAX_NAME} characters")
+        return tuple(v)
+
+
+def _json_number(v: object, where: str) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise GainFileError(f"{where} must hold numbers; found {short_repr(v)}")
+    try:
+        out = float(v)
+    except OverflowError:
+        out = math.inf
+    if not math.isfinite(out):
+        raise GainFileError(f"{where} must hold finite numbers; found {short_repr(v)}")
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class _Payload:
+    """A validated payload: everything the step is built from, nothing built yet."""
+
+    name: str
+    plant: NonlinearPlant
+    settings: NafdfSettings
+    thresholds: np.ndarray
+    layout: StateLayout
+    fixed_thresholds: list[float | None] | None
+
+
+def _wrap(where: str, fn: Any, *args: Any, **kw: Any) -> Any:
+    """Call ``fn``; an fdisyn error it raises becomes a :class:`GainFileError` prefixed by ``where``."""
+    try:
+        return fn(*args, **kw)
+    except GainFileError:
+        raise
+    except FdisynError as exc:
+        raise GainFileError(f"{where}: {exc}") from None
+
+
+def _read_plant(doc: object, where: str) -> NonlinearPlant:
+    """The plant of a payload: sizes first, then the model programs, then the plant's own checks."""
+    f = _Fields(doc, where, required=_PLANT_FIELDS)
+    states, outputs, parameters = f.names("states"), f.names("outputs"), f.names("parameters")
+    inputs = f.names("inputs", allow_empty=True)
+    n, m, p, l = len(states), len(inputs), len(outputs), len(parameters)
+    theta = f.numbers("theta_nominal", l)
+    q1, q2 = f.matrix("Q1", n, n), f.matrix("Q2", p, p)
+    ts = f.number("Ts", allow_none=True)
+    if ts is not None:
+        _wrap(f"{where}.Ts", check_sample_time, ts)
+    units = f.doc["units"]
+    if not isinstance(units, Mapping) or len(units) > 4 * MAX_DIMENSION or not all(
+        isinstance(k, str) and isinstance(v, str) and len(k) <= _MAX_NAME and len(v) <= _MAX_NAME for k, v in units.items()
+    ):
+        raise f.fail("units", f"an object of at most {4 * MAX_DIMENSION} short names and unit strings")
+    programs = {
+        "f": _wrap(f"{where}.f", function_from_program, f.doc["f"], name="f", in_names=("x", "u", "theta"), in_sizes=(n, m, l), out_name="x_next", out_size=n),
+        "h": _wrap(f"{where}.h", function_from_program, f.doc["h"], name="h", in_names=("x", "theta"), in_sizes=(n, l), out_name="y", out_size=p),
+    }
+    common = dict(
+        states=states, inputs=inputs, outputs=outputs, parameters=parameters, nominal=dict(zip(parameters, theta.tolist(), strict=True)),
+        Q1=q1, Q2=q2, Ts=ts, units=dict(units),
+    )
+    expressions = f.doc["expressions"]
+    e = None if expressions is None else _Fields(expressions, f"{where}.expressions", required=frozenset({"f", "h", "constants"}))
+    plant = _wrap(where, NonlinearPlant.create, f=programs["f"], h=programs["h"], expressions=expressions, **common)
+    if e is not None:
+        text = _wrap(f"{where}.expressions", NonlinearPlant.from_expressions, f=e.doc["f"], h=e.doc["h"], constants=e.doc["constants"], **common)
+        for key in ("f", "h"):
+            if model_program(getattr(text, key)) != model_program(getattr(plant, key)):
+                raise GainFileError(f"{where}.expressions.{key} describe another model than {where}.{key}; the file was edited")
+    return plant
+
+
+def _read_payload(payload: object, where: str, *, gain_file: bool) -> _Payload:
+    """Validate every field of a payload (and nothing built but the model's SX graph)."""
+    optional = frozenset() if gain_file else frozenset({"thresholds"})
+    required = _PAYLOAD_FIELDS | ({"thresholds"} if gain_file else frozenset())
+    if isinstance(payload, Mapping) and payload.get("format") != PAYLOAD_FORMAT:
+        raise GainFileError(f"{where}: payload format is {short_repr(payload.get('format'))}; expected {PAYLOAD_FORMAT!r}")
+    if isinstance(payload, Mapping) and payload.get("version") != PAYLOAD_VERSION:
+        raise GainFileError(
+            f"{where}: payload version is {short_repr(payload.get('version'))}; this fdisyn reads version {PAYLOAD_VERSION} "
+            "(the model as validated operation lists, not CasADi serialised strings): design it again"
+        )
+    top = _Fields(payload, where, required=frozenset(required), optional=optional)
+    name = top.string("name")
+    if not _IDENT.fullmatch(name) or len(name) > _MAX_NAME:
+        raise top.fail("name", f"an identifier of at most {_MAX_NAME} characters")
+    top.string("casadi_version")
+    plant = _read_plant(top.doc["plant"], f"{where}.plant")
+    n, m, l = plant.n, plant.m, plant.l  # noqa: E741 — the paper's letter for dim θ
+
+    sf = _Fields(top.doc["settings"], f"{where}.settings", required=_SETTINGS_FIELDS)
+    raw: dict[str, Any] = {
+        "x0": sf.numbers("x0", n),
+        "P0": sf.matrix("P0", n, n),
+        "theta0": sf.numbers("theta0", l),
+        "R0": sf.matrix("R0", l, l),
+        "window": sf.integer("window"),
+        "threshold_rule": sf.string("threshold_rule"),
+        "false_alarm_probability": sf.number("false_alarm_probability"),
+        "beta0": sf.number("beta0", allow_none=True),
+        "forgetting_initial": sf.number("forgetting_initial"),
+        "forgetting_rate": sf.number("forgetting_rate"),
+        "forgetting_final": sf.number("forgetting_final"),
+        "theta_lower": np.nan_to_num(sf.numbers("theta_lower", l, allow_none=True), nan=-np.inf),
+        "theta_upper": np.nan_to_num(sf.numbers("theta_upper", l, allow_none=True), nan=np.inf),
+        "nominal_samples": sf.integer("nominal_samples"),
+        "classifier_window": sf.integer("classifier_window"),
+        "W1": sf.number("W1"),
+        "W2": sf.number("W2"),
+        "T1": sf.integer("T1"),
+        "convergence_tolerance": sf.numbers("convergence_tolerance", l),
+        "convergence_level": sf.number("convergence_level"),
+        "u0": sf.numbers("u0", m),
+    }
+    settings: NafdfSettings = _wrap(f"{where}.settings", _settings, plant, **raw)
+
+    table = top.numbers("wssr_thresholds", settings.window)
+    truth = _wrap(
+        f"{where}.settings",
+        wssr_threshold_table,
+        window=settings.window,
+        n_outputs=plant.p,
+        rule=settings.threshold_rule,
+        false_alarm_probability=settings.false_alarm_probability,
+        beta0=settings.beta0,
+    )
+    if not np.allclose(table, truth, rtol=_TABLE_RTOL, atol=0.0):
+        k = int(np.argmax(np.abs(table - truth) > _TABLE_RTOL * np.abs(truth)))
+        raise GainFileError(
+            f"{where}.wssr_thresholds[{k}] is {float(table[k])!r}; the settings (rule {settings.threshold_rule!r}, "
+            f"P_f {settings.false_alarm_probability!r}, window {settings.window}) give {float(truth[k])!r}"
+        )
+    layout = _layout(n, l, settings.window, settings.classifier_window)
+    if top.doc["state_layout"] != [[nm, r, c] for nm, r, c in layout.entries]:
+        raise GainFileError(f"{where}.state_layout does not match the layout the settings imply ({layout.size} entries)")
+    init = top.numbers("init_state", layout.size)
+    expected = _init_state(plant, settings, layout)
+    if not np.array_equal(init, expected):
+        k = int(np.argmax(init != expected))
+        raise GainFileError(
+            f"{where}.init_state[{k}] ({layout.component_names()[k]}) is {float(init[k])!r}; the settings give {float(expected[k])!r}"
+        )
+    r_names, J_names = _names_r_J(plant)
+    for key, want in (("r_names", r_names), ("J_names", J_names), ("fault_names", plant.parameters)):
+        if top.doc[key] != list(want):
+            raise GainFileError(f"{where}.{key} is {short_repr(top.doc[key])}; the plant implies {short_repr(list(want))}")
+    cert = top.doc["certificate"]
+    if not isinstance(cert, Mapping) or cert.get("passed") is not True:
+        raise GainFileError(f"{where}.certificate did not pass (passed = {short_repr(cert.get('passed') if isinstance(cert, Mapping) else cert)}); a design that failed its verification is not built")
+    fixed = None
+    if "thresholds" in top.doc:
+        fixed = _fixed_thresholds(J_names, plant, table, settings.W1)
+        if top.doc["thresholds"] != fixed:
+            raise GainFileError(
+                f"{where}.thresholds is {short_repr(top.doc['thresholds'])}; expected {len(J_names)} entries "
+                "(the full-window WSSR threshold on wssr, W1 on each d_θ, null elsewhere)"
+            )
+    return _Payload(name=name, plant=plant, settings=settings, thresholds=table, layout=layout, fixed_thresholds=fixed)
+
+
+def _fixed_thresholds(J_names: tuple[str, ...], plant: NonlinearPlant, table: np.ndarray, W1: float) -> list[float | None]:
+    """The alarm threshold per statistic the C API exports: WSSR on ``wssr``, ``W1`` on each ``d_θ``."""
+    fixed = {"wssr": float(table[-1])} | {f"d_{q}": float(W1) for q in plant.parameters}
+    return [fixed.get(j) for j in J_names]
+
+
+def _build(parsed: _Payload, where: str) -> NafdfDesign:
+    """Build and re-certify a validated payload's design (limits and model checks included)."""
+    design = _wrap(where, _design, parsed.plant, parsed.settings, name=parsed.name, thresholds=parsed.thresholds)
+    if design.layout.entries != parsed.layout.entries:  # the step's own layout: a guard on _build_step itself
+        raise GainFileError(f"{where}: the rebuilt step's state layout differs from the payload's")
+    return design
+
+
+def nafdf_from_payload(payload: Mapping[str, object]) -> NafdfDesign:
+    """Rebuild the design (plant, settings, step) from :func:`nafdf_payload`'s output alone.
+
+    Every field is validated before the step is built (module docstring);
+    the design is then re-certified. Raises :class:`GainFileError` naming the
+    field, with what it holds and what was expected.
+    """
+    return _build(_read_payload(payload, "payload", gain_file=False), "payload")
+
+
+def nafdf_from_gain_file(gf: GainFile) -> NafdfDesign:
+    """The design of a ``kind = "nafdf"`` gain file, validated against the whole file.
+
+    Beyond :func:`nafdf_from_payload`: the file's certificate must have
+    passed, and its inputs, outputs, faults, sample time, step sizes, names,
+    initial state and exported thresholds must be the ones the payload
+    implies (a ``faults`` list that disagrees, an all-zero ``init_state`` or
+    a short ``thresholds`` list is refused, not compiled).
+    """
+    where = "extensions.nafdf"
+    if not isinstance(gf.certificate, Mapping) or gf.certificate.get("passed") is not True:
+        passed = gf.certificate.get("passed") if isinstance(gf.certificate, Mapping) else None
+        raise GainFileError(f"certificate.passed is {short_repr(passed)}; a design that failed its verification is not built")
+    parsed = _read_payload(gf.extensions.get("nafdf"), where, gain_file=True)
+    pl = parsed.plant
+    r_names, J_names = _names_r_J(pl)
+    init = _init_state(pl, parsed.settings, parsed.layout)
+    st = gf.step
+    for field_name, found, want in (
+        ("inputs", gf.inputs, pl.inputs),
+        ("outputs", gf.outputs, pl.outputs),
+        ("faults", gf.faults, pl.parameters),
+        ("Ts", gf.Ts, float(pl.Ts) if pl.Ts else 1.0),
+        ("step.nu", st.nu, pl.m),
+        ("step.ny", st.ny, pl.p),
+        ("step.nr", st.nr, len(r_names)),
+        ("step.nj", st.nj, len(J_names)),
+        ("step.nstate", st.nstate, parsed.layout.size),
+        ("step.residual_names", st.residual_names, r_names),
+        ("step.statistic_names", st.statistic_names, J_names),
+    ):
+        if found != want:
+            raise GainFileError(f"{field_name} is {short_repr(found)}; {where} implies {short_repr(want)}")
+    if not np.array_equal(st.init_state, init):
+        k = int(np.argmax(st.init_state != init))
+        raise GainFileError(
+            f"step.init_state[{k}] ({parsed.layout.component_names()[k]}) is {float(st.init_state[k])!r}; {where} implies {float(init[k])!r}"
+        )
+    return _build(parsed, where)
+
+
+def step_from_payload(payload: Mapping[str, object]) -> ca.Function:
+    """The step Function rebuilt from a payload (identical graph to the designed one)."""
+    return nafdf_from_payload(payload).step
+
+
+# --------------------------------------------------------------------------- gain file
+
+
+def nafdf_gain_file(
+    design: NafdfDesign, *, problem: str, design_name: str = "nafdf", name: str | None = None, options: Mapping[str, object] | None = None
+) -> GainFile:
+    """The gain file (kind ``"nafdf"``) of a design: the common fields plus the payload.
+
+    ``extensions["nafdf"]`` holds :func:`nafdf_payload` and the fixed alarm
+    thresholds per statistic (the full-window WSSR threshold on ``wssr``,
+    ``W1`` on each Bayes distance ``d_θ``, none elsewhere). A model without a
+    physical sample time uses ``Ts = 1`` (time counted in samples).
+    """
+    pl = design.plant
+    payload = nafdf_payload(design)
+    payload["thresholds"] = _fixed_thresholds(design.J_names, pl, design.thresholds, design.settings.W1)
+    cert = design.certificate.to_dict()
+    return GainFile(
+        kind="nafdf",
+        name=name or f"{problem}_{design_name}",
+        problem=problem,
+        design=design_name,
+        Ts=float(pl.Ts) if pl.Ts else 1.0,
+        inputs=tuple(pl.inputs),
+        outputs=tuple(pl.outputs),
+        faults=tuple(design.fault_names),
+        step=StepSpec(
+            nu=pl.m,
+            ny=pl.p,
+            nr=len(design.r_names),
+            nj=len(design.J_names),
+            nstate=design.nstate,
+            init_state=design.init_state(),
+            residual_names=tuple(design.r_names),
+            statistic_names=tuple(design.J_names),
+        ),
+        certificate={"passed": bool(cert["passed"]), "nafdf": cert},
+        provenance=provenance(options=dict(options or {})),
+        extensions={"nafdf": payload},
+    )
+

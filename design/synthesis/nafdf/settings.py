@@ -1,0 +1,399 @@
+"""NAFDF settings, their validation and the layout of the step's state vector.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import casadi as ca
+import numpy as np
+from fdisyn.models.nonlinear import NonlinearPlant, short_repr
+from fdisyn.numerics.linalg import real_array
+from fdisyn.runtime.errors import ShapeError, SpecError
+
+__all__ = ['MAX_CLASSIFIER_WINDOW', 'MAX_COUNT', 'MAX_DIMENSION', 'MAX_STATE', 'MAX_STEP_INSTRUCTIONS', 'MAX_STEP_WORK', 'MAX_WINDOW', 'NafdfSettings', 'StateLayout']
+
+# Resource limits (module docstring).
+MAX_DIMENSION = 30
+"""Most states, inputs, outputs or parameters: the step unrolls LDLᵀ factorisations of n×n, p×p and l×l
+matrices (~k³/3 operations each), so ~30 already fills :data:`MAX_STEP_INSTRUCTIONS`."""
+MAX_WINDOW = 1000
+"""Largest WSSR window ``N``: the window costs ~16 operations per sample (shift, sum, threshold lookup)."""
+MAX_CLASSIFIER_WINDOW = 1000
+"""Largest ``N2``: the classifier and convergence windows cost ~35 operations per sample and parameter."""
+MAX_COUNT = 10**9
+"""Largest ``N1`` and ``T1``: sample counters held in doubles (exact to 2⁵³)."""
+MAX_STATE = 4096
+"""Most entries of the diagnoser state (32 KiB; the generated step keeps a copy on the stack)."""
+MAX_STEP_INSTRUCTIONS = 40_000
+"""Most operations of the step (≈ 1 MB of C that gcc -O2 compiles in about a minute)."""
+MAX_STEP_WORK = 8192
+"""Most doubles of CasADi work memory (64 KiB): locals of the generated step, in registers or on its stack."""
+
+# Names a payload may hold (the design's own and the signals'): identifiers of bounded length.
+_IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+_MAX_NAME = 64
+# Variance floor of the classifier: keeps d_i finite when θ̂_i is constant to the last bit.
+_VAR_FLOOR = 1e-280
+# d_i reported when its formula overflows (only for |θ̂| beyond ~1e140).
+_D_OVERFLOW = 1e300
+# Largest normalised square kept in the WSSR window, so that the window sum cannot overflow.
+_Q_CAP = 1e300
+# Relative shift making a PSD covariance test tolerant of round-off (Joseph form: error ~ n·eps·‖P‖).
+_PSD_SHIFT = 1e-12
+
+
+# --------------------------------------------------------------------------- settings
+
+
+@dataclass(frozen=True, eq=False)
+class NafdfSettings:
+    """Every design choice of the NAFDF, validated (see the module docstring for their meaning)."""
+
+    x0: np.ndarray
+    """Initial state estimate of both filters (the paper's ``x̂(0)``, section 3)."""
+    P0: np.ndarray
+    """Initial (and reset) state covariance of both filters (the paper's ``P(0)``)."""
+    theta0: np.ndarray
+    """Initial (and reset) NF parameter estimate (the paper's ``θ̂(0)``)."""
+    R0: np.ndarray
+    """Initial (and reset) NF information matrix (the paper's ``R(0)``, eq. (2.5))."""
+    window: int
+    """WSSR window ``N`` (2.4)."""
+    threshold_rule: Literal["chi2", "beta0"]
+    false_alarm_probability: float
+    """``P_f`` of the WSSR test under H0 (rule ``"chi2"``)."""
+    beta0: float | None
+    """The paper's fixed WSSR threshold (rule ``"beta0"``)."""
+    forgetting_initial: float
+    forgetting_rate: float
+    forgetting_final: float
+    theta_lower: np.ndarray
+    theta_upper: np.ndarray
+    nominal_samples: int
+    """``N1`` of (2.6)."""
+    classifier_window: int
+    """``N2`` of (2.7); also the convergence window."""
+    W1: float
+    W2: float
+    T1: int
+    convergence_tolerance: np.ndarray
+    """Largest range of each ``θ̂_i`` over ``N2`` samples for the NF to count as converged."""
+    convergence_level: float
+    """Significance of the NF innovation test inside the convergence check."""
+    u0: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    """Nominal input: with ``x0`` and ``θ0`` the point where the model must be finite and where the
+    certificate compares the AD Jacobians with central differences (not used by the step)."""
+
+    def to_dict(self) -> dict[str, object]:
+        out: dict[str, object] = {}
+        for k, v in self.__dict__.items():
+            if isinstance(v, np.ndarray):
+                out[k] = [None if not math.isfinite(z) else float(z) for z in v.reshape(-1)] if v.ndim == 1 else v.tolist()
+            else:
+                out[k] = v
+        return out
+
+
+def _ro(a: np.ndarray) -> np.ndarray:
+    a = np.array(a, dtype=float, copy=True)
+    a.setflags(write=False)
+    return a
+
+
+def _float_array(value: object, name: str) -> np.ndarray:
+    try:
+        return real_array(value, name)  # numbers only: "100" or true are refused, not converted
+    except ShapeError:
+        raise SpecError(f"{name} must be a number or an array of numbers; got {short_repr(value)}") from None
+
+
+def _vec(value: object, name: str, size: int) -> np.ndarray:
+    arr = _float_array(value, name)
+    if arr.ndim == 0:
+        arr = np.full(size, float(arr))
+    arr = arr.reshape(-1)
+    if arr.size != size:
+        raise ShapeError(f"{name} has {arr.size} entries; expected {size}")
+    return arr
+
+
+def _finite_vec(value: object, name: str, size: int) -> np.ndarray:
+    arr = _vec(value, name, size)
+    if not np.all(np.isfinite(arr)):
+        raise SpecError(f"{name} must be finite; got {short_repr(arr.tolist())}")
+    return arr
+
+
+def _spd(value: object, name: str, size: int) -> np.ndarray:
+    arr = _float_array(value, name)
+    if arr.ndim == 0:
+        arr = float(arr) * np.eye(size)
+    elif arr.ndim == 1 and arr.size == size:
+        arr = np.diag(arr)
+    if arr.shape != (size, size):
+        raise ShapeError(f"{name} has shape {arr.shape}; expected ({size}, {size})")
+    if not np.all(np.isfinite(arr)):
+        raise ShapeError(f"{name} contains non-finite entries")
+    if not np.allclose(arr, arr.T, rtol=1e-12, atol=0.0):
+        raise ShapeError(f"{name} must be symmetric")
+    ev = np.linalg.eigvalsh(arr)
+    if ev[0] <= 0.0:
+        raise ShapeError(f"{name} must be positive definite; smallest eigenvalue {ev[0]:.3g}")
+    return 0.5 * arr + 0.5 * arr.T  # halves first: 1e308 + 1e308 would overflow
+
+
+def _positive_int(value: object, name: str, maximum: int = MAX_COUNT) -> int:
+    """A whole number in ``1..maximum`` (an integral float is accepted: TOML and JSON write ``1e3``)."""
+    whole: int | None = None
+    if isinstance(value, (int, np.integer)) and not isinstance(value, bool):
+        whole = int(value)
+    elif isinstance(value, (float, np.floating)) and math.isfinite(value) and float(value).is_integer():
+        whole = int(value)
+    if whole is None or whole < 1:
+        raise SpecError(f"{name} must be a positive integer; got {short_repr(value)}")
+    if whole > maximum:
+        raise SpecError(f"{name} is {whole}; at most {maximum} is allowed (see the limits in fdisyn.synthesis.nafdf.design)")
+    return whole
+
+
+def _number(value: object, name: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise SpecError(f"{name} must be a number; got {short_repr(value)}")
+    try:
+        return float(value)
+    except OverflowError:
+        raise SpecError(f"{name} must be a finite number; got {short_repr(value)}") from None
+
+
+def _unit_open(value: float, name: str) -> float:
+    v = _number(value, name)
+    if not 0.0 < v < 1.0:
+        raise SpecError(f"{name} must lie strictly between 0 and 1; got {short_repr(value)}")
+    return v
+
+
+# --------------------------------------------------------------------------- state layout
+
+
+@dataclass(frozen=True)
+class StateLayout:
+    """Named blocks of the diagnoser state vector; matrices stored column-major (CasADi's order).
+
+    ``scalars`` names the blocks that are counters or flags (unpacked as ``float``);
+    every other block with one column unpacks as a 1-D array, even of length one.
+    """
+
+    entries: tuple[tuple[str, int, int], ...]
+    scalars: frozenset[str] = frozenset()
+    matrices: frozenset[str] = frozenset()
+    """Blocks that unpack as 2-D arrays whatever their size (covariances, sensitivities, windows)."""
+
+    @property
+    def size(self) -> int:
+        return sum(r * c for _, r, c in self.entries)
+
+    def offsets(self) -> dict[str, tuple[int, int, int]]:
+        out, k = {}, 0
+        for name, r, c in self.entries:
+            out[name] = (k, r, c)
+            k += r * c
+        return out
+
+    def unpack(self, vec: object) -> dict[str, np.ndarray | float]:
+        """Split a state vector: scalars as float, columns as 1-D arrays, matrices as 2-D arrays."""
+        v = np.asarray(vec, dtype=float).reshape(-1)
+        if v.size != self.size:
+            raise ShapeError(f"state has {v.size} entries; expected {self.size}")
+        out: dict[str, np.ndarray | float] = {}
+        for name, (k, r, c) in self.offsets().items():
+            block = v[k : k + r * c]
+            if name in self.scalars:
+                out[name] = float(block[0])
+            elif c == 1 and name not in self.matrices:
+                out[name] = block.copy()
+            else:
+                out[name] = block.reshape((r, c), order="F").copy()
+        return out
+
+    def pack(self, values: Mapping[str, object]) -> np.ndarray:
+        """Join named blocks into a state vector (every block required)."""
+        missing = [name for name, _, _ in self.entries if name not in values]
+        extra = sorted(set(values) - {name for name, _, _ in self.entries})
+        if missing or extra:
+            raise ShapeError(f"state blocks: missing {missing}, unknown {extra}")
+        parts = []
+        for name, r, c in self.entries:
+            a = np.asarray(values[name], dtype=float)
+            if a.size != r * c:
+                raise ShapeError(f"state block {name!r} has {a.size} entries; expected {r}×{c}")
+            parts.append(a.reshape((r, c)).reshape(-1, order="F") if a.ndim == 2 else a.reshape(-1))
+        return np.concatenate(parts) if parts else np.zeros(0)
+
+    def split_sx(self, sx: ca.SX) -> dict[str, ca.SX]:
+        return {name: ca.reshape(sx[k : k + r * c], r, c) for name, (k, r, c) in self.offsets().items()}
+
+    def join_sx(self, blocks: Mapping[str, ca.SX]) -> ca.SX:
+        return ca.vertcat(*[ca.vec(ca.SX(blocks[name])) for name, _, _ in self.entries])
+
+    def component_names(self) -> list[str]:
+        out = []
+        for name, r, c in self.entries:
+            if name in self.scalars:
+                out.append(name)
+            elif c == 1 and name not in self.matrices:
+                out.extend(f"{name}[{i}]" for i in range(r))
+            else:
+                out.extend(f"{name}[{i},{j}]" for j in range(c) for i in range(r))
+        return out
+
+
+def _layout(n: int, l: int, window: int, n2: int) -> StateLayout:
+    one = (1, 1)
+    entries = (
+            ("ekf_x", n, 1),
+            ("ekf_P", n, n),
+            ("ekf_theta", l, 1),
+            ("wssr_buffer", window, 1),
+            ("wssr_count", *one),
+            ("nf_x", n, 1),
+            ("nf_P", n, n),
+            ("nf_theta", l, 1),
+            ("nf_R", l, l),
+            ("nf_W", n, l),
+            ("nf_gain", *one),
+            ("nf_forgetting", *one),
+            ("nf_age", *one),
+            ("nf_converged", *one),
+            ("theta_window", l, n2),
+            ("nis_window", n2, 1),
+            ("nominal_count", *one),
+            ("nominal_mean", l, 1),
+            ("nominal_m2", l, 1),
+            ("nominal_frozen", *one),
+            ("count_w1", l, 1),
+            ("count_w2", l, 1),
+            ("fault_class", l, 1),
+            ("fault_size", l, 1),
+            ("isolated", *one),
+            ("episode_open", *one),
+            ("diagnosis_left", *one),
+            ("samples", *one),
+            ("skipped", *one),
+            ("alarm_resets", *one),
+            ("ekf_reparameterisations", *one),
+            ("ekf_divergence_resets", *one),
+            ("nf_divergence_resets", *one),
+    )
+    return StateLayout(entries, _SCALAR_BLOCKS, frozenset({"ekf_P", "nf_P", "nf_R", "nf_W", "theta_window"}))
+
+
+# Counters and flags of the state (every other block is a vector or matrix, whatever its size).
+_SCALAR_BLOCKS = frozenset(
+    {
+        "wssr_count",
+        "nf_gain",
+        "nf_forgetting",
+        "nf_age",
+        "nf_converged",
+        "nominal_count",
+        "nominal_frozen",
+        "isolated",
+        "episode_open",
+        "diagnosis_left",
+        "samples",
+        "skipped",
+        "alarm_resets",
+        "ekf_reparameterisations",
+        "ekf_divergence_resets",
+        "nf_divergence_resets",
+    }
+)
+
+
+def _check_sizes(plant: NonlinearPlant, window: int, classifier_window: int) -> None:
+    """The limits that need no step: dimensions and state size (module docstring)."""
+    for what, count in (("states", plant.n), ("inputs", plant.m), ("outputs", plant.p), ("parameters", plant.l)):
+        if count > MAX_DIMENSION:
+            raise SpecError(f"the plant has {count} {what}; the NAFDF allows at most {MAX_DIMENSION}")
+    size = _layout(plant.n, plant.l, window, classifier_window).size
+    if size > MAX_STATE:
+        raise SpecError(
+            f"the diagnoser state would have {size} entries (window {window}, classifier_window {classifier_window}, "
+            f"{plant.n} states, {plant.l} parameters); at most {MAX_STATE} are allowed"
+        )
+
+
+def _settings(plant: NonlinearPlant, **kw: Any) -> NafdfSettings:
+    """Validate the keywords of :func:`nafdf` (also applied to a gain file's stored settings).
+
+    Sizes first (windows, counters, dimensions, state size), then every
+    vector and matrix: shapes, finiteness, definiteness, ranges, the box.
+    Raises :class:`SpecError` or :class:`ShapeError` naming the setting.
+    """
+    n, m, l = plant.n, plant.m, plant.l  # noqa: E741 — the paper's letter for dim θ
+    window = _positive_int(kw["window"], "window", MAX_WINDOW)
+    n2 = _positive_int(kw["classifier_window"], "classifier_window", MAX_CLASSIFIER_WINDOW)
+    _check_sizes(plant, window, n2)
+    th_nom = np.asarray(plant.theta_nominal)
+    rule = kw["threshold_rule"]
+    if rule not in ("chi2", "beta0"):
+        raise SpecError(f"threshold_rule must be 'chi2' or 'beta0'; got {short_repr(rule)}")
+    lo = np.full(l, -np.inf) if kw["theta_lower"] is None else _vec(kw["theta_lower"], "theta_lower", l)
+    hi = np.full(l, np.inf) if kw["theta_upper"] is None else _vec(kw["theta_upper"], "theta_upper", l)
+    if np.any(np.isnan(lo)) or np.any(np.isnan(hi)) or np.any(lo >= hi) or np.any(lo == np.inf) or np.any(hi == -np.inf):
+        raise SpecError(f"theta_lower must be below theta_upper for every parameter; got {short_repr(lo.tolist())} and {short_repr(hi.tolist())}")
+    tol = (
+        np.where(th_nom != 0.0, 0.05 * np.abs(th_nom), 0.05)
+        if kw["convergence_tolerance"] is None
+        else _vec(kw["convergence_tolerance"], "convergence_tolerance", l)
+    )
+    if np.any(~np.isfinite(tol)) or np.any(tol <= 0):
+        raise SpecError(f"convergence_tolerance must be positive and finite; got {short_repr(tol.tolist())}")
+    th0 = th_nom.copy() if kw["theta0"] is None else _finite_vec(kw["theta0"], "theta0", l)
+    beta0 = None if kw["beta0"] is None else _number(kw["beta0"], "beta0")
+    if beta0 is not None and not (math.isfinite(beta0) and beta0 > 0):
+        raise SpecError(f"beta0 must be a positive finite number; got {short_repr(kw['beta0'])}")
+    settings = NafdfSettings(
+        x0=_ro(_finite_vec(kw["x0"], "x0", n)),
+        P0=_ro(_spd(kw["P0"], "P0", n)),
+        theta0=_ro(th0),
+        R0=_ro(_spd(np.eye(l) if kw["R0"] is None else kw["R0"], "R0", l)),
+        window=window,
+        threshold_rule=rule,
+        false_alarm_probability=_unit_open(kw["false_alarm_probability"], "false_alarm_probability"),
+        beta0=beta0,
+        forgetting_initial=_unit_interval(kw["forgetting_initial"], "forgetting_initial"),
+        forgetting_rate=_unit_open(kw["forgetting_rate"], "forgetting_rate"),
+        forgetting_final=_unit_interval(kw["forgetting_final"], "forgetting_final"),
+        theta_lower=_ro(lo),
+        theta_upper=_ro(hi),
+        nominal_samples=_positive_int(kw["nominal_samples"], "nominal_samples"),
+        classifier_window=n2,
+        W1=_number(kw["W1"], "W1"),
+        W2=_number(kw["W2"], "W2"),
+        T1=_positive_int(kw["T1"], "T1"),
+        convergence_tolerance=_ro(tol),
+        convergence_level=_unit_open(kw["convergence_level"], "convergence_level"),
+        u0=_ro(np.zeros(m) if kw["u0"] is None else _finite_vec(kw["u0"], "u0", m)),
+    )
+    if not 0.0 <= settings.W1 < settings.W2 or not math.isfinite(settings.W2):
+        raise SpecError(f"the classifier thresholds must satisfy 0 <= W1 < W2 < inf; got W1 = {kw['W1']}, W2 = {kw['W2']}")
+    if np.any(settings.theta0 < lo) or np.any(settings.theta0 > hi):
+        raise SpecError(
+            f"theta0 = {short_repr(settings.theta0.tolist())} lies outside the parameter box "
+            f"[{short_repr(lo.tolist())}, {short_repr(hi.tolist())}]"
+        )
+    return settings
+
+
+def _unit_interval(value: float, name: str) -> float:
+    v = _number(value, name)
+    if not 0.0 < v <= 1.0:
+        raise SpecError(f"{name} must lie in (0, 1]; got {short_repr(value)}")
+    return v
+

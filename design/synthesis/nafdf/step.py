@@ -1,0 +1,389 @@
+"""The NAFDF step as one CasADi SX function (Zhou, Xi & Zhang, c. 1991, fig. 1).
+"""
+
+from __future__ import annotations
+
+import math
+
+import casadi as ca
+import numpy as np
+import scipy.stats
+from fdisyn.evaluators.wssr import _NEVER
+from fdisyn.models.nonlinear import NonlinearPlant
+from fdisyn.runtime.errors import SpecError
+from fdisyn.synthesis.nafdf.settings import (
+    _D_OVERFLOW,
+    _PSD_SHIFT,
+    _Q_CAP,
+    _VAR_FLOOR,
+    MAX_STEP_INSTRUCTIONS,
+    MAX_STEP_WORK,
+    NafdfSettings,
+    StateLayout,
+    _layout,
+)
+
+# --------------------------------------------------------------------------- SX helpers
+
+
+def _all_finite(*exprs: ca.SX) -> ca.SX:
+    """1 if every entry is finite, else 0 — as ``|v| < inf``, which code generation keeps."""
+    ok = ca.SX(1)
+    for e in exprs:
+        v = ca.vec(ca.SX(e))
+        for i in range(v.numel()):
+            ok = ca.logic_and(ok, ca.fabs(v[i]) < ca.inf)
+    return ok
+
+
+def _sym(a: ca.SX) -> ca.SX:
+    return 0.5 * (a + a.T)
+
+
+def _ldl(a: ca.SX) -> tuple[ca.SX, list[ca.SX]]:
+    """Unrolled LDLᵀ of a symmetric matrix without pivoting: unit lower ``L`` and the pivots ``d``.
+
+    All pivots are positive iff the matrix is positive definite (Sylvester);
+    the factorisation is then backward stable without pivoting.
+    """
+    k = a.shape[0]
+    low = ca.SX.eye(k)
+    d: list[ca.SX] = []
+    for j in range(k):
+        dj = a[j, j]
+        for s in range(j):
+            dj = dj - low[j, s] * low[j, s] * d[s]
+        d.append(dj)
+        for i in range(j + 1, k):
+            v = a[i, j]
+            for s in range(j):
+                v = v - low[i, s] * low[j, s] * d[s]
+            low[i, j] = v / dj
+    return low, d
+
+
+def _ldl_solve(low: ca.SX, d: list[ca.SX], b: ca.SX) -> ca.SX:
+    """Solve ``L D Lᵀ x = b`` (``b`` may have several columns)."""
+    k = low.shape[0]
+    cols = []
+    for c in range(b.shape[1]):
+        z = [b[i, c] for i in range(k)]
+        for i in range(k):
+            for s in range(i):
+                z[i] = z[i] - low[i, s] * z[s]
+        z = [z[i] / d[i] for i in range(k)]
+        for i in reversed(range(k)):
+            for s in range(i + 1, k):
+                z[i] = z[i] - low[s, i] * z[s]
+        cols.append(ca.vertcat(*z))
+    return ca.horzcat(*cols) if cols else ca.SX(k, 0)
+
+
+def _positive(d: list[ca.SX]) -> ca.SX:
+    ok = ca.SX(1)
+    for dj in d:
+        ok = ca.logic_and(ok, dj > 0)
+    return ok
+
+
+def _psd_ok(p: ca.SX) -> ca.SX:
+    """Finite and positive semidefinite to round-off: LDLᵀ of ``P + δ I`` has positive pivots.
+
+    ``δ = 1e-12·max diag P`` (plus the smallest normal number, for ``P = 0``)
+    covers the ``n·eps·‖P‖`` round-off of the Joseph update.
+    """
+    k = p.shape[0]
+    big = p[0, 0]
+    for i in range(1, k):
+        big = ca.fmax(big, p[i, i])
+    delta = _PSD_SHIFT * ca.fabs(big) + float(np.finfo(float).tiny)
+    _, d = _ldl(p + delta * ca.SX.eye(k))
+    return ca.logic_and(_all_finite(p), _positive(d))
+
+
+def _select(cond: ca.SX, a: ca.SX | ca.DM | float, b: ca.SX | ca.DM | float) -> ca.SX:
+    """Entry-wise ``cond ? a : b`` (a true conditional in C: NaN in the other branch cannot leak)."""
+    return ca.if_else(cond, ca.SX(a), ca.SX(b))
+
+
+# --------------------------------------------------------------------------- the step
+
+
+def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray, name: str) -> tuple[ca.Function, StateLayout]:
+    n, m, p, l = plant.n, plant.m, plant.p, plant.l
+    N, N2 = s.window, s.classifier_window
+    lay = _layout(n, l, N, N2)
+    D = plant.derivatives()
+    Q1, Q2 = ca.DM(plant.Q1), ca.DM(plant.Q2)
+    P0, R0 = ca.DM(s.P0), ca.DM(s.R0)
+    x0, th0 = ca.DM(s.x0), ca.DM(s.theta0)
+    I_n = ca.SX.eye(n)
+
+    state = ca.SX.sym("state", lay.size)
+    u = ca.SX.sym("u", m)
+    y = ca.SX.sym("y", p)
+    old = lay.split_sx(state)
+    new = dict(old)
+
+    # ---- block 1: EKF on the model θ_e (eq. (2.3)) --------------------------------------
+    xe, Pe, the = old["ekf_x"], old["ekf_P"], old["ekf_theta"]
+    _, _, _, he, He, _ = D(xe, u, the)  # h and ∂h/∂x at the prediction (u unused by h)
+    gamma = y - he
+    V0 = _sym(ca.mtimes([He, Pe, He.T]) + Q2)  # V0 = H P Hᵀ + Q2
+    lv, dv = _ldl(V0)
+    v0inv_gamma = _ldl_solve(lv, dv, gamma)
+    nis_e = ca.dot(gamma, v0inv_gamma)  # γᵀ V0⁻¹ γ, χ²(p) under H0
+    Kf = _ldl_solve(lv, dv, ca.mtimes(He, Pe)).T  # K_f = P Hᵀ V0⁻¹
+    xe_f = xe + ca.mtimes(Kf, gamma)
+    ikh = I_n - ca.mtimes(Kf, He)
+    Pe_f = ca.mtimes([ikh, Pe, ikh.T]) + ca.mtimes([Kf, Q2, Kf.T])  # Joseph form
+    fe, Fe, _, _, _, _ = D(xe_f, u, the)
+    xe_next = fe
+    Pe_next = _sym(ca.mtimes([Fe, Pe_f, Fe.T]) + Q1)
+    ekf_ok = ca.logic_and(_all_finite(xe_next, nis_e), _psd_ok(Pe_next))
+    ekf_ok = ca.logic_and(ekf_ok, _positive(dv))
+
+    # ---- WSSR (eq. (2.4)) ---------------------------------------------------------------
+    # a huge but finite square stays finite in the window sum (N · 1e300 < DBL_MAX)
+    q_safe = ca.fmin(_select(_all_finite(nis_e), nis_e, 0.0), _Q_CAP)
+    buf_old, cnt_old = old["wssr_buffer"], old["wssr_count"]
+    buf_new = ca.vertcat(q_safe, buf_old[: N - 1]) if N > 1 else ca.SX(q_safe)
+    cnt_new = ca.fmin(cnt_old + 1, N)
+    wssr = ca.sum1(buf_new) / cnt_new  # L(t); unfilled slots are zero
+    thr = _table_lookup(cnt_new, thresholds)
+    alarm = ca.logic_and(wssr > thr, _all_finite(nis_e))
+
+    # ---- block 2: NF, joint state/parameter filter (eq. (2.5)) --------------------------
+    xn, Pn, thn, Rn, Wn = old["nf_x"], old["nf_P"], old["nf_theta"], old["nf_R"], old["nf_W"]
+    _, Fn, Fth, hn, Hn, Hth = D(xn, u, thn)
+    eps = y - hn  # ε(t)
+    S = _sym(ca.mtimes([Hn, Pn, Hn.T]) + Q2)  # S = H P Hᵀ + Q2
+    ls_, ds_ = _ldl(S)
+    sinv_eps = _ldl_solve(ls_, ds_, eps)
+    nis_n = ca.dot(eps, sinv_eps)
+    Phi = (ca.mtimes(Hn, Wn) + Hth).T  # Φ = (∂ŷ/∂θ)ᵀ, l × p
+    lam = s.forgetting_rate * old["nf_forgetting"] + (1.0 - s.forgetting_rate) * s.forgetting_final
+    gain = old["nf_gain"] / (old["nf_gain"] + lam)  # a(t)
+    sinv_phiT = _ldl_solve(ls_, ds_, Phi.T)
+    Rn_new = _sym(Rn + gain * (ca.mtimes(Phi, sinv_phiT) - Rn))
+    lr, dr = _ldl(Rn_new)
+    step = gain * _ldl_solve(lr, dr, ca.mtimes(Phi, sinv_eps))  # β R⁻¹ Φ S⁻¹ ε with β = a(t)
+    th_new = thn + step
+    for i in range(l):  # Π: projection on the parameter box
+        if math.isfinite(s.theta_lower[i]):
+            th_new[i] = ca.fmax(th_new[i], s.theta_lower[i])
+        if math.isfinite(s.theta_upper[i]):
+            th_new[i] = ca.fmin(th_new[i], s.theta_upper[i])
+    dth = th_new - thn
+    K = _ldl_solve(ls_, ds_, ca.mtimes([Hn, Pn, Fn.T])).T  # K = F P Hᵀ S⁻¹
+    FKH = Fn - ca.mtimes(K, Hn)
+    Bx = ca.mtimes(ca.mtimes(FKH, Wn) - ca.mtimes(K, Hth), dth)
+    fn_new, _, _, _, _, _ = D(xn, u, th_new)
+    xn_next = fn_new + Bx + ca.mtimes(K, eps)
+    Wn_next = ca.mtimes(FKH, Wn) + Fth - ca.mtimes(K, Hth)
+    Pn_next = _sym(ca.mtimes([FKH, Pn, FKH.T]) + Q1 + ca.mtimes([K, Q2, K.T]))
+    nf_ok = ca.logic_and(_all_finite(xn_next, Wn_next, th_new, Rn_new, nis_n), _psd_ok(Pn_next))
+    nf_ok = ca.logic_and(nf_ok, ca.logic_and(_positive(dr), _positive(ds_)))
+
+    # ---- windows at time t (θ̂(t−1..t−N2), NF innovations) and convergence -----------------
+    win, nisw = old["theta_window"], old["nis_window"]
+    full = old["nf_age"] >= N2
+    settled = ca.SX(1)
+    for i in range(l):
+        lo_i, hi_i = win[i, 0], win[i, 0]
+        for j in range(1, N2):
+            lo_i, hi_i = ca.fmin(lo_i, win[i, j]), ca.fmax(hi_i, win[i, j])
+        settled = ca.logic_and(settled, hi_i - lo_i <= float(s.convergence_tolerance[i]))
+    nis_limit = float(scipy.stats.chi2.isf(s.convergence_level, N2 * p))
+    explains = ca.sum1(nisw) <= nis_limit
+    conv_old = old["nf_converged"]
+    conv = ca.logic_or(conv_old, ca.logic_and(full, ca.logic_and(settled, explains)))
+    conv = ca.logic_and(conv, nf_ok)
+
+    # EKF re-parameterisation: the NF converges inside an open alarm episode (block 4)
+    episode = old["episode_open"]
+    reparam = ca.logic_and(ca.logic_and(conv, ca.logic_not(conv_old)), ca.logic_and(episode, nf_ok))
+    # isolation follows detection: the classifier may decide for a limited time after the episode closes
+    diag_left = _select(reparam, float(_diagnosis_samples(s)), old["diagnosis_left"])
+
+    # ---- block 3: modified Bayes classifier (eqs. (2.6)–(2.8)) ---------------------------
+    n1 = old["nominal_count"]
+    nominal_ready = ca.logic_or(n1 >= s.nominal_samples, old["nominal_frozen"])
+    armed = ca.logic_and(nominal_ready, conv)
+    mu0 = old["nominal_mean"]
+    var0 = ca.fmax(old["nominal_m2"] / ca.fmax(n1, 1), _VAR_FLOOR)
+    d_stat, c1_new, c2_new, cls_new, size_new = [], [], [], [], []
+    latch_now = []
+    for i in range(l):
+        row = win[i, :].T
+        mu_i = ca.sum1(row) / N2
+        var1 = ca.fmax(ca.sum1((row - mu0[i]) ** 2) / N2, _VAR_FLOOR)  # σ²_i1: about the nominal mean
+        var2 = ca.fmax(ca.sum1((row - mu_i) ** 2) / N2, _VAR_FLOOR)  # σ²_i2: about the window mean
+        di = var1 / var0[i] - ca.log(var1 / var2) - 1.0  # eq. (2.7)
+        di = _select(_all_finite(di), di, _D_OVERFLOW)
+        di = _select(armed, di, 0.0)
+        deciding = ca.logic_and(armed, diag_left > 0)
+        c1 = _select(ca.logic_and(deciding, di > s.W1), old["count_w1"][i] + 1, 0.0)
+        c2 = _select(ca.logic_and(deciding, di > s.W2), old["count_w2"][i] + 1, 0.0)
+        latch = ca.logic_and(old["fault_class"][i] == 0, c1 >= s.T1)
+        cls_i = _select(latch, _select(c2 >= s.T1, 2.0, 1.0), old["fault_class"][i])
+        size_i = _select(latch, th_new[i] - mu0[i], old["fault_size"][i])  # eq. (2.8)
+        d_stat.append(di)
+        c1_new.append(c1)
+        c2_new.append(c2)
+        cls_new.append(cls_i)
+        size_new.append(size_i)
+        latch_now.append(latch)
+    iso_cand = ca.SX(-1.0)
+    for i in reversed(range(l)):
+        iso_cand = _select(latch_now[i], float(i), iso_cand)
+    isolated = _select(old["isolated"] >= 0, old["isolated"], iso_cand)
+
+    # nominal statistics (2.6), Welford: on a converged NF, outside an episode, until N1 samples
+    learn = ca.logic_and(ca.logic_and(conv, ca.logic_not(old["episode_open"])), ca.logic_not(nominal_ready))
+    n1_next = n1 + 1
+    delta = th_new - mu0
+    mean_next = mu0 + delta / n1_next
+    m2_next = old["nominal_m2"] + delta * (th_new - mean_next)
+
+    # ---- block 4: mutual re-initialisation ------------------------------------------------
+    alarm_reset = ca.logic_and(alarm, ca.logic_not(episode))
+    nf_reset = ca.logic_or(alarm_reset, ca.logic_not(nf_ok))
+    episode_next = _select(reparam, 0.0, _select(alarm_reset, 1.0, episode))
+    wssr_clear = ca.logic_or(reparam, ca.logic_not(ekf_ok))
+
+    # EKF next state: normal, re-parameterised from the NF, or re-initialised after divergence
+    xn_fallback = _select(_all_finite(xn_next), xn_next, x0)
+    new["ekf_x"] = _select(ekf_ok, _select(reparam, xn_next, xe_next), xn_fallback)
+    new["ekf_P"] = _select(ca.logic_and(ekf_ok, ca.logic_not(reparam)), Pe_next, P0)
+    new["ekf_theta"] = _select(reparam, th_new, the)
+    new["wssr_buffer"] = _select(wssr_clear, ca.SX.zeros(N, 1), buf_new)
+    new["wssr_count"] = _select(wssr_clear, 0.0, cnt_new)
+
+    # NF next state: normal or (re)initialised
+    xe_fallback = _select(_all_finite(xe_next), xe_next, x0)
+    new["nf_x"] = _select(nf_ok, xn_next, xe_fallback)
+    new["nf_P"] = _select(nf_reset, P0, Pn_next)
+    new["nf_theta"] = _select(nf_reset, th0, th_new)
+    new["nf_R"] = _select(nf_reset, R0, Rn_new)
+    new["nf_W"] = _select(nf_reset, ca.SX.zeros(n, l), Wn_next)
+    new["nf_gain"] = _select(nf_reset, 1.0, gain)
+    new["nf_forgetting"] = _select(nf_reset, s.forgetting_initial, lam)
+    new["nf_age"] = _select(nf_reset, 0.0, old["nf_age"] + 1)
+    new["nf_converged"] = _select(nf_reset, 0.0, conv)
+    win_next = ca.horzcat(th_new, win[:, : N2 - 1]) if N2 > 1 else th_new
+    new["theta_window"] = _select(nf_reset, ca.SX.zeros(l, N2), win_next)
+    nis_safe = ca.fmin(_select(_all_finite(nis_n), nis_n, 0.0), _Q_CAP)
+    nis_next = ca.vertcat(nis_safe, nisw[: N2 - 1]) if N2 > 1 else nis_safe
+    new["nis_window"] = _select(nf_reset, ca.SX.zeros(N2, 1), nis_next)
+
+    # An alarm ends an unfinished learning phase: with ≥ N2 samples their statistics are kept
+    # (learning on after the episode could learn a faulty plant); with fewer they are discarded.
+    cut = ca.logic_and(alarm_reset, ca.logic_and(n1 > 0, ca.logic_not(nominal_ready)))
+    keep = ca.logic_and(cut, n1 >= N2)
+    drop = ca.logic_and(cut, n1 < N2)
+    new["nominal_count"] = _select(drop, 0.0, _select(learn, n1_next, n1))
+    new["nominal_mean"] = _select(drop, ca.SX.zeros(l, 1), _select(learn, mean_next, mu0))
+    new["nominal_m2"] = _select(drop, ca.SX.zeros(l, 1), _select(learn, m2_next, old["nominal_m2"]))
+    new["nominal_frozen"] = ca.logic_or(old["nominal_frozen"], keep)
+    new["count_w1"] = _select(nf_reset, ca.SX.zeros(l, 1), ca.vertcat(*c1_new))
+    new["count_w2"] = _select(nf_reset, ca.SX.zeros(l, 1), ca.vertcat(*c2_new))
+    new["fault_class"] = ca.vertcat(*cls_new)
+    new["fault_size"] = ca.vertcat(*size_new)
+    new["isolated"] = isolated
+    new["episode_open"] = episode_next
+    new["diagnosis_left"] = _select(nf_reset, 0.0, ca.fmax(diag_left - 1, 0.0))
+    new["samples"] = old["samples"] + 1
+    new["alarm_resets"] = old["alarm_resets"] + alarm_reset
+    new["ekf_reparameterisations"] = old["ekf_reparameterisations"] + reparam
+    new["ekf_divergence_resets"] = old["ekf_divergence_resets"] + ca.logic_not(ekf_ok)
+    new["nf_divergence_resets"] = old["nf_divergence_resets"] + ca.logic_not(nf_ok)
+    diverged = ca.logic_or(ca.logic_not(ekf_ok), ca.logic_not(nf_ok))
+
+    r_proc = ca.vertcat(gamma, eps)
+    J_proc = ca.vertcat(
+        wssr,
+        thr,
+        q_safe,
+        new["nf_theta"],
+        ca.vertcat(*d_stat),
+        new["fault_class"],
+        new["fault_size"],
+        new["nf_converged"],
+        diverged,
+    )
+
+    # ---- skipped sample: nothing changes but the counter ---------------------------------
+    held = dict(old)
+    held["skipped"] = old["skipped"] + 1
+    cnt_hold = ca.fmax(cnt_old, 1)
+    J_hold = ca.vertcat(
+        ca.sum1(buf_old) / cnt_hold,
+        _table_lookup(cnt_hold, thresholds),
+        0.0,
+        thn,
+        ca.SX.zeros(l, 1),
+        old["fault_class"],
+        old["fault_size"],
+        old["nf_converged"],
+        0.0,
+    )
+    ok_in = _all_finite(u, y)
+    state_next = _select(ok_in, lay.join_sx(new), lay.join_sx(held))
+    r_out = _select(ok_in, _sanitise(r_proc), ca.SX.zeros(2 * p, 1))
+    J_out = _select(ok_in, _sanitise(J_proc), _sanitise(J_hold))
+    alarm_out = _select(ok_in, alarm, 0.0)
+    iso_out = _select(ok_in, isolated, old["isolated"])
+    status = _select(ok_in, 0.0, 1.0)
+    fun = ca.Function(
+        name,
+        [state, u, y],
+        [state_next, r_out, J_out, alarm_out, iso_out, status],
+        ["state", "u", "y"],
+        ["state_next", "r", "J", "alarm", "isolated", "status"],
+    )
+    return fun, lay
+
+
+def _diagnosis_samples(s: NafdfSettings) -> int:
+    """How long after an episode closes the classifier may isolate: ``N2 + 2·T1`` samples.
+
+    The NF has just converged on a fresh window, so a real jump shows as ``d_i > W1`` at once and
+    isolates after ``T1`` samples; the margin of ``N2 + T1`` covers a slower crossing.
+    """
+    return s.classifier_window + 2 * s.T1
+
+
+def _sanitise(v: ca.SX) -> ca.SX:
+    """``±inf → ±DBL_MAX``, ``NaN → 0``: a last guard on the outputs (the filters' own checks come first)."""
+    v = ca.SX(v)
+    out = []
+    for i in range(v.numel()):
+        overflow = _select(v[i] > 0, _NEVER, _select(v[i] < 0, -_NEVER, 0.0))
+        out.append(_select(ca.fabs(v[i]) < ca.inf, v[i], overflow))
+    return ca.vertcat(*out)
+
+
+def _table_lookup(k: ca.SX, table: np.ndarray) -> ca.SX:
+    """``table[k − 1]`` for an integer-valued SX ``k`` in ``1..len(table)`` (a sum of exact one-hot terms)."""
+    out = ca.SX(0)
+    for i, val in enumerate(table):
+        out = out + _select(k == i + 1, float(val), 0.0)
+    return out
+
+
+def _check_step_size(step: ca.Function, layout: StateLayout) -> None:
+    """:data:`MAX_STEP_INSTRUCTIONS` and :data:`MAX_STEP_WORK`, on the SX graph, before any C exists."""
+    count, work = int(step.n_instructions()), int(step.sz_w())
+    if count > MAX_STEP_INSTRUCTIONS:
+        raise SpecError(
+            f"the NAFDF step has {count} operations; at most {MAX_STEP_INSTRUCTIONS} are allowed "
+            "(the generated C would take too long to compile): reduce window, classifier_window, "
+            "the number of states or parameters, or the size of the model"
+        )
+    if work > MAX_STEP_WORK:
+        raise SpecError(
+            f"the NAFDF step needs {work} doubles of work memory; at most {MAX_STEP_WORK} are allowed "
+            f"(they are locals of the generated C step, on its stack with the {layout.size}-entry state)"
+        )
+
