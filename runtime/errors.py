@@ -1,9 +1,23 @@
-"""The exceptions fdisyn raises, design side and runtime side alike.
+"""The exceptions fdisyn raises, design side and runtime side alike: one taxonomy.
+
+=====================  ==============================================================
+``ArgumentError``      a keyword's value or type (an option out of its domain, an
+                       unknown method or option name)
+``ShapeError``         a matrix or signal of the wrong shape
+``FileError``          a file that is corrupt, foreign or invalid: ``SpecError``
+                       (plant files), ``GainFileError``, ``TraceError`` (CSV),
+                       ``BuildError`` (compiling or loading generated C)
+``ExistenceError``     a condition the method needs does not hold for this plant
+``SolverError``        a numerical solver failed; ``CertificateError``: a design
+                       failed its verification against an independent truth
+``InternalError``      a bug in fdisyn: an invariant that should hold did not
+=====================  ==============================================================
 
 Every exception names what is wrong and what was expected, so that a user can
-act on the message alone. They subclass the built-in exception a caller would
-naturally catch (``ValueError`` for bad values and shapes, ``RuntimeError`` for
-solver and certificate failures, ``OSError`` for compiler and file problems).
+act on the message alone; the command line prints it as one line and exits
+with status 2 (3 for an ``InternalError``). They also subclass the built-in
+exception a caller would naturally catch (``ValueError`` for bad values, shapes
+and files, ``RuntimeError`` for solver failures, ``OSError`` for compiling).
 """
 
 from __future__ import annotations
@@ -11,6 +25,13 @@ from __future__ import annotations
 
 class FdisynError(Exception):
     """Base class of every fdisyn exception."""
+
+
+class ArgumentError(FdisynError, ValueError):
+    """A keyword argument or option has a wrong value or type.
+
+    The message names the argument, the value given and what is expected.
+    """
 
 
 class ShapeError(FdisynError, ValueError):
@@ -36,26 +57,30 @@ class SolverError(FdisynError, RuntimeError):
     """
 
 
-class CertificateError(FdisynError, RuntimeError):
+class CertificateError(SolverError):
     """A design failed its verification against an independent truth.
 
     A design that fails its certificate is an error, never a warning.
     """
 
 
-class GainFileError(FdisynError, ValueError):
+class FileError(FdisynError, ValueError):
+    """A file fdisyn reads is corrupt, foreign or invalid; the message names the file and the place."""
+
+
+class GainFileError(FileError):
     """A gain file is corrupt, of a foreign format or of another version."""
 
 
-class TraceError(FdisynError, ValueError):
+class TraceError(FileError):
     """A data trace (CSV or array) is malformed: missing column, bad header."""
 
 
-class SpecError(FdisynError, ValueError):
+class SpecError(FileError):
     """A plant specification (TOML file or problem name) is invalid."""
 
 
-class BuildError(FdisynError, OSError):
+class BuildError(FileError, OSError):
     """Compiling or loading generated C failed."""
 
 
@@ -78,3 +103,7 @@ class NonDifferentiableError(SpecError):
     linearisation is undefined. The message names the operation and where it
     occurs.
     """
+
+
+class InternalError(FdisynError, RuntimeError):
+    """An invariant of fdisyn itself did not hold: a bug to report, not a user error."""
