@@ -12,6 +12,7 @@ import pytest
 from fdisyn.app.bench import sdp_timings
 from fdisyn.models.sampled_data import SampledDataPlant
 from fdisyn.numerics import lmi_norms as lmi
+from fdisyn.numerics import sdp
 from fdisyn.numerics.lmi_norms import h2_norm_lmi, hinf_bound_lmi, hinf_norm_lmi, hminus_index_lmi
 from fdisyn.numerics.norms import DiscreteLTI, NormValue, h2_norm, hinf_norm, hminus_index, singular_values
 from fdisyn.runtime.errors import CertificateError, ExistenceError, SolverError
@@ -106,7 +107,7 @@ def test_the_lmi_check_never_proves_more_than_the_frequency_response() -> None:
     for _ in range(6):
         sys = random_stable(rng, 3, 2, 3, radius=0.9)
         band = (0.5, 2.0)
-        s, g = lmi._scale(sys), lmi._balance(sys, max_cond=1e4)
+        s, g = sdp._scale(sys), sdp._balance(sys, max_cond=1e4)
         t_true = (hminus_index(sys, band=band).value / s) ** 2
         for _, psis in lmi._hminus_routes(*band):
             lm = lmi._KypLmi(g.A, g.B, g.C / s, g.D / s, psis)
@@ -127,7 +128,7 @@ def test_a_q_multiplier_of_the_wrong_sign_proves_nothing_about_the_band() -> Non
     w2 = 0.6
     low, high = hminus_index(sys, band=(0.0, w2)).value, hminus_index(sys, band=(w2, math.pi)).value
     assert high > 1.05 * low  # measured 1.553 against 1.401: a wrong proof would show
-    s, g = lmi._scale(sys), lmi._balance(sys, max_cond=1e4)
+    s, g = sdp._scale(sys), sdp._balance(sys, max_cond=1e4)
     complement = lmi._KypLmi(g.A, g.B, g.C / s, g.D / s, [lmi._psi_re_below(math.cos(w2))])
     x, _ = complement.solve(what="toy")
     x[complement.nb : -1] *= -1.0
@@ -141,7 +142,7 @@ def test_a_loose_strip_relaxation_falls_back_to_the_complex_multiplier() -> None
     sys = random_stable(np.random.default_rng(123), 3, 2, 3, radius=0.95)
     band = (1.4, 2.85)
     ref = hminus_index(sys, band=band).value
-    s, g = lmi._scale(sys), lmi._balance(sys, max_cond=1e4)
+    s, g = sdp._scale(sys), sdp._balance(sys, max_cond=1e4)
     strip = lmi._KypLmi(g.A, g.B, g.C / s, g.D / s, lmi._hminus_routes(*band)[0][1])
     assert s * math.sqrt(strip.solve(what="toy")[0][-1]) < 0.9 * ref  # measured 0.88·ref
     res = hminus_index_lmi(sys, band=band)
@@ -171,7 +172,7 @@ def test_a_maximiser_outside_the_cone_is_repaired_by_the_level_sdp(monkeypatch: 
 def test_no_certified_route_is_one_solver_error_with_both_bounds(monkeypatch: pytest.MonkeyPatch) -> None:
     def broken(self, *, what: str, level: float | None = None):
         nv = self.nb * (1 + len(self.psis)) + 1
-        return np.full(nv, np.nan), lmi.SdpStats(what, "numerical_error", 0.01, 0.01, 3, nv)
+        return np.full(nv, np.nan), sdp.SdpStats(what, "numerical_error", 0.01, 0.01, 3, nv)
 
     monkeypatch.setattr(lmi._KypLmi, "solve", broken)
     sys = random_stable(np.random.default_rng(21), 4, 2, 3, radius=0.95)
@@ -246,11 +247,11 @@ class _FakeProblem:
 )
 def test_every_solver_status_maps_to_a_solver_error(status: str | None, raises: bool, pattern: str) -> None:
     with pytest.raises(SolverError, match=pattern):
-        lmi._solve(_FakeProblem(status, raises), what="toy", meaning={"infeasible": "MEANING-I", "unbounded": "MEANING-U"})
+        sdp._solve(_FakeProblem(status, raises), what="toy", meaning={"infeasible": "MEANING-I", "unbounded": "MEANING-U"})
 
 
 def test_inaccurate_is_accepted_only_when_asked() -> None:
-    st_ = lmi._solve(_FakeProblem(cp.OPTIMAL_INACCURATE), what="toy", meaning={}, accept_inaccurate=True)
+    st_ = sdp._solve(_FakeProblem(cp.OPTIMAL_INACCURATE), what="toy", meaning={}, accept_inaccurate=True)
     assert st_.status == cp.OPTIMAL_INACCURATE
 
 
@@ -258,7 +259,7 @@ def test_a_real_unbounded_sdp() -> None:
     x = cp.Variable((2, 2), symmetric=True)
     prob = cp.Problem(cp.Maximize(cp.trace(x)), [x >> 0])
     with pytest.raises(SolverError, match="status unbounded.*the objective can grow without limit"):
-        lmi._solve(prob, what="toy", meaning={"unbounded": "the objective can grow without limit"})
+        sdp._solve(prob, what="toy", meaning={"unbounded": "the objective can grow without limit"})
 
 
 # ---------------------------------------------------------------------------
@@ -309,7 +310,7 @@ def test_lmi_design_goes_below_the_factorisation_where_its_assumption_fails(pape
     for eta in ("inf", "2"):
         des = lmi_diagnostic_observer(plant=paper_plant, eta=eta, model="zoh")
         # The singular case's SDPs are checked against their own, kernel-measured tolerance.
-        assert des.certificate.checks[1].bound == lmi.SDP_BOUND_TOL_SINGULAR
+        assert des.certificate.checks[1].bound == sdp.SDP_BOUND_TOL_SINGULAR
         assert des.J[eta] < 0.1 * indirect.J_star[eta]  # measured ≈ 0.04 vs 1.05
         assert des.J_sampled_data[eta] >= direct.J_star[eta] * (1 - 1e-9)  # Theorem 1 still binds
 

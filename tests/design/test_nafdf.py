@@ -349,7 +349,7 @@ def test_step_operation_and_work_limits(monkeypatch) -> None:
     """The step budget is checked on the SX graph before any C exists: the ship with N = N2 = 1000
     has ~54 000 operations (> 40 000); lowering the work limit below the ship's own ~230 doubles
     refuses the default ship design by its work memory (the C step's stack)."""
-    from fdisyn.synthesis.nafdf import design as mod
+    from fdisyn.synthesis.nafdf import step as mod
 
     with pytest.raises(SpecError, match=r"the NAFDF step has \d+ operations; at most 40000"):
         nafdf(sp.plant(), x0=[0.0], P0=100.0, theta0=[0.0, 0.0], R0=sp.R0, window=1000, classifier_window=1000)
