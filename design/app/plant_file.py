@@ -100,7 +100,8 @@ the transitions from the onset sample on.
 from __future__ import annotations
 
 import tomllib
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -363,7 +364,8 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
     listed = checked["faults"]
 
     def design_fn(**_: Any) -> GainFile:
-        return method.design(design_plant, name=f"{name}_{method.name}", problem=name, record=record, where=f"{path} [design]", **checked)
+        with _spec_errors():
+            return method.design(design_plant, name=f"{name}_{method.name}", problem=name, record=record, where=f"{path} [design]", **checked)
 
     sim = _Section(top.get("simulation", {}), f"{path} [simulation]", {"duration", "x0", "inputs", "unknown_inputs"})
     u_sigs = [_signal(s, f"{path} [simulation].inputs[{i}]") for i, s in enumerate(sim.entries("inputs"))]
@@ -478,12 +480,19 @@ def _design_section(top: _Section, path: Path, name: str, kinds: tuple[str, ...]
     return get_method(method), {k: v for k, v in des.doc.items() if k != "method"}
 
 
+@contextmanager
+def _spec_errors() -> Iterator[None]:
+    """A method's :class:`ArgumentError` about a ``[design]`` key is an error of the plant file (its message names the key)."""
+    try:
+        yield
+    except ArgumentError as exc:
+        raise SpecError(str(exc)) from exc
+
+
 def _checked(method: Method, given: Mapping[str, Any], plant: Any, path: Path) -> dict[str, Any]:
     """The method's options from ``[design]``, validated against its schema (errors name the key)."""
-    try:
+    with _spec_errors():
         return check_options(method, given, plant=plant, where=f"{path} [design]")
-    except ArgumentError as exc:
-        raise SpecError(str(exc)) from None
 
 
 def _diagnoser_name(name: str, method: str, path: Path) -> None:
@@ -569,7 +578,8 @@ def _nonlinear_problem(path: Path, top: _Section, name: str) -> Problem:
         raise SpecError(f"{path} [model]: {exc}") from None
 
     def design_fn(**_: Any) -> GainFile:
-        return method.design(plant, name=f"{name}_{method.name}", problem=name, record={"spec": str(path)}, where=f"{path} [design]", **checked)
+        with _spec_errors():
+            return method.design(plant, name=f"{name}_{method.name}", problem=name, record={"spec": str(path)}, where=f"{path} [design]", **checked)
 
     scenarios = {
         "fault_free": Scenario("fault_free", "No fault.", sim.duration("duration", 1000.0 * step_ts, Ts=step_ts))

@@ -287,7 +287,7 @@ def check_options(method: Method, options: Mapping[str, Any], *, plant: Any = No
     where = f"method {method.name!r}" if where is None else where
     unknown = [k for k in options if k not in method.option_names]
     if unknown:
-        owners = [m.name for m in all_methods() if unknown[0] in m.option_names and m.plant_kind == method.plant_kind]
+        owners = [m.name for m in all_methods() if unknown[0] in m.option_names]
         if owners and len(unknown) == 1:
             raise ArgumentError(f"{at(where, unknown[0])} is read only by method {owners[0]!r}, not by {method.name!r}: remove it")
         raise ArgumentError(f"{where}: unknown option(s) {sorted(unknown)}; allowed: {sorted(method.option_names)}")

@@ -113,8 +113,11 @@ def test_option_validator() -> None:
         registry.check_option("name", 3, "a", "problem 'p'")
 
 
+C3 = [[1.0, 0.0], [0.0, 1.0], [1.0, 1.0]]
+
+
 def _discrete() -> LinearPlant:
-    return LinearPlant.create(A=[[0.5, 0.1], [0.0, 0.7]], C=np.eye(2), E=[[1.0], [0.0]], Q=np.eye(2) * 1e-3, R=np.eye(2) * 1e-2, Ts=0.1)
+    return LinearPlant.create(A=[[0.5, 0.1], [0.0, 0.7]], C=C3, E=[[1.0], [0.0]], Q=np.eye(2) * 1e-3, R=np.eye(3) * 1e-2, Ts=0.1)
 
 
 def _continuous() -> LinearPlant:
@@ -147,7 +150,8 @@ def test_design_through_the_registry_is_certified() -> None:
     assert registry.recovery_samples(gf) >= 1
     assert step_function(gf).name_out()[-1] == "status"
     # a continuous plant: ZOH-sampled at Ts for a linear method, sampled-data design for a continuous one
-    assert registry.design(_continuous(), "kalman_uio", Ts=0.5).Ts == 0.5
+    uio = LinearPlant.create(A=[[-1.0, 5.0], [0.0, -2.0]], C=C3, E=[[1.0], [0.0]], Q=np.eye(2) * 1e-3, R=np.eye(3) * 1e-2)
+    assert registry.design(uio, "kalman_uio", Ts=0.5).Ts == 0.5
     assert registry.design(_continuous(), "sampled_data_observer", Ts=1.0).design == "sampled_data_observer"
 
 

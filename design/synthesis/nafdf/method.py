@@ -43,10 +43,13 @@ def _per_parameter(key: str) -> Any:
 
 def _u0(value: Any, where: str, plant: NonlinearPlant | None) -> Any:
     """The nominal input: one finite number per input."""
-    m = "m" if plant is None else plant.m
-    ok = isinstance(value, (list, tuple, np.ndarray)) and all(isinstance(x, (int, float, np.floating)) and not isinstance(x, bool) for x in value)
-    if not ok or (plant is not None and len(value) != plant.m) or not np.all(np.isfinite(np.asarray(value, dtype=float))):
-        raise ArgumentError(f"{at(where, 'u0')} must be a list of {m} finite numbers (one per input), got {short_repr(value)}")
+    label, m = at(where, "u0"), "m" if plant is None else plant.m
+    if not isinstance(value, (list, tuple, np.ndarray)) or not all(isinstance(x, (int, float, np.floating)) and not isinstance(x, bool) for x in value):
+        raise ArgumentError(f"{label} must be a list of {m} finite numbers (one per input), got {short_repr(value)}")
+    if plant is not None and len(value) != plant.m:
+        raise ArgumentError(f"{label} must have {plant.m} entries (one per input), got {len(value)}")
+    if not np.all(np.isfinite(np.asarray(value, dtype=float))):
+        raise ArgumentError(f"{label} must hold finite numbers, got {short_repr(value)}")
     return [float(x) for x in value]
 
 
