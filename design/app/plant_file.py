@@ -352,15 +352,15 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
         design_plant = physical.scaled(scale) if scale is not None else physical
     except FdisynError as exc:
         raise SpecError(f"{path} [model].state_scale: {exc}") from exc
-    method, given = _design_section(top, path, name, ("linear", "continuous"))
+    method, options = _design_section(top, path, name, ("linear", "continuous"))
     white = method.plant_kind == "continuous"
     if white and time != "continuous":
         raise SpecError(f"{path} [design].method {method.name!r} designs for a continuous plant sampled at Ts: set [model].time = \"continuous\"")
     if white:  # the sampled-data methods sample the continuous plant themselves, every Ts
         design_plant = plant.scaled(scale) if scale is not None else plant
-        given = {**given, "Ts": ts}
-    checked = _checked(method, given, design_plant, path)
-    record = {"spec": str(path), "method": method.name, **{k: v for k, v in given.items() if k not in ("bank", "faults", "Ts")}}
+        options = {**options, "Ts": ts}
+    checked = _checked(method, options, design_plant, path)
+    record = {"spec": str(path), "method": method.name, **{k: v for k, v in options.items() if k not in ("bank", "faults", "Ts")}}
     listed = checked["faults"]
 
     def design_fn(**_: Any) -> GainFile:
