@@ -71,6 +71,10 @@ def test_builtin_methods_register_themselves() -> None:
     # the bank options are defined once and shared
     shared = [registry.get_method(n).option("P_f") for n in ("kalman_uio", "lmi", "uio_pole_placement")]
     assert shared[0] is shared[1] is shared[2]
+    # what the Monte Carlo needs of a diagnoser kind comes with its methods
+    from fdisyn.synthesis.nafdf.design import nafdf_extra_metrics
+
+    assert registry.extra_metrics("nafdf") is nafdf_extra_metrics and registry.extra_metrics("linear") is None
 
 
 def test_unknown_method_and_option() -> None:
