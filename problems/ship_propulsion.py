@@ -42,7 +42,7 @@ from fdisyn.models.problem import Batch, Problem
 from fdisyn.models.problem import Scenario as PipelineScenario
 from fdisyn.runtime.errors import SpecError
 from fdisyn.runtime.gainfile import GainFile
-from fdisyn.synthesis.nafdf.design import NafdfDesign, nafdf, nafdf_extra_metrics
+from fdisyn.synthesis.nafdf.design import NafdfDesign, nafdf
 from fdisyn.synthesis.nafdf.payload import nafdf_gain_file
 
 __all__ = [
@@ -482,5 +482,4 @@ PROBLEM = Problem(
     monte_carlo_runs=100,
     report=_report,
     notes=NOTES,
-    extra_metrics=nafdf_extra_metrics,
 )

@@ -40,8 +40,9 @@ from fdisyn.models.linear import LinearPlant
 from fdisyn.models.problem import Batch, Problem, Scenario
 from fdisyn.runtime.errors import SpecError
 from fdisyn.runtime.gainfile import GainFile
-from fdisyn.synthesis.linear_diagnoser import FaultClass, linear_diagnoser
-from fdisyn.synthesis.uio import kalman_uio, pole_placement_uio
+from fdisyn.synthesis.linear_diagnoser import FaultClass
+from fdisyn.synthesis.registry import all_methods, get_method
+from fdisyn.synthesis.registry import design as design_with
 
 __all__ = [
     "DriveTrain",
@@ -250,43 +251,34 @@ def _bank_design(
     poles: Sequence[float] = DEFAULT_POLES,
 ) -> GainFile:
     plant = design_model(parameters)
-    gens, sigmas, certs = [], [], []
-    for i, j in BANK:
-        sub = plant.select_outputs([i, j])
-        if design == "kalman_uio":
-            d = kalman_uio(sub, variant="optimal")
-        elif design == "kalman_uio_paper":
-            d = kalman_uio(sub, variant="paper")
-        elif design == "uio_pole_placement":
-            d = pole_placement_uio(sub, poles=list(poles))
-        else:
-            raise SpecError(f"wind_turbine has no design {design!r}")
-        gname = f"uio_{OUTPUTS[i].removeprefix('omega_')}_{OUTPUTS[j].removeprefix('omega_')}"
-        gens.append(d.generator(gname, [i, j], len(OUTPUTS)))
-        sigmas.append(d.Sigma_r)
-        certs.append(d.certificate)
+    method = get_method(design)
     unscaled = discrete_model(_parameters(parameters))
-    return linear_diagnoser(
+    bank = {f"uio_{OUTPUTS[i].removeprefix('omega_')}_{OUTPUTS[j].removeprefix('omega_')}": [OUTPUTS[i], OUTPUTS[j]] for i, j in BANK}
+    extra = {"poles": list(poles)} if "poles" in method.option_names else {}
+    return design_with(
+        plant,
+        design,
         name=_name(parameters, design),
         problem="wind_turbine",
-        design=design,
-        plant=plant,
-        generators=gens,
-        sigma_r=sigmas,
-        P_f=P_f,
-        faults=FAULTS,
-        certificates=certs,
-        persistence=persistence,
-        options={
+        record={
             "parameters": parameters,
             "P_f": P_f,
             "persistence": persistence,
-            "poles": list(poles) if design == "uio_pole_placement" else None,
+            "poles": extra.get("poles"),
             "state_scale": state_scale(_parameters(parameters)).tolist(),
             "cond_A_unscaled": float(np.linalg.cond(unscaled.A)),
             "cond_A_scaled": float(np.linalg.cond(plant.A)),
         },
+        P_f=P_f,
+        persistence=persistence,
+        bank=bank,
+        faults=FAULTS,
+        **extra,
     )
+
+
+_SUPPLIED = {"P_f", "persistence", "bank", "faults", "poles"}
+"""Options this problem gives a method: a linear method that needs no other can design the bank."""
 
 
 def _designs() -> dict[str, Callable[..., GainFile]]:
@@ -297,7 +289,8 @@ def _designs() -> dict[str, Callable[..., GainFile]]:
         build.__doc__ = f"The {name} bank for the wind-turbine drive train."
         return build
 
-    return {n: make(n) for n in ("kalman_uio", "kalman_uio_paper", "uio_pole_placement")}
+    usable = [m for m in all_methods() if m.plant_kind == "linear" and {o.name for o in m.options if o.required} <= _SUPPLIED]
+    return {m.name: make(m.name) for m in usable}
 
 
 # ------------------------------------------------------------------ simulation

@@ -47,7 +47,7 @@ from fdisyn.models.problem import Batch, Problem
 from fdisyn.models.problem import Scenario as PipelineScenario
 from fdisyn.models.sampling import zoh
 from fdisyn.runtime.gainfile import GainFile
-from fdisyn.synthesis.nafdf.design import NafdfDesign, nafdf, nafdf_extra_metrics
+from fdisyn.synthesis.nafdf.design import NafdfDesign, nafdf
 from fdisyn.synthesis.nafdf.payload import nafdf_gain_file
 
 __all__ = [
@@ -337,5 +337,4 @@ PROBLEM = Problem(
     monte_carlo_runs=50,
     report=_report,
     notes=NOTES,
-    extra_metrics=nafdf_extra_metrics,
 )

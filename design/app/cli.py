@@ -11,6 +11,7 @@
     fdisyn reproduce [SPEC ...] [--runs N]
     fdisyn bench [SPEC ...] [--out reports/bench.md]
     fdisyn list
+    fdisyn methods
 
 ``SPEC`` is a built-in problem name (``fdisyn list``) or the path of a TOML
 plant file (see the README). Errors a user can act on end the command with
@@ -291,6 +292,18 @@ def _cmd_list(a: argparse.Namespace) -> None:
             print(f"  options:   {', '.join(f'{k}={v!r}' for k, v in p.options.items())}")
 
 
+def _cmd_methods(a: argparse.Namespace) -> None:
+    from fdisyn.synthesis.registry import REQUIRED, all_methods
+
+    for m in all_methods():
+        print(f"{m.name} ({m.plant_kind} plant): {m.summary}")
+        print(f"  reference: {m.reference}")
+        for o in m.options:
+            default = "required" if o.default is REQUIRED else f"default {o.default!r}"
+            where = f"; a plant file takes it from {o.plant_file}" if o.plant_file else ""
+            print(f"  {o.name} ({default}): {o.doc}; {o.kind}{where}")
+
+
 class _Parser(argparse.ArgumentParser):
     """argparse with the command line's error format: one line, status 2.
 
@@ -368,6 +381,9 @@ def _parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("list", help="list the built-in problems")
     p.set_defaults(fn=_cmd_list)
+
+    p = sub.add_parser("methods", help="list the design methods with their plant kind, reference and options")
+    p.set_defaults(fn=_cmd_methods)
     return ap
 
 

@@ -25,17 +25,14 @@ The TOML format (every key is validated; errors name the key)::
     R = [[...]]                       # sensor noise covariance per sample
     state_scale = [...]               # optional typical state magnitudes (conditioning)
 
-    [design]
-    method = "kalman_uio"             # kalman_uio | kalman_uio_paper | uio_pole_placement
-                                      # | sampled_data_observer | lmi (continuous models)
+    [design]                          # the method and its options (``fdisyn methods``, README "Methods")
+    method = "kalman_uio"             # default; a linear method (sampled_data_observer, lmi: continuous models)
     P_f = 0.001                       # false-alarm probability per statistic and sample
     persistence = 1                   # consecutive exceedances before a statistic alarms
-    poles = [0.5, 0.6]                # uio_pole_placement: one pole per state
-    sampling = "direct"               # sampled_data_observer: "direct" (Theorem 1) or "indirect" (ZOH first)
-    eta = "inf"                       # lmi: the fault measure, "inf", "2" or "-"
     bank = [["y1", "y2"], ["y1", "y3"]]   # one generator per group (default: all outputs)
     faults = [{ name = "y1", sensors = ["y1"] }, { name = "f", components = ["f"] }]
                                       # default: one per sensor and component fault, merged when alike
+    poles = [0.5, 0.6]                # an option of one method (here uio_pole_placement)
 
 For the UIO methods ``E`` holds unknown inputs to decouple; for the
 sampled-data methods (Qiu, Wen & Jiang, Control Theory & Applications 27(8),
@@ -86,14 +83,10 @@ is written with ``time = "nonlinear"`` and designed by the NAFDF::
     Q = [[0.0]]                       # covariance of v per sample (scalar, diagonal or matrix)
     R = [[0.01]]                      # covariance of e per sample
     [design]
-    method = "nafdf"                  # every keyword of fdisyn.synthesis.nafdf.design.nafdf:
-    P_f = 1e-4                        # P_f, window, threshold_rule, beta0, x0 (default
-    window = 10                       # [simulation].x0), P0 (default 1), theta0, R0,
-    theta0 = { a = 0.0, b = 0.0 }     # forgetting_initial/_rate/_final, theta_lower,
-                                      # theta_upper, nominal_samples, classifier_window,
-                                      # W1, W2, T1, convergence_tolerance, convergence_level,
-                                      # u0 (nominal input, default 0); per-parameter ones
-                                      # as a list or a table by name
+    method = "nafdf"                  # the options of the method nafdf (``fdisyn methods``);
+    P_f = 1e-4                        # x0 defaults to [simulation].x0; per-parameter ones
+    window = 10                       # as a list or a table by name
+    theta0 = { a = 0.0, b = 0.0 }
     [simulation]
     duration = 20000; x0 = [0.0]; inputs = [{ kind = "square", offset = 5.0, amplitude = 4.0, period = 50 }]
     [[scenarios]]
@@ -107,106 +100,34 @@ the transitions from the onset sample on.
 from __future__ import annotations
 
 import tomllib
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from fdisyn.evaluation.simulate import SENSOR_FAULT_KINDS, SensorFaultSpec, Signal, simulate_linear
 from fdisyn.models.linear import LinearPlant
-from fdisyn.models.problem import Batch, Problem, Scenario, check_option, get_problem, short_repr
-from fdisyn.models.sampled_data import SampledDataPlant
+from fdisyn.models.problem import Batch, Problem, Scenario, get_problem
 from fdisyn.models.sampling import van_loan
-from fdisyn.runtime.errors import FdisynError, ShapeError, SpecError
-from fdisyn.runtime.gainfile import LIMITS, GainFile, Generator, read_regular_file
+from fdisyn.runtime.errors import ArgumentError, FdisynError, ShapeError, SpecError
+from fdisyn.runtime.gainfile import LIMITS, GainFile, read_regular_file
 from fdisyn.runtime.names import (
     DIAGNOSER_NAME_MAX,
     SHORT_LABEL_MAX,
     check_diagnoser_name,
     check_distinct,
-    check_fault_name,
     check_label,
     check_signal_names,
 )
-from fdisyn.synthesis.certificate import Certificate
-from fdisyn.synthesis.linear_diagnoser import FaultClass, default_fault_classes, linear_diagnoser
-from fdisyn.synthesis.lmi_observer import lmi_diagnostic_observer
-from fdisyn.synthesis.residual import embed_outputs, residual_covariance
-from fdisyn.synthesis.sampled_data_observer import ETAS, optimal_diagnostic_observer
-from fdisyn.synthesis.uio import kalman_uio, pole_placement_uio
+from fdisyn.synthesis.registry import Method, all_methods, check_options, get_method, short_repr
 
-__all__ = ["load_spec", "problem_from_toml", "problem_from_document", "LINEAR_METHODS", "register_method"]
-
-@dataclass(frozen=True, eq=False)
-class MethodContext:
-    """What a design method gets for one generator of the bank."""
-
-    name: str
-    outputs_used: tuple[int, ...]
-    """Indices of the sensors this generator reads (in the plant's outputs)."""
-    plant: LinearPlant
-    """The discrete design model (states scaled as the file asks), all outputs."""
-    continuous: LinearPlant | None
-    """The continuous model (all outputs) when the file gives one; sampled-data methods need it."""
-    options: Mapping[str, Any]
-
-
-MethodFn = Callable[[MethodContext], tuple[Generator, np.ndarray, Certificate]]
-"""A design method: ``context → (generator on the full outputs, residual covariance, certificate)``."""
-
-
-def _uio(variant: str) -> MethodFn:
-    def method(ctx: MethodContext) -> tuple[Generator, np.ndarray, Certificate]:
-        sub = ctx.plant.select_outputs(ctx.outputs_used)
-        d = pole_placement_uio(sub, poles=ctx.options["poles"]) if variant == "poles" else kalman_uio(sub, variant=variant)  # type: ignore[arg-type]
-        return d.generator(ctx.name, ctx.outputs_used, ctx.plant.p), d.Sigma_r, d.certificate
-
-    return method
-
-
-def _sampled_data(kind: str) -> MethodFn:
-    def method(ctx: MethodContext) -> tuple[Generator, np.ndarray, Certificate]:
-        if ctx.continuous is None:
-            raise SpecError(f"method {kind!r} designs for a continuous plant sampled at Ts: set [model].time = \"continuous\"")
-        cont = ctx.continuous.select_outputs(ctx.outputs_used)
-        ts = float(ctx.plant.Ts)  # type: ignore[arg-type]
-        sd = SampledDataPlant.from_linear_plant(cont, h=ts)
-        if kind == "lmi":
-            obs: Any = lmi_diagnostic_observer(plant=sd, eta=str(ctx.options.get("eta", "inf")))  # type: ignore[arg-type]
-        else:
-            obs = optimal_diagnostic_observer(plant=sd, design=str(ctx.options.get("sampling", "direct")))  # type: ignore[arg-type]
-        gen = embed_outputs(obs.generator(name=ctx.name), ctx.outputs_used, ctx.plant.p)
-        # the disturbance is white of unit intensity: its exact sampled covariance joins the process noise
-        phys = ctx.continuous.discretise(ts)
-        noise = phys.with_noise(Q=np.asarray(phys.Q) + van_loan(np.asarray(ctx.continuous.A), sd.Bd @ sd.Bd.T, ts))
-        return gen, residual_covariance(gen, noise), obs.certificate
-
-    return method
-
-
-LINEAR_METHODS: dict[str, MethodFn] = {
-    "kalman_uio": _uio("optimal"),
-    "kalman_uio_paper": _uio("paper"),
-    "uio_pole_placement": _uio("poles"),
-    "sampled_data_observer": _sampled_data("sampled_data_observer"),
-    "lmi": _sampled_data("lmi"),
-}
-"""Design methods a TOML file may name."""
+__all__ = ["load_spec", "problem_from_toml", "problem_from_document"]
 
 SAMPLED_DATA_LETTERS = {"Bu": "B", "Bd": "E", "Bf": "Fx", "h": "Ts"}
 """Qiu, Wen & Jiang 2010 (eq. (1)) write a sampled-data plant as ``ẋ = A x + Bu u + Bd d + Bf f``,
 ``y = C x`` sampled every ``h``: those names are accepted for ``B``, ``E``,
 ``Fx`` and ``Ts``."""
-
-_DESIGN_KEYS = {"method", "P_f", "persistence", "poles", "bank", "faults", "eta", "sampling"}
-
-
-def register_method(name: str, fn: MethodFn, *, keys: tuple[str, ...] = ()) -> None:
-    """Let TOML files use design method ``name`` (with extra ``[design]`` keys)."""
-    LINEAR_METHODS[name] = fn
-    _DESIGN_KEYS.update(keys)
-
 
 def load_spec(spec: str | Path) -> Problem:
     """A built-in problem by name, or the problem a ``.toml`` file describes.
@@ -431,72 +352,20 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
         design_plant = physical.scaled(scale) if scale is not None else physical
     except FdisynError as exc:
         raise SpecError(f"{path} [model].state_scale: {exc}") from exc
-    des = _Section(top.get("design", {}), f"{path} [design]", set(_DESIGN_KEYS))
-    method = des.get("method", "kalman_uio")
-    if not isinstance(method, str) or method not in LINEAR_METHODS:
-        raise SpecError(f"{path} [design].method {short_repr(method)} is not one of {sorted(LINEAR_METHODS)}")
-    _diagnoser_name(name, method, path)
-    white = method in ("sampled_data_observer", "lmi")
+    method, options = _design_section(top, path, name, ("linear", "continuous"))
+    white = method.plant_kind == "continuous"
     if white and time != "continuous":
-        raise SpecError(f"{path} [design].method {method!r} designs for a continuous plant sampled at Ts: set [model].time = \"continuous\"")
-    if white and not np.any(plant.E):
-        raise SpecError(
-            f"{path} [model].{mod.aliases.get('E', 'E')} is zero: method {method!r} normalises by the disturbance's effect "
-            "on the outputs (Qiu, Wen & Jiang, Control Theory & Applications, 2010, eq. (19)), so it needs a nonzero "
-            "disturbance direction; or use a UIO method"
-        )
-    P_f = check_option("P_f", des.get("P_f", 1e-3), 1e-3, f"{path} [design].P_f")
-    persistence = check_option("persistence", des.get("persistence", 1), 1, f"{path} [design].persistence")
-    for key, users in (("poles", ("uio_pole_placement",)), ("eta", ("lmi",)), ("sampling", ("sampled_data_observer",))):
-        if key in des.doc and method not in users:
-            raise SpecError(f"{path} [design].{key} is read only by method {users[0]!r}, not by {method!r}: remove it")
-    if method == "uio_pole_placement":
-        _poles(des.get("poles", required=True), design_plant.n, f"{path} [design].poles")
-    if "eta" in des.doc and des.get("eta") not in ETAS:
-        raise SpecError(f"{path} [design].eta must be one of {list(ETAS)} (the fault measure), got {short_repr(des.get('eta'))}")
-    if "sampling" in des.doc and des.get("sampling") not in ("direct", "indirect"):
-        raise SpecError(f"{path} [design].sampling must be 'direct' (Theorem 1) or 'indirect' (ZOH first), got {short_repr(des.get('sampling'))}")
-    if "bank" in des.doc and des.entries("bank") == []:  # not replaced by the default: an empty bank is a mistake
-        raise SpecError(f"{path} [design].bank is empty; expected groups of outputs, one observer each, or no key for one observer on all outputs")
-    groups = des.entries("bank") or [list(physical.outputs)]
-    bank = []
-    for gi, g in enumerate(groups):
-        bank.append(_sensor_indices(g, physical, f"{path} [design].bank[{gi}]"))
-    fault_spec = des.get("faults")
-    listed = _faults(fault_spec, physical, f"{path} [design].faults") if fault_spec is not None else None
-    design_opts = {k: des.get(k) for k in des.doc if k not in ("method", "bank", "faults")}
-    continuous_plant = plant if time == "continuous" else None
+        raise SpecError(f"{path} [design].method {method.name!r} designs for a continuous plant sampled at Ts: set [model].time = \"continuous\"")
+    if white:  # the sampled-data methods sample the continuous plant themselves, every Ts
+        design_plant = plant.scaled(scale) if scale is not None else plant
+        options = {**options, "Ts": ts}
+    checked = _checked(method, options, design_plant, path)
+    record = {"spec": str(path), "method": method.name, **{k: v for k, v in options.items() if k not in ("bank", "faults", "Ts")}}
+    listed = checked["faults"]
 
     def design_fn(**_: Any) -> GainFile:
-        gens, sigmas, certs = [], [], []
-        for gi, idx in enumerate(bank):
-            ctx = MethodContext(
-                name=f"g{gi}_" + "_".join(physical.outputs[i] for i in idx),
-                outputs_used=tuple(idx),
-                plant=design_plant,
-                continuous=None if continuous_plant is None else continuous_plant.scaled(scale) if scale is not None else continuous_plant,
-                options=design_opts,
-            )
-            try:
-                gen, sig, cert = LINEAR_METHODS[method](ctx)
-            except FdisynError as exc:  # the same error, naming the group of the bank it concerns
-                raise type(exc)(f"{path} [design].bank[{gi}]: {exc}") from exc
-            gens.append(gen)
-            sigmas.append(sig)
-            certs.append(cert)
-        return linear_diagnoser(
-            name=f"{name}_{method}",
-            problem=name,
-            design=method,
-            plant=design_plant,
-            generators=gens,
-            sigma_r=sigmas,
-            P_f=P_f,
-            faults=listed if listed is not None else default_fault_classes(design_plant, gens),
-            certificates=certs,
-            persistence=persistence,
-            options={"spec": str(path), "method": method, **design_opts},
-        )
+        with _spec_errors():
+            return method.design(design_plant, name=f"{name}_{method.name}", problem=name, record=record, where=f"{path} [design]", **checked)
 
     sim = _Section(top.get("simulation", {}), f"{path} [simulation]", {"duration", "x0", "inputs", "unknown_inputs"})
     u_sigs = [_signal(s, f"{path} [simulation].inputs[{i}]") for i, s in enumerate(sim.entries("inputs"))]
@@ -569,28 +438,13 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
     return Problem(
         name=name,
         title=str(top.get("title", name)),
-        summary=f"Plant described by {path.name}; design method {method}.",
-        designs={method: design_fn},
-        default_design=method,
+        summary=f"Plant described by {path.name}; design method {method.name}.",
+        designs={method.name: design_fn},
+        default_design=method.name,
         scenarios=scenarios,
         simulate=simulate,
         monte_carlo_runs=50,
     )
-
-
-def _poles(value: Any, n: int, where: str) -> list[float]:
-    """``[design].poles``: ``n`` real numbers strictly inside the unit circle (one per state).
-
-    TOML has no complex numbers, so complex pairs cannot be written; a string or
-    a nested list would otherwise reach NumPy's ``complex()`` and fail there.
-    """
-    if not isinstance(value, list) or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in value):
-        raise SpecError(f"{where} must be a list of {n} real numbers inside (-1, 1), one per state; got {short_repr(value)}")
-    if len(value) != n:
-        raise SpecError(f"{where} must have {n} poles (one per state), got {len(value)}")
-    if not all(np.isfinite(x) and abs(x) < 1.0 for x in value):
-        raise SpecError(f"{where} must lie strictly inside the unit circle (a discrete observer's poles), got {value}")
-    return [float(x) for x in value]
 
 
 def _check_fault_window(where: str, fault: str | None, onset: float | None, end: float | None, duration: float, injects: bool) -> None:
@@ -609,41 +463,36 @@ def _check_fault_window(where: str, fault: str | None, onset: float | None, end:
         raise SpecError(f"{where}.end = {end:g} s must come after onset = {onset:g} s")
 
 
-def _faults(spec: Any, plant: LinearPlant, where: str) -> list[FaultClass]:
-    """``[design].faults``: named classes of sensors (outputs) and component faults, names checked and unique."""
-    if not isinstance(spec, list):
-        raise SpecError(f"{where} must be a list of tables, got {spec!r}")
-    out: list[FaultClass] = []
-    for i, f in enumerate(spec):
-        fs = _Section(f, f"{where}[{i}]", {"name", "sensors", "components"})
-        fname = check_fault_name(fs.get("name", required=True), f"{where}[{i}].name", error=SpecError)
-        if any(c.name == fname for c in out):
-            raise SpecError(f"{where}[{i}].name {fname!r} names another fault class too; fault names must be unique")
-        sensors = tuple(plant.outputs[j] for j in _sensor_indices(fs.entries("sensors"), plant, f"{where}[{i}].sensors", empty=True))
-        components = tuple(fs.entries("components"))
-        for j, c in enumerate(components):
-            if not isinstance(c, str) or c not in plant.component_faults:
-                raise SpecError(f"{where}[{i}].components[{j}]: no component fault {c!r}; the plant has {list(plant.component_faults)}")
-        if len(set(components)) != len(components):
-            raise SpecError(f"{where}[{i}].components names a component fault twice: {list(components)}")
-        if not sensors and not components:
-            raise SpecError(f"{where}[{i}] names no sensor and no component fault")
-        out.append(FaultClass(fname, sensors, components))
-    return out
+def _design_section(top: _Section, path: Path, name: str, kinds: tuple[str, ...]) -> tuple[Method, dict[str, Any]]:
+    """``[design]``: its method (one designing for ``kinds`` of plants) and the options it gives.
+
+    The keys allowed are those of the methods' schemas (:mod:`fdisyn.synthesis.registry`);
+    options a plant file takes from elsewhere (``Ts`` from ``[model]``) are not keys here.
+    """
+    methods = [m for m in all_methods() if m.plant_kind in kinds]
+    keys = {"method"} | {o.name for m in methods for o in m.options if o.plant_file is None}
+    des = _Section(top.get("design", {}), f"{path} [design]", keys)
+    method = des.get("method", methods[0].name if len(methods) == 1 else "kalman_uio")
+    if not isinstance(method, str) or method not in [m.name for m in methods]:
+        family = "nonlinear" if "nonlinear" in kinds else "linear"
+        raise SpecError(f"{path} [design].method {short_repr(method)}: a {family} plant is designed by {', '.join(repr(m.name) for m in methods)}")
+    _diagnoser_name(name, method, path)
+    return get_method(method), {k: v for k, v in des.doc.items() if k != "method"}
 
 
-def _sensor_indices(group: Any, plant: LinearPlant, where: str, *, empty: bool = False) -> list[int]:
-    """Indices of a list of distinct output names (a bank group, a fault class's sensors)."""
-    if not isinstance(group, list) or (not group and not empty):
-        raise SpecError(f"{where} must be a {'' if empty else 'non-empty '}list of output names, got {group!r}")
-    idx: list[int] = []
-    for j, o in enumerate(group):
-        if not isinstance(o, str) or o not in plant.outputs:
-            raise SpecError(f"{where}[{j}]: no output {o!r}; outputs are {list(plant.outputs)}")
-        if plant.outputs.index(o) in idx:
-            raise SpecError(f"{where} names output {o!r} twice")
-        idx.append(plant.outputs.index(o))
-    return idx
+@contextmanager
+def _spec_errors() -> Iterator[None]:
+    """A method's :class:`ArgumentError` about a ``[design]`` key is an error of the plant file (its message names the key)."""
+    try:
+        yield
+    except ArgumentError as exc:
+        raise SpecError(str(exc)) from exc
+
+
+def _checked(method: Method, given: Mapping[str, Any], plant: Any, path: Path) -> dict[str, Any]:
+    """The method's options from ``[design]``, validated against its schema (errors name the key)."""
+    with _spec_errors():
+        return check_options(method, given, plant=plant, where=f"{path} [design]")
 
 
 def _diagnoser_name(name: str, method: str, path: Path) -> None:
@@ -667,49 +516,9 @@ def _scenario_name(value: Any, scenarios: Mapping[str, Scenario], where: str) ->
 
 # --------------------------------------------------------------------------- nonlinear plants (Zhou, Xi & Zhang 1991)
 
-_NAFDF_KEYS = {
-    # TOML key → keyword of fdisyn.synthesis.nafdf.design.nafdf
-    "P_f": "false_alarm_probability",
-    "window": "window",
-    "threshold_rule": "threshold_rule",
-    "beta0": "beta0",
-    "x0": "x0",
-    "P0": "P0",
-    "theta0": "theta0",
-    "R0": "R0",
-    "forgetting_initial": "forgetting_initial",
-    "forgetting_rate": "forgetting_rate",
-    "forgetting_final": "forgetting_final",
-    "theta_lower": "theta_lower",
-    "theta_upper": "theta_upper",
-    "nominal_samples": "nominal_samples",
-    "classifier_window": "classifier_window",
-    "W1": "W1",
-    "W2": "W2",
-    "T1": "T1",
-    "convergence_tolerance": "convergence_tolerance",
-    "convergence_level": "convergence_level",
-    "u0": "u0",
-}
-_PER_PARAMETER = {"theta0", "theta_lower", "theta_upper", "convergence_tolerance"}
-
-
-def _per_parameter(value: Any, parameters: tuple[str, ...], where: str) -> Any:
-    """A per-parameter setting given as a list (in ``[signals].parameters`` order) or a table by name."""
-    if not isinstance(value, Mapping):
-        return value
-    unknown = sorted(set(value) - set(parameters))
-    missing = [q for q in parameters if q not in value]
-    if unknown or missing:
-        raise SpecError(f"{where}: expected one entry per parameter {list(parameters)}; missing {missing}, unknown {unknown}")
-    return [value[q] for q in parameters]
-
-
 def _nonlinear_problem(path: Path, top: _Section, name: str) -> Problem:
     """A ``time = "nonlinear"`` plant file: the model of Zhou, Xi & Zhang 1991 (eq. (2.1)) and the NAFDF (format in the README)."""
     from fdisyn.models.nonlinear import NonlinearPlant, covariance_matrix
-    from fdisyn.synthesis.nafdf.design import nafdf, nafdf_extra_metrics
-    from fdisyn.synthesis.nafdf.payload import nafdf_gain_file
 
     sig = _Section(top.get("signals", {}), f"{path} [signals]", {"states", "inputs", "outputs", "parameters"})
     mod = _Section(top.get("model", required=True), f"{path} [model]", {"time", "Ts", "f", "h", "nominal", "constants", "Q", "R"})
@@ -759,31 +568,18 @@ def _nonlinear_problem(path: Path, top: _Section, name: str) -> Problem:
     if not np.all(np.isfinite(x0)):
         raise SpecError(f"{path} [simulation].x0 must hold finite numbers, got {x0.tolist()}")
 
-    des = _Section(top.get("design", {}), f"{path} [design]", {"method", *_NAFDF_KEYS})
-    method = str(des.get("method", "nafdf"))
-    if method != "nafdf":
-        raise SpecError(f"{path} [design].method {method!r}: a nonlinear plant is designed by 'nafdf'")
-    _diagnoser_name(name, method, path)
-    u0 = des.vector("u0", plant.m)
-    if not np.all(np.isfinite(u0)):
-        raise SpecError(f"{path} [design].u0 must hold finite numbers, got {u0.tolist()}")
+    method, given = _design_section(top, path, name, ("nonlinear",))
+    checked = _checked(method, {"x0": x0.tolist(), **given}, plant, path)
+    u0 = np.zeros(plant.m) if checked["u0"] is None else np.asarray(checked["u0"], dtype=float)
     # the model must be finite where the simulation starts (x/0, x**x at 0 …): refused here, before any data
     try:
         plant.check_finite(x=x0, u=u0, point=f"the nominal point ([simulation].x0 = {x0.tolist()}, u = {u0.tolist()}, nominal θ)")
     except FdisynError as exc:
         raise SpecError(f"{path} [model]: {exc}") from None
-    kwargs: dict[str, Any] = {"x0": x0, "P0": 1.0}
-    for key, kw in _NAFDF_KEYS.items():
-        if key in des.doc:
-            v = des.get(key)
-            kwargs[kw] = _per_parameter(v, pars, f"{path} [design].{key}") if key in _PER_PARAMETER else v
 
     def design_fn(**_: Any) -> GainFile:
-        try:
-            dsg = nafdf(plant, name=name, **kwargs)
-        except (TypeError, ValueError) as exc:
-            raise SpecError(f"{path} [design]: {exc}") from exc
-        return nafdf_gain_file(dsg, problem=name, design_name=method, name=f"{name}_{method}", options={"spec": str(path)})
+        with _spec_errors():
+            return method.design(plant, name=f"{name}_{method.name}", problem=name, record={"spec": str(path)}, where=f"{path} [design]", **checked)
 
     scenarios = {
         "fault_free": Scenario("fault_free", "No fault.", sim.duration("duration", 1000.0 * step_ts, Ts=step_ts))
@@ -840,10 +636,9 @@ def _nonlinear_problem(path: Path, top: _Section, name: str) -> Problem:
         name=name,
         title=str(top.get("title", name)),
         summary=f"Nonlinear plant described by {path.name}; the adaptive fault detection filter (NAFDF, Zhou, Xi & Zhang 1991).",
-        designs={method: design_fn},
-        default_design=method,
+        designs={method.name: design_fn},
+        default_design=method.name,
         scenarios=scenarios,
         simulate=simulate,
         monte_carlo_runs=50,
-        extra_metrics=nafdf_extra_metrics,
     )

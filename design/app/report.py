@@ -22,9 +22,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from fdisyn.codegen.library import CFLAGS
-from fdisyn.evaluation.evaluate import recovery_samples
 from fdisyn.models.problem import Problem
 from fdisyn.runtime.gainfile import write_gain_file  # noqa: E402
+from fdisyn.synthesis.registry import recovery_samples
 
 __all__ = ["ReportContext", "write_report", "table", "fmt"]
 

@@ -11,43 +11,27 @@ all dense double vectors; ``alarm`` ∈ {0, 1}; ``isolated`` ∈ {−1, 0..nf−
 reproduces symbolically). Finiteness is tested as ``|v| < ∞`` with
 ``if_else``, which survives code generation (``v != v`` may not).
 
-Other diagnoser kinds register a builder with :func:`register_step_builder`.
+Each diagnoser kind's builder is that of its design methods
+(:func:`fdisyn.synthesis.registry.step_builder`); the linear one is here.
 """
 
 from __future__ import annotations
-
-import importlib
-from collections.abc import Callable
 
 import casadi as ca
 import numpy as np
 from fdisyn.runtime.errors import GainFileError
 from fdisyn.runtime.gainfile import GainFile, linear_state_layout
 
-__all__ = ["STEP_INPUTS", "STEP_OUTPUTS", "step_function", "register_step_builder", "linear_step_function", "finite"]
+__all__ = ["STEP_INPUTS", "STEP_OUTPUTS", "step_function", "linear_step_function", "finite"]
 
 STEP_INPUTS = ("state", "u", "y")
 STEP_OUTPUTS = ("state_next", "r", "J", "alarm", "isolated", "status")
 
-_BUILDERS: dict[str, Callable[[GainFile], ca.Function]] = {}
-_BUILDER_MODULES = {"nafdf": "fdisyn.synthesis.nafdf"}
-"""Kinds whose builder registers itself when its module is imported (on demand)."""
-
-
-def register_step_builder(kind: str, builder: Callable[[GainFile], ca.Function]) -> None:
-    """Make :func:`step_function` build gain files of ``kind`` with ``builder``."""
-    _BUILDERS[kind] = builder
-
-
 def step_function(gf: GainFile) -> ca.Function:
     """The CasADi step of any diagnoser kind, built from its gain file alone."""
-    if gf.kind not in _BUILDERS and gf.kind in _BUILDER_MODULES:
-        importlib.import_module(_BUILDER_MODULES[gf.kind])
-    try:
-        builder = _BUILDERS[gf.kind]
-    except KeyError:
-        raise GainFileError(f"no step builder for diagnoser kind {gf.kind!r}; known kinds: {sorted(_BUILDERS)}") from None
-    fn = builder(gf)
+    from fdisyn.synthesis.registry import step_builder
+
+    fn = step_builder(gf.kind)(gf)
     if tuple(fn.name_in()) != STEP_INPUTS or tuple(fn.name_out()) != STEP_OUTPUTS:
         raise GainFileError(f"the {gf.kind!r} step builder broke the step contract: {fn}")
     return fn
@@ -132,5 +116,3 @@ def linear_step_function(gf: GainFile) -> ca.Function:
         list(STEP_OUTPUTS),
     )
 
-
-register_step_builder("linear", linear_step_function)

@@ -7,7 +7,6 @@ so differences between designs are not noise between draws.
 
 from __future__ import annotations
 
-import math
 import sys
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
@@ -22,8 +21,9 @@ from fdisyn.runtime.compiled import CompiledDiagnoser
 from fdisyn.runtime.errors import SpecError
 from fdisyn.runtime.gainfile import GainFile, write_gain_file
 from fdisyn.runtime.reference import RunResult
+from fdisyn.synthesis.registry import extra_metrics, recovery_samples
 
-__all__ = ["Built", "build", "recovery_samples", "Evaluation", "evaluate", "progress_printer"]
+__all__ = ["Built", "build", "Evaluation", "evaluate", "progress_printer"]
 
 Progress = Callable[[str], None]
 
@@ -58,21 +58,6 @@ def build(problem: Problem, design: str, directory: str | Path, **options: Any) 
     write_gain_file(gf, d / "gains.json")
     art = codegen(d)
     return Built(gain_file=gf, directory=d, artifacts=art, diagnoser=CompiledDiagnoser(art.library, gf))
-
-
-def recovery_samples(gf: GainFile) -> int:
-    """Samples for a fault's transient to decay by 1e-8 in the slowest generator.
-
-    ``ceil(ln 1e-8 / ln ρ)`` with ``ρ`` the largest spectral radius of the
-    generators' ``Ar``; after that the statistics no longer carry the fault.
-    Other kinds state theirs in ``extensions[kind]["recovery_samples"]``.
-    """
-    if gf.kind != "linear":
-        return int(gf.extensions.get(gf.kind, {}).get("recovery_samples", 0))
-    rho = max((float(np.max(np.abs(np.linalg.eigvals(g.Ar)))) for g in gf.generators if g.n_state), default=0.0)
-    if rho <= 0.0:
-        return 1
-    return max(1, math.ceil(math.log(1e-8) / math.log(rho)))
 
 
 @dataclass(frozen=True, eq=False)
@@ -175,8 +160,9 @@ def evaluate(
                 recovery=recovery_samples(gf),
                 nonfinite=nonfinite[dname],
             )
-            if problem.extra_metrics is not None:
-                m = replace(m, extra=dict(problem.extra_metrics(sc, gf, stacked)))
+            extra = problem.extra_metrics or extra_metrics(gf.kind)
+            if extra is not None:
+                m = replace(m, extra=dict(extra(sc, gf, stacked)))
             metrics[dname][sname] = m
     return Evaluation(
         problem=problem.name,

@@ -69,7 +69,7 @@ class ScenarioMetrics:
     fault_free_samples: int
     nonfinite_samples: int
     extra: Mapping[str, Any] = field(default_factory=dict)
-    """Problem-specific figures (``Problem.extra_metrics``)."""
+    """Figures beyond detection (``Problem.extra_metrics``, else the diagnoser kind's)."""
 
     def to_dict(self) -> dict[str, object]:
         return asdict(self)

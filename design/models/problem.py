@@ -11,7 +11,6 @@ code and never the other way round.
 from __future__ import annotations
 
 import importlib
-import math
 import pkgutil
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -19,61 +18,10 @@ from typing import Any
 
 import numpy as np
 from fdisyn.runtime.errors import SpecError
-from fdisyn.runtime.gainfile import LIMITS, GainFile
+from fdisyn.runtime.gainfile import GainFile
+from fdisyn.synthesis.registry import check_option, short_repr
 
-__all__ = ["Scenario", "Batch", "Problem", "get_problem", "problem_names", "OPTION_RULES", "check_option", "short_repr"]
-
-
-def short_repr(value: Any, limit: int = 60) -> str:
-    """``repr(value)`` cut to ``limit`` characters: error messages stay one readable line
-    whatever a user passed (``repr`` already escapes newlines)."""
-    text = repr(value)
-    return text if len(text) <= limit else text[: limit - 1] + "…"
-
-
-def _is_real(v: Any) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool)
-
-
-def _is_count(v: Any) -> bool:
-    return isinstance(v, int) and not isinstance(v, bool) and v >= 1
-
-
-OPTION_RULES: Mapping[str, tuple[str, Callable[[Any], bool]]] = {
-    "P_f": ("a false-alarm probability per statistic and sample: a number in (0, 1)", lambda v: _is_real(v) and 0.0 < v < 1.0),
-    "persistence": (
-        f"a whole number ≥ 1 of consecutive exceedances, at most {LIMITS['persistence']}",
-        lambda v: _is_count(v) and v <= LIMITS["persistence"],  # a count in a double; the gain file's limit
-    ),
-    "window": ("a whole number of samples ≥ 1", _is_count),
-}
-"""Options several problems share, with their domains. Values arrive as JSON
-from ``--option KEY=VALUE`` or from a plant file, so each is checked here
-rather than converted (``int(1.5)`` would silently become 1). Any other option
-must have the type of its default."""
-
-
-def check_option(key: str, value: Any, default: Any, where: str) -> Any:
-    """Validate one option value against :data:`OPTION_RULES` or, for other
-    options, the type of its default; return it (ints accepted for floats).
-
-    Raises :class:`SpecError` naming ``where``, the value and what is expected.
-    """
-    if key in OPTION_RULES:
-        what, ok = OPTION_RULES[key]
-    elif isinstance(default, bool):
-        what, ok = "true or false", lambda v: isinstance(v, bool)
-    elif isinstance(default, int):
-        what, ok = "a whole number", lambda v: isinstance(v, int) and not isinstance(v, bool)
-    elif isinstance(default, float):
-        what, ok = "a finite number", lambda v: _is_real(v) and math.isfinite(v)
-    elif isinstance(default, str):
-        what, ok = f"a string such as {default!r}", lambda v: isinstance(v, str)
-    else:
-        return value
-    if not ok(value):
-        raise SpecError(f"{where} = {short_repr(value)}: expected {what}")
-    return float(value) if isinstance(default, float) else value
+__all__ = ["Scenario", "Batch", "Problem", "get_problem", "problem_names"]
 
 
 @dataclass(frozen=True)
@@ -155,7 +103,8 @@ class Problem:
     notes: Sequence[str] = ()
     """Modelling choices the sources left open, stated in the report."""
     extra_metrics: Callable[..., Mapping[str, Any]] | None = None
-    """Problem-specific Monte Carlo figures of one scenario:
+    """Problem-specific Monte Carlo figures of one scenario (default: those of the
+    gain file's diagnoser kind, :func:`fdisyn.synthesis.registry.extra_metrics`):
     ``extra_metrics(scenario, gain_file, runs)`` with ``runs`` holding the stacked
     per-run outputs (``alarm``, ``isolated``: runs × N; ``J``: runs × N × nj)."""
 
@@ -181,11 +130,11 @@ class Problem:
 
     def check_options(self, options: Mapping[str, Any]) -> dict[str, Any]:
         """The problem's defaults updated by ``options``, each value validated by
-        :func:`check_option` (unknown names are refused with the list of known ones)."""
+        :func:`~fdisyn.synthesis.registry.check_option` (unknown names are refused with the list of known ones)."""
         unknown = sorted(set(options) - set(self.options))
         if unknown:
             raise SpecError(f"problem {self.name!r} has no option(s) {unknown}; options: {dict(self.options)}")
-        checked = {k: check_option(k, v, self.options[k], f"problem {self.name!r}: option {k}") for k, v in options.items()}
+        checked = {k: check_option(k, v, self.options[k], f"problem {self.name!r}") for k, v in options.items()}
         return {**self.options, **checked}
 
 

@@ -5,21 +5,29 @@ written to disk and to C. Signatures are derived, not typed in: a sensor fault
 is expected to raise statistic ``j`` when its sensor is among the outputs of
 ``j``'s generator, and the certificate checks that the generator is in fact
 sensitive to it (a nonzero steady-state gain from the sensor to the residual).
+
+The linear design methods share the bank around their generators: the options
+``P_f``, ``persistence``, ``bank``, ``faults`` (and ``Ts`` to sample a
+continuous plant) are defined here once, and :func:`linear_method` registers a
+method from the design of one generator.
 """
 
 from __future__ import annotations
 
 import datetime as _dt
+import math
 import platform
 import sys
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
+from fdisyn.codegen.step import linear_step_function
 from fdisyn.evaluators.chi2 import chi2_evaluator
 from fdisyn.models.linear import LinearPlant
 from fdisyn.numerics.linalg import transfer_size
-from fdisyn.runtime.errors import ShapeError
+from fdisyn.runtime.errors import ArgumentError, FdisynError, ShapeError
 from fdisyn.runtime.gainfile import (
     Decision,
     Evaluator,
@@ -28,10 +36,22 @@ from fdisyn.runtime.gainfile import (
     StepSpec,
     linear_state_layout,
 )
+from fdisyn.runtime.names import check_fault_name
 from fdisyn.synthesis.certificate import Certificate, Check
+from fdisyn.synthesis.registry import P_F, PERSISTENCE, REQUIRED, Method, Option, at, is_real, register, short_repr
 from fdisyn.synthesis.residual import dc_gain_y, internal_form
 
-__all__ = ['FaultClass', 'default_fault_classes', 'linear_diagnoser', 'provenance']
+__all__ = [
+    'BANK_OPTIONS',
+    'FaultClass',
+    'GeneratorDesign',
+    'bank_diagnoser',
+    'default_fault_classes',
+    'linear_diagnoser',
+    'linear_method',
+    'linear_recovery_samples',
+    'provenance',
+]
 
 
 @dataclass(frozen=True)
@@ -227,3 +247,218 @@ def _bank_checks(
             )
         table[gen.name] = row
     return checks, table
+
+
+# --------------------------------------------------------------------------- the bank around a linear method
+
+
+def _sensor_indices(group: Any, plant: LinearPlant, where: str, *, empty: bool = False) -> list[int]:
+    """Indices of a list of distinct output names (a bank group, a fault class's sensors)."""
+    if not isinstance(group, (list, tuple)) or (not group and not empty):
+        raise ArgumentError(f"{where} must be a {'' if empty else 'non-empty '}list of output names, got {short_repr(group)}")
+    idx: list[int] = []
+    for j, o in enumerate(group):
+        if not isinstance(o, str) or o not in plant.outputs:
+            raise ArgumentError(f"{where}[{j}]: no output {short_repr(o)}; outputs are {list(plant.outputs)}")
+        if plant.outputs.index(o) in idx:
+            raise ArgumentError(f"{where} names output {o!r} twice")
+        idx.append(plant.outputs.index(o))
+    return idx
+
+
+def _bank(value: Any, where: str, plant: LinearPlant) -> dict[str, tuple[int, ...]]:
+    """``bank``: generator name → indices of the outputs it reads."""
+    label = at(where, "bank")
+    if len(value) == 0:  # not replaced by the default: an empty bank is a mistake
+        raise ArgumentError(f"{label} is empty; expected groups of outputs, one observer each, or no key for one observer on all outputs")
+    if isinstance(value, Mapping):
+        out: dict[str, tuple[int, ...]] = {}
+        for gname, group in value.items():
+            if not isinstance(gname, str) or not gname.isidentifier():
+                raise ArgumentError(f"{label}: generator name {short_repr(gname)} is not an identifier")
+            out[gname] = tuple(_sensor_indices(group, plant, f"{label}.{gname}"))
+        return out
+    groups = [tuple(_sensor_indices(g, plant, f"{label}[{gi}]")) for gi, g in enumerate(value)]
+    return {f"g{gi}_" + "_".join(plant.outputs[i] for i in idx): idx for gi, idx in enumerate(groups)}
+
+
+def _faults(value: Any, where: str, plant: LinearPlant) -> list[FaultClass]:
+    """``faults``: named classes of sensors (outputs) and component faults, names checked and unique."""
+    label = at(where, "faults")
+    out: list[FaultClass] = []
+    for i, f in enumerate(value):
+        w = f"{label}[{i}]"
+        if isinstance(f, FaultClass):
+            f = {"name": f.name, "sensors": list(f.sensors), "components": list(f.components)}
+        if not isinstance(f, Mapping):
+            raise ArgumentError(f"{w} must be a table {{ name, sensors, components }}, got {short_repr(f)}")
+        unknown = sorted(set(f) - {"name", "sensors", "components"})
+        if unknown:
+            raise ArgumentError(f"{w}: unknown key(s) {unknown}; allowed: ['components', 'name', 'sensors']")
+        if "name" not in f:
+            raise ArgumentError(f"{w}: missing key 'name'")
+        fname = check_fault_name(f["name"], f"{w}.name", error=ArgumentError)
+        if any(c.name == fname for c in out):
+            raise ArgumentError(f"{w}.name {fname!r} names another fault class too; fault names must be unique")
+        sensors = tuple(plant.outputs[j] for j in _sensor_indices(f.get("sensors", []), plant, f"{w}.sensors", empty=True))
+        components = f.get("components", [])
+        if not isinstance(components, (list, tuple)):
+            raise ArgumentError(f"{w}.components must be a list of component-fault names, got {short_repr(components)}")
+        for j, c in enumerate(components):
+            if not isinstance(c, str) or c not in plant.component_faults:
+                raise ArgumentError(f"{w}.components[{j}]: no component fault {short_repr(c)}; the plant has {list(plant.component_faults)}")
+        if len(set(components)) != len(components):
+            raise ArgumentError(f"{w}.components names a component fault twice: {list(components)}")
+        if not sensors and not components:
+            raise ArgumentError(f"{w} names no sensor and no component fault")
+        out.append(FaultClass(fname, sensors, tuple(components)))
+    return out
+
+
+def _listed(v: Any) -> bool:
+    return isinstance(v, (list, tuple, Mapping))
+
+
+BANK = Option(
+    "bank",
+    None,
+    "the outputs of each generator: a list of groups (generators named like g0_y1_y2) or a table name → group; default one on all outputs",
+    "a list of lists of output names, or a table of them",
+    _listed,
+    lambda v, where, plant: _bank(v, where, plant),
+)
+FAULTS = Option(
+    "faults",
+    None,
+    "fault classes { name, sensors, components }; default one per sensor and component fault, merged when alike",
+    "a list of tables { name, sensors, components }",
+    lambda v: isinstance(v, (list, tuple)),
+    lambda v, where, plant: _faults(v, where, plant),
+)
+TS = Option(
+    "Ts",
+    None,
+    "sample time (s) of the diagnoser: ZOH-samples a continuous plant (a discrete plant has its own)",
+    "a positive sample time in seconds",
+    lambda v: is_real(v) and v > 0,
+    plant_file="[model].Ts",
+)
+BANK_OPTIONS: tuple[Option, ...] = (P_F, PERSISTENCE, BANK, FAULTS)
+"""The options of every linear method: the bank and its χ² evaluation (Hu et al. 2013, Acta Automatica Sinica 39(8), eq. (20))."""
+
+GeneratorDesign = Callable[..., tuple[Generator, np.ndarray, Certificate]]
+"""``(plant, outputs_used, name, **options) -> (generator on all outputs, residual covariance, certificate)``."""
+
+
+def linear_recovery_samples(gf: GainFile) -> int:
+    """Samples for a fault's transient to decay by 1e-8 in the slowest generator.
+
+    ``ceil(ln 1e-8 / ln ρ)`` with ``ρ`` the largest spectral radius of the
+    generators' ``Ar``; after that the statistics no longer carry the fault.
+    """
+    rho = max((float(np.max(np.abs(np.linalg.eigvals(g.Ar)))) for g in gf.generators if g.n_state), default=0.0)
+    if rho <= 0.0:
+        return 1
+    return max(1, math.ceil(math.log(1e-8) / math.log(rho)))
+
+
+def bank_diagnoser(
+    plant: LinearPlant,
+    generator: GeneratorDesign,
+    *,
+    name: str,
+    design: str,
+    problem: str | None = None,
+    record: Mapping[str, object] | None = None,
+    where: str = "",
+    P_f: float,
+    persistence: int,
+    bank: Mapping[str, Sequence[int]] | None,
+    faults: Sequence[FaultClass] | None,
+    Ts: float | None = None,
+    sampled_data: bool = False,
+    **options: Any,
+) -> GainFile:
+    """One generator per group of ``bank`` (``generator`` designs each), χ² evaluators, signatures.
+
+    ``sampled_data``: ``generator`` gets the continuous plant (sampled every
+    ``Ts`` by the method itself); otherwise the discrete plant (a continuous
+    one ZOH-sampled at ``Ts``). Errors of one generator name its group.
+    """
+    discrete = plant if plant.is_discrete else plant.discretise(Ts)  # type: ignore[arg-type]
+    groups = bank if bank is not None else {"g0_" + "_".join(plant.outputs): tuple(range(plant.p))}
+    gens, sigmas, certs = [], [], []
+    for gi, (gname, idx) in enumerate(groups.items()):
+        try:
+            if sampled_data:
+                gen, sig, cert = generator(plant, tuple(idx), gname, Ts=Ts, **options)
+            else:
+                gen, sig, cert = generator(discrete, tuple(idx), gname, **options)
+        except FdisynError as exc:  # the same error, naming the group of the bank it concerns
+            raise type(exc)(f"{at(where, f'bank[{gi}]')}: {exc}") from exc
+        gens.append(gen)
+        sigmas.append(sig)
+        certs.append(cert)
+    return linear_diagnoser(
+        name=name,
+        problem=problem or name,
+        design=design,
+        plant=discrete,
+        generators=gens,
+        sigma_r=sigmas,
+        P_f=P_f,
+        faults=faults if faults is not None else default_fault_classes(discrete, gens),
+        certificates=certs,
+        persistence=persistence,
+        options=record,
+    )
+
+
+def _check_ts(plant: Any, options: Mapping[str, Any], where: str) -> None:
+    if isinstance(plant, LinearPlant) and plant.is_discrete and options.get("Ts") is not None:
+        raise ArgumentError(f"{at(where, 'Ts')} = {options['Ts']!r}: the plant is discrete (Ts = {plant.Ts}); give Ts for a continuous plant only")
+    if isinstance(plant, LinearPlant) and not plant.is_discrete and options.get("Ts") is None:
+        raise ArgumentError(f"{where}: missing option 'Ts': expected {TS.kind} to sample the continuous plant")
+
+
+def linear_method(
+    name: str,
+    *,
+    summary: str,
+    reference: str,
+    generator: GeneratorDesign,
+    options: Sequence[Option] = (),
+    sampled_data: bool = False,
+    check: Callable[[Any, Mapping[str, Any], str], None] | None = None,
+) -> Method:
+    """Register the linear method ``name``: ``generator`` designs one generator, the bank does the rest.
+
+    ``sampled_data``: a continuous plant designed as a sampled-data plant
+    (plant kind ``"continuous"``, ``Ts`` required); otherwise a discrete plant,
+    or a continuous one with ``Ts`` (ZOH).
+    """
+
+    def checks(plant: Any, opts: Mapping[str, Any], where: str) -> None:
+        if not sampled_data:
+            _check_ts(plant, opts, where)
+        if check is not None:
+            check(plant, opts, where)
+
+    def design(plant: LinearPlant, *, name: str, problem: str | None = None, record: Mapping[str, object] | None = None, where: str = "", **opts: Any) -> GainFile:
+        return bank_diagnoser(plant, generator, name=name, design=method.name, problem=problem, record=record, where=where, sampled_data=sampled_data, **opts)
+
+    ts = replace(TS, default=REQUIRED, doc="sample time (s) of the sampled-data diagnoser") if sampled_data else TS
+    method = Method(
+        name=name,
+        plant_kind="continuous" if sampled_data else "linear",
+        summary=summary,
+        reference=reference,
+        options=(*BANK_OPTIONS, ts, *options),
+        design=design,
+        diagnoser_kind="linear",
+        step_builder=linear_step_function,
+        recovery_samples=linear_recovery_samples,
+        generator=generator,
+        check=checks,
+    )
+    return register(method)

@@ -20,7 +20,15 @@ from fdisyn.numerics.sdp import SDP_BOUND_TOL, SDP_BOUND_TOL_SINGULAR, SdpStats,
 from fdisyn.runtime.errors import ExistenceError, ShapeError, SolverError
 from fdisyn.runtime.gainfile import Generator
 from fdisyn.synthesis.certificate import Certificate, Check
-from fdisyn.synthesis.sampled_data_observer import ETAS, canonical_generator, error_performance, performance, residual_dynamics
+from fdisyn.synthesis.sampled_data_observer import (
+    ETAS,
+    _check_disturbance,
+    canonical_generator,
+    error_performance,
+    performance,
+    residual_dynamics,
+    sampled_data_generator,
+)
 
 __all__ = ['LmiObserver', 'lmi_diagnostic_observer']
 
@@ -367,3 +375,21 @@ def _peak(
     om = float(pk.omega if pk.omega is not None else 0.0)
     _, _, vh = np.linalg.svd(g.freqresp(np.array([om]))[0])
     return om, vh[0].conj()
+
+
+def _register() -> None:
+    from fdisyn.synthesis.linear_diagnoser import linear_method
+    from fdisyn.synthesis.registry import Option
+
+    linear_method(
+        "lmi",
+        summary="diagnostic observer of a sampled-data plant by LMIs: H2 predictor gain, then the post-filter SDP",
+        reference="Qiu, Wen & Jiang 2010, Control Theory & Applications 27(8), eq. (19) as SDPs",
+        generator=sampled_data_generator(lambda *, plant, eta: lmi_diagnostic_observer(plant=plant, eta=eta)),
+        options=(Option("eta", "inf", "the fault measure the ratio of eq. (19) uses: H-infinity, H2 or H-minus", f"one of {list(ETAS)}", lambda v: v in ETAS),),
+        sampled_data=True,
+        check=_check_disturbance,
+    )
+
+
+_register()

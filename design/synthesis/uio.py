@@ -53,7 +53,7 @@ import scipy.signal
 from fdisyn.models.linear import LinearPlant
 from fdisyn.numerics.linalg import dlyap, rank, rel_diff, spectral_radius, unobservable_modes
 from fdisyn.numerics.riccati import solve_filter_dare
-from fdisyn.runtime.errors import CertificateError, ExistenceError, ShapeError, SolverError
+from fdisyn.runtime.errors import ArgumentError, CertificateError, ExistenceError, ShapeError, SolverError
 from fdisyn.runtime.gainfile import Generator
 from fdisyn.synthesis.certificate import Certificate, Check
 from fdisyn.synthesis.residual import internal_form
@@ -657,3 +657,65 @@ def pole_placement_uio(plant: LinearPlant, *, poles: Sequence[complex]) -> UIODe
         return _finish(plant, st, gain, "uio_pole_placement", "poles", checks, {"poles": [complex(z) for z in pl]})
     except (CertificateError, ExistenceError, np.linalg.LinAlgError) as exc:
         raise _in_context(exc, plant) from exc
+
+
+# --------------------------------------------------------------------------- the methods
+
+
+def _poles(value: Any, where: str, plant: LinearPlant | None) -> list[float]:
+    """``poles``: ``n`` real numbers strictly inside the unit circle (one per state).
+
+    TOML has no complex numbers, so complex pairs cannot be written; a string or
+    a nested list would otherwise reach NumPy's ``complex()`` and fail there.
+    """
+    from fdisyn.synthesis.registry import at, short_repr
+
+    label, n = at(where, "poles"), "n" if plant is None else plant.n
+    if not isinstance(value, (list, tuple)) or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in value):
+        raise ArgumentError(f"{label} must be a list of {n} real numbers inside (-1, 1), one per state; got {short_repr(value)}")
+    if plant is not None and len(value) != plant.n:
+        raise ArgumentError(f"{label} must have {plant.n} poles (one per state), got {len(value)}")
+    if not all(np.isfinite(x) and abs(x) < 1.0 for x in value):
+        raise ArgumentError(f"{label} must lie strictly inside the unit circle (a discrete observer's poles), got {list(value)}")
+    return [float(x) for x in value]
+
+
+def _uio_generator(variant: str) -> Any:
+    def generator(plant: LinearPlant, outputs_used: Sequence[int], name: str, **options: Any) -> tuple[Generator, np.ndarray, Certificate]:
+        sub = plant.select_outputs(outputs_used)
+        if variant == "poles":
+            d = pole_placement_uio(sub, poles=options["poles"])
+        else:
+            d = kalman_uio(sub, variant=variant)  # type: ignore[arg-type]
+        return d.generator(name, outputs_used, plant.p), d.Sigma_r, d.certificate
+
+    return generator
+
+
+def _register() -> None:
+    from fdisyn.synthesis.linear_diagnoser import linear_method
+    from fdisyn.synthesis.registry import REQUIRED, Option
+
+    hu = "Hu, Sun, Jiang, He & Zhang 2013, Acta Automatica Sinica 39(8)"
+    linear_method(
+        "kalman_uio",
+        summary="bank of minimum-variance unknown-input observers (exact correlated error covariance, NLP + DARE check)",
+        reference=f"{hu}, eqs. (3)-(11), (14)-(16), (20)",
+        generator=_uio_generator("optimal"),
+    )
+    linear_method(
+        "kalman_uio_paper",
+        summary="bank of UIOs with the gain of the paper's covariance recursion (its steady state)",
+        reference=f"{hu}, eqs. (14), (16)",
+        generator=_uio_generator("paper"),
+    )
+    linear_method(
+        "uio_pole_placement",
+        summary="bank of plain UIOs with assigned observer poles (the paper's baseline)",
+        reference=f"{hu}, eqs. (3)-(11), fig. 1",
+        generator=_uio_generator("poles"),
+        options=(Option("poles", REQUIRED, "observer poles eig(A1 - L C), one per state", "one real pole inside (-1, 1) per state", refine=_poles),),
+    )
+
+
+_register()

@@ -87,9 +87,9 @@ PLANT_CASES: list[tuple[str, str, str, str, list[str], tuple[str, ...]]] = [
     ("weak C E", MOTOR.replace("duration = 10.0", "duration = 0.1").replace("onset = 5.0", "onset = 0.05"), "Ts = 0.001 ", "Ts = 0.00001 ", ["design"],
      ("[design].bank[0]: UIO for the outputs ['i_meas', 'theta_meas']", "C E is nearly zero", "remedy:")),
     ("Bd a scalar", SAMPLED, "Bd = [[0.1], [1.0]]", "Bd = 0", ["design"], ("[model].Bd must be a matrix (a list of rows), got 0",)),
-    ("Bd zero", SAMPLED, "Bd = [[0.1], [1.0]]", "Bd = [[0.0], [0.0]]", ["design"], ("[model].Bd is zero: method 'sampled_data_observer'",)),
+    ("Bd zero", SAMPLED, "Bd = [[0.1], [1.0]]", "Bd = [[0.0], [0.0]]", ["design"], ("[design]: the disturbance direction E (Bd of Qiu, Wen & Jiang 2010, eq. (1)) is zero",)),
     ("h huge", SAMPLED, "h = 1.0", "h = 1e5", ["design"], ("[model]: h = 100000 s is too long to sample this model", "expected h < 354.9 s")),
-    ("eta unknown", SAMPLED, 'method = "sampled_data_observer"', 'method = "lmi"\neta = "1"', ["design"], ("[design].eta must be one of ['inf', '2', '-']",)),
+    ("eta unknown", SAMPLED, 'method = "sampled_data_observer"', 'method = "lmi"\neta = "1"', ["design"], ("[design].eta = '1': expected one of ['inf', '2', '-']",)),
     ("persistence beyond a count", MOTOR, "P_f = 1e-4 ", "P_f = 1e-4\npersistence = 1000000000000 ", ["design"], ("[design].persistence = 1000000000000: expected a whole number ≥ 1 of consecutive exceedances, at most 1000000000",)),
     # numbers are numbers: NumPy would read "-100.0" and true as floats, and overflow on a huge integer
     ("A a string entry", MOTOR, "[[-100.0, -5.0, 0.0]", '[["-100.0", -5.0, 0.0]', ["design"], ("[model].A must be a matrix of numbers (a list of rows), got [['-100.0'",)),

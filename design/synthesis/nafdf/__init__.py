@@ -1,10 +1,10 @@
 """The nonlinear adaptive fault-detection filter, NAFDF (Zhou, Xi & Zhang, Shanghai Jiao Tong University, c. 1991).
 
 ``settings`` (options, validation, state layout), ``step`` (the CasADi step, fig. 1),
-``design`` (design and certificate), ``payload`` (the gain file's ``nafdf`` payload).
+``design`` (design and certificate), ``payload`` (the gain file's ``nafdf`` payload),
+``method`` (the design method ``nafdf`` of :mod:`fdisyn.synthesis.registry`).
 """
 
-from fdisyn.codegen.step import register_step_builder
 from fdisyn.synthesis.nafdf.design import NafdfDesign, nafdf, nafdf_extra_metrics
 from fdisyn.synthesis.nafdf.payload import (
     nafdf_from_gain_file,
@@ -27,5 +27,3 @@ __all__ = [
     "nafdf_payload",
     "step_from_payload",
 ]
-
-register_step_builder("nafdf", lambda gf: nafdf_from_gain_file(gf).step)

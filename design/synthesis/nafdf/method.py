@@ -1,0 +1,122 @@
+"""The NAFDF as a design method of the registry (Zhou, Xi & Zhang, Shanghai Jiao Tong University, c. 1991).
+
+Its options are the keywords of :func:`fdisyn.synthesis.nafdf.design.nafdf`,
+with one name for the false-alarm probability everywhere: ``P_f`` (the
+keyword ``false_alarm_probability`` of :func:`~fdisyn.synthesis.nafdf.design.nafdf`
+names the stored setting). Settings per parameter are a list (in the plant's
+parameter order) or a table by parameter name. The domains the options state
+are checked in full, with the plant's sizes, by the design itself
+(:mod:`fdisyn.synthesis.nafdf.settings`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+from fdisyn.models.nonlinear import NonlinearPlant
+from fdisyn.runtime.errors import ArgumentError
+from fdisyn.runtime.gainfile import GainFile
+from fdisyn.synthesis.nafdf.design import nafdf, nafdf_extra_metrics
+from fdisyn.synthesis.nafdf.payload import nafdf_from_gain_file, nafdf_gain_file
+from fdisyn.synthesis.registry import P_F, WINDOW, Method, Option, at, register, short_repr
+
+__all__ = ["NAFDF_OPTIONS", "NAFDF"]
+
+
+def _per_parameter(key: str) -> Any:
+    def refine(value: Any, where: str, plant: NonlinearPlant | None) -> Any:
+        """A per-parameter setting given as a table by name: the list in the plant's parameter order."""
+        if not isinstance(value, Mapping) or plant is None:
+            return value
+        parameters = plant.parameters
+        unknown = sorted(set(value) - set(parameters))
+        missing = [q for q in parameters if q not in value]
+        if unknown or missing:
+            raise ArgumentError(f"{at(where, key)}: expected one entry per parameter {list(parameters)}; missing {missing}, unknown {unknown}")
+        return [value[q] for q in parameters]
+
+    return refine
+
+
+def _u0(value: Any, where: str, plant: NonlinearPlant | None) -> Any:
+    """The nominal input: one finite number per input."""
+    label, m = at(where, "u0"), "m" if plant is None else plant.m
+    if not isinstance(value, (list, tuple, np.ndarray)) or not all(isinstance(x, (int, float, np.floating)) and not isinstance(x, bool) for x in value):
+        raise ArgumentError(f"{label} must be a list of {m} finite numbers (one per input), got {short_repr(value)}")
+    if plant is not None and len(value) != plant.m:
+        raise ArgumentError(f"{label} must have {plant.m} entries (one per input), got {len(value)}")
+    if not np.all(np.isfinite(np.asarray(value, dtype=float))):
+        raise ArgumentError(f"{label} must hold finite numbers, got {short_repr(value)}")
+    return [float(x) for x in value]
+
+
+def _per(name: str, doc: str, kind: str) -> Option:
+    return Option(name, None, doc, kind, refine=_per_parameter(name))
+
+
+NAFDF_OPTIONS: tuple[Option, ...] = (
+    replace(P_F, default=0.01, doc="false-alarm probability of the WSSR test per sample under H0 (threshold rule 'chi2')"),
+    WINDOW,
+    Option("threshold_rule", "chi2", "the WSSR threshold: the chi2 quantile for P_f, or the paper's fixed beta0", "'chi2' or 'beta0'", lambda v: v in ("chi2", "beta0")),
+    Option("beta0", None, "the paper's fixed WSSR threshold (threshold rule 'beta0')", "a positive finite number"),
+    Option("x0", None, "initial state estimate of both filters; default zeros (a plant file: [simulation].x0)", "one finite number per state"),
+    Option("P0", 1.0, "initial (and reset) state covariance of both filters", "a positive number, or a positive definite matrix"),
+    _per("theta0", "initial (and reset) parameter estimate of the NF; default the nominal θ", "one finite number per parameter (a list or a table by name)"),
+    Option("R0", None, "initial (and reset) NF information matrix (eq. (2.5)); default I", "a positive definite matrix"),
+    Option("forgetting_initial", 0.95, "initial forgetting factor of the NF (eq. (2.5))", "a number in (0, 1]"),
+    Option("forgetting_rate", 0.99, "rate at which the forgetting factor tends to its final value", "a number in (0, 1)"),
+    Option("forgetting_final", 0.99, "final forgetting factor λ∞ of the NF", "a number in (0, 1]"),
+    _per("theta_lower", "lower bounds of the parameter box (projection of the NF step); default -inf", "one number per parameter"),
+    _per("theta_upper", "upper bounds of the parameter box; default +inf", "one number per parameter"),
+    Option("nominal_samples", 200, "N1 of eq. (2.6): samples that learn the nominal spread of θ̂", "a whole number ≥ 1"),
+    Option("classifier_window", 50, "N2 of eq. (2.7), also the convergence window", "a whole number ≥ 1"),
+    Option("W1", 50.0, "Bayes-distance threshold of a fault class (eq. (2.7))", "a number with 0 ≤ W1 < W2"),
+    Option("W2", 350.0, "Bayes-distance threshold of a certain fault class (eq. (2.7))", "a finite number > W1"),
+    Option("T1", 50, "samples the classifier waits after the NF converged", "a whole number ≥ 1"),
+    _per("convergence_tolerance", "largest range of θ̂_i over N2 samples to count as converged; default 5 % of |θ0_i|", "one positive number per parameter"),
+    Option("convergence_level", 1e-3, "significance of the NF innovation test inside the convergence check", "a number in (0, 1)"),
+    Option("u0", None, "nominal input (where the model must be finite, and the certificate's Jacobian check); default zeros", "one finite number per input", refine=_u0),
+)
+"""The options of the NAFDF, named as a plant file's ``[design]`` keys and the keywords of ``fdisyn.design``."""
+
+
+def _design(
+    plant: NonlinearPlant,
+    *,
+    name: str,
+    problem: str | None = None,
+    record: Mapping[str, object] | None = None,
+    where: str = "",
+    P_f: float,
+    x0: Any,
+    **options: Any,
+) -> GainFile:
+    try:
+        dsg = nafdf(
+            plant,
+            name=problem or name,
+            x0=np.zeros(plant.n) if x0 is None else x0,
+            false_alarm_probability=P_f,
+            **options,
+        )
+    except (TypeError, ValueError) as exc:
+        raise ArgumentError(f"{where}: {exc}") from exc
+    return nafdf_gain_file(dsg, problem=problem or name, design_name="nafdf", name=name, options=record)
+
+
+NAFDF = register(
+    Method(
+        name="nafdf",
+        plant_kind="nonlinear",
+        summary="nonlinear adaptive fault detection filter: EKF + WSSR detection, parameter re-estimation and Bayes classification",
+        reference="Zhou, Xi & Zhang c. 1991, Shanghai Jiao Tong University, eqs. (2.1)-(2.8), fig. 1",
+        options=NAFDF_OPTIONS,
+        design=_design,
+        diagnoser_kind="nafdf",
+        step_builder=lambda gf: nafdf_from_gain_file(gf).step,
+        extra_metrics=nafdf_extra_metrics,
+    )
+)

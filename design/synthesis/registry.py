@@ -1,0 +1,385 @@
+"""The design methods: one registry that the plant files, the problems, the CLI and the step assembly read.
+
+A method is one module of :mod:`fdisyn.synthesis` that calls :func:`register`
+with a :class:`Method` when it is imported: its plant kind, its options (each an
+:class:`Option` with its default, domain and validator), its design function,
+and what the pipeline needs of its gain files (the CasADi step, the recovery
+window of the Monte Carlo, extra metrics). The registry imports every module of
+:mod:`fdisyn.synthesis` the first time a method is looked up, so adding a
+method needs no other edit: a plant file's ``[design].method``,
+``fdisyn.design(plant, method=...)``, ``fdisyn methods`` and
+:func:`fdisyn.codegen.step.step_function` all find it here.
+
+Importing this module is light (no CasADi, no cvxpy); :mod:`fdisyn.runtime`
+never imports it.
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+import math
+import pkgutil
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from fdisyn.runtime.errors import ArgumentError, GainFileError
+from fdisyn.runtime.gainfile import LIMITS, GainFile
+
+__all__ = [
+    "REQUIRED",
+    "Option",
+    "Method",
+    "PLANT_KINDS",
+    "SHARED_OPTIONS",
+    "register",
+    "get_method",
+    "method_names",
+    "all_methods",
+    "step_builder",
+    "recovery_samples",
+    "extra_metrics",
+    "check_plant",
+    "check_options",
+    "check_option",
+    "design",
+    "at",
+    "short_repr",
+]
+
+METHOD_PACKAGES: list[str] = ["fdisyn.synthesis"]
+"""Packages whose modules are imported to discover methods (each registers its own)."""
+
+
+class _Required:
+    def __repr__(self) -> str:
+        return "REQUIRED"
+
+
+REQUIRED: Any = _Required()
+"""The default of an option that has none: it must be given."""
+
+PLANT_KINDS = {
+    "linear": "a LinearPlant, discrete (or continuous with the option Ts: ZOH-sampled)",
+    "continuous": "a continuous LinearPlant, designed as a sampled-data plant sampled every Ts",
+    "nonlinear": "a NonlinearPlant",
+}
+"""What each ``Method.plant_kind`` designs for."""
+
+
+def short_repr(value: Any, limit: int = 60) -> str:
+    """``repr(value)`` cut to ``limit`` characters: error messages stay one readable line
+    whatever a user passed (``repr`` already escapes newlines)."""
+    text = repr(value)
+    return text if len(text) <= limit else text[: limit - 1] + "…"
+
+
+def at(where: str, key: str) -> str:
+    """How a message names option ``key`` of ``where``: ``PATH [design].P_f`` in a plant
+    file's section, ``method 'lmi': option eta`` (or ``problem …: option …``) elsewhere."""
+    return f"{where}.{key}" if where.endswith("]") else f"{where}: option {key}"
+
+
+def _anything(value: Any) -> bool:
+    return True
+
+
+def is_real(v: Any) -> bool:
+    """A finite int or float (a boolean is no number)."""
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def is_count(v: Any) -> bool:
+    """A whole number ≥ 1 (a boolean is no number)."""
+    return isinstance(v, int) and not isinstance(v, bool) and v >= 1
+
+
+@dataclass(frozen=True)
+class Option:
+    """One option of a method: its name, default, one-line doc and domain.
+
+    ``accepts`` tests the domain ``kind`` describes (values arrive as JSON or
+    TOML, so they are checked rather than converted: ``int(1.5)`` would
+    silently become 1); ``refine`` then checks what depends on the plant (an
+    output name, one pole per state) and returns the value the design gets.
+    """
+
+    name: str
+    default: Any
+    doc: str
+    kind: str
+    accepts: Callable[[Any], bool] = _anything
+    refine: Callable[[Any, str, Any], Any] | None = None
+    """``(value, where, plant) -> value``; raises :class:`ArgumentError` naming ``at(where, name)``."""
+    plant_file: str | None = None
+    """Where a plant file takes the value from when it is not a ``[design]`` key (e.g. ``[model].Ts``)."""
+
+    @property
+    def required(self) -> bool:
+        return self.default is REQUIRED
+
+    def validate(self, value: Any, where: str = "", plant: Any = None) -> Any:
+        """The checked value, or :class:`ArgumentError` naming the option, the value and what is expected."""
+        label = at(where, self.name) if where else f"option {self.name}"
+        if value is None and self.default is None:
+            return None
+        if not self.accepts(value):
+            raise ArgumentError(f"{label} = {short_repr(value)}: expected {self.kind}")
+        if isinstance(self.default, float) and isinstance(value, int) and not isinstance(value, bool):
+            value = float(value)
+        if self.refine is not None:
+            value = self.refine(value, where or "", plant)
+        return value
+
+
+@dataclass(frozen=True, eq=False)
+class Method:
+    """A design method: what it designs for, its options, and what its gain files need downstream.
+
+    ``design(plant, *, name, problem=None, record=None, where="", **checked_options)``
+    returns a certified gain file named ``name`` (``problem`` defaults to
+    ``name``; ``record`` is stored as the provenance's design options;
+    ``where`` prefixes error messages, see :func:`at`).
+    """
+
+    name: str
+    plant_kind: str
+    summary: str
+    reference: str
+    options: tuple[Option, ...]
+    design: Callable[..., GainFile]
+    diagnoser_kind: str
+    step_builder: Callable[[GainFile], Any]
+    """``GainFile -> casadi.Function`` with the step contract of :mod:`fdisyn.codegen.step`."""
+    recovery_samples: Callable[[GainFile], int] = lambda gf: 0
+    """Samples after a fault's end during which alarms are not false alarms (Monte Carlo metrics)."""
+    extra_metrics: Callable[..., Mapping[str, Any]] | None = None
+    """Monte Carlo figures of one scenario beyond detection: ``(scenario, gain_file, runs) -> {name: value}``."""
+    generator: Callable[..., Any] | None = None
+    """Linear bank methods: the design of one generator,
+    ``(plant, outputs_used, name, **options) -> (Generator, Σ_r, Certificate)``."""
+    check: Callable[[Any, Mapping[str, Any], str], None] | None = None
+    """Conditions across options or on the plant, checked before designing: ``(plant, options, where)``."""
+    option_names: tuple[str, ...] = field(init=False)
+
+    def __post_init__(self) -> None:
+        if self.plant_kind not in PLANT_KINDS:
+            raise ArgumentError(f"method {self.name!r}: plant_kind {self.plant_kind!r}; expected one of {list(PLANT_KINDS)}")
+        object.__setattr__(self, "option_names", tuple(o.name for o in self.options))
+        if len(set(self.option_names)) != len(self.option_names):
+            raise ArgumentError(f"method {self.name!r} names an option twice: {list(self.option_names)}")
+
+    def option(self, name: str) -> Option:
+        for o in self.options:
+            if o.name == name:
+                return o
+        raise ArgumentError(f"method {self.name!r} has no option {name!r}; options: {list(self.option_names)}")
+
+
+_METHODS: dict[str, Method] = {}
+_SCANNED: set[str] = set()
+
+
+def register(method: Method) -> Method:
+    """Make ``method`` known by its name (a module calls this when it is imported).
+
+    Methods that share a diagnoser kind share its step builder, recovery window
+    and extra metrics (they describe the gain file, not the design).
+    """
+    if not method.name.isidentifier():
+        raise ArgumentError(f"a method name is an identifier (it names gain files and C symbols); got {method.name!r}")
+    for other in _METHODS.values():
+        if other.diagnoser_kind == method.diagnoser_kind and other.name != method.name and (
+            other.step_builder is not method.step_builder
+            or other.recovery_samples is not method.recovery_samples
+            or other.extra_metrics is not method.extra_metrics
+        ):
+            raise ArgumentError(
+                f"method {method.name!r} has diagnoser kind {method.diagnoser_kind!r} like {other.name!r} but another "
+                "step builder, recovery window or extra metrics; one kind, one of each"
+            )
+    _METHODS[method.name] = method
+    return method
+
+
+def _discover() -> None:
+    """Import every module of :data:`METHOD_PACKAGES` not yet scanned (each registers its methods)."""
+    for pkg_name in list(METHOD_PACKAGES):
+        if pkg_name in _SCANNED:
+            continue
+        _SCANNED.add(pkg_name)
+        pkg = importlib.import_module(pkg_name)
+        for mod in pkgutil.walk_packages(pkg.__path__, f"{pkg_name}."):
+            if not mod.name.rsplit(".", 1)[-1].startswith("_"):
+                importlib.import_module(mod.name)
+
+
+def all_methods() -> list[Method]:
+    """Every registered method, by name."""
+    _discover()
+    return [_METHODS[k] for k in sorted(_METHODS)]
+
+
+def method_names() -> list[str]:
+    """The names of the registered methods."""
+    return [m.name for m in all_methods()]
+
+
+def get_method(name: str) -> Method:
+    """The method ``name``; an unknown one is an :class:`ArgumentError` listing the known ones."""
+    _discover()
+    if not isinstance(name, str) or name not in _METHODS:
+        raise ArgumentError(f"no design method {short_repr(name)}; methods: {sorted(_METHODS)}")
+    return _METHODS[name]
+
+
+def _kind(kind: str) -> Method | None:
+    _discover()
+    return next((m for m in _METHODS.values() if m.diagnoser_kind == kind), None)
+
+
+def step_builder(kind: str) -> Callable[[GainFile], Any]:
+    """The step builder of diagnoser kind ``kind`` (unknown: :class:`GainFileError`)."""
+    m = _kind(kind)
+    if m is None:
+        kinds = sorted({x.diagnoser_kind for x in _METHODS.values()})
+        raise GainFileError(f"no step builder for diagnoser kind {kind!r}; known kinds: {kinds}")
+    return m.step_builder
+
+
+def recovery_samples(gf: GainFile) -> int:
+    """Samples after a fault during which the gain file's statistics still carry it (0 for an unknown kind)."""
+    m = _kind(gf.kind)
+    return 0 if m is None else int(m.recovery_samples(gf))
+
+
+def extra_metrics(kind: str) -> Callable[..., Mapping[str, Any]] | None:
+    """The extra Monte Carlo figures of diagnoser kind ``kind`` (None: none)."""
+    m = _kind(kind)
+    return None if m is None else m.extra_metrics
+
+
+def check_plant(method: Method, plant: Any) -> None:
+    """``plant`` is of the kind ``method`` designs for (an :class:`ArgumentError` otherwise)."""
+    from fdisyn.models.linear import LinearPlant
+
+    kind = method.plant_kind
+    if kind == "nonlinear":
+        from fdisyn.models.nonlinear import NonlinearPlant
+
+        ok = isinstance(plant, NonlinearPlant)
+    else:
+        ok = isinstance(plant, LinearPlant) and (kind == "linear" or not plant.is_discrete)
+    if not ok:
+        got = type(plant).__name__
+        if isinstance(plant, LinearPlant):
+            got = f"a {'discrete' if plant.is_discrete else 'continuous'} LinearPlant"
+        raise ArgumentError(f"method {method.name!r} designs for {PLANT_KINDS[kind]}; got {got}")
+
+
+def check_options(method: Method, options: Mapping[str, Any], *, plant: Any = None, where: str | None = None) -> dict[str, Any]:
+    """Every option of ``method``: the given ones validated, the others at their defaults.
+
+    An unknown option, or one of another method, is an :class:`ArgumentError`
+    listing the allowed ones; so is a missing required one.
+    """
+    where = f"method {method.name!r}" if where is None else where
+    unknown = [k for k in options if k not in method.option_names]
+    if unknown:
+        owners = [m.name for m in all_methods() if unknown[0] in m.option_names]
+        if owners and len(unknown) == 1:
+            raise ArgumentError(f"{at(where, unknown[0])} is read only by method {owners[0]!r}, not by {method.name!r}: remove it")
+        raise ArgumentError(f"{where}: unknown option(s) {sorted(unknown)}; allowed: {sorted(method.option_names)}")
+    out: dict[str, Any] = {}
+    for o in method.options:
+        if o.name in options:
+            out[o.name] = o.validate(options[o.name], where, plant)
+        elif o.required:
+            word = "key" if where.endswith("]") else "option"
+            raise ArgumentError(f"{where}: missing {word} {o.name!r}: expected {o.kind}")
+        else:
+            out[o.name] = o.default
+    if method.check is not None:
+        method.check(plant, out, where)
+    return out
+
+
+def _jsonable(value: Any) -> Any:
+    try:
+        json.dumps(value)
+        return value
+    except (TypeError, ValueError):
+        tolist = getattr(value, "tolist", None)
+        return tolist() if callable(tolist) else repr(value)
+
+
+def design(
+    plant: Any,
+    method: str,
+    *,
+    name: str | None = None,
+    problem: str | None = None,
+    record: Mapping[str, Any] | None = None,
+    where: str | None = None,
+    **options: Any,
+) -> GainFile:
+    """Design ``plant`` by ``method`` with ``options``: a certified gain file.
+
+    The plant's kind and the options are checked against the method's schema
+    first (unknown or invalid: :class:`ArgumentError`). ``name`` names the gain
+    file (default: the method's name), ``problem`` its problem (default:
+    ``name``); ``record`` replaces the design options stored in its provenance
+    (default: the method and the options given); ``where`` prefixes error
+    messages (a plant file's ``PATH [design]``).
+    """
+    m = get_method(method)
+    check_plant(m, plant)
+    checked = check_options(m, options, plant=plant, where=where)
+    if record is None:
+        record = {"method": m.name, **{k: _jsonable(v) for k, v in options.items()}}
+    return m.design(plant, name=name or m.name, problem=problem, record=record, where=where or f"method {m.name!r}", **checked)
+
+
+# --------------------------------------------------------------------------- options several methods and problems share
+
+P_F = Option(
+    "P_f",
+    1e-3,
+    "false-alarm probability per statistic and sample (sets the thresholds)",
+    "a false-alarm probability per statistic and sample: a number in (0, 1)",
+    lambda v: is_real(v) and 0.0 < v < 1.0,
+)
+PERSISTENCE = Option(
+    "persistence",
+    1,
+    "consecutive exceedances before a statistic alarms",
+    f"a whole number ≥ 1 of consecutive exceedances, at most {LIMITS['persistence']}",
+    lambda v: is_count(v) and v <= LIMITS["persistence"],  # a count in a double; the gain file's limit
+)
+WINDOW = Option("window", 10, "WSSR window N in samples (Zhou, Xi & Zhang c. 1991, eq. (2.4))", "a whole number of samples ≥ 1", is_count)
+
+SHARED_OPTIONS: Mapping[str, Option] = {o.name: o for o in (P_F, PERSISTENCE, WINDOW)}
+"""Options several methods and problems share, with their domains (a problem's own
+default may differ: :func:`check_option` keeps the domain)."""
+
+
+def check_option(key: str, value: Any, default: Any, where: str) -> Any:
+    """Validate a problem's option ``key``: by :data:`SHARED_OPTIONS` when it is one of
+    them, else by the type of its ``default`` (ints accepted for floats).
+
+    Raises :class:`ArgumentError` naming ``where``, the value and what is expected.
+    """
+    if key in SHARED_OPTIONS:
+        return SHARED_OPTIONS[key].validate(value, where)
+    if isinstance(default, bool):
+        kind, ok = "true or false", lambda v: isinstance(v, bool)
+    elif isinstance(default, int):
+        kind, ok = "a whole number", lambda v: isinstance(v, int) and not isinstance(v, bool)
+    elif isinstance(default, float):
+        kind, ok = "a finite number", is_real
+    elif isinstance(default, str):
+        kind, ok = f"a string such as {default!r}", lambda v: isinstance(v, str)
+    else:
+        return value
+    return Option(key, default, "", kind, ok).validate(value, where)
