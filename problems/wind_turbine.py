@@ -38,7 +38,7 @@ from fdisyn.app.report import ReportContext, fmt, plt, shade, table, timeline
 from fdisyn.evaluation.simulate import Signal, simulate_linear
 from fdisyn.models.linear import LinearPlant
 from fdisyn.models.problem import Batch, Problem, Scenario
-from fdisyn.runtime.errors import SpecError
+from fdisyn.runtime.errors import ArgumentError
 from fdisyn.runtime.gainfile import GainFile
 from fdisyn.synthesis.linear_diagnoser import FaultClass, linear_diagnoser
 from fdisyn.synthesis.uio import kalman_uio, pole_placement_uio
@@ -147,7 +147,7 @@ def _parameters(name: str) -> DriveTrain:
     try:
         return PARAMETER_SETS[name]
     except KeyError:
-        raise SpecError(f"wind_turbine has no parameter set {name!r}; sets: {sorted(PARAMETER_SETS)}") from None
+        raise ArgumentError(f"wind_turbine has no parameter set {name!r}; sets: {sorted(PARAMETER_SETS)}") from None
 
 
 def continuous_model(p: DriveTrain) -> LinearPlant:
@@ -260,7 +260,7 @@ def _bank_design(
         elif design == "uio_pole_placement":
             d = pole_placement_uio(sub, poles=list(poles))
         else:
-            raise SpecError(f"wind_turbine has no design {design!r}")
+            raise ArgumentError(f"wind_turbine has no design {design!r}")
         gname = f"uio_{OUTPUTS[i].removeprefix('omega_')}_{OUTPUTS[j].removeprefix('omega_')}"
         gens.append(d.generator(gname, [i, j], len(OUTPUTS)))
         sigmas.append(d.Sigma_r)

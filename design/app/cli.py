@@ -36,7 +36,7 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 import numpy as np
-from fdisyn.runtime.errors import FdisynError, SpecError
+from fdisyn.runtime.errors import ArgumentError, FdisynError, FileError
 
 __all__ = ["main"]
 
@@ -57,9 +57,9 @@ def _options(pairs: Sequence[str] | None) -> dict[str, Any]:
         k, eq, v = pair.partition("=")
         k = k.strip()
         if not eq or not k:
-            raise SpecError(f"--option expects KEY=VALUE, got {pair!r}")
+            raise ArgumentError(f"--option expects KEY=VALUE, got {pair!r}")
         if k in out:
-            raise SpecError(f"--option {k} is given twice; give each option once")
+            raise ArgumentError(f"--option {k} is given twice; give each option once")
         try:
             out[k] = json.loads(v)
         except (json.JSONDecodeError, RecursionError):  # RecursionError: JSON nested too deep to be an option value
@@ -114,7 +114,7 @@ def _user_paths(expected: str, *paths: tuple[str, str | Path]) -> Iterator[None]
             raise
         label = " / ".join(f"{o} {p}" for o, p in (hit or [(o, p) for o, p, _ in roots]))
         detail = f" ({exc.filename})" if exc.filename is not None and str(exc.filename) != hit[0][1] else ""
-        raise SpecError(f"{label}: {exc.strerror or exc}{detail}; expected {expected}") from exc
+        raise FileError(f"{label}: {exc.strerror or exc}{detail}; expected {expected}") from exc
 
 
 def _output_dir(path: str, option: str) -> Path:
@@ -126,15 +126,15 @@ def _output_dir(path: str, option: str) -> Path:
     """
     d = Path(path)
     if d.exists() and not d.is_dir():
-        raise SpecError(f"{option} {path} is a file: expected a directory")
+        raise FileError(f"{option} {path} is a file: expected a directory")
     probe = d.absolute()
     while not probe.exists():
         probe = probe.parent
     if not probe.is_dir():
-        raise SpecError(f"{option} {path}: {probe} is a file, so the directory cannot be created; expected a directory path")
+        raise FileError(f"{option} {path}: {probe} is a file, so the directory cannot be created; expected a directory path")
     if not os.access(probe, os.W_OK | os.X_OK):
         what = "write in it" if probe == d.absolute() else f"create it in {probe}"
-        raise SpecError(f"{option} {path}: no permission to {what}; expected a writable directory")
+        raise FileError(f"{option} {path}: no permission to {what}; expected a writable directory")
     return d
 
 
@@ -142,10 +142,10 @@ def _output_file(path: str, option: str) -> Path:
     """``path`` as a file that can be written: not a directory, in a writable directory."""
     f = Path(path)
     if f.is_dir():
-        raise SpecError(f"{option} {path} is a directory: expected a file name")
+        raise FileError(f"{option} {path} is a directory: expected a file name")
     if f.exists():  # an existing file (or device) only needs to be writable itself
         if not os.access(f, os.W_OK):
-            raise SpecError(f"{option} {path}: no permission to write it; expected a writable file")
+            raise FileError(f"{option} {path}: no permission to write it; expected a writable file")
     else:
         _output_dir(str(f.parent), f"the directory of {option}")
     return f
@@ -174,7 +174,7 @@ def _cmd_codegen(a: argparse.Namespace) -> None:
     from fdisyn.codegen.library import codegen
 
     if Path(a.dir).exists() and not Path(a.dir).is_dir():
-        raise SpecError(f"DIR {a.dir} is a file: expected the directory holding gains.json (fdisyn design --out DIR)")
+        raise FileError(f"DIR {a.dir} is a file: expected the directory holding gains.json (fdisyn design --out DIR)")
     with _user_paths("a writable directory holding gains.json", ("DIR", a.dir)):
         res = codegen(a.dir)
     print(f"wrote {res.c_dir}/, {res.library}, {res.replay}")

@@ -118,7 +118,7 @@ from fdisyn.models.linear import LinearPlant
 from fdisyn.models.problem import Batch, Problem, Scenario, check_option, get_problem, short_repr
 from fdisyn.models.sampled_data import SampledDataPlant
 from fdisyn.models.sampling import van_loan
-from fdisyn.runtime.errors import FdisynError, ShapeError, SpecError
+from fdisyn.runtime.errors import ArgumentError, FdisynError, ShapeError, SpecError
 from fdisyn.runtime.gainfile import LIMITS, GainFile, Generator, read_regular_file
 from fdisyn.runtime.names import (
     DIAGNOSER_NAME_MAX,
@@ -724,7 +724,7 @@ def _nonlinear_problem(path: Path, top: _Section, name: str) -> Problem:
     for key, size, definite in (("Q", len(names["states"]), False), ("R", len(names["outputs"]), True)):
         try:
             noise[key] = covariance_matrix(mod.get(key, required=True), key, size, definite=definite)
-        except ShapeError as exc:
+        except (ShapeError, ArgumentError) as exc:
             raise SpecError(f"{path} [model].{exc}") from None
     for key in ("f", "h", "nominal"):
         if not isinstance(mod.get(key, required=True), Mapping):

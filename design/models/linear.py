@@ -21,7 +21,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from fdisyn.models.sampling import check_sample_time, van_loan, zoh
 from fdisyn.numerics.linalg import as_matrix, as_square, as_symmetric, real_array
-from fdisyn.runtime.errors import ShapeError
+from fdisyn.runtime.errors import ArgumentError, ShapeError
 from fdisyn.runtime.names import check_distinct, check_signal_names
 
 __all__ = ["LinearPlant", "identifier_names", "frozen_array"]
@@ -162,7 +162,7 @@ class LinearPlant:
         read it from) and the bound.
         """
         if self.is_discrete:
-            raise ShapeError(f"the plant is already discrete (Ts = {self.Ts}); discretise a continuous plant")
+            raise ArgumentError(f"the plant is already discrete (Ts = {self.Ts}); discretise a continuous plant")
         ts = check_sample_time(Ts, name)
         held = np.hstack([self.B, self.E, self.Fx])
         ad, bd_all = zoh(self.A, held, ts, name=name)
@@ -186,10 +186,10 @@ class LinearPlant:
         """
         try:
             s = real_array(scale, "state scaling").reshape(-1)  # numbers only: "10" or true are refused
-        except ShapeError:
-            raise ShapeError(f"state scaling must be {self.n} positive finite numbers; got {scale!r}") from None
+        except (ShapeError, ArgumentError):
+            raise ArgumentError(f"state scaling must be {self.n} positive finite numbers; got {scale!r}") from None
         if s.shape != (self.n,) or not np.all(np.isfinite(s)) or np.any(s <= 0):
-            raise ShapeError(f"state scaling must be {self.n} positive finite numbers; got {scale!r}")
+            raise ArgumentError(f"state scaling must be {self.n} positive finite numbers; got {scale!r}")
         si = 1.0 / s
         return replace(
             self,
@@ -226,7 +226,7 @@ class LinearPlant:
         ii = [int(i) for i in idx]
         for i in ii:
             if not 0 <= i < self.p:
-                raise ShapeError(f"output index {i} out of range 0..{self.p - 1}")
+                raise ArgumentError(f"output index {i} out of range 0..{self.p - 1}")
         return replace(
             self,
             C=frozen_array(self.C[ii, :]),
@@ -240,7 +240,7 @@ class LinearPlant:
         try:
             return self.outputs.index(name)
         except ValueError:
-            raise ShapeError(f"no output called {name!r}; outputs are {list(self.outputs)}") from None
+            raise ArgumentError(f"no output called {name!r}; outputs are {list(self.outputs)}") from None
 
     def matrices(self) -> dict[str, np.ndarray]:
         """The model matrices as a plain dict (for the gain file)."""
@@ -262,5 +262,5 @@ class LinearPlant:
         dt = getattr(sys, "dt", 0)
         ts = None if not dt or dt is True else float(dt)
         if np.any(d[:, m:] != 0):
-            raise ShapeError("unknown inputs with direct feedthrough to the outputs are not supported")
+            raise ArgumentError("unknown inputs with direct feedthrough to the outputs are not supported")
         return cls.create(A=a, B=b[:, :m], C=c, D=d[:, :m], E=b[:, m:], Ts=ts, **kwargs)  # type: ignore[arg-type]

@@ -337,16 +337,16 @@ def test_runs_and_seeds_are_checked_by_the_api_too(tmp_path) -> None:
     from fdisyn.app.pipeline import reproduce_problem
     from fdisyn.app.plant_file import load_spec
     from fdisyn.evaluation.evaluate import evaluate
-    from fdisyn.runtime.errors import SpecError
+    from fdisyn.runtime.errors import ArgumentError
 
     prob = load_spec(DATA / "dc_motor.toml")
-    with pytest.raises(SpecError, match=r"seeds must be whole numbers ≥ 0; got \[-1\]"):
+    with pytest.raises(ArgumentError, match=r"seeds must be whole numbers ≥ 0; got \[-1\]"):
         prob.run("fault_free", [-1])
-    with pytest.raises(SpecError, match="runs must be a whole number ≥ 1; got 0"):
+    with pytest.raises(ArgumentError, match="runs must be a whole number ≥ 1; got 0"):
         evaluate(prob, {}, runs=0)
-    with pytest.raises(SpecError, match="seed0 must be a whole number ≥ 0"):
+    with pytest.raises(ArgumentError, match="seed0 must be a whole number ≥ 0"):
         evaluate(prob, {}, runs=1, seed0=-3)
-    with pytest.raises(SpecError, match=r"runs must be a whole number ≥ 1 \(or None for the problem's 50\); got 0"):
+    with pytest.raises(ArgumentError, match=r"runs must be a whole number ≥ 1 \(or None for the problem's 50\); got 0"):
         reproduce_problem(prob, runs=0, reports=tmp_path / "r", workdir=tmp_path / "b")
 
 
