@@ -40,7 +40,7 @@ from fdisyn.app.report import ReportContext, plt, shade, table, timeline
 from fdisyn.models.nonlinear import NonlinearPlant
 from fdisyn.models.problem import Batch, Problem
 from fdisyn.models.problem import Scenario as PipelineScenario
-from fdisyn.runtime.errors import SpecError
+from fdisyn.runtime.errors import ArgumentError
 from fdisyn.runtime.gainfile import GainFile
 from fdisyn.synthesis.nafdf.design import NafdfDesign, nafdf
 from fdisyn.synthesis.nafdf.payload import nafdf_gain_file
@@ -143,7 +143,7 @@ def scenario(
     sc = dict(scale or {})
     unknown = sorted(set(sc) - set(pl.parameters))
     if unknown:
-        raise SpecError(f"scale names unknown parameters {unknown}; parameters are {list(pl.parameters)}")
+        raise ArgumentError(f"scale names unknown parameters {unknown}; parameters are {list(pl.parameters)}")
     T = int(length)
     theta = np.tile(pl.theta_nominal, (T, 1))
     tf = None if fault_time is None else int(fault_time)
@@ -151,7 +151,7 @@ def scenario(
     sizes: dict[str, float] = {}
     if faulty and tf is not None:
         if not 0 < tf < T:
-            raise SpecError(f"fault_time must lie inside the record (0, {T}); got {fault_time}")
+            raise ArgumentError(f"fault_time must lie inside the record (0, {T}); got {fault_time}")
         for k in faulty:
             i = pl.parameters.index(k)
             theta[tf:, i] = sc[k] * pl.theta_nominal[i]

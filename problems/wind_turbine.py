@@ -38,7 +38,7 @@ from fdisyn.app.report import ReportContext, fmt, plt, shade, table, timeline
 from fdisyn.evaluation.simulate import Signal, simulate_linear
 from fdisyn.models.linear import LinearPlant
 from fdisyn.models.problem import Batch, Problem, Scenario
-from fdisyn.runtime.errors import SpecError
+from fdisyn.runtime.errors import ArgumentError
 from fdisyn.runtime.gainfile import GainFile
 from fdisyn.synthesis.linear_diagnoser import FaultClass
 from fdisyn.synthesis.registry import all_methods, get_method
@@ -148,7 +148,7 @@ def _parameters(name: str) -> DriveTrain:
     try:
         return PARAMETER_SETS[name]
     except KeyError:
-        raise SpecError(f"wind_turbine has no parameter set {name!r}; sets: {sorted(PARAMETER_SETS)}") from None
+        raise ArgumentError(f"wind_turbine has no parameter set {name!r}; sets: {sorted(PARAMETER_SETS)}") from None
 
 
 def continuous_model(p: DriveTrain) -> LinearPlant:

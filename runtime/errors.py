@@ -2,11 +2,13 @@
 
 =====================  ==============================================================
 ``ArgumentError``      a keyword's value or type (an option out of its domain, an
-                       unknown method or option name)
+                       unknown method or option name, a model that is not one:
+                       ``NominalValueError``, ``NonDifferentiableError``)
 ``ShapeError``         a matrix or signal of the wrong shape
-``FileError``          a file that is corrupt, foreign or invalid: ``SpecError``
-                       (plant files), ``GainFileError``, ``TraceError`` (CSV),
-                       ``BuildError`` (compiling or loading generated C)
+``FileError``          a file that is missing, corrupt, foreign or invalid, or a
+                       path that cannot be written: ``SpecError`` (plant files
+                       and problem names), ``GainFileError``, ``TraceError``
+                       (CSV), ``BuildError`` (compiling or loading generated C)
 ``ExistenceError``     a condition the method needs does not hold for this plant
 ``SolverError``        a numerical solver failed; ``CertificateError``: a design
                        failed its verification against an independent truth
@@ -65,7 +67,8 @@ class CertificateError(SolverError):
 
 
 class FileError(FdisynError, ValueError):
-    """A file fdisyn reads is corrupt, foreign or invalid; the message names the file and the place."""
+    """A file fdisyn reads is missing, corrupt, foreign or invalid, or a path it writes cannot be
+    written; the message names the file and the place."""
 
 
 class GainFileError(FileError):
@@ -77,14 +80,19 @@ class TraceError(FileError):
 
 
 class SpecError(FileError):
-    """A plant specification (TOML file or problem name) is invalid."""
+    """A plant specification (TOML file or problem name) is invalid.
+
+    Only the plant-file reader and the problem lookup raise it; a bad value
+    given in Python is an :class:`ArgumentError`, which the reader re-raises
+    as a ``SpecError`` naming the file and the key.
+    """
 
 
 class BuildError(FileError, OSError):
     """Compiling or loading generated C failed."""
 
 
-class NominalValueError(SpecError):
+class NominalValueError(ArgumentError):
     """A model parameter has no (finite) nominal value.
 
     The nonlinear adaptive fault-detection filter (Zhou, Xi & Zhang, Shanghai
@@ -94,7 +102,7 @@ class NominalValueError(SpecError):
     """
 
 
-class NonDifferentiableError(SpecError):
+class NonDifferentiableError(ArgumentError):
     """A model expression uses an operation without a derivative everywhere.
 
     Every Jacobian and parameter sensitivity of a nonlinear plant comes from

@@ -46,7 +46,7 @@ import math
 import os
 import stat
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, NoReturn
 
@@ -135,6 +135,9 @@ class Generator:
     Xu: np.ndarray
     Xy: np.ndarray
     method: Mapping[str, Any] = field(default_factory=dict)
+    Ts: float | None = None
+    """Sample time of the gain file that holds the generator (set by :class:`GainFile`; not written:
+    the file's ``Ts`` is)."""
 
     def __post_init__(self) -> None:
         w = f"generator {self.name!r}"
@@ -196,6 +199,26 @@ class Generator:
     @property
     def n_state(self) -> int:
         return int(self.Ar.shape[0])
+
+    def to_control(self) -> Any:
+        """The generator as a discrete python-control ``StateSpace``.
+
+        ``ξ⁺ = Ar ξ + [Bu By] [u; y]``, ``r = Cr ξ + [Du Dy] [u; y]``: inputs
+        ``[u; y]`` (every input, then every output of the gain file), output
+        ``r``, ``dt`` the gain file's ``Ts`` (``True``, discrete with an
+        unspecified sample time, for a generator outside a gain file).
+        python-control is imported here, not with the runtime.
+        """
+        import control
+
+        return control.ss(
+            self.Ar,
+            np.hstack([self.Bu, self.By]),
+            self.Cr,
+            np.hstack([self.Du, self.Dy]),
+            dt=True if self.Ts is None else self.Ts,
+            name=self.name,
+        )
 
     @property
     def n_residual(self) -> int:
@@ -269,6 +292,8 @@ class GainFile:
 
     def __post_init__(self) -> None:
         _validate(self)
+        ts = float(self.Ts)
+        object.__setattr__(self, "generators", tuple(g if g.Ts == ts else replace(g, Ts=ts) for g in self.generators))
 
     @property
     def thresholds(self) -> np.ndarray:
@@ -498,11 +523,12 @@ def gain_file_from_dict(doc: object, *, source: str = "gain file") -> GainFile:
         for i, gd in enumerate(r.array("generators")):
             gr = _Reader(gd, f"{source}: generators[{i}]")
             try:
+                matrices: dict[str, Any] = {k: gr.matrix(k) for k in _MATRIX_KEYS}
                 gens.append(
                     Generator(
                         name=gr.string("name"),
                         outputs_used=tuple(gr.integers("outputs_used")),
-                        **{k: gr.matrix(k) for k in _MATRIX_KEYS},
+                        **matrices,
                         method=gr.obj("method"),
                     )
                 )

@@ -58,7 +58,7 @@ from __future__ import annotations
 import re
 from collections.abc import Mapping, Sequence
 
-from fdisyn.runtime.errors import FdisynError, ShapeError
+from fdisyn.runtime.errors import ArgumentError, FdisynError
 
 __all__ = [
     "SIGNAL_NAME_MAX",
@@ -114,7 +114,7 @@ def _string(name: object, what: str, error: Error) -> str:
     return name
 
 
-def check_signal_name(name: object, what: str, *, error: Error = ShapeError) -> str:
+def check_signal_name(name: object, what: str, *, error: Error = ArgumentError) -> str:
     """``name`` if it is a signal name (see the module docstring), else ``error`` naming ``what``."""
     s = _string(name, what, error)
     if not _SIGNAL.match(s) or len(s) > SIGNAL_NAME_MAX:
@@ -127,7 +127,7 @@ def check_signal_name(name: object, what: str, *, error: Error = ShapeError) -> 
     return s
 
 
-def check_signal_names(names: object, what: str, *, error: Error = ShapeError, count: int | None = None) -> tuple[str, ...]:
+def check_signal_names(names: object, what: str, *, error: Error = ArgumentError, count: int | None = None) -> tuple[str, ...]:
     """A list of distinct signal names (``count`` of them when given); ``what`` names the list."""
     if isinstance(names, (str, bytes)) or not isinstance(names, Sequence):
         raise error(f"{what} must be a list of names, found {type(names).__name__} {shown(names)}")
@@ -140,7 +140,7 @@ def check_signal_names(names: object, what: str, *, error: Error = ShapeError, c
     return out
 
 
-def check_fault_name(name: object, what: str, *, error: Error = ShapeError) -> str:
+def check_fault_name(name: object, what: str, *, error: Error = ArgumentError) -> str:
     """``name`` if it is a fault name: signal names joined by ``+`` or ``|``."""
     s = _string(name, what, error)
     if not _FAULT.match(s) or len(s) > FAULT_NAME_MAX:
@@ -151,7 +151,7 @@ def check_fault_name(name: object, what: str, *, error: Error = ShapeError) -> s
     return s
 
 
-def check_diagnoser_name(name: object, what: str, *, error: Error = ShapeError) -> str:
+def check_diagnoser_name(name: object, what: str, *, error: Error = ArgumentError) -> str:
     """``name`` if it may prefix the generated C API (see the module docstring), else ``error``."""
     s = _string(name, what, error)
     if not _SIGNAL.match(s) or "__" in s or s.endswith("_") or len(s) > DIAGNOSER_NAME_MAX:
@@ -166,7 +166,7 @@ def check_diagnoser_name(name: object, what: str, *, error: Error = ShapeError) 
     return s
 
 
-def check_label(name: object, what: str, *, max_length: int = LABEL_MAX, error: Error = ShapeError) -> str:
+def check_label(name: object, what: str, *, max_length: int = LABEL_MAX, error: Error = ArgumentError) -> str:
     """``name`` if it is a label: a letter or digit, then letters, digits or ``_ . + | -``."""
     s = _string(name, what, error)
     if not _LABEL.match(s) or len(s) > max_length:
@@ -177,7 +177,7 @@ def check_label(name: object, what: str, *, max_length: int = LABEL_MAX, error: 
     return s
 
 
-def check_distinct(groups: Mapping[str, Sequence[str]], *, why: str, error: Error = ShapeError) -> None:
+def check_distinct(groups: Mapping[str, Sequence[str]], *, why: str, error: Error = ArgumentError) -> None:
     """Refuse a name used by two of ``groups`` (plural label → names), naming both and ``why`` they must differ.
 
     Uniqueness within a group is :func:`check_signal_names`' job.

@@ -37,23 +37,23 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from fdisyn.runtime.errors import ShapeError
+from fdisyn.runtime.errors import ArgumentError, ShapeError
 from fdisyn.runtime.gainfile import GainFile, linear_state_layout
 
 __all__ = ["StepOutput", "RunResult", "LinearReference", "sample_vector", "sample_block", "step_state"]
 
 
 def _real_array(a: object, name: str, expected: str) -> np.ndarray:
-    """``a`` as an array of real numbers (no copy yet), or :class:`ShapeError` naming ``name``."""
+    """``a`` as an array of real numbers (no copy yet), or :class:`ArgumentError` naming ``name``."""
     if a is None:
-        raise ShapeError(f"{name} is None; expected real numbers of shape {expected}")
+        raise ArgumentError(f"{name} is None; expected real numbers of shape {expected}")
     try:
         arr = np.asarray(a)
     except (TypeError, ValueError) as exc:  # ragged nesting, unconvertible objects
-        raise ShapeError(f"{name} is not an array of numbers ({exc}); expected shape {expected}") from None
+        raise ArgumentError(f"{name} is not an array of numbers ({exc}); expected shape {expected}") from None
     if arr.dtype.kind not in "fiu":
         what = {"b": "booleans", "c": "complex numbers", "O": "Python objects", "U": "strings", "S": "bytes"}.get(arr.dtype.kind, str(arr.dtype))
-        raise ShapeError(f"{name} holds {what} (dtype {arr.dtype}); expected real numbers of shape {expected}")
+        raise ArgumentError(f"{name} holds {what} (dtype {arr.dtype}); expected real numbers of shape {expected}")
     return arr
 
 
@@ -141,7 +141,7 @@ class LinearReference:
 
     def __init__(self, gf: GainFile) -> None:
         if gf.kind != "linear":
-            raise ShapeError(f"the NumPy reference implements linear diagnosers; this gain file is of kind {gf.kind!r}")
+            raise ArgumentError(f"the NumPy reference implements linear diagnosers; this gain file is of kind {gf.kind!r}")
         self.gf = gf
         self.layout = linear_state_layout(gf.generators, len(gf.evaluators))
         self.thresholds = gf.thresholds

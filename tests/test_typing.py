@@ -10,10 +10,14 @@ ROOT = Path(__file__).parents[1]
 
 
 def test_mypy_passes(tmp_path):
-    # mypy needs the packages laid out as fdisyn/<part>: link the three folders into a scratch tree
+    # mypy needs the package laid out as installed: design/ is fdisyn/ (its files and subpackages),
+    # runtime/ and problems/ are fdisyn/runtime and fdisyn/problems; link them into a scratch tree
     pkg = tmp_path / "fdisyn"
     pkg.mkdir()
-    for part in ("design", "runtime", "problems"):
+    for entry in (ROOT / "design").iterdir():
+        if entry.name != "__pycache__":
+            (pkg / entry.name).symlink_to(entry, target_is_directory=entry.is_dir())
+    for part in ("runtime", "problems"):
         (pkg / part).symlink_to(ROOT / part, target_is_directory=True)
     proc = subprocess.run(
         [sys.executable, "-m", "mypy", "--namespace-packages", "--explicit-package-bases", "--ignore-missing-imports",

@@ -12,15 +12,20 @@
     fdisyn bench [SPEC ...] [--out reports/bench.md]
     fdisyn list
     fdisyn methods
+    fdisyn --version
 
 ``SPEC`` is a built-in problem name (``fdisyn list``) or the path of a TOML
-plant file (see the README). Errors a user can act on end the command with
+plant file (see the README); ``fdisyn <command> --help`` describes every
+argument and shows examples. Errors a user can act on end the command with
 status 2 and one line on stderr, ``fdisyn <command>: error: …``, naming what
-is wrong and what was expected: every :class:`FdisynError`, every usage error
-(argparse's own messages included, without the usage block), and an
-``OSError`` met while reading or writing a path the user named (a file given
-as a directory, no permission, a full disk). Other exceptions are bugs and
-keep their traceback.
+is wrong and what was expected: every :class:`FdisynError` (see
+:mod:`fdisyn.runtime.errors`), every usage error (argparse's own messages
+included, without the usage block), and an ``OSError`` met while reading or
+writing a path the user named (a file given as a directory, no permission, a
+full disk). Anything else is a bug: an :class:`InternalError` or any other
+exception ends with status 3 and one line, ``fdisyn <command>: internal
+error: … — please report; FDISYN_DEBUG=1 shows the traceback`` (with
+``FDISYN_DEBUG=1`` in the environment the traceback is printed before it).
 """
 
 from __future__ import annotations
@@ -30,6 +35,8 @@ import errno
 import json
 import os
 import sys
+import textwrap
+import traceback
 import warnings
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
@@ -37,7 +44,8 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 import numpy as np
-from fdisyn.runtime.errors import FdisynError, SpecError
+from fdisyn import __version__
+from fdisyn.runtime.errors import ArgumentError, FdisynError, FileError, InternalError
 
 __all__ = ["main"]
 
@@ -58,9 +66,9 @@ def _options(pairs: Sequence[str] | None) -> dict[str, Any]:
         k, eq, v = pair.partition("=")
         k = k.strip()
         if not eq or not k:
-            raise SpecError(f"--option expects KEY=VALUE, got {pair!r}")
+            raise ArgumentError(f"--option expects KEY=VALUE, got {pair!r}")
         if k in out:
-            raise SpecError(f"--option {k} is given twice; give each option once")
+            raise ArgumentError(f"--option {k} is given twice; give each option once")
         try:
             out[k] = json.loads(v)
         except (json.JSONDecodeError, RecursionError):  # RecursionError: JSON nested too deep to be an option value
@@ -102,7 +110,7 @@ def _user_paths(expected: str, *paths: tuple[str, str | Path]) -> Iterator[None]
     ``paths`` are ``(option, path)`` pairs, e.g. ``("--out", "build/motor")``;
     the line names the option and path concerned and what was ``expected``.
     An ``OSError`` about any other file is not the user's input and propagates
-    unchanged (a bug keeps its traceback).
+    unchanged: :func:`main` reports it as a bug (status 3).
     """
     roots = [(opt, str(path), Path(path).absolute()) for opt, path in paths]
     try:
@@ -115,7 +123,7 @@ def _user_paths(expected: str, *paths: tuple[str, str | Path]) -> Iterator[None]
             raise
         label = " / ".join(f"{o} {p}" for o, p in (hit or [(o, p) for o, p, _ in roots]))
         detail = f" ({exc.filename})" if exc.filename is not None and str(exc.filename) != hit[0][1] else ""
-        raise SpecError(f"{label}: {exc.strerror or exc}{detail}; expected {expected}") from exc
+        raise FileError(f"{label}: {exc.strerror or exc}{detail}; expected {expected}") from exc
 
 
 def _output_dir(path: str, option: str) -> Path:
@@ -127,15 +135,15 @@ def _output_dir(path: str, option: str) -> Path:
     """
     d = Path(path)
     if d.exists() and not d.is_dir():
-        raise SpecError(f"{option} {path} is a file: expected a directory")
+        raise FileError(f"{option} {path} is a file: expected a directory")
     probe = d.absolute()
     while not probe.exists():
         probe = probe.parent
     if not probe.is_dir():
-        raise SpecError(f"{option} {path}: {probe} is a file, so the directory cannot be created; expected a directory path")
+        raise FileError(f"{option} {path}: {probe} is a file, so the directory cannot be created; expected a directory path")
     if not os.access(probe, os.W_OK | os.X_OK):
         what = "write in it" if probe == d.absolute() else f"create it in {probe}"
-        raise SpecError(f"{option} {path}: no permission to {what}; expected a writable directory")
+        raise FileError(f"{option} {path}: no permission to {what}; expected a writable directory")
     return d
 
 
@@ -143,10 +151,10 @@ def _output_file(path: str, option: str) -> Path:
     """``path`` as a file that can be written: not a directory, in a writable directory."""
     f = Path(path)
     if f.is_dir():
-        raise SpecError(f"{option} {path} is a directory: expected a file name")
+        raise FileError(f"{option} {path} is a directory: expected a file name")
     if f.exists():  # an existing file (or device) only needs to be writable itself
         if not os.access(f, os.W_OK):
-            raise SpecError(f"{option} {path}: no permission to write it; expected a writable file")
+            raise FileError(f"{option} {path}: no permission to write it; expected a writable file")
     else:
         _output_dir(str(f.parent), f"the directory of {option}")
     return f
@@ -175,7 +183,7 @@ def _cmd_codegen(a: argparse.Namespace) -> None:
     from fdisyn.codegen.library import codegen
 
     if Path(a.dir).exists() and not Path(a.dir).is_dir():
-        raise SpecError(f"DIR {a.dir} is a file: expected the directory holding gains.json (fdisyn design --out DIR)")
+        raise FileError(f"DIR {a.dir} is a file: expected the directory holding gains.json (fdisyn design --out DIR)")
     with _user_paths("a writable directory holding gains.json", ("DIR", a.dir)):
         res = codegen(a.dir)
     print(f"wrote {res.c_dir}/, {res.library}, {res.replay}")
@@ -317,72 +325,160 @@ class _Parser(argparse.ArgumentParser):
         raise SystemExit(2)
 
 
+_SPEC = "a built-in problem (fdisyn list shows them) or the path of a TOML plant file"
+
+
+def _examples(*lines: str) -> str:
+    return "Examples:\n" + "\n".join(f"  {ln}" for ln in lines)
+
+
 def _parser() -> argparse.ArgumentParser:
-    ap = _Parser(prog="fdisyn", description="Design FDI diagnosers as optimisation problems, export them as C, judge them.")
-    sub = ap.add_subparsers(dest="command", required=True)
+    ap = _Parser(
+        prog="fdisyn",
+        description="Design FDI diagnosers as optimisation problems, export them as C, judge them.",
+        epilog=_examples(
+            "fdisyn list",
+            "fdisyn design tests/data/dc_motor.toml --out build/motor",
+            "fdisyn codegen build/motor",
+            "fdisyn design wind_turbine --help",
+        ),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    ap.add_argument("--version", action="version", version=f"fdisyn {__version__}", help="print the version of fdisyn and exit")
+    sub = ap.add_subparsers(dest="command", required=True, metavar="command", help="the command to run; fdisyn <command> --help describes it")
+
+    def command(name: str, summary: str, description: str, *examples: str) -> argparse.ArgumentParser:
+        return sub.add_parser(
+            name,
+            help=summary,
+            description=textwrap.fill(description, 79),  # the formatter keeps the epilog's lines, so wrap here
+            epilog=_examples(*examples),
+            formatter_class=argparse.RawDescriptionHelpFormatter,
+        )
 
     def opt(p: argparse.ArgumentParser) -> None:
-        p.add_argument("--option", action="append", metavar="KEY=VALUE", help="problem option (JSON value), repeatable")
+        p.add_argument(
+            "--option",
+            action="append",
+            metavar="KEY=VALUE",
+            help="a problem option, its value as JSON (P_f=1e-4, persistence=3) or a plain word (parameters=paper); "
+            "repeatable; fdisyn list shows each problem's options",
+        )
 
     def work(p: argparse.ArgumentParser) -> None:
         p.add_argument("--workdir", default="build", help="where designs are built and compiled (default: build)")
 
-    p = sub.add_parser("design", help="design a diagnoser and write DIR/gains.json")
-    p.add_argument("spec")
-    p.add_argument("--out", required=True)
-    p.add_argument("--design", default=None)
+    p = command(
+        "design",
+        "design a diagnoser and write DIR/gains.json",
+        "Design a diagnoser of SPEC, verify it against its certificate and write the gain file DIR/gains.json.",
+        "fdisyn design wind_turbine --out build/wt",
+        "fdisyn design wind_turbine --design uio_pole_placement --out build/wt_poles",
+        "fdisyn design tests/data/dc_motor.toml --out build/motor --option P_f=1e-4",
+    )
+    p.add_argument("spec", metavar="SPEC", help=_SPEC)
+    p.add_argument("--out", required=True, metavar="DIR", help="the directory to write gains.json in (created if missing)")
+    p.add_argument("--design", default=None, metavar="NAME", help="which of the problem's designs (default: the problem's default)")
     opt(p)
     p.set_defaults(fn=_cmd_design)
 
-    p = sub.add_parser("codegen", help="generate and compile the C step of DIR/gains.json")
-    p.add_argument("dir")
+    p = command(
+        "codegen",
+        "generate and compile the C step of DIR/gains.json",
+        "Generate the C step of DIR/gains.json (DIR/c/), compile the shared library DIR/lib<name>.so with its build "
+        "manifest and the replay program DIR/replay; the C compiler is $CC (default gcc).",
+        "fdisyn codegen build/motor",
+        "CC='gcc -m32' fdisyn codegen build/motor",
+    )
+    p.add_argument("dir", metavar="DIR", help="the directory holding gains.json (fdisyn design --out DIR)")
     p.set_defaults(fn=_cmd_codegen)
 
-    p = sub.add_parser("replay", help="run DIR's compiled diagnoser over a trace CSV")
-    p.add_argument("dir")
-    p.add_argument("input")
-    p.add_argument("output")
+    p = command(
+        "replay",
+        "run DIR's compiled diagnoser over a trace CSV",
+        "Stream IN.csv through the compiled diagnoser of DIR into OUT.csv (t, alarm, isolated, J0…, r0…), "
+        "byte for byte what DIR/replay writes; the README's \"Replay CSV grammar\" is the input format.",
+        "fdisyn replay build/motor trace.csv alarms.csv",
+    )
+    p.add_argument("dir", metavar="DIR", help="the directory fdisyn codegen built (gains.json and lib<name>.so)")
+    p.add_argument("input", metavar="IN.csv", help="the trace: a header row with t and every input and output of the diagnoser")
+    p.add_argument("output", metavar="OUT.csv", help="where to write the decisions, statistics and residuals (replaced when complete)")
     p.set_defaults(fn=_cmd_replay)
 
-    p = sub.add_parser("simulate", help="simulate one run of a scenario to a trace CSV")
-    p.add_argument("spec")
-    p.add_argument("--scenario", required=True)
+    p = command(
+        "simulate",
+        "simulate one run of a scenario to a trace CSV",
+        "Simulate one run of a scenario of SPEC and write its trace (t, inputs, outputs, the truth, fault_active) as CSV.",
+        "fdisyn simulate tests/data/dc_motor.toml --scenario speed_sensor_offset --seed 1 --out trace.csv",
+        "fdisyn simulate wind_turbine --scenario fault_free --out trace.csv --option parameters=paper",
+    )
+    p.add_argument("spec", metavar="SPEC", help=_SPEC)
+    p.add_argument("--scenario", required=True, metavar="NAME", help="the scenario to run (fault_free, or one fdisyn list shows)")
     p.add_argument("--seed", type=_seed, default=0, help="seed of the run, a whole number ≥ 0 (default 0)")
-    p.add_argument("--out", required=True)
+    p.add_argument("--out", required=True, metavar="TRACE.csv", help="the CSV file to write")
     opt(p)
     p.set_defaults(fn=_cmd_simulate)
 
-    p = sub.add_parser("evaluate", help="Monte Carlo metrics of one design over every scenario")
-    p.add_argument("spec")
-    p.add_argument("--design", default=None)
+    p = command(
+        "evaluate",
+        "Monte Carlo metrics of one design over every scenario",
+        "Design, export and compile one design of SPEC, run it over --runs simulated runs of every scenario and write "
+        "the metrics (false-alarm rate, missed detections, detection delay, isolation accuracy) as JSON.",
+        "fdisyn evaluate wind_turbine --design kalman_uio --runs 20 --out metrics.json",
+        "fdisyn evaluate tests/data/dc_motor.toml --runs 5 --seed 100 --out motor.json --workdir /tmp/build",
+    )
+    p.add_argument("spec", metavar="SPEC", help=_SPEC)
+    p.add_argument("--design", default=None, metavar="NAME", help="which of the problem's designs (default: the problem's default)")
     p.add_argument("--runs", type=_runs, default=100, help="Monte Carlo runs per scenario, ≥ 1 (default 100)")
     p.add_argument("--seed", type=_seed, default=0, help="seed of the first run, ≥ 0 (default 0)")
-    p.add_argument("--out", required=True)
+    p.add_argument("--out", required=True, metavar="METRICS.json", help="the JSON file to write")
     opt(p)
     work(p)
     p.set_defaults(fn=_cmd_evaluate)
 
     for name, fn, many in (("report", _cmd_report, False), ("reproduce", _cmd_reproduce, True)):
-        p = sub.add_parser(name, help="design, verify, export, compile, simulate, evaluate and report" + (" every problem" if many else ""))
+        p = command(
+            name,
+            "design, verify, export, compile, simulate, evaluate and report" + (" every problem" if many else ""),
+            ("Run the whole pipeline for each SPEC (default: every built-in problem) and write " if many else "Run the whole pipeline for SPEC and write ")
+            + "REPORTS/<problem>/index.html: the designs and their certificates, the agreement of the generated C with "
+            "the Python references, Monte Carlo metrics and figures.",
+            *(("fdisyn reproduce", "fdisyn reproduce wind_turbine tests/data/dc_motor.toml --runs 5 --reports /tmp/reports")
+              if many else ("fdisyn report sampled_data_example --runs 10", "fdisyn report tests/data/ship.toml --reports /tmp/reports"))
+        )
         if many:
-            p.add_argument("specs", nargs="*")
+            p.add_argument("specs", nargs="*", metavar="SPEC", help=_SPEC + "; none: every built-in problem")
         else:
-            p.add_argument("spec")
+            p.add_argument("spec", metavar="SPEC", help=_SPEC)
         p.add_argument("--runs", type=_runs, default=None, help="Monte Carlo runs per scenario, ≥ 1 (default: the problem's)")
         p.add_argument("--reports", default="reports", help="report folder (default: reports)")
         work(p)
         p.set_defaults(fn=fn)
 
-    p = sub.add_parser("bench", help="time the compiled step against the NumPy reference")
-    p.add_argument("specs", nargs="*")
-    p.add_argument("--out", default="reports/bench.md")
+    p = command(
+        "bench",
+        "time the compiled step against the NumPy reference",
+        "Time the compiled step of each SPEC's designs (per sample, per block) against the NumPy reference and write "
+        "the table as Markdown.",
+        "fdisyn bench",
+        "fdisyn bench ship_propulsion --out /tmp/bench.md",
+    )
+    p.add_argument("specs", nargs="*", metavar="SPEC", help=_SPEC + "; none: every built-in problem")
+    p.add_argument("--out", default="reports/bench.md", help="the Markdown file to write (default: reports/bench.md)")
     work(p)
     p.set_defaults(fn=_cmd_bench)
 
-    p = sub.add_parser("list", help="list the built-in problems")
+    p = command("list", "list the built-in problems", "List the built-in problems with their designs, scenarios and options.", "fdisyn list")
     p.set_defaults(fn=_cmd_list)
 
-    p = sub.add_parser("methods", help="list the design methods with their plant kind, reference and options")
+    p = command(
+        "methods",
+        "list the design methods with their plant kind, reference and options",
+        "List every registered design method: the plant it designs for, its summary, the paper it implements and each "
+        "option with its default and meaning. A plant file names one in [design].method; Python passes it to "
+        "fdisyn.design(plant, method=...).",
+        "fdisyn methods",
+    )
     p.set_defaults(fn=_cmd_methods)
     return ap
 
@@ -392,9 +488,17 @@ def _one_line(text: object) -> str:
     return " ".join(str(text).split())
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Run one command; return its exit status (0, or 2 after a one-line error on stderr).
+def _debug() -> bool:
+    """``FDISYN_DEBUG`` is set (and not ``0``): an internal error shows its traceback."""
+    return os.environ.get("FDISYN_DEBUG", "") not in ("", "0")
 
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run one command; return its exit status: 0, 2 after a one-line error on stderr, 3 after a bug.
+
+    An :class:`FdisynError` is the user's to act on (status 2); an
+    :class:`InternalError` or any other exception is a bug (status 3, one
+    line asking for a report; the traceback too when ``FDISYN_DEBUG=1``).
     Warnings raised while the command runs (NumPy, SciPy, CasADi) are held
     back: after an error the error line says what went wrong and they are
     dropped; after success each distinct one is printed as one line
@@ -409,11 +513,22 @@ def main(argv: Sequence[str] | None = None) -> int:
         try:
             args.fn(args)
         except FdisynError as exc:
-            print(f"fdisyn {args.command}: error: {_one_line(exc)}", file=sys.stderr)
-            return 2
+            if not isinstance(exc, InternalError):
+                print(f"fdisyn {args.command}: error: {_one_line(exc)}", file=sys.stderr)
+                return 2
+            return _internal_error(args.command, exc, str(exc))
+        except Exception as exc:  # a bug: one line, never a bare traceback
+            return _internal_error(args.command, exc, f"{type(exc).__name__}: {exc}")
     for text in dict.fromkeys(f"{w.category.__name__}: {_one_line(w.message)}" for w in caught):
         print(f"fdisyn {args.command}: warning: {text}", file=sys.stderr)
     return 0
+
+
+def _internal_error(command: str, exc: BaseException, what: str) -> int:
+    if _debug():
+        traceback.print_exception(exc, file=sys.stderr)
+    print(f"fdisyn {command}: internal error: {_one_line(what)} — please report; FDISYN_DEBUG=1 shows the traceback", file=sys.stderr)
+    return 3
 
 
 if __name__ == "__main__":

@@ -22,7 +22,7 @@ import numpy as np
 from fdisyn.codegen.step import step_function
 from fdisyn.evaluation.evaluate import Built, Evaluation, build, evaluate, progress_printer
 from fdisyn.models.problem import Problem
-from fdisyn.runtime.errors import CertificateError, SpecError
+from fdisyn.runtime.errors import ArgumentError, CertificateError
 from fdisyn.runtime.gainfile import GainFile, linear_state_layout
 from fdisyn.runtime.reference import LinearReference, RunResult
 
@@ -177,7 +177,7 @@ def reproduce_problem(problem: Problem, *, runs: int | None = None, reports: Pat
     say = progress_printer(problem.name)
     runs = problem.monte_carlo_runs if runs is None else runs  # 0 is refused by evaluate, not replaced
     if isinstance(runs, bool) or not isinstance(runs, int) or runs < 1:
-        raise SpecError(f"runs must be a whole number ≥ 1 (or None for the problem's {problem.monte_carlo_runs}); got {runs!r}")
+        raise ArgumentError(f"runs must be a whole number ≥ 1 (or None for the problem's {problem.monte_carlo_runs}); got {runs!r}")
     variants = [("default", {}, None)] + [(v["label"], v.get("options", {}), v.get("scenarios")) for v in problem.variants]
     results = []
     for label, opts, scen in variants:

@@ -533,7 +533,7 @@ def _nonlinear_problem(path: Path, top: _Section, name: str) -> Problem:
     for key, size, definite in (("Q", len(names["states"]), False), ("R", len(names["outputs"]), True)):
         try:
             noise[key] = covariance_matrix(mod.get(key, required=True), key, size, definite=definite)
-        except ShapeError as exc:
+        except (ShapeError, ArgumentError) as exc:
             raise SpecError(f"{path} [model].{exc}") from None
     for key in ("f", "h", "nominal"):
         if not isinstance(mod.get(key, required=True), Mapping):

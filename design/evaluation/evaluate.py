@@ -18,7 +18,7 @@ from fdisyn.codegen.library import CodegenResult, codegen
 from fdisyn.evaluation.metrics import ScenarioMetrics, scenario_metrics
 from fdisyn.models.problem import Batch, Problem, Scenario
 from fdisyn.runtime.compiled import CompiledDiagnoser
-from fdisyn.runtime.errors import SpecError
+from fdisyn.runtime.errors import ArgumentError
 from fdisyn.runtime.gainfile import GainFile, write_gain_file
 from fdisyn.runtime.reference import RunResult
 from fdisyn.synthesis.registry import extra_metrics, recovery_samples
@@ -103,15 +103,15 @@ def evaluate(
 ) -> Evaluation:
     """Monte Carlo of every scenario through every built diagnoser's C step."""
     if isinstance(runs, bool) or not isinstance(runs, int) or runs < 1:
-        raise SpecError(f"runs must be a whole number ≥ 1; got {runs!r}")
+        raise ArgumentError(f"runs must be a whole number ≥ 1; got {runs!r}")
     if isinstance(seed0, bool) or not isinstance(seed0, int) or seed0 < 0:
-        raise SpecError(f"seed0 must be a whole number ≥ 0 (NumPy seeds are non-negative); got {seed0!r}")
+        raise ArgumentError(f"seed0 must be a whole number ≥ 0 (NumPy seeds are non-negative); got {seed0!r}")
     names = list(scenarios) if scenarios is not None else list(problem.scenarios)
     for sname in names:  # refuse a campaign whose kept results cannot fit before simulating anything
         duration = problem.scenario(sname).duration
         per_run = sum((int(duration / b.gain_file.Ts) + 1) * (16 + 8 * b.gain_file.step.nj) for b in built.values())
         if runs * per_run > MONTE_CARLO_MEMORY:
-            raise SpecError(
+            raise ArgumentError(
                 f"runs = {runs}: scenario {sname!r} would keep {runs * per_run / 2**30:.1f} GiB of per-run results "
                 f"(alarm, isolated fault and statistics of every sample); expected at most "
                 f"{MONTE_CARLO_MEMORY // per_run} runs ({MONTE_CARLO_MEMORY // 2**30} GiB)"

@@ -10,7 +10,7 @@ import numpy as np
 from fdisyn.models.sampled_data import SampledDataPlant
 from fdisyn.models.sampling import van_loan
 from fdisyn.numerics.linalg import as_matrix, psd_factor
-from fdisyn.runtime.errors import ShapeError
+from fdisyn.runtime.errors import ArgumentError, ShapeError
 
 __all__ = ['SimulationResult', 'sampled_disturbance', 'simulate_sampled_data']
 
@@ -36,7 +36,7 @@ def sampled_disturbance(
     cov = van_loan(plant.A, plant.Bd @ sig @ plant.Bd.T, plant.h)
     fac = psd_factor(cov, "covariance of the sampled disturbance")
     if int(steps) < 0:
-        raise ShapeError(f"steps must be ≥ 0; got {steps}")
+        raise ArgumentError(f"steps must be ≥ 0; got {steps}")
     return rng.standard_normal((int(steps), fac.shape[1])) @ fac.T
 
 

@@ -15,7 +15,7 @@ import scipy.signal
 from fdisyn.models.linear import LinearPlant
 from fdisyn.models.problem import Batch, Scenario
 from fdisyn.numerics.linalg import psd_factor
-from fdisyn.runtime.errors import SpecError
+from fdisyn.runtime.errors import ArgumentError, ShapeError
 
 __all__ = ["SensorFaultSpec", "apply_sensor_faults", "gauss_markov", "Signal", "simulate_linear"]
 
@@ -37,7 +37,7 @@ class SensorFaultSpec:
 
     def __post_init__(self) -> None:
         if self.kind not in SENSOR_FAULT_KINDS:
-            raise SpecError(f"sensor fault kind {self.kind!r} is not one of {SENSOR_FAULT_KINDS}")
+            raise ArgumentError(f"sensor fault kind {self.kind!r} is not one of {SENSOR_FAULT_KINDS}")
 
 
 def apply_sensor_faults(
@@ -46,7 +46,7 @@ def apply_sensor_faults(
     """Corrupt the measurements ``y`` (runs × outputs) in place."""
     for f in faults:
         if f.sensor not in outputs:
-            raise SpecError(f"sensor fault on {f.sensor!r}: no such output; outputs are {list(outputs)}")
+            raise ArgumentError(f"sensor fault on {f.sensor!r}: no such output; outputs are {list(outputs)}")
         j = list(outputs).index(f.sensor)
         if f.kind == "stuck":
             y[:, j] = f.value
@@ -87,9 +87,9 @@ class Signal:
 
     def __post_init__(self) -> None:
         if self.kind not in self.KINDS:
-            raise SpecError(f"signal kind {self.kind!r} is not one of {self.KINDS}")
+            raise ArgumentError(f"signal kind {self.kind!r} is not one of {self.KINDS}")
         if self.kind in ("sine", "square", "prbs", "gauss_markov") and not self.period > 0:
-            raise SpecError(f"a {self.kind} signal needs a positive period, got {self.period}")
+            raise ArgumentError(f"a {self.kind} signal needs a positive period, got {self.period}")
 
     def sample(self, t: np.ndarray, rng: np.random.Generator, Ts: float) -> np.ndarray:
         if self.kind == "constant":
@@ -129,7 +129,7 @@ def simulate_linear(
     faulty) measurements — a controller closing the loop; it needs ``D = 0``.
     """
     if not plant.is_discrete:
-        raise SpecError("simulate_linear needs the discrete plant")
+        raise ArgumentError("simulate_linear needs the discrete plant")
     ts = float(plant.Ts)  # type: ignore[arg-type]
     n = int(round(scenario.duration / ts))
     t = np.arange(n) * ts
@@ -138,9 +138,9 @@ def simulate_linear(
     lq, lr = psd_factor(plant.Q, "Q"), psd_factor(plant.R, "R")
     faults = [SensorFaultSpec(*f) if not isinstance(f, SensorFaultSpec) else f for f in scenario.params.get("sensor_faults", [])]
     if feedback is not None and np.any(plant.D):
-        raise SpecError("a feedback input needs D = 0 (otherwise u and y form an algebraic loop)")
+        raise ArgumentError("a feedback input needs D = 0 (otherwise u and y form an algebraic loop)")
     if len(inputs) != plant.m or len(unknown_inputs) != plant.q:
-        raise SpecError(f"simulation needs {plant.m} input and {plant.q} unknown-input signals")
+        raise ShapeError(f"simulation needs {plant.m} input and {plant.q} unknown-input signals")
     w = np.empty((runs, n, plant.n))
     v = np.empty((runs, n, plant.p))
     uu = np.empty((runs, n, plant.m))
@@ -159,7 +159,7 @@ def simulate_linear(
     fvec = None
     for cname, value in scenario.params.get("component_faults", []):
         if cname not in plant.component_faults:
-            raise SpecError(f"component fault {cname!r}: the plant has {list(plant.component_faults)}")
+            raise ArgumentError(f"component fault {cname!r}: the plant has {list(plant.component_faults)}")
         col = np.asarray(plant.Fx)[:, plant.component_faults.index(cname)] * float(value)
         fvec = col if fvec is None else fvec + col
     x = np.tile(np.asarray(x0, dtype=float), (runs, 1))

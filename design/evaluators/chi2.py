@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.stats
 from fdisyn.numerics.linalg import rank_tol
-from fdisyn.runtime.errors import ExistenceError, ShapeError
+from fdisyn.runtime.errors import ArgumentError, ExistenceError
 from fdisyn.runtime.gainfile import Evaluator
 
 __all__ = ["chi2_threshold", "chi2_evaluator", "CHI2_RANK_RTOL"]
@@ -20,9 +20,9 @@ def chi2_threshold(P_f: float, dof: int) -> float:
     (section 3).
     """
     if not 0.0 < P_f < 1.0:
-        raise ShapeError(f"P_f must be a false-alarm probability in (0, 1); got {P_f!r}")
+        raise ArgumentError(f"P_f must be a false-alarm probability in (0, 1); got {P_f!r}")
     if int(dof) != dof or dof < 1:
-        raise ShapeError(f"dof must be a positive integer; got {dof!r}")
+        raise ArgumentError(f"dof must be a positive integer; got {dof!r}")
     return float(scipy.stats.chi2.isf(P_f, int(dof)))
 
 CHI2_RANK_RTOL = 1e-6

@@ -8,7 +8,7 @@ from typing import Literal
 
 import numpy as np
 import scipy.stats
-from fdisyn.runtime.errors import SpecError
+from fdisyn.runtime.errors import ArgumentError
 
 __all__ = ['wssr_threshold_table']
 
@@ -30,7 +30,7 @@ def wssr_threshold_table(
         return np.array([scipy.stats.chi2.isf(false_alarm_probability, k * n_outputs) / k for k in ks])
     if rule == "beta0":
         if beta0 is None or not math.isfinite(beta0) or beta0 <= 0:
-            raise SpecError(f"threshold_rule 'beta0' needs a positive finite beta0; got {beta0!r}")
+            raise ArgumentError(f"threshold_rule 'beta0' needs a positive finite beta0; got {beta0!r}")
         return np.where(ks == window, float(beta0), _NEVER)
-    raise SpecError(f"threshold_rule must be 'chi2' or 'beta0'; got {rule!r}")
+    raise ArgumentError(f"threshold_rule must be 'chi2' or 'beta0'; got {rule!r}")
 

@@ -17,11 +17,12 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 from fdisyn.models.sampling import check_sample_time, van_loan, zoh
 from fdisyn.numerics.linalg import as_matrix, as_square, as_symmetric, real_array
-from fdisyn.runtime.errors import ShapeError
+from fdisyn.runtime.errors import ArgumentError, ShapeError
 from fdisyn.runtime.names import check_distinct, check_signal_names
 
 __all__ = ["LinearPlant", "identifier_names", "frozen_array"]
@@ -162,7 +163,7 @@ class LinearPlant:
         read it from) and the bound.
         """
         if self.is_discrete:
-            raise ShapeError(f"the plant is already discrete (Ts = {self.Ts}); discretise a continuous plant")
+            raise ArgumentError(f"the plant is already discrete (Ts = {self.Ts}); discretise a continuous plant")
         ts = check_sample_time(Ts, name)
         held = np.hstack([self.B, self.E, self.Fx])
         ad, bd_all = zoh(self.A, held, ts, name=name)
@@ -186,10 +187,10 @@ class LinearPlant:
         """
         try:
             s = real_array(scale, "state scaling").reshape(-1)  # numbers only: "10" or true are refused
-        except ShapeError:
-            raise ShapeError(f"state scaling must be {self.n} positive finite numbers; got {scale!r}") from None
+        except (ShapeError, ArgumentError):
+            raise ArgumentError(f"state scaling must be {self.n} positive finite numbers; got {scale!r}") from None
         if s.shape != (self.n,) or not np.all(np.isfinite(s)) or np.any(s <= 0):
-            raise ShapeError(f"state scaling must be {self.n} positive finite numbers; got {scale!r}")
+            raise ArgumentError(f"state scaling must be {self.n} positive finite numbers; got {scale!r}")
         si = 1.0 / s
         return replace(
             self,
@@ -226,7 +227,7 @@ class LinearPlant:
         ii = [int(i) for i in idx]
         for i in ii:
             if not 0 <= i < self.p:
-                raise ShapeError(f"output index {i} out of range 0..{self.p - 1}")
+                raise ArgumentError(f"output index {i} out of range 0..{self.p - 1}")
         return replace(
             self,
             C=frozen_array(self.C[ii, :]),
@@ -240,27 +241,92 @@ class LinearPlant:
         try:
             return self.outputs.index(name)
         except ValueError:
-            raise ShapeError(f"no output called {name!r}; outputs are {list(self.outputs)}") from None
+            raise ArgumentError(f"no output called {name!r}; outputs are {list(self.outputs)}") from None
 
     def matrices(self) -> dict[str, np.ndarray]:
         """The model matrices as a plain dict (for the gain file)."""
         return {k: np.asarray(getattr(self, k)) for k in ("A", "B", "C", "D", "E", "Q", "R")}
 
-    def to_control(self) -> object:
-        """A python-control ``StateSpace`` of ``(A, [B E], C, [D 0])`` (``Ts`` kept)."""
-        import control  # optional dependency (dev extra)
+    def to_control(self) -> Any:
+        """The plant as a python-control ``StateSpace`` with inputs ``[u; d]``: ``(A, [B E], C, [D 0])``.
 
-        bb = np.hstack([self.B, self.E])
-        dd = np.hstack([self.D, np.zeros((self.p, self.q))])
-        return control.ss(self.A, bb, self.C, dd, dt=0 if self.Ts is None else self.Ts)
+        ``dt`` is ``Ts`` (0 for a continuous plant); the signal names are kept
+        (states, inputs then unknown inputs, outputs). The inverse of
+        :meth:`from_control` with ``n_unknown = q``; ``Fx`` and the noise
+        covariances have no place in a ``StateSpace`` and are left out.
+        """
+        import control
+
+        return control.ss(
+            self.A,
+            np.hstack([self.B, self.E]),
+            self.C,
+            np.hstack([self.D, np.zeros((self.p, self.q))]),
+            dt=0 if self.Ts is None else self.Ts,
+            states=list(self.states),
+            inputs=[*self.inputs, *self.unknown_inputs],
+            outputs=list(self.outputs),
+        )
 
     @classmethod
-    def from_control(cls, sys: object, *, n_unknown: int = 0, **kwargs: object) -> LinearPlant:
-        """Build from a python-control ``StateSpace`` whose last ``n_unknown`` inputs are ``d``."""
+    def from_control(
+        cls,
+        sys: Any,
+        n_unknown: int = 0,
+        Q: object | None = None,
+        R: object | None = None,
+        inputs: Sequence[str] | None = None,
+        unknown_inputs: Sequence[str] | None = None,
+        outputs: Sequence[str] | None = None,
+        *,
+        states: Sequence[str] | None = None,
+        Fx: object | None = None,
+        component_faults: Sequence[str] | None = None,
+        units: Mapping[str, str] | None = None,
+    ) -> LinearPlant:
+        """A plant from a python-control ``StateSpace`` whose last ``n_unknown`` inputs are unknown.
+
+        ``sys = (A, [B E], C, [D 0])``: the first ``m`` input columns are the
+        known inputs ``u`` (``B``, ``D``), the last ``n_unknown`` the unknown
+        inputs ``d`` (``E``), which may not reach the outputs directly. A
+        continuous ``sys`` (``dt = 0``) gives a continuous plant, a discrete
+        one (``dt > 0``) a discrete plant with ``Ts = dt``. ``Q``, ``R``, the
+        names and the rest are those of :meth:`create`::
+
+            sys = control.c2d(control.ss(A, np.hstack([B, E]), C, 0), Ts)
+            plant = LinearPlant.from_control(sys, n_unknown=1, Q=Q, R=R)
+        """
+        import control
+
+        if not isinstance(sys, control.StateSpace):
+            raise ArgumentError(
+                f"sys must be a control.StateSpace; got {type(sys).__name__} (convert a transfer function with control.ss(sys))"
+            )
         a, b, c, d = (np.asarray(getattr(sys, k), dtype=float) for k in ("A", "B", "C", "D"))
-        m = b.shape[1] - n_unknown
-        dt = getattr(sys, "dt", 0)
-        ts = None if not dt or dt is True else float(dt)
+        if isinstance(n_unknown, bool) or not isinstance(n_unknown, (int, np.integer)) or not 0 <= n_unknown <= b.shape[1]:
+            raise ArgumentError(f"n_unknown must be a whole number in 0..{b.shape[1]} (sys has {b.shape[1]} inputs); got {n_unknown!r}")
+        dt = sys.dt
+        if dt is None or dt is True:
+            raise ArgumentError(
+                f"sys.dt = {dt!r} does not say the sample time; expected 0 (continuous) or the sample time in seconds"
+            )
+        m = b.shape[1] - int(n_unknown)
         if np.any(d[:, m:] != 0):
-            raise ShapeError("unknown inputs with direct feedthrough to the outputs are not supported")
-        return cls.create(A=a, B=b[:, :m], C=c, D=d[:, :m], E=b[:, m:], Ts=ts, **kwargs)  # type: ignore[arg-type]
+            raise ArgumentError("unknown inputs may not reach the outputs directly: the last n_unknown columns of sys.D must be zero")
+        return cls.create(
+            A=a,
+            B=b[:, :m],
+            C=c,
+            D=d[:, :m],
+            E=b[:, m:],
+            Fx=Fx,
+            Q=Q,
+            R=R,
+            Ts=None if dt == 0 else float(dt),
+            states=states,
+            inputs=inputs,
+            unknown_inputs=unknown_inputs,
+            outputs=outputs,
+            component_faults=component_faults,
+            units=units,
+        )

@@ -76,7 +76,7 @@ import numpy as np
 from fdisyn.models.linear import frozen_array, identifier_names
 from fdisyn.models.sampling import check_sample_time
 from fdisyn.numerics.linalg import as_matrix, real_array
-from fdisyn.runtime.errors import NominalValueError, NonDifferentiableError, ShapeError, SpecError
+from fdisyn.runtime.errors import ArgumentError, NominalValueError, NonDifferentiableError, ShapeError
 from fdisyn.runtime.names import check_distinct
 
 __all__ = [
@@ -217,7 +217,7 @@ _NONSMOOTH_NAMES = frozenset(
 def _names(given: Sequence[str], what: str, *, allow_empty: bool = False) -> tuple[str, ...]:
     names = identifier_names(given, what)
     if not names and not allow_empty:
-        raise ShapeError(f"{what} names: expected at least one name, got none")
+        raise ArgumentError(f"{what} names: expected at least one name, got none")
     return names
 
 
@@ -234,8 +234,9 @@ def _distinct_names(states: tuple[str, ...], inputs: tuple[str, ...], outputs: t
 def covariance_matrix(value: object, name: str, size: int, *, definite: bool) -> np.ndarray:
     """A ``size × size`` covariance from a scalar (times ``I``), a vector (diagonal) or a matrix.
 
-    Raises :class:`ShapeError` naming ``name`` for non-numbers, a wrong
-    shape, asymmetry, or an eigenvalue below zero (``definite``: not above).
+    Raises :class:`ShapeError` naming ``name`` for a wrong shape and
+    :class:`ArgumentError` for non-numbers, asymmetry, or an eigenvalue below
+    zero (``definite``: not above).
     """
     arr = real_array(value, name)  # numbers only: "1e-2" or true are refused, not converted
     if arr.ndim == 0:
@@ -244,21 +245,21 @@ def covariance_matrix(value: object, name: str, size: int, *, definite: bool) ->
         arr = np.diag(arr)
     mat = as_matrix(arr, name, rows=size, cols=size)
     if not np.allclose(mat, mat.T, rtol=1e-12, atol=0.0):
-        raise ShapeError(f"{name} must be symmetric; max |{name} − {name}ᵀ| = {np.max(np.abs(mat - mat.T)):.3g}")
+        raise ArgumentError(f"{name} must be symmetric; max |{name} − {name}ᵀ| = {np.max(np.abs(mat - mat.T)):.3g}")
     mat = 0.5 * mat + 0.5 * mat.T  # halves first: 1e308 + 1e308 would overflow
     ev = np.linalg.eigvalsh(mat) if size else np.zeros(0)
     scale = max(1.0, float(np.max(np.abs(ev)))) if ev.size else 1.0
     if definite and ev.size and ev[0] <= 0.0:
-        raise ShapeError(f"{name} must be positive definite; smallest eigenvalue {ev[0]:.3g}")
+        raise ArgumentError(f"{name} must be positive definite; smallest eigenvalue {ev[0]:.3g}")
     if ev.size and ev[0] < -1e-12 * scale:
-        raise ShapeError(f"{name} must be positive semidefinite (a covariance); smallest eigenvalue {ev[0]:.3g}")
+        raise ArgumentError(f"{name} must be positive semidefinite (a covariance); smallest eigenvalue {ev[0]:.3g}")
     return mat
 
 
 def _as_sx_function(fun: object, name: str, in_shapes: Sequence[int], out_size: int, in_names: Sequence[str], out_name: str) -> ca.Function:
     """Re-wrap a user Function as an SX Function with fdisyn's port names, checking shapes."""
     if not isinstance(fun, ca.Function):
-        raise SpecError(f"{name} must be a casadi.Function; got {type(fun).__name__}")
+        raise ArgumentError(f"{name} must be a casadi.Function; got {type(fun).__name__}")
     if fun.n_in() != len(in_shapes) or fun.n_out() != 1:
         raise ShapeError(
             f"{name} must have {len(in_shapes)} inputs ({', '.join(in_names)}) and one output; "
@@ -277,7 +278,7 @@ def _as_sx_function(fun: object, name: str, in_shapes: Sequence[int], out_size: 
         out = fun.expand()(*args) if fun.is_a("MXFunction") else fun(*args)
     except RuntimeError as exc:
         first = next((ln.strip() for ln in str(exc).splitlines() if ln.strip()), type(exc).__name__)  # CasADi's text runs to many lines
-        raise SpecError(f"{name} cannot be evaluated on SX symbols (it must be expandable to SX): {short_repr(first, 200)}") from exc
+        raise ArgumentError(f"{name} cannot be evaluated on SX symbols (it must be expandable to SX): {short_repr(first, 200)}") from exc
     out = ca.densify(ca.reshape(ca.SX(out), out_size, 1))
     wrapped = ca.Function(name, sym, [out], list(in_names), [out_name])
     _check_model_function(wrapped, name)
@@ -289,11 +290,11 @@ def _check_model_function(fun: ca.Function, name: str) -> None:
     :data:`SMOOTH_OPERATIONS` or holds a non-finite constant.
 
     Raises :class:`NonDifferentiableError` for kinks and jumps (AD is undefined
-    there) and :class:`SpecError` otherwise; each names the instruction.
+    there) and :class:`ArgumentError` otherwise; each names the instruction.
     """
     count = fun.n_instructions()
     if count > MAX_MODEL_INSTRUCTIONS:
-        raise SpecError(
+        raise ArgumentError(
             f"{name} has {count} operations; at most {MAX_MODEL_INSTRUCTIONS} are allowed "
             "(the NAFDF step evaluates the model and its Jacobians four times within a bounded size)"
         )
@@ -304,7 +305,7 @@ def _check_model_function(fun: ca.Function, name: str) -> None:
         if op == ca.OP_CONST:
             value = float(fun.instruction_constant(k))
             if not math.isfinite(value):
-                raise SpecError(f"{name} holds the constant {value!r} (instruction {k}); expected only finite numbers in a model")
+                raise ArgumentError(f"{name} holds the constant {value!r} (instruction {k}); expected only finite numbers in a model")
             continue
         if op in NONDIFFERENTIABLE_OPERATIONS:
             raise NonDifferentiableError(
@@ -313,7 +314,7 @@ def _check_model_function(fun: ca.Function, name: str) -> None:
                 "+, −, ×, ÷, powers), because every Jacobian comes from automatic differentiation"
             )
         if op not in _OPERATION_NAMES:
-            raise SpecError(
+            raise ArgumentError(
                 f"{name} uses CasADi operation {op} (instruction {k}), which a plant model may not hold; "
                 f"expected only {sorted(SMOOTH_OPERATIONS)}"
             )
@@ -362,43 +363,44 @@ def function_from_program(
     :data:`SMOOTH_OPERATIONS` with its arity, every index pointing to an
     earlier value (so the graph is acyclic), every input entry within its
     port, every constant a finite number, one output per entry. Raises
-    :class:`SpecError` naming the operation.
+    :class:`ArgumentError` naming the operation (the gain-file reader words it as a
+    :class:`GainFileError` naming the field).
     """
     if not isinstance(program, Mapping) or set(program) != {"ops", "out"}:
-        raise SpecError(f"{name}: expected an object with the fields 'ops' and 'out'")
+        raise ArgumentError(f"{name}: expected an object with the fields 'ops' and 'out'")
     ops, out = program["ops"], program["out"]
     if not isinstance(ops, list) or not isinstance(out, list):
-        raise SpecError(f"{name}: 'ops' and 'out' must be lists")
+        raise ArgumentError(f"{name}: 'ops' and 'out' must be lists")
     if len(ops) > MAX_MODEL_INSTRUCTIONS:
-        raise SpecError(f"{name} has {len(ops)} operations; at most {MAX_MODEL_INSTRUCTIONS} are allowed")
+        raise ArgumentError(f"{name} has {len(ops)} operations; at most {MAX_MODEL_INSTRUCTIONS} are allowed")
     if len(out) != out_size:
-        raise SpecError(f"{name}.out has {len(out)} entries; expected {out_size}")
+        raise ArgumentError(f"{name}.out has {len(out)} entries; expected {out_size}")
 
     def index(v: object, limit: int, what: str) -> int:
         if isinstance(v, bool) or not isinstance(v, int) or not 0 <= v < limit:
-            raise SpecError(f"{name}: {what} must be an integer in 0..{limit - 1}; found {short_repr(v)}")
+            raise ArgumentError(f"{name}: {what} must be an integer in 0..{limit - 1}; found {short_repr(v)}")
         return v
 
     for i, op in enumerate(ops):
         if not isinstance(op, list) or not op or not isinstance(op[0], str):
-            raise SpecError(f"{name}.ops[{i}] must be a list starting with an operation name; found {short_repr(op)}")
+            raise ArgumentError(f"{name}.ops[{i}] must be a list starting with an operation name; found {short_repr(op)}")
         kind = op[0]
         if kind == "input":
             if len(op) != 3:
-                raise SpecError(f"{name}.ops[{i}]: 'input' takes a port and an entry; found {short_repr(op)}")
+                raise ArgumentError(f"{name}.ops[{i}]: 'input' takes a port and an entry; found {short_repr(op)}")
             port = index(op[1], len(in_sizes), f"ops[{i}] port")
             index(op[2], in_sizes[port], f"ops[{i}] entry of {in_names[port]}")
         elif kind == "const":
             if len(op) != 2 or isinstance(op[1], bool) or not isinstance(op[1], (int, float)) or not math.isfinite(op[1]):
-                raise SpecError(f"{name}.ops[{i}]: 'const' takes one finite number; found {short_repr(op)}")
+                raise ArgumentError(f"{name}.ops[{i}]: 'const' takes one finite number; found {short_repr(op)}")
         elif kind in SMOOTH_OPERATIONS:
             arity = 2 if kind in _BINARY_OPERATIONS else 1
             if len(op) != arity + 1:
-                raise SpecError(f"{name}.ops[{i}]: {kind!r} takes {arity} operand(s); found {short_repr(op)}")
+                raise ArgumentError(f"{name}.ops[{i}]: {kind!r} takes {arity} operand(s); found {short_repr(op)}")
             for v in op[1:]:
                 index(v, i, f"ops[{i}] operand (an earlier value)")
         else:
-            raise SpecError(f"{name}.ops[{i}]: unknown operation {short_repr(kind)}; expected 'input', 'const' or one of {sorted(SMOOTH_OPERATIONS)}")
+            raise ArgumentError(f"{name}.ops[{i}]: unknown operation {short_repr(kind)}; expected 'input', 'const' or one of {sorted(SMOOTH_OPERATIONS)}")
     for k, v in enumerate(out):
         index(v, len(ops), f"out[{k}]")
 
@@ -467,27 +469,27 @@ class _ExpressionCompiler:
 
     def compile(self, text: str) -> ca.SX:
         if not isinstance(text, str) or not text.strip():
-            raise SpecError(f"{self.where}: expected a non-empty expression string; got {short_repr(text)}")
+            raise ArgumentError(f"{self.where}: expected a non-empty expression string; got {short_repr(text)}")
         self.text = text
         if len(text) > MAX_EXPRESSION_CHARS:
-            raise SpecError(
+            raise ArgumentError(
                 f"{self.where}: the expression has {len(text)} characters; at most {MAX_EXPRESSION_CHARS} are allowed"
             )
         # '^' is power in plant files; Python would parse it as xor with the wrong precedence
         self.source = text.strip().replace("^", "**")
         ops = _operator_count(self.source)
         if ops > MAX_EXPRESSION_OPERATORS:
-            raise SpecError(
+            raise ArgumentError(
                 f"{self.where}: the expression has more than {MAX_EXPRESSION_OPERATORS} operators; "
                 "split it with [model].constants or simplify it (Python's parser nests once per operator)"
             )
         try:
             tree = ast.parse(self.source, mode="eval")
         except SyntaxError as exc:
-            raise SpecError(f"{self.where}: cannot parse expression {short_repr(text)}: {exc.msg}") from None
+            raise ArgumentError(f"{self.where}: cannot parse expression {short_repr(text)}: {exc.msg}") from None
         except (RecursionError, MemoryError, ValueError) as exc:
             # ValueError: an integer literal beyond Python's digit limit; the others: nesting too deep
-            raise SpecError(f"{self.where}: cannot parse expression {short_repr(text)}: {type(exc).__name__}") from None
+            raise ArgumentError(f"{self.where}: cannot parse expression {short_repr(text)}: {type(exc).__name__}") from None
         return self._evaluate(tree.body)
 
     def _fail_nonsmooth(self, what: str) -> NonDifferentiableError:
@@ -534,37 +536,37 @@ class _ExpressionCompiler:
             if isinstance(node.op, (ast.Mod, ast.FloorDiv)):
                 raise self._fail_nonsmooth("the operator '%' or '//'")
             if not isinstance(node.op, (ast.Add, ast.Sub, ast.Mult, ast.Div, ast.Pow)):
-                raise SpecError(f"{self.where}: operator {type(node.op).__name__} is not allowed in {short_repr(self.text)}")
+                raise ArgumentError(f"{self.where}: operator {type(node.op).__name__} is not allowed in {short_repr(self.text)}")
         elif isinstance(node, ast.UnaryOp):
             if not isinstance(node.op, (ast.USub, ast.UAdd)):
                 raise self._fail_nonsmooth(f"the operator {type(node.op).__name__}")
         elif isinstance(node, ast.Constant):
             if isinstance(node.value, bool) or not isinstance(node.value, (int, float)):
-                raise SpecError(f"{self.where}: constant {short_repr(node.value)} in {short_repr(self.text)} is not a real number")
+                raise ArgumentError(f"{self.where}: constant {short_repr(node.value)} in {short_repr(self.text)} is not a real number")
         elif isinstance(node, ast.Name):
             if node.id not in self.symbols and node.id not in self.constants:
                 allowed = sorted([*self.symbols, *self.constants])
-                raise SpecError(f"{self.where}: unknown name {node.id!r} in {short_repr(self.text)}; allowed names are {allowed}")
+                raise ArgumentError(f"{self.where}: unknown name {node.id!r} in {short_repr(self.text)}; allowed names are {allowed}")
         elif isinstance(node, ast.Call):
             if not isinstance(node.func, ast.Name) or node.keywords:
-                raise SpecError(f"{self.where}: only plain calls such as sin(x) are allowed in {short_repr(self.text)}")
+                raise ArgumentError(f"{self.where}: only plain calls such as sin(x) are allowed in {short_repr(self.text)}")
             fname = node.func.id
             if fname in _NONSMOOTH_NAMES:
                 raise self._fail_nonsmooth(f"the function {fname}()")
             if fname not in SMOOTH_FUNCTIONS:
-                raise SpecError(
+                raise ArgumentError(
                     f"{self.where}: unknown function {fname!r} in {short_repr(self.text)}; allowed: {sorted(SMOOTH_FUNCTIONS)}"
                 )
             arity = _BINARY_FUNCTIONS.get(fname, 1)
             if len(node.args) != arity:
-                raise SpecError(
+                raise ArgumentError(
                     f"{self.where}: {fname}() takes {arity} argument{'s' if arity > 1 else ''}, "
                     f"got {len(node.args)} in {short_repr(self.text)}"
                 )
         elif isinstance(node, (ast.Compare, ast.BoolOp, ast.IfExp)):
             raise self._fail_nonsmooth("a comparison or a conditional")
         else:
-            raise SpecError(f"{self.where}: {type(node).__name__} is not allowed in the expression {short_repr(self.text)}")
+            raise ArgumentError(f"{self.where}: {type(node).__name__} is not allowed in the expression {short_repr(self.text)}")
 
     def _combine(self, node: ast.AST, args: list[ca.SX]) -> ca.SX:
         if isinstance(node, ast.BinOp):
@@ -588,7 +590,7 @@ class _ExpressionCompiler:
             except OverflowError:
                 value = math.inf
             if not math.isfinite(value):
-                raise SpecError(
+                raise ArgumentError(
                     f"{self.where}: the number {self._segment(node)} in {short_repr(self.text)} is not a finite double; "
                     "expected a finite number"
                 )
@@ -602,7 +604,7 @@ class _ExpressionCompiler:
             out = SMOOTH_FUNCTIONS[node.func.id](*args)
         # CasADi folds constant operands at once: a non-finite result is a NaN/inf constant in the model
         if out.is_constant() and not math.isfinite(float(out)):
-            raise SpecError(
+            raise ArgumentError(
                 f"{self.where}: the constant subexpression {self._segment(node)} in {short_repr(self.text)} evaluates to "
                 f"{float(out)!r}; expected a finite number"
             )
@@ -663,8 +665,10 @@ class NonlinearPlant:
             A parameter has no nominal value, or a non-finite one.
         NonDifferentiableError
             ``f`` or ``h`` uses ``abs``, ``min``/``max``, comparisons, ``if_else``…
-        ShapeError, SpecError
-            Wrong port shapes, bad names, a covariance that is not one.
+        ShapeError
+            Wrong port shapes.
+        ArgumentError
+            Bad names, a covariance that is not one, a model that is too large.
         """
         st = _names(states, "state")
         inp = _names(inputs, "input", allow_empty=True)
@@ -723,7 +727,7 @@ class NonlinearPlant:
             comparisons, conditionals or another operation with a kink or jump.
         NominalValueError
             A parameter without a nominal value.
-        SpecError
+        ArgumentError
             Unknown names or functions, a missing or extra state/output
             expression, a syntax error, a constant (named, literal or folded)
             that is not a finite number, an expression beyond
@@ -738,16 +742,16 @@ class NonlinearPlant:
         consts = {"pi": float(np.pi), **_constants(constants)}
         clash = sorted(set(consts) & set(st + inp + out + par))
         if clash:
-            raise SpecError(f"constant names {clash} clash with signal or parameter names")
+            raise ArgumentError(f"constant names {clash} clash with signal or parameter names")
         for what, given, expected in (("f", f, st), ("h", h, out)):
             if not isinstance(given, Mapping):
-                raise SpecError(f"{what}: expected a table of expression strings by name; got {short_repr(given)}")
+                raise ArgumentError(f"{what}: expected a table of expression strings by name; got {short_repr(given)}")
             wrong = {k: short_repr(v) for k, v in given.items() if not isinstance(v, str)}
             if wrong:
-                raise SpecError(f"{what}: expressions must be strings; got {wrong}")
+                raise ArgumentError(f"{what}: expressions must be strings; got {wrong}")
             keys = set(given)
             if keys != set(expected):
-                raise SpecError(
+                raise ArgumentError(
                     f"{what}: expected one expression per {'state' if what == 'f' else 'output'} "
                     f"{list(expected)}; missing {sorted(set(expected) - keys)}, unknown {sorted(keys - set(expected))}"
                 )
@@ -761,9 +765,9 @@ class NonlinearPlant:
         for nm in out:
             try:
                 hx_parts.append(_ExpressionCompiler(sym_h, consts, f"h[{nm!r}]").compile(h[nm]))
-            except SpecError as exc:
+            except ArgumentError as exc:
                 if any(re.search(rf"\b{re.escape(i)}\b", h[nm]) for i in inp) and "unknown name" in str(exc):
-                    raise SpecError(f"h[{nm!r}]: the output expression uses an input; h(x, θ) may not depend on u") from None
+                    raise ArgumentError(f"h[{nm!r}]: the output expression uses an input; h(x, θ) may not depend on u") from None
                 raise
         hx = ca.vertcat(*hx_parts)
         return cls.create(
@@ -835,7 +839,7 @@ class NonlinearPlant:
         """Refuse a model that is not finite at ``(x, u, θ)`` (``θ`` defaults to nominal).
 
         ``f``, ``h`` and the four AD Jacobians are evaluated there; the first
-        NaN or infinite entry raises :class:`SpecError` naming the state or
+        NaN or infinite entry raises :class:`ArgumentError` naming the state or
         output expression, the derivative and the value. A design starts its
         filters at such a point: a model that is not finite there (``x/0``,
         ``log(x)`` at ``x = 0``, ``x**x`` whose derivative at ``x = 0`` is
@@ -854,7 +858,7 @@ class NonlinearPlant:
             what = f"{fun}[{row!r}]" if "_" not in key else f"∂{fun}[{row!r}]/∂{cols[key.split('_', 1)[1]][j]}"
             exprs = (self.expressions or {}).get(fun)
             text = f" (the expression {short_repr(exprs[row])})" if isinstance(exprs, Mapping) and isinstance(exprs.get(row), str) else ""
-            raise SpecError(
+            raise ArgumentError(
                 f"the model is not finite at {point}: {what} = {float(vals[key][i, j])!r}{text}; "
                 "expected finite values of f, h and their Jacobians there"
             )
@@ -912,19 +916,19 @@ def _constants(constants: object) -> dict[str, float]:
     if constants is None:
         return {}
     if not isinstance(constants, Mapping):
-        raise SpecError(f"constants must be a table of names and numbers; got {short_repr(constants)}")
+        raise ArgumentError(f"constants must be a table of names and numbers; got {short_repr(constants)}")
     out: dict[str, float] = {}
     for k, v in constants.items():
         if not isinstance(k, str) or not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", k):
-            raise SpecError(f"constant name {short_repr(k)} is not an identifier (letters, digits, underscore; no leading digit)")
+            raise ArgumentError(f"constant name {short_repr(k)} is not an identifier (letters, digits, underscore; no leading digit)")
         if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
-            raise SpecError(f"constant {k!r} must be a number; got {short_repr(v)}")
+            raise ArgumentError(f"constant {k!r} must be a number; got {short_repr(v)}")
         try:
             fv = float(v)
         except OverflowError:
             fv = math.inf
         if not math.isfinite(fv):
-            raise SpecError(f"constant {k!r} must be a finite number; got {short_repr(v)}")
+            raise ArgumentError(f"constant {k!r} must be a finite number; got {short_repr(v)}")
         out[k] = fv
     return out
 

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from fdisyn.runtime.errors import SpecError
+from fdisyn.runtime.errors import ArgumentError, SpecError
 from fdisyn.runtime.gainfile import GainFile
 from fdisyn.synthesis.registry import check_option, short_repr
 
@@ -111,12 +111,12 @@ class Problem:
     def design(self, name: str | None = None, **options: Any) -> GainFile:
         key = name or self.default_design
         if key not in self.designs:
-            raise SpecError(f"problem {self.name!r} has no design {key!r}; designs: {sorted(self.designs)}")
+            raise ArgumentError(f"problem {self.name!r} has no design {key!r}; designs: {sorted(self.designs)}")
         return self.designs[key](**self.check_options(options))
 
     def scenario(self, name: str) -> Scenario:
         if name not in self.scenarios:
-            raise SpecError(f"problem {self.name!r} has no scenario {name!r}; scenarios: {sorted(self.scenarios)}")
+            raise ArgumentError(f"problem {self.name!r} has no scenario {name!r}; scenarios: {sorted(self.scenarios)}")
         return self.scenarios[name]
 
     def run(self, scenario: str | Scenario, seeds: Sequence[int], **options: Any) -> Batch:
@@ -125,7 +125,7 @@ class Problem:
         sc = self.scenario(scenario) if isinstance(scenario, str) else scenario
         bad = [s for s in seeds if isinstance(s, bool) or not isinstance(s, (int, np.integer)) or s < 0]
         if bad:
-            raise SpecError(f"seeds must be whole numbers ≥ 0; got {short_repr(bad)}")
+            raise ArgumentError(f"seeds must be whole numbers ≥ 0; got {short_repr(bad)}")
         return self.simulate(sc, tuple(int(s) for s in seeds), **self.check_options(options))
 
     def check_options(self, options: Mapping[str, Any]) -> dict[str, Any]:
@@ -133,7 +133,7 @@ class Problem:
         :func:`~fdisyn.synthesis.registry.check_option` (unknown names are refused with the list of known ones)."""
         unknown = sorted(set(options) - set(self.options))
         if unknown:
-            raise SpecError(f"problem {self.name!r} has no option(s) {unknown}; options: {dict(self.options)}")
+            raise ArgumentError(f"problem {self.name!r} has no option(s) {unknown}; options: {dict(self.options)}")
         checked = {k: check_option(k, v, self.options[k], f"problem {self.name!r}") for k, v in options.items()}
         return {**self.options, **checked}
 

@@ -14,7 +14,7 @@ from fdisyn.models.linear import LinearPlant
 from fdisyn.models.sampling import check_sample_time, van_loan, zoh
 from fdisyn.numerics.linalg import as_matrix, psd_factor, unobservable_modes
 from fdisyn.numerics.norms import DiscreteLTI
-from fdisyn.runtime.errors import ExistenceError, ShapeError
+from fdisyn.runtime.errors import ArgumentError, ExistenceError, ShapeError
 
 __all__ = ['SampledDataPlant', 'check_sampling', 'norm_invariant_discretisation']
 
@@ -110,9 +110,9 @@ class SampledDataPlant:
         through ``d``; a nonzero ``D`` is refused rather than dropped.
         """
         if plant.is_discrete:
-            raise ShapeError(f"the sampled-data design needs a continuous plant; this one has Ts = {plant.Ts}")
+            raise ArgumentError(f"the sampled-data design needs a continuous plant; this one has Ts = {plant.Ts}")
         if np.any(plant.D != 0):
-            raise ShapeError("the sampled-data plant must be strictly proper (D = 0, Qiu, Wen & Jiang 2010, eq. (1))")
+            raise ExistenceError("the sampled-data plant must be strictly proper (D = 0, Qiu, Wen & Jiang 2010, eq. (1))")
         return cls.create(A=plant.A, Bu=plant.B, Bd=plant.E, Bf=plant.Fx, C=plant.C, h=h)
 
     @property
@@ -140,14 +140,14 @@ class SampledDataPlant:
             return (self.B_dJ if ch == "d" else self.B_fJ).shape[1]
         if model == "zoh":
             return (self.B_dD if ch == "d" else self.B_fD).shape[1]
-        raise ShapeError(f"model must be 'norm_invariant' or 'zoh'; got {model!r}")
+        raise ArgumentError(f"model must be 'norm_invariant' or 'zoh'; got {model!r}")
 
     def discrete_plant(self, *, model: Literal["norm_invariant", "zoh"] = "norm_invariant") -> LinearPlant:
         """The discrete :class:`LinearPlant` ``(A_D, B_uD, C, E=B_dJ or B_dD, Fx=B_fJ or B_fD, Ts=h)``."""
         e = self.B_dJ if model == "norm_invariant" else self.B_dD
         fx = self.B_fJ if model == "norm_invariant" else self.B_fD
         if model not in ("norm_invariant", "zoh"):
-            raise ShapeError(f"model must be 'norm_invariant' or 'zoh'; got {model!r}")
+            raise ArgumentError(f"model must be 'norm_invariant' or 'zoh'; got {model!r}")
         return LinearPlant.create(A=self.A_D, B=self.B_uD, C=self.C, E=e, Fx=fx, Ts=self.h)
 
 
@@ -204,7 +204,7 @@ def check_sampling(*, A: object, C: object, h: float, allow_pathological: bool =
       detectable, i.e. only stable modes are lost);
     * ``(A_D, C)`` not detectable.
 
-    ``h ≤ 0`` or non-finite raises :class:`ShapeError` (not a sample time).
+    ``h ≤ 0`` or non-finite raises :class:`ArgumentError` (not a sample time).
     """
     h = check_sample_time(h, "h")
     a = as_matrix(A, "A")

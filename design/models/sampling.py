@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg as sla
 from fdisyn.numerics.linalg import as_matrix
-from fdisyn.runtime.errors import ShapeError
+from fdisyn.runtime.errors import ArgumentError
 
 __all__ = ["zoh", "van_loan", "check_sample_time", "EXP_LIMIT"]
 
@@ -22,9 +22,9 @@ def check_sample_time(h: float, name: str = "Ts") -> float:
     try:
         hf = float(h)
     except (TypeError, ValueError):
-        raise ShapeError(f"{name} must be a positive number of seconds; got {h!r}") from None
+        raise ArgumentError(f"{name} must be a positive number of seconds; got {h!r}") from None
     if not np.isfinite(hf) or hf <= 0.0:
-        raise ShapeError(f"{name} must be a positive, finite number of seconds; got {h!r}")
+        raise ArgumentError(f"{name} must be a positive, finite number of seconds; got {h!r}")
     return hf
 
 
@@ -46,7 +46,7 @@ def _expm(big: np.ndarray, a: np.ndarray, h: float, name: str) -> np.ndarray:
     if not np.all(np.isfinite(e)):
         rate = float(np.max(np.abs(np.linalg.eigvals(a).real), initial=0.0)) if np.all(np.isfinite(a)) else float("inf")
         bound = EXP_LIMIT / rate if rate > 0 else float("inf")
-        raise ShapeError(
+        raise ArgumentError(
             f"{name} = {h:g} s is too long to sample this model: e^(±A·{name}) overflows (the fastest mode has "
             f"|Re λ| = {rate:.4g} 1/s, and |Re λ|·{name} = {rate * h:.3g} > {EXP_LIMIT:.0f}); expected {name} < {bound:.4g} s"
         )

@@ -11,7 +11,7 @@ from collections.abc import Sequence
 
 import numpy as np
 import scipy.linalg as sla
-from fdisyn.runtime.errors import ShapeError
+from fdisyn.runtime.errors import ArgumentError, ShapeError
 
 __all__ = [
     "real_array",
@@ -39,7 +39,8 @@ def real_array(value: object, name: str) -> np.ndarray:
     Numbers only: NumPy's ``asarray(…, dtype=float)`` would read the string
     ``"1.5"`` as 1.5 and ``true`` as 1.0, and raise ``OverflowError`` on an
     integer beyond the double range — values of a plant file are refused
-    here instead (:class:`ShapeError` naming ``name``), never converted.
+    here instead (:class:`ArgumentError` naming ``name``), never converted;
+    ragged rows are a :class:`ShapeError`.
     """
     if isinstance(value, np.ndarray) and value.dtype.kind in "fiu":
         return value.astype(float)
@@ -49,11 +50,11 @@ def real_array(value: object, name: str) -> np.ndarray:
         raise ShapeError(f"{name} must be a number or a matrix of numbers (rows of one length)") from None
     for x in leaves.flat:
         if isinstance(x, (bool, np.bool_)) or not isinstance(x, (int, float, np.integer, np.floating)):
-            raise ShapeError(f"{name} must hold numbers only; found {reprlib.repr(x)}")
+            raise ArgumentError(f"{name} must hold numbers only; found {reprlib.repr(x)}")
     try:
         return leaves.astype(float)
     except OverflowError:
-        raise ShapeError(f"{name} holds an integer beyond the range of a double; expected a finite number") from None
+        raise ArgumentError(f"{name} holds an integer beyond the range of a double; expected a finite number") from None
 
 
 def as_matrix(value: object, name: str, *, rows: int | None = None, cols: int | None = None) -> np.ndarray:
@@ -84,7 +85,7 @@ def as_matrix(value: object, name: str, *, rows: int | None = None, cols: int | 
     check_shape(a, name, rows=rows, cols=cols)
     if not np.all(np.isfinite(a)):
         bad = tuple(int(i) for i in np.argwhere(~np.isfinite(a))[0])
-        raise ShapeError(f"{name} contains a non-finite entry at index {bad}: {a[bad]!r}")
+        raise ArgumentError(f"{name} contains a non-finite entry at index {bad}: {a[bad]!r}")
     return a
 
 
@@ -106,12 +107,12 @@ def as_symmetric(value: object, name: str, n: int, *, psd: bool = False) -> np.n
     a = as_matrix(value, name, rows=n, cols=n)
     scale = max(1.0, float(np.abs(a).max(initial=0.0)))
     if not np.allclose(a, a.T, rtol=0.0, atol=1e-10 * scale):
-        raise ShapeError(f"{name} must be symmetric; max |{name} − {name}ᵀ| = {np.max(np.abs(a - a.T)):.3g}")
+        raise ArgumentError(f"{name} must be symmetric; max |{name} − {name}ᵀ| = {np.max(np.abs(a - a.T)):.3g}")
     a = 0.5 * (a + a.T)
     if psd and n:
         ev = np.linalg.eigvalsh(a)
         if ev[0] < -1e-12 * max(1.0, float(np.max(np.abs(ev)))):
-            raise ShapeError(f"{name} must be positive semidefinite (a covariance); smallest eigenvalue {ev[0]:.3g}")
+            raise ArgumentError(f"{name} must be positive semidefinite (a covariance); smallest eigenvalue {ev[0]:.3g}")
     return a
 
 
@@ -239,7 +240,7 @@ def psd_factor(w: np.ndarray, name: str = "W") -> np.ndarray:
     lam, u = np.linalg.eigh(as_symmetric(w, name, n))
     tol = n * np.finfo(float).eps * max(float(lam[-1]), 0.0)
     if lam[0] < -tol * 1e3:
-        raise ShapeError(f"{name} must be positive semidefinite; smallest eigenvalue {lam[0]:.3g} (largest {lam[-1]:.3g})")
+        raise ArgumentError(f"{name} must be positive semidefinite; smallest eigenvalue {lam[0]:.3g} (largest {lam[-1]:.3g})")
     keep = lam > tol
     # Largest eigenvalue first; fix each column's sign (largest entry positive)
     # so that the factor is a deterministic function of W.

@@ -95,7 +95,7 @@ from fdisyn.numerics.sdp import (
     _sym,
     _val,
 )
-from fdisyn.runtime.errors import CertificateError, ShapeError, SolverError
+from fdisyn.runtime.errors import ArgumentError, CertificateError, SolverError
 from fdisyn.synthesis.certificate import Certificate, Check
 from scipy import sparse
 
@@ -174,7 +174,7 @@ def hinf_bound_lmi(sys: DiscreteLTI, *, gamma: float) -> SdpResult:
     """
     _require_stable(sys, "H∞ bound LMI")
     if not gamma > 0:
-        raise ShapeError(f"gamma must be positive; got {gamma!r}")
+        raise ArgumentError(f"gamma must be positive; got {gamma!r}")
     g = _balance(sys)
     s = _scale(sys)
     c, d = g.C / s, g.D / s

@@ -39,7 +39,7 @@ from typing import Literal
 import numpy as np
 import scipy.optimize as sopt
 from fdisyn.numerics.linalg import as_matrix, spectral_radius
-from fdisyn.runtime.errors import ExistenceError, ShapeError
+from fdisyn.runtime.errors import ArgumentError, ExistenceError, ShapeError
 
 __all__ = [
     "DiscreteLTI",
@@ -147,9 +147,9 @@ def check_band(band: tuple[float, float] | None) -> tuple[float, float]:
     try:
         lo, hi = (float(v) for v in band)
     except (TypeError, ValueError):
-        raise ShapeError(f"band must be a pair (ω1, ω2) in rad/sample; got {band!r}") from None
+        raise ArgumentError(f"band must be a pair (ω1, ω2) in rad/sample; got {band!r}") from None
     if not (0.0 <= lo < hi <= math.pi + 1e-15):
-        raise ShapeError(f"band must satisfy 0 ≤ ω1 < ω2 ≤ π (rad/sample); got ({lo}, {hi})")
+        raise ArgumentError(f"band must satisfy 0 ≤ ω1 < ω2 ≤ π (rad/sample); got ({lo}, {hi})")
     return lo, min(hi, math.pi)
 
 
@@ -270,8 +270,8 @@ def system_norm(sys: DiscreteLTI, *, eta: Eta, band: tuple[float, float] | None 
         return hinf_norm(sys, band=band).value
     if eta == "2":
         if band is not None:
-            raise ShapeError("the H2 norm is taken over the whole circle; band must be None")
+            raise ArgumentError("the H2 norm is taken over the whole circle; band must be None")
         return h2_norm(sys)
     if eta == "-":
         return hminus_index(sys, band=band).value
-    raise ShapeError(f"eta must be 'inf', '2' or '-'; got {eta!r}")
+    raise ArgumentError(f"eta must be 'inf', '2' or '-'; got {eta!r}")

@@ -129,7 +129,9 @@ def solve_filter_dare(
     Raises
     ------
     ShapeError
-        Inconsistent dimensions, or ``Q``/``R`` not symmetric.
+        Inconsistent dimensions.
+    ArgumentError
+        ``Q``/``R`` not symmetric.
     ExistenceError
         No stabilising solution: the pencil has eigenvalues on the unit circle
         (an undetectable ``(C, A)`` mode or a noise-model zero on the unit

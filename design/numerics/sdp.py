@@ -14,7 +14,7 @@ import cvxpy as cp
 import numpy as np
 from fdisyn.numerics.linalg import spectral_radius
 from fdisyn.numerics.norms import DiscreteLTI, gramian
-from fdisyn.runtime.errors import ExistenceError, ShapeError, SolverError
+from fdisyn.runtime.errors import ExistenceError, InternalError, SolverError
 from fdisyn.synthesis.certificate import Certificate
 
 __all__ = ['SDP_BOUND_TOL', 'SDP_BOUND_TOL_SINGULAR', 'SdpResult', 'SdpStats']
@@ -113,7 +113,7 @@ def _solve(
         except SolverError as exc:
             err = exc
     if err is None:  # an empty ladder is a programming error, not a solver outcome
-        raise ShapeError("internal: no Clarabel settings to try")
+        raise InternalError("internal: no Clarabel settings to try")
     raise err
 
 

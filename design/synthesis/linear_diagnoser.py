@@ -113,11 +113,11 @@ def linear_diagnoser(
     to isolate; their signatures must be nonzero and distinct.
     """
     if not plant.is_discrete:
-        raise ShapeError("linear_diagnoser needs the discrete plant the generators were designed on")
+        raise ArgumentError("linear_diagnoser needs the discrete plant the generators were designed on")
     if len(sigma_r) != len(generators) or len(certificates) != len(generators):
         raise ShapeError(f"{len(generators)} generators need as many residual covariances and certificates")
     if int(persistence) < 1:
-        raise ShapeError(f"persistence must be a positive number of samples; got {persistence!r}")
+        raise ArgumentError(f"persistence must be a positive number of samples; got {persistence!r}")
     gens = list(generators)
     evals = [chi2_evaluator(i, s, P_f) for i, s in enumerate(sigma_r)]
     sig = np.array([[_expected(fault, gens[ev.generator], plant) for ev in evals] for fault in faults], dtype=int)
@@ -195,10 +195,10 @@ def _expected(fault: FaultClass, gen: Generator, plant: LinearPlant) -> int:
     reads, or a component fault's transfer to the residual is not identically zero."""
     for s in fault.sensors:
         if s not in plant.outputs:
-            raise ShapeError(f"fault {fault.name!r} names sensor {s!r}; sensors are {list(plant.outputs)}")
+            raise ArgumentError(f"fault {fault.name!r} names sensor {s!r}; sensors are {list(plant.outputs)}")
     for c in fault.components:
         if c not in plant.component_faults:
-            raise ShapeError(f"fault {fault.name!r} names component fault {c!r}; the plant has {list(plant.component_faults)}")
+            raise ArgumentError(f"fault {fault.name!r} names component fault {c!r}; the plant has {list(plant.component_faults)}")
     if {plant.outputs.index(s) for s in fault.sensors} & set(gen.outputs_used):
         return 1
     form = internal_form(gen, plant)

@@ -17,7 +17,7 @@ from fdisyn.numerics.linalg import normal_rank, psd_factor, spectral_radius
 from fdisyn.numerics.lmi_norms import _kyp_lhs
 from fdisyn.numerics.norms import DiscreteLTI, Eta, gramian, hinf_norm, system_norm
 from fdisyn.numerics.sdp import SDP_BOUND_TOL, SDP_BOUND_TOL_SINGULAR, SdpStats, _balancing, _psd_part, _scale, _solve, _sym, _val
-from fdisyn.runtime.errors import ExistenceError, ShapeError, SolverError
+from fdisyn.runtime.errors import ArgumentError, ExistenceError, InternalError, SolverError
 from fdisyn.runtime.gainfile import Generator
 from fdisyn.synthesis.certificate import Certificate, Check
 from fdisyn.synthesis.sampled_data_observer import (
@@ -130,13 +130,13 @@ def _postfilter(
         cons.append(cp.trace(pi @ (c @ sig_f @ c.T)) >= 1.0)
     elif eta == "inf":
         if peak is None:
-            raise ShapeError("internal: the H∞ fault normalisation needs a peak (ω, w)")
+            raise InternalError("internal: the H∞ fault normalisation needs a peak (ω, w)")
         om, w = peak
         gw = (DiscreteLTI(A=al, B=bfs, C=c, D=np.zeros((p_, mf))).freqresp(np.array([om]))[0]) @ w
         # wᴴ Gᴴ Π G w = Re(g)ᵀ Π Re(g) + Im(g)ᵀ Π Im(g) for real symmetric Π.
         cons.append(cp.quad_form(gw.real, pi, assume_PSD=True) + cp.quad_form(gw.imag, pi, assume_PSD=True) >= 1.0)
     else:
-        raise ShapeError(f"eta must be 'inf', '2' or '-'; got {eta!r}")
+        raise ArgumentError(f"eta must be 'inf', '2' or '-'; got {eta!r}")
     prob = cp.Problem(cp.Minimize(g2), cons)
     # At the optimum both frequency inequalities are tight at every frequency
     # (G_rψ G_d co-inner), a degenerate SDP on which Clarabel often stops at
@@ -227,9 +227,9 @@ def lmi_diagnostic_observer(
     ``‖G_rψ G_f‖₋ = 0`` for every generator).
     """
     if eta not in ETAS:
-        raise ShapeError(f"eta must be one of {ETAS}; got {eta!r}")
+        raise ArgumentError(f"eta must be one of {ETAS}; got {eta!r}")
     if band is not None and eta == "2":
-        raise ShapeError("band applies to η = 'inf' or '-'; the H2 norm is over the whole circle")
+        raise ArgumentError("band applies to η = 'inf' or '-'; the H2 norm is over the whole circle")
     check_sampling(A=plant.A, C=plant.C, h=plant.h)
     gd, gf = plant.G_d(model=model), plant.G_f(model=model)
     a, c = plant.A_D, plant.C

@@ -63,7 +63,7 @@ from fdisyn.models.sampled_data import SampledDataPlant, check_sampling
 from fdisyn.numerics.factorisation import INNER_TOL, KAPPA_FACTOR, KAPPA_MAX, CoInnerOuter, co_inner_outer
 from fdisyn.numerics.linalg import as_matrix, spectral_radius
 from fdisyn.numerics.norms import DiscreteLTI, Eta, hinf_norm, hminus_index, series, system_norm
-from fdisyn.runtime.errors import ExistenceError, ShapeError
+from fdisyn.runtime.errors import ArgumentError, ExistenceError, ShapeError
 from fdisyn.runtime.gainfile import Generator
 from fdisyn.synthesis.certificate import Certificate, Check, worst
 from fdisyn.synthesis.residual import internal_form
@@ -282,7 +282,7 @@ def optimal_diagnostic_observer(
     :class:`~fdisyn.runtime.errors.CertificateError`.
     """
     if design not in ("direct", "indirect"):
-        raise ShapeError(f"design must be 'direct' or 'indirect'; got {design!r}")
+        raise ArgumentError(f"design must be 'direct' or 'indirect'; got {design!r}")
     n, p = plant.n, plant.p
     check_sampling(A=plant.A, C=plant.C, h=plant.h, allow_pathological=allow_pathological)
     model: Literal["norm_invariant", "zoh"] = "norm_invariant" if design == "direct" else "zoh"
@@ -292,7 +292,7 @@ def optimal_diagnostic_observer(
     mt, npi = dt.M.T, dt.N_pinv
 
     if (A_d is None) != (Y is None):
-        raise ShapeError("give both A_d and Y for an observer of order s > n (eq. (21)), or neither for s = n")
+        raise ArgumentError("give both A_d and Y for an observer of order s > n (eq. (21)), or neither for s = n")
     if A_d is None:
         a_d, y = np.zeros((0, 0)), np.zeros((0, p))
     else:
@@ -311,7 +311,7 @@ def optimal_diagnostic_observer(
         tt = as_matrix(T_t, "T_t", rows=s, cols=s)
     cond_t = float(np.linalg.cond(tt))
     if not np.isfinite(cond_t) or cond_t > 1e10:
-        raise ShapeError(f"T_t must be nonsingular (Theorem 1); cond(T_t) = {cond_t:.3g} (expected ≤ 1e10)")
+        raise ExistenceError(f"T_t must be nonsingular (Theorem 1); cond(T_t) = {cond_t:.3g} (expected ≤ 1e10)")
     tt_inv = np.linalg.inv(tt)
 
     l_d, t_d = _extra_block(a_d, y, plant.A_D, plant.C)

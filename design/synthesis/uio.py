@@ -122,7 +122,7 @@ def uio_structure(plant: LinearPlant) -> UIOStructure:
     residual is left), and detectability of ``(C, A1)``.
     """
     if not plant.is_discrete:
-        raise ShapeError("the UIO is designed on a discrete plant; call plant.discretise(Ts) first")
+        raise ArgumentError("the UIO is designed on a discrete plant; call plant.discretise(Ts) first")
     n, p, q = plant.n, plant.p, plant.q
     e, c = np.asarray(plant.E), np.asarray(plant.C)
     if q == 0:
@@ -444,7 +444,7 @@ def kalman_uio(plant: LinearPlant, *, variant: Literal["optimal", "paper"] = "op
     """
     st = uio_structure(plant)
     if variant not in ("optimal", "paper"):
-        raise ValueError(f"variant must be 'optimal' or 'paper'; got {variant!r}")
+        raise ArgumentError(f"variant must be 'optimal' or 'paper'; got {variant!r}")
     try:
         return _kalman_uio(plant, st, variant)
     except (SolverError, CertificateError, ExistenceError, np.linalg.LinAlgError) as exc:
@@ -630,11 +630,11 @@ def pole_placement_uio(plant: LinearPlant, *, poles: Sequence[complex]) -> UIODe
     try:
         pl = np.asarray(poles, dtype=complex).reshape(-1)
     except (TypeError, ValueError):
-        raise ShapeError(f"poles must be {plant.n} numbers (complex ones in conjugate pairs); got {poles!r}") from None
+        raise ArgumentError(f"poles must be {plant.n} numbers (complex ones in conjugate pairs); got {poles!r}") from None
     if pl.size != plant.n:
         raise ShapeError(f"poles: expected {plant.n} poles (one per state), got {pl.size}")
     if np.any(np.abs(pl) >= 1.0):
-        raise ShapeError(f"poles must lie strictly inside the unit circle; got moduli {np.abs(pl)}")
+        raise ArgumentError(f"poles must lie strictly inside the unit circle; got moduli {np.abs(pl)}")
     c = np.asarray(plant.C)
     try:
         res = scipy.signal.place_poles(st.A1.T, c.T, pl)

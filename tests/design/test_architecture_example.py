@@ -14,6 +14,7 @@ import fdisyn
 import numpy as np
 import pytest
 from fdisyn.synthesis import registry
+
 from tests.helpers import random_plant
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import subprocess
 from pathlib import Path
 
+import fdisyn
 import numpy as np
 import pytest
-from fdisyn.app.cli import main
+from fdisyn.app.cli import _parser, main
 from fdisyn.runtime.gainfile import read_gain_file
 
 DATA = Path(__file__).parents[1] / "data"
@@ -155,3 +157,25 @@ def test_reproduce_plant_files(tmp_path):
     ship = json.loads((tmp_path / "r" / "ship" / "metrics.json").read_text())["variants"][0]["evaluation"]["designs"]["nafdf"]
     assert ship["a_half"]["missed_detection_rate"] == 0.0 and ship["a_half"]["isolation_accuracy"] == 1.0
     assert set(ship["both"]["extra"]) >= {"all parameter classes correct", "size error a: mean", "size error b: mean"}
+
+
+def _commands() -> dict[str, argparse.ArgumentParser]:
+    sub = next(a for a in _parser()._actions if isinstance(a, argparse._SubParsersAction))
+    return dict(sub.choices)
+
+
+def test_version(capsys):
+    assert main(["--version"]) == 0
+    assert capsys.readouterr().out == f"fdisyn {fdisyn.__version__}\n"
+
+
+@pytest.mark.parametrize("command", sorted(_commands()))
+def test_every_command_help_describes_every_argument_and_shows_examples(command, capsys):
+    assert main([command, "--help"]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert "Example" in text
+    for action in _commands()[command]._actions:
+        assert action.help and action.help != argparse.SUPPRESS, (command, action.dest)
+        assert " ".join(action.help.split()) in text, (command, action.dest)
+    examples = text.split("Example", 1)[1]
+    assert f"fdisyn {command}" in examples

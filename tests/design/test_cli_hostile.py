@@ -19,6 +19,16 @@ import pytest
 from fdisyn.app.cli import main
 from fdisyn.app.plant_file import load_spec
 from fdisyn.evaluation.evaluate import MONTE_CARLO_MEMORY
+from fdisyn.runtime.errors import (
+    ArgumentError,
+    CertificateError,
+    ExistenceError,
+    FileError,
+    InternalError,
+    ShapeError,
+    SolverError,
+    SpecError,
+)
 from fdisyn.runtime.gainfile import read_gain_file
 
 DATA = Path(__file__).parents[1] / "data"
@@ -337,30 +347,70 @@ def test_runs_and_seeds_are_checked_by_the_api_too(tmp_path) -> None:
     from fdisyn.app.pipeline import reproduce_problem
     from fdisyn.app.plant_file import load_spec
     from fdisyn.evaluation.evaluate import evaluate
-    from fdisyn.runtime.errors import SpecError
+    from fdisyn.runtime.errors import ArgumentError
 
     prob = load_spec(DATA / "dc_motor.toml")
-    with pytest.raises(SpecError, match=r"seeds must be whole numbers ≥ 0; got \[-1\]"):
+    with pytest.raises(ArgumentError, match=r"seeds must be whole numbers ≥ 0; got \[-1\]"):
         prob.run("fault_free", [-1])
-    with pytest.raises(SpecError, match="runs must be a whole number ≥ 1; got 0"):
+    with pytest.raises(ArgumentError, match="runs must be a whole number ≥ 1; got 0"):
         evaluate(prob, {}, runs=0)
-    with pytest.raises(SpecError, match="seed0 must be a whole number ≥ 0"):
+    with pytest.raises(ArgumentError, match="seed0 must be a whole number ≥ 0"):
         evaluate(prob, {}, runs=1, seed0=-3)
-    with pytest.raises(SpecError, match=r"runs must be a whole number ≥ 1 \(or None for the problem's 50\); got 0"):
+    with pytest.raises(ArgumentError, match=r"runs must be a whole number ≥ 1 \(or None for the problem's 50\); got 0"):
         reproduce_problem(prob, runs=0, reports=tmp_path / "r", workdir=tmp_path / "b")
 
 
-def test_an_oserror_about_another_file_is_not_the_users_and_keeps_its_traceback(tmp_path, monkeypatch) -> None:
-    """Only an OSError about a path the user named (or a full disk) becomes a one-line error; one
-    about any other file is a bug and propagates."""
+def test_an_oserror_about_another_file_is_not_the_users_and_is_a_bug(tmp_path, capsys, monkeypatch) -> None:
+    """Only an OSError about a path the user named (or a full disk) becomes an error of status 2; one
+    about any other file is a bug: status 3, one line, and the traceback with FDISYN_DEBUG=1."""
     import fdisyn.runtime.gainfile as gainfile
 
     def broken(gf: object, path: object) -> None:
         raise FileNotFoundError(2, "No such file or directory", "/usr/share/fdisyn/template.json")
 
     monkeypatch.setattr(gainfile, "write_gain_file", broken)
-    with pytest.raises(FileNotFoundError):
-        main(["design", str(DATA / "dc_motor.toml"), "--out", str(tmp_path / "d")])
+    argv = ["design", str(DATA / "dc_motor.toml"), "--out", str(tmp_path / "d")]
+    monkeypatch.delenv("FDISYN_DEBUG", raising=False)
+    assert main(argv) == 3
+    lines = capsys.readouterr().err.splitlines()
+    assert lines == [
+        "fdisyn design: internal error: FileNotFoundError: [Errno 2] No such file or directory: "
+        "'/usr/share/fdisyn/template.json' — please report; FDISYN_DEBUG=1 shows the traceback"
+    ]
+    monkeypatch.setenv("FDISYN_DEBUG", "1")
+    assert main(argv) == 3
+    err = capsys.readouterr().err
+    assert err.startswith("Traceback (most recent call last):") and "in broken" in err and err.splitlines()[-1] == lines[0]
+
+
+@pytest.mark.parametrize(
+    ("error", "status", "line"),
+    [
+        (ArgumentError("option P_f = 2: expected a probability"), 2, "error: option P_f = 2: expected a probability"),
+        (ShapeError("A has shape (2, 3)"), 2, "error: A has shape (2, 3)"),
+        (FileError("no gain file at x/gains.json"), 2, "error: no gain file at x/gains.json"),
+        (SpecError("plant.toml [model].A: …"), 2, "error: plant.toml [model].A: …"),
+        (ExistenceError("rank(C E) = 0 but rank(E) = 1"), 2, "error: rank(C E) = 0 but rank(E) = 1"),
+        (SolverError("Clarabel: infeasible"), 2, "error: Clarabel: infeasible"),
+        (CertificateError("certificate failed:\n  residual 1e-3 > 1e-9"), 2, "error: certificate failed: residual 1e-3 > 1e-9"),
+        (InternalError("layout mismatch"), 3, "internal error: layout mismatch — please report; FDISYN_DEBUG=1 shows the traceback"),
+        (ValueError("operands could not be broadcast"), 3, "internal error: ValueError: operands could not be broadcast — please report"),
+        (KeyError("x"), 3, "internal error: KeyError: 'x' — please report"),
+    ],
+    ids=lambda v: type(v).__name__ if isinstance(v, Exception) else None,
+)
+def test_every_error_class_is_one_line_with_its_status(tmp_path, capsys, monkeypatch, error, status, line) -> None:
+    """The taxonomy through the command line: every FdisynError is the user's (status 2), an
+    InternalError or any other exception a bug (status 3); one line each, no traceback."""
+    import fdisyn.app.cli as cli
+
+    def fail(spec: str) -> None:
+        raise error
+
+    monkeypatch.delenv("FDISYN_DEBUG", raising=False)
+    monkeypatch.setattr(cli, "_problem", fail)
+    status_, lines = _status_and_lines(capsys, ["simulate", "wind_turbine", "--scenario", "fault_free", "--out", str(tmp_path / "t.csv")])
+    assert status_ == status and len(lines) == 1 and lines[0].startswith(f"fdisyn simulate: {line}"), lines
 
 
 def test_warnings_of_a_successful_command_are_one_line_each(tmp_path, capsys) -> None:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from fdisyn.numerics.linalg import normal_rank, psd_factor, unobservable_modes
-from fdisyn.runtime.errors import ShapeError
+from fdisyn.runtime.errors import ArgumentError
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -27,9 +27,9 @@ def test_psd_factor_reproduces_w_with_rank_columns(n: int, r: int, seed: int) ->
 
 
 def test_psd_factor_refuses_indefinite_and_asymmetric() -> None:
-    with pytest.raises(ShapeError, match="positive semidefinite"):
+    with pytest.raises(ArgumentError, match="positive semidefinite"):
         psd_factor(np.diag([1.0, -1.0]), "Wx")
-    with pytest.raises(ShapeError, match="symmetric"):
+    with pytest.raises(ArgumentError, match="symmetric"):
         psd_factor(np.array([[1.0, 2.0], [0.0, 1.0]]), "Wx")
 
 

@@ -14,7 +14,7 @@ from fdisyn.models.nonlinear import NonlinearPlant
 from fdisyn.numerics.linalg import rel_diff
 from fdisyn.numerics.riccati import solve_filter_dare
 from fdisyn.problems import ship_propulsion as sp
-from fdisyn.runtime.errors import GainFileError, ShapeError, SpecError
+from fdisyn.runtime.errors import ArgumentError, GainFileError, ShapeError
 from fdisyn.synthesis.nafdf.design import nafdf
 from fdisyn.synthesis.nafdf.payload import nafdf_from_payload, nafdf_payload, step_from_payload
 from hypothesis import given, settings
@@ -145,7 +145,7 @@ def test_threshold_table_rules() -> None:
     assert np.all(np.diff(chi) < 0)  # averaging more samples narrows the law
     beta = wssr_threshold_table(window=5, n_outputs=2, rule="beta0", false_alarm_probability=0.5, beta0=0.01)
     assert beta[-1] == 0.01 and np.all(beta[:-1] > 1e300)  # the paper's rule needs a full window
-    with pytest.raises(SpecError, match="beta0"):
+    with pytest.raises(ArgumentError, match="beta0"):
         wssr_threshold_table(window=5, n_outputs=1, rule="beta0", false_alarm_probability=0.5, beta0=None)
 
 
@@ -163,7 +163,7 @@ def test_threshold_table_rules() -> None:
 )
 def test_bad_settings_are_refused(kw: dict, match: str) -> None:
     base = dict(x0=[0.0], P0=100.0, theta0=[0.0, 0.0], R0=sp.R0)
-    with pytest.raises((SpecError, ValueError), match=match):
+    with pytest.raises(ArgumentError, match=match):
         nafdf(sp.plant(), **{**base, **kw})
 
 
@@ -328,7 +328,7 @@ def test_payload_with_unbounded_parameters_and_the_beta0_rule() -> None:
 )
 def test_limits_and_bad_numbers_are_refused_before_building(kw: dict, match: str) -> None:
     base = dict(x0=[0.0], P0=100.0, theta0=[0.0, 0.0], R0=sp.R0)
-    with pytest.raises((SpecError, ShapeError), match=match) as info:
+    with pytest.raises((ArgumentError, ShapeError), match=match) as info:
         nafdf(sp.plant(), **{**base, **kw})
     assert "\n" not in str(info.value)
 
@@ -341,7 +341,7 @@ def test_state_size_is_checked_from_the_layout_before_the_step_is_built() -> Non
     h = ca.Function("h", [x, th], [x])
     pl = NonlinearPlant.create(f=f, h=h, states=["x"], inputs=["u"], outputs=["y"], parameters=list("abcd"),
                                nominal=dict(a=0.5, b=1.0, c=0.0, d=0.0), Q1=0.0, Q2=0.01)
-    with pytest.raises(SpecError, match=r"state would have 50\d\d entries .*; at most 4096"):
+    with pytest.raises(ArgumentError, match=r"state would have 50\d\d entries .*; at most 4096"):
         nafdf(pl, x0=[0.0], P0=1.0, classifier_window=1000)
 
 
@@ -351,10 +351,10 @@ def test_step_operation_and_work_limits(monkeypatch) -> None:
     refuses the default ship design by its work memory (the C step's stack)."""
     from fdisyn.synthesis.nafdf import step as mod
 
-    with pytest.raises(SpecError, match=r"the NAFDF step has \d+ operations; at most 40000"):
+    with pytest.raises(ArgumentError, match=r"the NAFDF step has \d+ operations; at most 40000"):
         nafdf(sp.plant(), x0=[0.0], P0=100.0, theta0=[0.0, 0.0], R0=sp.R0, window=1000, classifier_window=1000)
     monkeypatch.setattr(mod, "MAX_STEP_WORK", 100)
-    with pytest.raises(SpecError, match=r"needs \d+ doubles of work memory; at most 100"):
+    with pytest.raises(ArgumentError, match=r"needs \d+ doubles of work memory; at most 100"):
         sp.design()
 
 
@@ -376,7 +376,7 @@ def test_stack_use_of_the_documented_problems_is_within_the_limits(ship_design) 
 )
 def test_model_not_finite_where_the_filters_start_is_refused(f: str, theta0, where: str) -> None:
     pl = NonlinearPlant.from_expressions(**{**SHIP_EXPR, "f": {"x": f}})
-    with pytest.raises(SpecError, match=where) as info:
+    with pytest.raises(ArgumentError, match=where) as info:
         nafdf(pl, x0=[0.0], P0=1.0, theta0=theta0)
     assert "\n" not in str(info.value)
 

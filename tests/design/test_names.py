@@ -17,7 +17,7 @@ from fdisyn.app.cli import main
 from fdisyn.app.plant_file import problem_from_document
 from fdisyn.models.linear import LinearPlant
 from fdisyn.models.nonlinear import NonlinearPlant
-from fdisyn.runtime.errors import ShapeError, SpecError, TraceError
+from fdisyn.runtime.errors import ArgumentError, SpecError, TraceError
 from fdisyn.runtime.trace import Trace
 
 DATA = Path(__file__).parents[1] / "data"
@@ -101,9 +101,9 @@ def test_linear_plant_names_share_one_namespace():
         ({"unknown_inputs": ["x1"]}, "the name 'x1' is used by the states and by the unknown inputs"),
         ({"outputs": ["t", "y1"]}, r"output names\[0\] 't' is reserved"),
     ):
-        with pytest.raises(ShapeError, match=message):
+        with pytest.raises(ArgumentError, match=message):
             LinearPlant.create(**base, **names)  # type: ignore[arg-type]
-    with pytest.raises(ShapeError, match="the name 'f0' is used by the outputs and by the component faults"):
+    with pytest.raises(ArgumentError, match="the name 'f0' is used by the outputs and by the component faults"):
         LinearPlant.create(**base, Fx=np.ones((2, 1)), outputs=["f0", "y1"])  # type: ignore[arg-type]
 
 
@@ -117,13 +117,13 @@ def _nonlinear(**names: list[str]) -> NonlinearPlant:
 
 def test_nonlinear_plant_names():
     assert _nonlinear(outputs=["x"]).outputs == ("x",)  # an output may be named after the state it measures
-    with pytest.raises(ShapeError, match="the name 'a' is used by the states and by the parameters; .*f refer to them by name"):
+    with pytest.raises(ArgumentError, match="the name 'a' is used by the states and by the parameters; .*f refer to them by name"):
         _nonlinear(states=["a"], parameters=["a"])
-    with pytest.raises(ShapeError, match="the name 'x' is used by the states and by the inputs"):
+    with pytest.raises(ArgumentError, match="the name 'x' is used by the states and by the inputs"):
         _nonlinear(inputs=["x"])
-    with pytest.raises(ShapeError, match="the name 'u' is used by the inputs and by the outputs"):
+    with pytest.raises(ArgumentError, match="the name 'u' is used by the inputs and by the outputs"):
         _nonlinear(outputs=["u"])
-    with pytest.raises(ShapeError, match="the name 'true_x' is used by the outputs and by the simulated truth columns"):
+    with pytest.raises(ArgumentError, match="the name 'true_x' is used by the outputs and by the simulated truth columns"):
         _nonlinear(outputs=["true_x"])
 
 

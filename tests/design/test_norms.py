@@ -8,7 +8,7 @@ import control
 import numpy as np
 import pytest
 from fdisyn.numerics.norms import DiscreteLTI, h2_norm, hinf_norm, hminus_index, series, singular_values, system_norm
-from fdisyn.runtime.errors import ExistenceError, ShapeError
+from fdisyn.runtime.errors import ArgumentError, ExistenceError
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -99,11 +99,11 @@ def test_unstable_systems_and_bad_bands_are_refused() -> None:
     with pytest.raises(ExistenceError, match="not Schur stable"):
         h2_norm(unstable)
     stable = DiscreteLTI.create(A=[[0.5]], B=[[1.0]], C=[[1.0]])
-    with pytest.raises(ShapeError, match="0 ≤ ω1 < ω2 ≤ π"):
+    with pytest.raises(ArgumentError, match="0 ≤ ω1 < ω2 ≤ π"):
         hinf_norm(stable, band=(1.0, 0.5))
-    with pytest.raises(ShapeError, match="band must be None"):
+    with pytest.raises(ArgumentError, match="band must be None"):
         system_norm(stable, eta="2", band=(0.0, 1.0))
-    with pytest.raises(ShapeError, match="eta must be"):
+    with pytest.raises(ArgumentError, match="eta must be"):
         system_norm(stable, eta="1")  # type: ignore[arg-type]
 
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from fdisyn.models.linear import LinearPlant
 from fdisyn.numerics.linalg import markov_parameters
-from fdisyn.runtime.errors import ShapeError
+from fdisyn.runtime.errors import ArgumentError, ShapeError
 
 from tests.helpers import random_plant
 
@@ -21,20 +21,20 @@ def test_shape_error_names_matrix_and_shapes():
 
 
 def test_non_finite_and_non_covariance_are_refused():
-    with pytest.raises(ShapeError, match=r"A contains a non-finite entry at index \(0, 1\)"):
+    with pytest.raises(ArgumentError, match=r"A contains a non-finite entry at index \(0, 1\)"):
         LinearPlant.create(A=[[1.0, np.nan], [0.0, 1.0]], C=np.eye(2))
-    with pytest.raises(ShapeError, match="Q must be positive semidefinite"):
+    with pytest.raises(ArgumentError, match="Q must be positive semidefinite"):
         LinearPlant.create(A=np.eye(2), C=np.eye(2), Q=np.diag([1.0, -1.0]))
-    with pytest.raises(ShapeError, match="R must be symmetric"):
+    with pytest.raises(ArgumentError, match="R must be symmetric"):
         LinearPlant.create(A=np.eye(2), C=np.eye(2), R=[[1.0, 0.5], [0.0, 1.0]])
 
 
 def test_names_are_checked():
-    with pytest.raises(ShapeError, match="output names: expected 2 names"):
+    with pytest.raises(ArgumentError, match="output names: expected 2 names"):
         LinearPlant.create(A=np.eye(2), C=np.eye(2), outputs=["y"])
-    with pytest.raises(ShapeError, match="unique"):
+    with pytest.raises(ArgumentError, match="unique"):
         LinearPlant.create(A=np.eye(2), C=np.eye(2), outputs=["y", "y"])
-    with pytest.raises(ShapeError, match="is not a signal name"):
+    with pytest.raises(ArgumentError, match="is not a signal name"):
         LinearPlant.create(A=np.eye(2), C=np.eye(2), outputs=["y 1", "y2"])
 
 

@@ -18,7 +18,7 @@ from fdisyn.numerics.factorisation import co_inner_outer, solve_dtars
 from fdisyn.numerics.linalg import spectral_radius
 from fdisyn.numerics.norms import DiscreteLTI, h2_norm, hinf_norm
 from fdisyn.numerics.riccati import solve_filter_dare
-from fdisyn.runtime.errors import CertificateError, ExistenceError, ShapeError
+from fdisyn.runtime.errors import ArgumentError, CertificateError, ExistenceError, ShapeError
 from fdisyn.synthesis.residual import internal_form
 from fdisyn.synthesis.sampled_data_observer import ETAS, _extra_block, optimal_diagnostic_observer, performance, residual_dynamics
 from hypothesis import given, settings
@@ -467,9 +467,9 @@ def test_unstable_plant_is_designed_through_the_error_form() -> None:
 
 @pytest.mark.parametrize("h", [0.0, -1.0, float("nan"), float("inf")])
 def test_nonpositive_or_nonfinite_sample_time(h: float) -> None:
-    with pytest.raises(ShapeError, match="h must be a positive, finite number of seconds"):
+    with pytest.raises(ArgumentError, match="h must be a positive, finite number of seconds"):
         SampledDataPlant.create(**{**PAPER, "h": h})
-    with pytest.raises(ShapeError, match="h must be a positive"):
+    with pytest.raises(ArgumentError, match="h must be a positive"):
         check_sampling(A=PAPER["A"], C=PAPER["C"], h=h)
 
 
@@ -502,11 +502,11 @@ def test_pathological_sampling() -> None:
 
 
 def test_bad_extra_block_and_basis(paper_plant: SampledDataPlant) -> None:
-    with pytest.raises(ShapeError, match="give both A_d and Y"):
+    with pytest.raises(ArgumentError, match="give both A_d and Y"):
         optimal_diagnostic_observer(plant=paper_plant, A_d=[[0.1]])
     with pytest.raises(ExistenceError, match="A_d must be Schur"):
         optimal_diagnostic_observer(plant=paper_plant, A_d=[[1.2]], Y=[[1.0, 0.0]])
-    with pytest.raises(ShapeError, match="T_t must be nonsingular"):
+    with pytest.raises(ExistenceError, match="T_t must be nonsingular"):
         optimal_diagnostic_observer(plant=paper_plant, T_t=[[1.0, 1.0], [1.0, 1.0]])
     with pytest.raises(ShapeError, match=r"Y has shape \(1, 3\); expected \(1, 2\)"):
         optimal_diagnostic_observer(plant=paper_plant, A_d=[[0.1]], Y=[[1.0, 0.0, 0.0]])
@@ -516,9 +516,9 @@ def test_from_linear_plant_refuses_discrete_and_feedthrough() -> None:
     lp = LinearPlant.create(A=PAPER["A"], B=PAPER["Bu"], C=PAPER["C"], E=PAPER["Bd"], Fx=PAPER["Bf"])
     sd = SampledDataPlant.from_linear_plant(lp, h=1.0)
     assert np.array_equal(sd.B_dJ, SampledDataPlant.create(**PAPER).B_dJ)
-    with pytest.raises(ShapeError, match="continuous plant"):
+    with pytest.raises(ArgumentError, match="continuous plant"):
         SampledDataPlant.from_linear_plant(lp.discretise(1.0), h=1.0)
-    with pytest.raises(ShapeError, match="strictly proper"):
+    with pytest.raises(ExistenceError, match="strictly proper"):
         SampledDataPlant.from_linear_plant(
             LinearPlant.create(A=PAPER["A"], B=PAPER["Bu"], C=PAPER["C"], D=[[1.0], [0.0]], E=PAPER["Bd"]), h=1.0
         )

@@ -9,7 +9,7 @@ import scipy.linalg
 import scipy.signal
 from fdisyn.models.linear import LinearPlant
 from fdisyn.models.sampling import van_loan, zoh
-from fdisyn.runtime.errors import ShapeError
+from fdisyn.runtime.errors import ArgumentError
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -65,7 +65,7 @@ def test_van_loan_matches_quadrature(seed):
 
 @pytest.mark.parametrize("h", [0.0, -0.1, float("nan"), float("inf"), "fast"])
 def test_bad_sample_time_is_refused(h):
-    with pytest.raises(ShapeError, match="positive"):
+    with pytest.raises(ArgumentError, match="positive"):
         zoh(np.eye(2), np.ones((2, 1)), h)  # type: ignore[arg-type]
 
 
@@ -78,5 +78,5 @@ def test_discretise_uses_van_loan_for_process_noise():
     ad, bd = zoh(a, np.hstack([plant.B, plant.E]), 0.05)
     np.testing.assert_allclose(d.A, ad, rtol=1e-15)
     np.testing.assert_allclose(np.hstack([d.B, d.E]), bd, rtol=1e-15)
-    with pytest.raises(ShapeError, match="already discrete"):
+    with pytest.raises(ArgumentError, match="already discrete"):
         d.discretise(0.05)

@@ -13,7 +13,7 @@ import casadi as ca
 import numpy as np
 from fdisyn.models.nonlinear import NonlinearPlant, short_repr
 from fdisyn.numerics.linalg import real_array
-from fdisyn.runtime.errors import ShapeError, SpecError
+from fdisyn.runtime.errors import ArgumentError, ShapeError
 
 __all__ = ['MAX_CLASSIFIER_WINDOW', 'MAX_COUNT', 'MAX_DIMENSION', 'MAX_STATE', 'MAX_STEP_INSTRUCTIONS', 'MAX_STEP_WORK', 'MAX_WINDOW', 'NafdfSettings', 'StateLayout']
 
@@ -108,8 +108,8 @@ def _ro(a: np.ndarray) -> np.ndarray:
 def _float_array(value: object, name: str) -> np.ndarray:
     try:
         return real_array(value, name)  # numbers only: "100" or true are refused, not converted
-    except ShapeError:
-        raise SpecError(f"{name} must be a number or an array of numbers; got {short_repr(value)}") from None
+    except (ShapeError, ArgumentError):
+        raise ArgumentError(f"{name} must be a number or an array of numbers; got {short_repr(value)}") from None
 
 
 def _vec(value: object, name: str, size: int) -> np.ndarray:
@@ -125,7 +125,7 @@ def _vec(value: object, name: str, size: int) -> np.ndarray:
 def _finite_vec(value: object, name: str, size: int) -> np.ndarray:
     arr = _vec(value, name, size)
     if not np.all(np.isfinite(arr)):
-        raise SpecError(f"{name} must be finite; got {short_repr(arr.tolist())}")
+        raise ArgumentError(f"{name} must be finite; got {short_repr(arr.tolist())}")
     return arr
 
 
@@ -138,12 +138,12 @@ def _spd(value: object, name: str, size: int) -> np.ndarray:
     if arr.shape != (size, size):
         raise ShapeError(f"{name} has shape {arr.shape}; expected ({size}, {size})")
     if not np.all(np.isfinite(arr)):
-        raise ShapeError(f"{name} contains non-finite entries")
+        raise ArgumentError(f"{name} contains non-finite entries")
     if not np.allclose(arr, arr.T, rtol=1e-12, atol=0.0):
-        raise ShapeError(f"{name} must be symmetric")
+        raise ArgumentError(f"{name} must be symmetric")
     ev = np.linalg.eigvalsh(arr)
     if ev[0] <= 0.0:
-        raise ShapeError(f"{name} must be positive definite; smallest eigenvalue {ev[0]:.3g}")
+        raise ArgumentError(f"{name} must be positive definite; smallest eigenvalue {ev[0]:.3g}")
     return 0.5 * arr + 0.5 * arr.T  # halves first: 1e308 + 1e308 would overflow
 
 
@@ -155,25 +155,25 @@ def _positive_int(value: object, name: str, maximum: int = MAX_COUNT) -> int:
     elif isinstance(value, (float, np.floating)) and math.isfinite(value) and float(value).is_integer():
         whole = int(value)
     if whole is None or whole < 1:
-        raise SpecError(f"{name} must be a positive integer; got {short_repr(value)}")
+        raise ArgumentError(f"{name} must be a positive integer; got {short_repr(value)}")
     if whole > maximum:
-        raise SpecError(f"{name} is {whole}; at most {maximum} is allowed (see the limits in fdisyn.synthesis.nafdf.design)")
+        raise ArgumentError(f"{name} is {whole}; at most {maximum} is allowed (see the limits in fdisyn.synthesis.nafdf.design)")
     return whole
 
 
 def _number(value: object, name: str) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise SpecError(f"{name} must be a number; got {short_repr(value)}")
+        raise ArgumentError(f"{name} must be a number; got {short_repr(value)}")
     try:
         return float(value)
     except OverflowError:
-        raise SpecError(f"{name} must be a finite number; got {short_repr(value)}") from None
+        raise ArgumentError(f"{name} must be a finite number; got {short_repr(value)}") from None
 
 
 def _unit_open(value: float, name: str) -> float:
     v = _number(value, name)
     if not 0.0 < v < 1.0:
-        raise SpecError(f"{name} must lie strictly between 0 and 1; got {short_repr(value)}")
+        raise ArgumentError(f"{name} must lie strictly between 0 and 1; got {short_repr(value)}")
     return v
 
 
@@ -225,7 +225,7 @@ class StateLayout:
         missing = [name for name, _, _ in self.entries if name not in values]
         extra = sorted(set(values) - {name for name, _, _ in self.entries})
         if missing or extra:
-            raise ShapeError(f"state blocks: missing {missing}, unknown {extra}")
+            raise ArgumentError(f"state blocks: missing {missing}, unknown {extra}")
         parts = []
         for name, r, c in self.entries:
             a = np.asarray(values[name], dtype=float)
@@ -319,10 +319,10 @@ def _check_sizes(plant: NonlinearPlant, window: int, classifier_window: int) -> 
     """The limits that need no step: dimensions and state size (module docstring)."""
     for what, count in (("states", plant.n), ("inputs", plant.m), ("outputs", plant.p), ("parameters", plant.l)):
         if count > MAX_DIMENSION:
-            raise SpecError(f"the plant has {count} {what}; the NAFDF allows at most {MAX_DIMENSION}")
+            raise ArgumentError(f"the plant has {count} {what}; the NAFDF allows at most {MAX_DIMENSION}")
     size = _layout(plant.n, plant.l, window, classifier_window).size
     if size > MAX_STATE:
-        raise SpecError(
+        raise ArgumentError(
             f"the diagnoser state would have {size} entries (window {window}, classifier_window {classifier_window}, "
             f"{plant.n} states, {plant.l} parameters); at most {MAX_STATE} are allowed"
         )
@@ -333,7 +333,7 @@ def _settings(plant: NonlinearPlant, **kw: Any) -> NafdfSettings:
 
     Sizes first (windows, counters, dimensions, state size), then every
     vector and matrix: shapes, finiteness, definiteness, ranges, the box.
-    Raises :class:`SpecError` or :class:`ShapeError` naming the setting.
+    Raises :class:`ArgumentError` or :class:`ShapeError` naming the setting.
     """
     n, m, l = plant.n, plant.m, plant.l  # noqa: E741 — the paper's letter for dim θ
     window = _positive_int(kw["window"], "window", MAX_WINDOW)
@@ -342,22 +342,22 @@ def _settings(plant: NonlinearPlant, **kw: Any) -> NafdfSettings:
     th_nom = np.asarray(plant.theta_nominal)
     rule = kw["threshold_rule"]
     if rule not in ("chi2", "beta0"):
-        raise SpecError(f"threshold_rule must be 'chi2' or 'beta0'; got {short_repr(rule)}")
+        raise ArgumentError(f"threshold_rule must be 'chi2' or 'beta0'; got {short_repr(rule)}")
     lo = np.full(l, -np.inf) if kw["theta_lower"] is None else _vec(kw["theta_lower"], "theta_lower", l)
     hi = np.full(l, np.inf) if kw["theta_upper"] is None else _vec(kw["theta_upper"], "theta_upper", l)
     if np.any(np.isnan(lo)) or np.any(np.isnan(hi)) or np.any(lo >= hi) or np.any(lo == np.inf) or np.any(hi == -np.inf):
-        raise SpecError(f"theta_lower must be below theta_upper for every parameter; got {short_repr(lo.tolist())} and {short_repr(hi.tolist())}")
+        raise ArgumentError(f"theta_lower must be below theta_upper for every parameter; got {short_repr(lo.tolist())} and {short_repr(hi.tolist())}")
     tol = (
         np.where(th_nom != 0.0, 0.05 * np.abs(th_nom), 0.05)
         if kw["convergence_tolerance"] is None
         else _vec(kw["convergence_tolerance"], "convergence_tolerance", l)
     )
     if np.any(~np.isfinite(tol)) or np.any(tol <= 0):
-        raise SpecError(f"convergence_tolerance must be positive and finite; got {short_repr(tol.tolist())}")
+        raise ArgumentError(f"convergence_tolerance must be positive and finite; got {short_repr(tol.tolist())}")
     th0 = th_nom.copy() if kw["theta0"] is None else _finite_vec(kw["theta0"], "theta0", l)
     beta0 = None if kw["beta0"] is None else _number(kw["beta0"], "beta0")
     if beta0 is not None and not (math.isfinite(beta0) and beta0 > 0):
-        raise SpecError(f"beta0 must be a positive finite number; got {short_repr(kw['beta0'])}")
+        raise ArgumentError(f"beta0 must be a positive finite number; got {short_repr(kw['beta0'])}")
     settings = NafdfSettings(
         x0=_ro(_finite_vec(kw["x0"], "x0", n)),
         P0=_ro(_spd(kw["P0"], "P0", n)),
@@ -382,9 +382,9 @@ def _settings(plant: NonlinearPlant, **kw: Any) -> NafdfSettings:
         u0=_ro(np.zeros(m) if kw["u0"] is None else _finite_vec(kw["u0"], "u0", m)),
     )
     if not 0.0 <= settings.W1 < settings.W2 or not math.isfinite(settings.W2):
-        raise SpecError(f"the classifier thresholds must satisfy 0 <= W1 < W2 < inf; got W1 = {kw['W1']}, W2 = {kw['W2']}")
+        raise ArgumentError(f"the classifier thresholds must satisfy 0 <= W1 < W2 < inf; got W1 = {kw['W1']}, W2 = {kw['W2']}")
     if np.any(settings.theta0 < lo) or np.any(settings.theta0 > hi):
-        raise SpecError(
+        raise ArgumentError(
             f"theta0 = {short_repr(settings.theta0.tolist())} lies outside the parameter box "
             f"[{short_repr(lo.tolist())}, {short_repr(hi.tolist())}]"
         )
@@ -394,6 +394,6 @@ def _settings(plant: NonlinearPlant, **kw: Any) -> NafdfSettings:
 def _unit_interval(value: float, name: str) -> float:
     v = _number(value, name)
     if not 0.0 < v <= 1.0:
-        raise SpecError(f"{name} must lie in (0, 1]; got {short_repr(value)}")
+        raise ArgumentError(f"{name} must lie in (0, 1]; got {short_repr(value)}")
     return v
 

@@ -10,7 +10,7 @@ import numpy as np
 import scipy.stats
 from fdisyn.evaluators.wssr import _NEVER
 from fdisyn.models.nonlinear import NonlinearPlant
-from fdisyn.runtime.errors import SpecError
+from fdisyn.runtime.errors import ArgumentError
 from fdisyn.synthesis.nafdf.settings import (
     _D_OVERFLOW,
     _PSD_SHIFT,
@@ -376,13 +376,13 @@ def _check_step_size(step: ca.Function, layout: StateLayout) -> None:
     """:data:`MAX_STEP_INSTRUCTIONS` and :data:`MAX_STEP_WORK`, on the SX graph, before any C exists."""
     count, work = int(step.n_instructions()), int(step.sz_w())
     if count > MAX_STEP_INSTRUCTIONS:
-        raise SpecError(
+        raise ArgumentError(
             f"the NAFDF step has {count} operations; at most {MAX_STEP_INSTRUCTIONS} are allowed "
             "(the generated C would take too long to compile): reduce window, classifier_window, "
             "the number of states or parameters, or the size of the model"
         )
     if work > MAX_STEP_WORK:
-        raise SpecError(
+        raise ArgumentError(
             f"the NAFDF step needs {work} doubles of work memory; at most {MAX_STEP_WORK} are allowed "
             f"(they are locals of the generated C step, on its stack with the {layout.size}-entry state)"
         )

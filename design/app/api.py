@@ -1,0 +1,83 @@
+"""The public Python API: ``fdisyn.design``, ``fdisyn.export``, ``fdisyn.load``, ``fdisyn.methods``.
+
+::
+
+    plant = fdisyn.LinearPlant.from_control(sys, n_unknown=1, Q=Q, R=R)
+    gf = fdisyn.design(plant, method="kalman_uio", P_f=1e-4)   # a certified GainFile
+    fdisyn.export(gf, "build/motor")                            # what `fdisyn codegen` builds
+    mon = fdisyn.load("build/motor")                            # a Monitor over the compiled step
+    fdisyn.methods()                                            # the registered method names
+
+Each function is what a command of the command line does, from Python:
+``design`` is ``fdisyn design`` on a plant object (through the method
+registry, :mod:`fdisyn.synthesis.registry`), ``export`` writes ``gains.json``
+and runs ``fdisyn codegen`` on it, ``load`` is
+:meth:`fdisyn.runtime.monitor.Monitor.from_directory`. The design side is
+imported when ``design``, ``export`` or ``methods`` is first called, so
+``load`` needs only the runtime.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Literal
+
+from fdisyn.runtime.errors import ArgumentError
+from fdisyn.runtime.gainfile import GainFile, write_gain_file
+from fdisyn.runtime.monitor import Monitor
+
+__all__ = ["design", "export", "load", "methods"]
+
+
+def design(plant: Any, method: str, *, name: str | None = None, **options: Any) -> GainFile:
+    """Design a diagnoser for ``plant`` with a registered ``method``; a certified :class:`GainFile`.
+
+    ``options`` are the method's options (``fdisyn methods`` lists them, with
+    their defaults); ``name`` is the diagnoser's name, the prefix of its C API.
+    An unknown method or option, or a value outside its domain, raises
+    :class:`~fdisyn.runtime.errors.ArgumentError`; a plant the method cannot
+    design for, :class:`~fdisyn.runtime.errors.ExistenceError`; a design that
+    fails its verification, :class:`~fdisyn.runtime.errors.CertificateError`.
+    """
+    from fdisyn.synthesis.registry import design as registry_design
+
+    return registry_design(plant, method, name=name, **options)
+
+
+def methods() -> list[str]:
+    """The names of the registered design methods."""
+    from fdisyn.synthesis.registry import method_names
+
+    return list(method_names())
+
+
+def export(gf: GainFile, directory: str | Path) -> Path:
+    """Write ``gf`` to ``directory`` as ``fdisyn codegen`` builds it; return the directory.
+
+    ``DIR/gains.json``, the C sources in ``DIR/c/``, the shared library
+    ``DIR/lib<name>.so`` with its build manifest and the replay program
+    ``DIR/replay``. The generated step is checked against the gain file before
+    it is written (see :mod:`fdisyn.codegen.library`).
+    """
+    from fdisyn.codegen.library import codegen
+
+    if not isinstance(gf, GainFile):
+        raise ArgumentError(f"gf must be a GainFile (from fdisyn.design or read_gain_file); got {type(gf).__name__}")
+    d = Path(directory)
+    write_gain_file(gf, d / "gains.json")
+    codegen(d)
+    return d
+
+
+def load(directory: str | Path, *, backend: Literal["compiled", "reference", "auto"] = "compiled") -> Monitor:
+    """The :class:`Monitor` of the diagnoser that :func:`export` (or ``fdisyn codegen``) built in ``directory``.
+
+    It runs the compiled library (``backend="compiled"``), loaded only if it
+    was built from that very ``gains.json``; ``"reference"`` runs the NumPy
+    reference of a linear gain file instead, ``"auto"`` the library when there
+    is one. ``mon.update(u, y)`` returns a :class:`~fdisyn.runtime.monitor.Verdict`
+    (``.alarm``, ``.fault``, ``.isolated``, ``.J``, ``.r``, ``.time``).
+    """
+    if backend not in ("compiled", "reference", "auto"):
+        raise ArgumentError(f"backend must be 'compiled', 'reference' or 'auto'; got {backend!r}")
+    return Monitor.from_directory(directory, backend=backend)

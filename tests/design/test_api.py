@@ -1,0 +1,182 @@
+"""The public Python API (``fdisyn.design``, ``export``, ``load``, ``methods``; ``LinearPlant.from_control``
+and ``to_control``; ``Generator.to_control``) and the error classes it raises."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import control
+import fdisyn
+import numpy as np
+import pytest
+from fdisyn.app.cli import main
+from fdisyn.app.plant_file import load_spec
+from fdisyn.runtime.errors import ArgumentError, BuildError, ExistenceError, FileError, GainFileError, ShapeError
+from fdisyn.runtime.gainfile import read_gain_file, write_gain_file
+from fdisyn.runtime.reference import LinearReference
+from fdisyn.synthesis.uio import kalman_uio
+
+DATA = Path(__file__).parents[1] / "data"
+
+# The README's DC motor (tests/data/dc_motor.toml): states current, speed, angle; load torque unknown
+A = np.array([[-100.0, -5.0, 0.0], [50.0, -0.1, 0.0], [0.0, 1.0, 0.0]])
+B = np.array([[100.0], [0.0], [0.0]])
+E = np.array([[0.0], [-1000.0], [0.0]])
+C = np.eye(3)
+TS = 0.001
+
+
+@pytest.fixture(scope="module")
+def motor(tmp_path_factory: pytest.TempPathFactory):
+    """The plant file's problem, its default design (the existing design path) and the exported folder."""
+    prob = load_spec(DATA / "dc_motor.toml")
+    gf = prob.design()
+    d = tmp_path_factory.mktemp("api") / "motor"
+    assert fdisyn.export(gf, d) == d
+    return prob, gf, d
+
+
+# --------------------------------------------------------------------------- export and load
+
+
+def test_export_writes_what_fdisyn_codegen_builds(motor, tmp_path) -> None:
+    _, gf, d = motor
+    write_gain_file(gf, tmp_path / "gains.json")
+    assert main(["codegen", str(tmp_path)]) == 0
+
+    def files(root: Path) -> dict[str, bytes]:
+        return {str(p.relative_to(root)): p.read_bytes() for p in root.rglob("*") if p.is_file()}
+
+    ours, theirs = files(d), files(tmp_path)
+    assert sorted(ours) == sorted(theirs)
+    for rel in ours:  # the same gain file and C sources byte for byte (the binaries are gcc's)
+        if rel == "gains.json" or rel.startswith("c/") and rel.endswith((".c", ".h")):
+            assert ours[rel] == theirs[rel], rel
+    assert read_gain_file(d / "gains.json").name == gf.name == "dc_motor_kalman_uio"
+
+
+def test_load_runs_the_compiled_library_and_its_verdicts_name_alarm_and_fault(motor) -> None:
+    prob, gf, d = motor
+    mon = fdisyn.load(d)
+    assert isinstance(mon, fdisyn.Monitor) and mon.backend == "compiled"
+    batch = prob.run("speed_sensor_offset", [1])
+    verdicts = [mon.update(u, y) for u, y in zip(batch.U[0], batch.Y[0], strict=True)]
+    t = np.array([v.time for v in verdicts])
+    alarm = np.array([v.alarm for v in verdicts])
+    faults = [v.fault for v in verdicts]
+    assert np.mean(alarm[(t > 1.0) & (t < 5.0)]) < 0.002  # P_f = 1e-4 per statistic before the fault
+    late = [f for f, tt in zip(faults, t, strict=True) if tt > 5.5]
+    assert late.count("w_meas") / len(late) > 0.9  # the speed-sensor offset, isolated
+    ref = fdisyn.load(d, backend="reference").run(batch.U[0], batch.Y[0])
+    assert np.array_equal(ref.alarm, alarm)
+
+
+def test_load_and_export_refuse_with_the_error_classes(motor, tmp_path) -> None:
+    _, gf, _ = motor
+    with pytest.raises(FileError, match="no gain file at"):  # a missing file
+        fdisyn.load(tmp_path / "nowhere")
+    write_gain_file(gf, tmp_path / "only" / "gains.json")
+    with pytest.raises(BuildError, match=r"no compiled diagnoser at .*libdc_motor_kalman_uio.so; run `fdisyn codegen`"):
+        fdisyn.load(tmp_path / "only")
+    assert fdisyn.load(tmp_path / "only", backend="reference").backend == "reference"
+    with pytest.raises(ArgumentError, match="backend must be"):
+        fdisyn.load(tmp_path / "only", backend="gpu")  # type: ignore[arg-type]
+    with pytest.raises(ArgumentError, match="gf must be a GainFile"):
+        fdisyn.export(tmp_path / "only" / "gains.json", tmp_path / "x")  # type: ignore[arg-type]
+    doc = (tmp_path / "only" / "gains.json").read_text().replace('"passed": true', '"passed": false', 1)
+    (tmp_path / "only" / "gains.json").write_text(doc)
+    with pytest.raises(GainFileError, match="passed"):
+        fdisyn.load(tmp_path / "only", backend="reference")
+
+
+# --------------------------------------------------------------------------- python-control
+
+
+def test_generator_to_control_is_the_residual_generator(motor) -> None:
+    """Simulated by python-control from the equilibrium the runtime starts at, each generator gives
+    the residuals of the NumPy reference."""
+    prob, gf, _ = motor
+    batch = prob.run("speed_sensor_offset", [3])
+    U, Y = batch.U[0][:300], batch.Y[0][:300]
+    r_ref = LinearReference(gf).run(U, Y).r
+    k = 0
+    for g in gf.generators:
+        ss = g.to_control()
+        assert isinstance(ss, control.StateSpace) and ss.dt == gf.Ts == TS
+        assert (ss.ninputs, ss.noutputs, ss.nstates) == (gf.step.nu + gf.step.ny, g.n_residual, g.n_state)
+        x0 = g.Xu @ U[0] + g.Xy @ Y[0]
+        res = control.forced_response(ss, U=np.hstack([U, Y]).T, X0=x0)
+        r = np.atleast_2d(res.outputs).T
+        assert np.allclose(r, r_ref[:, k : k + g.n_residual], rtol=1e-9, atol=1e-12)
+        k += g.n_residual
+    assert k == gf.step.nr
+
+
+def test_from_control_takes_the_last_columns_as_unknown_inputs() -> None:
+    Q, R = np.diag([1e-7, 1e-6, 1e-10]), np.diag([1e-4, 2.5e-3, 1e-6])
+    cont = control.ss(A, np.hstack([B, E]), C, 0)
+    pc = fdisyn.LinearPlant.from_control(cont, n_unknown=1, Q=Q, R=R, inputs=["v"], unknown_inputs=["load"], outputs=["i", "w", "th"])
+    assert pc.Ts is None and np.array_equal(pc.B, B) and np.array_equal(pc.E, E) and np.array_equal(pc.Q, Q)
+    assert (pc.inputs, pc.unknown_inputs, pc.outputs, pc.states) == (("v",), ("load",), ("i", "w", "th"), ("x0", "x1", "x2"))
+    disc = fdisyn.LinearPlant.from_control(control.c2d(cont, TS), n_unknown=1)
+    exact = pc.discretise(TS)  # exact ZOH sampling of the same model
+    assert disc.Ts == TS and np.allclose(disc.A, exact.A, atol=1e-12) and np.allclose(disc.E, exact.E, atol=1e-12)
+    assert fdisyn.LinearPlant.from_control(cont).E.shape == (3, 0)  # n_unknown = 0: every input is known
+    back = fdisyn.LinearPlant.from_control(pc.to_control(), n_unknown=pc.q, inputs=pc.inputs, unknown_inputs=pc.unknown_inputs, outputs=pc.outputs)
+    assert np.array_equal(back.A, pc.A) and np.array_equal(back.E, pc.E) and back.Ts is None
+    ss = exact.to_control()
+    assert ss.dt == TS and ss.input_labels == ["v", "load"] and ss.output_labels == ["i", "w", "th"]
+
+
+@pytest.mark.parametrize(
+    ("make", "error", "match"),
+    [
+        (lambda: fdisyn.LinearPlant.from_control(control.tf([1], [1, 1])), ArgumentError, "sys must be a control.StateSpace; got TransferFunction"),
+        (lambda: fdisyn.LinearPlant.from_control(control.ss(A, B, C, 0), n_unknown=2), ArgumentError, r"n_unknown must be a whole number in 0..1"),
+        (lambda: fdisyn.LinearPlant.from_control(control.ss(A, B, C, 0), n_unknown=True), ArgumentError, "n_unknown"),
+        (lambda: fdisyn.LinearPlant.from_control(control.ss(A, B, C, 0, dt=True), n_unknown=1), ArgumentError, "does not say the sample time"),
+        (lambda: fdisyn.LinearPlant.from_control(control.ss(A, np.hstack([B, E]), C, np.ones((3, 2))), n_unknown=1), ArgumentError, "may not reach the outputs"),
+        # a non-finite Q is a wrong value (ArgumentError); a Q of the wrong size a ShapeError
+        (lambda: fdisyn.LinearPlant.from_control(control.ss(A, B, C, 0), Q=np.diag([1.0, np.nan, 1.0])), ArgumentError, "Q contains a non-finite entry"),
+        (lambda: fdisyn.LinearPlant.from_control(control.ss(A, B, C, 0), Q=np.eye(2)), ShapeError, r"Q has shape \(2, 2\); expected \(3, 3\)"),
+        (lambda: fdisyn.LinearPlant.from_control(control.ss(A, B, C, 0), inputs=["a b"]), ArgumentError, "is not a signal name"),
+    ],
+)
+def test_from_control_refuses_with_the_error_classes(make, error, match) -> None:
+    with pytest.raises(error, match=match) as info:
+        make()
+    assert "\n" not in str(info.value)
+
+
+# --------------------------------------------------------------------------- design through the API
+
+
+def blind_plant() -> fdisyn.LinearPlant:
+    """The sampled motor whose load torque reaches the speed only, watched by the current and angle
+    sensors: ``C E = 0``, so no unknown-input observer exists (Hu et al. 2013, Acta Automatica Sinica
+    39(8), eq. (3): ``rank(C E) = rank(E)``)."""
+    sampled = control.c2d(control.ss(A, B, C, 0), TS)
+    return fdisyn.LinearPlant.create(A=sampled.A, B=sampled.B, C=C[[0, 2]], E=[[0.0], [1.0], [0.0]], R=1e-4 * np.eye(2), Ts=TS)
+
+
+def test_an_existence_failure_is_an_existence_error() -> None:
+    with pytest.raises(ExistenceError, match=r"rank\(C E\)|rank\(E\)"):
+        kalman_uio(blind_plant())
+
+
+def test_design_through_the_registry_names_the_method(motor) -> None:
+    pytest.importorskip("fdisyn.synthesis.registry", reason="fdisyn.design needs the method registry")
+    _, gf, _ = motor
+    plant = fdisyn.LinearPlant.from_control(control.c2d(control.ss(A, np.hstack([B, E]), C, 0), TS), n_unknown=1, Q=np.diag([1e-7, 1e-6, 1e-10]), R=np.diag([1e-4, 2.5e-3, 1e-6]))
+    assert "kalman_uio" in fdisyn.methods()
+    with pytest.raises(ArgumentError, match="nope"):
+        fdisyn.design(plant, method="nope")
+    with pytest.raises(ExistenceError):
+        fdisyn.design(blind_plant(), method="kalman_uio")
+
+
+def test_the_public_names() -> None:
+    assert set(fdisyn.__all__) == {"__version__", "design", "export", "load", "methods", "LinearPlant", "NonlinearPlant", "SampledDataPlant", "GainFile", "Monitor"}
+    for name in fdisyn.__all__:
+        assert getattr(fdisyn, name) is not None
+    assert fdisyn.__version__[0].isdigit()  # the installed distribution's version (fdisyn --version prints it)
