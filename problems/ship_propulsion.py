@@ -4,9 +4,10 @@ Zhou, Xi & Zhang, "Detection and diagnostics of parameter jump for a class of
 nonlinear systems", Shanghai Jiao Tong University, c. 1991; equation, section
 and figure numbers below are theirs.
 
-    x(t+1) = 0.1 a x(t)² + x(t) + 0.1 b u(t) + v(t),     v ~ N(0, Q1), Q1 = 0
-    y(t)   = x(t) + e(t),                                 e ~ N(0, Q2), Q2 = 0.01
+    x(t+1) = 0.1 a x(t)² + x(t) + 0.1 b u(t) + v(t),     v ~ N(0, Q), Q = 0
+    y(t)   = x(t) + e(t),                                 e ~ N(0, R), R = 0.01
 
+(``Q``, ``R``: the paper's ``Q1``, ``Q2``.)
 ``a`` is the hull resistance (nominal ``a0 = −0.58``), ``b`` the engine
 efficiency (``b0 = 0.2``); ``x(0) = 0``. Signals: input ``u``, output ``y``;
 parameters (and the gain file's faults) ``a`` and ``b``. The paper's fault:
@@ -98,8 +99,8 @@ def plant() -> NonlinearPlant:
         nominal=dict(NOMINAL),
         f={"x": "0.1*a*x^2 + x + 0.1*b*u"},
         h={"y": "x"},
-        Q1=0.0,
-        Q2=0.01,
+        Q=0.0,
+        R=0.01,
     )
 
 

@@ -32,7 +32,7 @@ decoupling: ``τ_r`` stands for the aerodynamic torque estimate); outputs
 ``y = [ω_r, ω_g]`` with the benchmark's sensor noise used as standard
 deviations, σ = 0.025 and 0.05 rad/s. Process noise: a rotor-torque
 disturbance of 1e4 N·m (standard deviation per sample, held over the
-sample), ``Q1 = σ_τ² b_r b_rᵀ`` with ``b_r`` the ZOH column of ``τ_r``.
+sample), ``Q = σ_τ² b_r b_rᵀ`` with ``b_r`` the ZOH column of ``τ_r``.
 """
 
 from __future__ import annotations
@@ -150,7 +150,7 @@ def plant() -> NonlinearPlant:
     a_num, b_num = (np.array(ca.DM(ca.evalf(v)), dtype=float) for v in continuous_matrices(ETA_NOMINAL))
     _, bd_num = zoh(a_num, b_num, TS)
     b_r = bd_num[:, :1]
-    q1 = SIGMA_TAU_R**2 * (b_r @ b_r.T)
+    q = SIGMA_TAU_R**2 * (b_r @ b_r.T)
     return NonlinearPlant.create(
         f=f,
         h=h,
@@ -159,8 +159,8 @@ def plant() -> NonlinearPlant:
         outputs=["omega_r", "omega_g"],
         parameters=["eta"],
         nominal={"eta": ETA_NOMINAL},
-        Q1=q1,
-        Q2=np.diag(np.square(SIGMA_Y)),
+        Q=q,
+        R=np.diag(np.square(SIGMA_Y)),
         Ts=TS,
         units={"omega_r": "rad/s", "omega_g": "rad/s", "theta_delta": "mrad", "tau_r": "N m", "tau_g": "N m", "eta": "1"},
     )

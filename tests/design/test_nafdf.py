@@ -22,7 +22,7 @@ from hypothesis import strategies as st
 
 NEVER_ALARM = dict(threshold_rule="beta0", beta0=1e300)
 SHIP_EXPR = dict(states=["x"], inputs=["u"], outputs=["y"], parameters=["a", "b"], nominal={"a": -0.58, "b": 0.2},
-                 f={"x": "0.1*a*x^2 + x + 0.1*b*u"}, h={"y": "x"}, Q1=0.0, Q2=0.01)  # the WSSR can never exceed it: filters run undisturbed
+                 f={"x": "0.1*a*x^2 + x + 0.1*b*u"}, h={"y": "x"}, Q=0.0, R=0.01)  # the WSSR can never exceed it: filters run undisturbed
 
 
 @pytest.fixture(scope="module")
@@ -52,7 +52,7 @@ def linear_plant(rng: np.random.Generator, n: int, p: int) -> tuple[NonlinearPla
     h = ca.Function("h", [x, th], [ca.mtimes(ca.DM(c), x)])
     pl = NonlinearPlant.create(
         f=f, h=h, states=[f"x{i}" for i in range(n)], inputs=["u"], outputs=[f"y{i}" for i in range(p)],
-        parameters=["theta"], nominal={"theta": 0.0}, Q1=q, Q2=r,
+        parameters=["theta"], nominal={"theta": 0.0}, Q=q, R=r,
     )
     return pl, {"A": a, "C": c, "Q": q, "R": r}
 
@@ -81,9 +81,9 @@ def test_ekf_steady_gain_equals_dare_kalman_gain(seed: int, n: int, p: int) -> N
 
 
 def cramer_rao_sd(pl: NonlinearPlant, x0: float, u: np.ndarray, theta: np.ndarray) -> np.ndarray:
-    """Standard deviations of the Cramér–Rao bound for θ from y = x + e (output error, Q1 = 0).
+    """Standard deviations of the Cramér–Rao bound for θ from y = x + e (output error, Q = 0).
 
-    Fisher information ``Σ ψ ψᵀ / Q2`` with ``ψ(t) = ∂x(t)/∂θ`` propagated along the true
+    Fisher information ``Σ ψ ψᵀ / R`` with ``ψ(t) = ∂x(t)/∂θ`` propagated along the true
     trajectory with the AD Jacobians (``ψ⁺ = F_x ψ + F_θ``).
     """
     der = pl.derivatives()
@@ -91,7 +91,7 @@ def cramer_rao_sd(pl: NonlinearPlant, x0: float, u: np.ndarray, theta: np.ndarra
     psi = np.zeros((1, pl.l))
     info = np.zeros((pl.l, pl.l))
     for k in range(u.shape[0]):
-        info += psi.T @ psi / pl.Q2[0, 0]
+        info += psi.T @ psi / pl.R[0, 0]
         f, fx, fth, _, _, _ = (np.array(v) for v in der(x, u[k], theta))
         psi = fx @ psi + fth
         x = f.reshape(-1)
@@ -340,7 +340,7 @@ def test_state_size_is_checked_from_the_layout_before_the_step_is_built() -> Non
     f = ca.Function("f", [x, u, th], [th[0] * x + th[1] * u + th[2] * x * u + th[3]])
     h = ca.Function("h", [x, th], [x])
     pl = NonlinearPlant.create(f=f, h=h, states=["x"], inputs=["u"], outputs=["y"], parameters=list("abcd"),
-                               nominal=dict(a=0.5, b=1.0, c=0.0, d=0.0), Q1=0.0, Q2=0.01)
+                               nominal=dict(a=0.5, b=1.0, c=0.0, d=0.0), Q=0.0, R=0.01)
     with pytest.raises(SpecError, match=r"state would have 50\d\d entries .*; at most 4096"):
         nafdf(pl, x0=[0.0], P0=1.0, classifier_window=1000)
 
@@ -349,7 +349,7 @@ def test_step_operation_and_work_limits(monkeypatch) -> None:
     """The step budget is checked on the SX graph before any C exists: the ship with N = N2 = 1000
     has ~54 000 operations (> 40 000); lowering the work limit below the ship's own ~230 doubles
     refuses the default ship design by its work memory (the C step's stack)."""
-    from fdisyn.synthesis.nafdf import design as mod
+    from fdisyn.synthesis.nafdf import step as mod
 
     with pytest.raises(SpecError, match=r"the NAFDF step has \d+ operations; at most 40000"):
         nafdf(sp.plant(), x0=[0.0], P0=100.0, theta0=[0.0, 0.0], R0=sp.R0, window=1000, classifier_window=1000)

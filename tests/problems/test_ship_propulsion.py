@@ -26,7 +26,7 @@ def test_scenario_time_convention() -> None:
     np.testing.assert_array_equal(sc.theta[:701, 0], -0.58)
     np.testing.assert_array_equal(sc.theta[701:, 0], -0.29)
     np.testing.assert_array_equal(sc.theta[:, 1], 0.2)
-    # Q1 = 0: x(702) is the first state the new a changes
+    # Q = 0: x(702) is the first state the new a changes
     a, b = sc.theta[701]
     x701 = sc.x[701, 0]
     assert sc.x[702, 0] == pytest.approx(0.1 * a * x701**2 + x701 + 0.1 * b * sc.u[701, 0], rel=1e-14)  # same formula
