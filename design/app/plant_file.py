@@ -171,7 +171,7 @@ def _sampled_data(kind: str) -> MethodFn:
             raise SpecError(f"method {kind!r} designs for a continuous plant sampled at Ts: set [model].time = \"continuous\"")
         cont = ctx.continuous.select_outputs(ctx.outputs_used)
         ts = float(ctx.plant.Ts)  # type: ignore[arg-type]
-        sd = SampledDataPlant.from_linear_plant(cont, h=ts)
+        sd = SampledDataPlant.from_linear_plant(cont, Ts=ts)
         if kind == "lmi":
             obs: Any = lmi_diagnostic_observer(plant=sd, eta=str(ctx.options.get("eta", "inf")))  # type: ignore[arg-type]
         else:
@@ -179,7 +179,7 @@ def _sampled_data(kind: str) -> MethodFn:
         gen = embed_outputs(obs.generator(name=ctx.name), ctx.outputs_used, ctx.plant.p)
         # the disturbance is white of unit intensity: its exact sampled covariance joins the process noise
         phys = ctx.continuous.discretise(ts)
-        noise = phys.with_noise(Q=np.asarray(phys.Q) + van_loan(np.asarray(ctx.continuous.A), sd.Bd @ sd.Bd.T, ts))
+        noise = phys.with_noise(Q=np.asarray(phys.Q) + van_loan(np.asarray(ctx.continuous.A), sd.E @ sd.E.T, ts))
         return gen, residual_covariance(gen, noise), obs.certificate
 
     return method

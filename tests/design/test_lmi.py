@@ -14,6 +14,7 @@ from fdisyn.models.sampled_data import SampledDataPlant
 from fdisyn.numerics import lmi_norms as lmi
 from fdisyn.numerics.lmi_norms import h2_norm_lmi, hinf_bound_lmi, hinf_norm_lmi, hminus_index_lmi
 from fdisyn.numerics.norms import DiscreteLTI, NormValue, h2_norm, hinf_norm, hminus_index, singular_values
+from fdisyn.numerics.sdp import SDP_BOUND_TOL_SINGULAR
 from fdisyn.runtime.errors import CertificateError, ExistenceError, SolverError
 from fdisyn.synthesis.lmi_observer import lmi_diagnostic_observer
 from fdisyn.synthesis.residual import internal_form
@@ -287,7 +288,7 @@ def test_lmi_design_reaches_theorem1_on_the_paper_example(paper_plant: SampledDa
 @settings(derandomize=True, max_examples=6, deadline=None)
 @given(n=st.integers(2, 3), seed=st.integers(0, 2**16))
 def test_lmi_design_reaches_theorem1_on_random_plants(n: int, seed: int) -> None:
-    """p = n outputs so that all three η are finite (‖·‖₋ needs p ≥ rank B_fJ = n);
+    """p = n outputs so that all three η are finite (‖·‖₋ needs p ≥ rank Fx_J = n);
     q = n disturbances keep κ moderate (one disturbance drives κ past 1e10)."""
     pl = random_sampled_data_plant(n=n, p=n, q=n, rng=np.random.default_rng(seed))
     opt = optimal_diagnostic_observer(plant=pl)
@@ -309,7 +310,7 @@ def test_lmi_design_goes_below_the_factorisation_where_its_assumption_fails(pape
     for eta in ("inf", "2"):
         des = lmi_diagnostic_observer(plant=paper_plant, eta=eta, model="zoh")
         # The singular case's SDPs are checked against their own, kernel-measured tolerance.
-        assert des.certificate.checks[1].bound == lmi.SDP_BOUND_TOL_SINGULAR
+        assert des.certificate.checks[1].bound == SDP_BOUND_TOL_SINGULAR
         assert des.J[eta] < 0.1 * indirect.J_star[eta]  # measured ≈ 0.04 vs 1.05
         assert des.J_sampled_data[eta] >= direct.J_star[eta] * (1 - 1e-9)  # Theorem 1 still binds
 
@@ -331,7 +332,7 @@ def test_lmi_design_of_an_unstable_plant() -> None:
     """A_D unstable: J is evaluated on the error form; still at Theorem 1's optimum (measured 2e-12)."""
     rng = np.random.default_rng(5)
     pl = SampledDataPlant.create(
-        A=[[0.4, 1.0], [0.0, -1.0]], Bu=[[0.0], [1.0]], Bd=rng.standard_normal((2, 2)), Bf=[[1.0], [0.5]], C=np.eye(2), h=0.5
+        A=[[0.4, 1.0], [0.0, -1.0]], B=[[0.0], [1.0]], E=rng.standard_normal((2, 2)), Fx=[[1.0], [0.5]], C=np.eye(2), Ts=0.5
     )
     opt = optimal_diagnostic_observer(plant=pl)
     for eta in ("inf", "2"):
