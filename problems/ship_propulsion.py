@@ -49,6 +49,7 @@ from fdisyn.synthesis.nafdf.payload import nafdf_gain_file
 __all__ = [
     "PROBLEM",
     "FAULT_TIME",
+    "MODEL",
     "NOMINAL",
     "PAPER",
     "Record",
@@ -89,19 +90,23 @@ P0 = 100.0
 R0 = ((100.0, 5.0), (5.0, 10.0))
 
 
+MODEL: Mapping[str, Any] = {
+    "states": ["x"],
+    "inputs": ["u"],
+    "outputs": ["y"],
+    "parameters": ["a", "b"],
+    "nominal": NOMINAL,
+    "f": {"x": "0.1*a*x^2 + x + 0.1*b*u"},
+    "h": {"y": "x"},
+    "Q": 0.0,
+    "R": 0.01,
+}
+"""Eq. (3.1) as expression strings: the keywords of :meth:`NonlinearPlant.from_expressions`."""
+
+
 def plant() -> NonlinearPlant:
-    """Eq. (3.1) as a :class:`NonlinearPlant`, built from expression strings."""
-    return NonlinearPlant.from_expressions(
-        states=["x"],
-        inputs=["u"],
-        outputs=["y"],
-        parameters=["a", "b"],
-        nominal=dict(NOMINAL),
-        f={"x": "0.1*a*x^2 + x + 0.1*b*u"},
-        h={"y": "x"},
-        Q=0.0,
-        R=0.01,
-    )
+    """Eq. (3.1) as a :class:`NonlinearPlant`, built from :data:`MODEL`."""
+    return NonlinearPlant.from_expressions(**MODEL)
 
 
 def input_signal(length: int, *, low: float = 1.0, high: float = 9.0, period: int = 50) -> np.ndarray:

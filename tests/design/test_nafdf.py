@@ -20,9 +20,7 @@ from fdisyn.synthesis.nafdf.payload import nafdf_from_payload, nafdf_payload, st
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-NEVER_ALARM = dict(threshold_rule="beta0", beta0=1e300)
-SHIP_EXPR = dict(states=["x"], inputs=["u"], outputs=["y"], parameters=["a", "b"], nominal={"a": -0.58, "b": 0.2},
-                 f={"x": "0.1*a*x^2 + x + 0.1*b*u"}, h={"y": "x"}, Q=0.0, R=0.01)  # the WSSR can never exceed it: filters run undisturbed
+NEVER_ALARM = dict(threshold_rule="beta0", beta0=1e300)  # the WSSR can never exceed it: filters run undisturbed
 
 
 @pytest.fixture(scope="module")
@@ -375,7 +373,7 @@ def test_stack_use_of_the_documented_problems_is_within_the_limits(ship_design) 
     ],
 )
 def test_model_not_finite_where_the_filters_start_is_refused(f: str, theta0, where: str) -> None:
-    pl = NonlinearPlant.from_expressions(**{**SHIP_EXPR, "f": {"x": f}})
+    pl = NonlinearPlant.from_expressions(**{**sp.MODEL, "f": {"x": f}})
     with pytest.raises(SpecError, match=where) as info:
         nafdf(pl, x0=[0.0], P0=1.0, theta0=theta0)
     assert "\n" not in str(info.value)
@@ -388,6 +386,6 @@ def test_certificate_fails_on_a_nan_jacobian_even_past_the_model_check(monkeypat
     from fdisyn.synthesis.nafdf import design as mod
 
     monkeypatch.setattr(mod, "_check_model_finite", lambda plant, s: None)
-    pl = NonlinearPlant.from_expressions(**{**SHIP_EXPR, "f": {"x": "x**x + a*b*u"}})
+    pl = NonlinearPlant.from_expressions(**{**sp.MODEL, "f": {"x": "x**x + a*b*u"}})
     with pytest.raises(CertificateError, match=r"AD Jacobians vs central differences at x0 \(max relative\) = nan"):
         nafdf(pl, x0=[0.0], P0=1.0)

@@ -8,21 +8,12 @@ import casadi as ca
 import numpy as np
 import pytest
 from fdisyn.models.nonlinear import NonlinearPlant, function_from_program, model_program
+from fdisyn.problems import ship_propulsion as sp
 from fdisyn.runtime.errors import NominalValueError, NonDifferentiableError, ShapeError, SpecError
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-SHIP = dict(
-    states=["x"],
-    inputs=["u"],
-    outputs=["y"],
-    parameters=["a", "b"],
-    nominal={"a": -0.58, "b": 0.2},
-    f={"x": "0.1*a*x^2 + x + 0.1*b*u"},
-    h={"y": "x"},
-    Q=0.0,
-    R=0.01,
-)
+SHIP = sp.MODEL  # the ship of Zhou, Xi & Zhang 1991, eq. (3.1)
 
 # A smooth two-state plant exercising every kind of dependence (x, u, θ in f and h).
 PENDULUM = dict(
