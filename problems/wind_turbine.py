@@ -43,7 +43,7 @@ from fdisyn.models.problem import Batch, Problem, Scenario
 from fdisyn.runtime.errors import SpecError
 from fdisyn.runtime.gainfile import GainFile
 from fdisyn.synthesis.linear_diagnoser import FaultClass, linear_diagnoser
-from fdisyn.synthesis.uio import kalman_uio, pole_placement_uio
+from fdisyn.synthesis.uio import kalman_uio, uio_pole_placement
 
 __all__ = [
     "DriveTrain",
@@ -283,7 +283,7 @@ def _bank_design(
         elif design == "kalman_uio_paper":
             d = kalman_uio(sub, variant="paper")
         elif design == "uio_pole_placement":
-            d = pole_placement_uio(sub, poles=list(poles))
+            d = uio_pole_placement(sub, poles=list(poles))
         else:
             raise SpecError(f"wind_turbine has no design {design!r}")
         gname = f"uio_{OUTPUTS[i].removeprefix('omega_')}_{OUTPUTS[j].removeprefix('omega_')}"

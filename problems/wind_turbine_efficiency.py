@@ -44,8 +44,7 @@ import casadi as ca
 import numpy as np
 from fdisyn.app.report import ReportContext, plt, shade, timeline
 from fdisyn.models.nonlinear import NonlinearPlant
-from fdisyn.models.problem import Batch, Problem
-from fdisyn.models.problem import Scenario as PipelineScenario
+from fdisyn.models.problem import Batch, Problem, Scenario
 from fdisyn.models.sampling import zoh
 from fdisyn.problems.wind_turbine import PARAMETER_SETS, TS
 from fdisyn.runtime.gainfile import GainFile
@@ -63,7 +62,6 @@ __all__ = [
     "input_signal",
     "operating_point",
     "plant",
-    "scenario",
     "zoh_matrices",
 ]
 
@@ -167,19 +165,6 @@ def input_signal(length: int) -> np.ndarray:
     return np.column_stack([u0[0] * (1.0 + 0.05 * sq_r), u0[1] * (1.0 + 0.03 * sq_g)])
 
 
-def scenario(*, length: int = 8000, fault_time: int | None = 4000, eta_faulty: float = ETA_FAULTY, seed: int) -> dict[str, object]:
-    """The benchmark's efficiency fault ``η: 0.97 → 0.92`` from ``fault_time`` (``None``: fault-free)."""
-    pl = plant()
-    T = int(length)
-    theta = np.full((T, 1), ETA_NOMINAL)
-    if fault_time is not None:
-        theta[int(fault_time) :, 0] = eta_faulty
-    x0, _ = operating_point()
-    u = input_signal(T)
-    x, y = pl.simulate(x0=x0, u=u, theta=theta, rng=np.random.default_rng(seed))
-    return {"u": u, "x": x, "y": y, "theta": theta, "fault_time": fault_time, "fault_size": None if fault_time is None else eta_faulty - ETA_NOMINAL}
-
-
 def design(*, false_alarm_probability: float = 1e-4) -> NafdfDesign:
     """A NAFDF for the efficiency fault (every number is a documented choice).
 
@@ -217,33 +202,40 @@ RECORD_SAMPLES = 8000
 FAULT_SAMPLE = 4000
 
 
-def _pipeline_scenarios() -> dict[str, PipelineScenario]:
+def _pipeline_scenarios() -> dict[str, Scenario]:
     return {
-        "fault_free": PipelineScenario("fault_free", f"No fault, {RECORD_SAMPLES * TS:g} s.", RECORD_SAMPLES * TS),
-        "eta_drop": PipelineScenario(
+        "fault_free": Scenario("fault_free", f"No fault, {RECORD_SAMPLES * TS:g} s.", RECORD_SAMPLES * TS),
+        "eta_drop": Scenario(
             "eta_drop",
             f"The benchmark's efficiency fault η: {ETA_NOMINAL} → {ETA_FAULTY} from t = {FAULT_SAMPLE * TS:g} s.",
             RECORD_SAMPLES * TS,
             fault="eta",
             onset=FAULT_SAMPLE * TS,
-            params={"fault_size": {"eta": ETA_FAULTY - ETA_NOMINAL}},
+            params={"eta": ETA_FAULTY, "fault_size": {"eta": ETA_FAULTY - ETA_NOMINAL}},
         ),
     }
 
 
-def _simulate(sc: PipelineScenario, seeds: Sequence[int], **_options: object) -> Batch:
+def _simulate(sc: Scenario, seeds: Sequence[int], **_options: object) -> Batch:
+    """The drive train from its operating point under :func:`input_signal`, for each seed; a fault sets
+    ``η = params["eta"]`` from the onset on (``extra["eta"]``: the true η per transition)."""
+    pl = plant()
     n = int(round(sc.duration / TS))
-    fault_time = None if sc.fault is None else int(round((sc.onset or 0.0) / TS))
-    recs = [scenario(length=n, fault_time=fault_time, seed=int(s)) for s in seeds]
+    theta = np.full((n, 1), ETA_NOMINAL)
+    if sc.fault is not None:
+        theta[int(round((sc.onset or 0.0) / TS)) :, 0] = sc.params["eta"]
+    x0, _ = operating_point()
+    u = input_signal(n)
+    runs = [pl.simulate(x0=x0, u=u, theta=theta, rng=np.random.default_rng(int(s))) for s in seeds]
     return Batch(
         scenario=sc,
         seeds=tuple(int(s) for s in seeds),
         t=np.arange(n) * TS,
         inputs=("tau_r", "tau_g"),
         outputs=("omega_r", "omega_g"),
-        U=np.stack([np.asarray(r["u"]) for r in recs]),
-        Y=np.stack([np.asarray(r["y"]) for r in recs]),
-        extra={"eta": np.stack([np.asarray(r["theta"])[:, 0] for r in recs])},
+        U=np.stack([u for _ in runs]),
+        Y=np.stack([y for _, y in runs]),
+        extra={"eta": np.stack([theta[:, 0] for _ in runs])},
     )
 
 

@@ -134,7 +134,7 @@ from fdisyn.synthesis.linear_diagnoser import FaultClass, default_fault_classes,
 from fdisyn.synthesis.lmi_observer import lmi_diagnostic_observer
 from fdisyn.synthesis.residual import embed_outputs, residual_covariance
 from fdisyn.synthesis.sampled_data_observer import ETAS, optimal_diagnostic_observer
-from fdisyn.synthesis.uio import kalman_uio, pole_placement_uio
+from fdisyn.synthesis.uio import kalman_uio, uio_pole_placement
 
 __all__ = ["load_spec", "problem_from_toml", "problem_from_document", "LINEAR_METHODS", "register_method"]
 
@@ -159,7 +159,7 @@ MethodFn = Callable[[MethodContext], tuple[Generator, np.ndarray, Certificate]]
 def _uio(variant: str) -> MethodFn:
     def method(ctx: MethodContext) -> tuple[Generator, np.ndarray, Certificate]:
         sub = ctx.plant.select_outputs(ctx.outputs_used)
-        d = pole_placement_uio(sub, poles=ctx.options["poles"]) if variant == "poles" else kalman_uio(sub, variant=variant)  # type: ignore[arg-type]
+        d = uio_pole_placement(sub, poles=ctx.options["poles"]) if variant == "poles" else kalman_uio(sub, variant=variant)  # type: ignore[arg-type]
         return d.generator(ctx.name, ctx.outputs_used, ctx.plant.p), d.Sigma_r, d.certificate
 
     return method

@@ -30,8 +30,8 @@ def ship_design():
 
 @pytest.fixture(scope="module")
 def ship_paper_run(ship_design):
-    scen = sp.scenario(length=3000, scale={"a": 0.5}, seed=1)
-    return scen, ship_design.run(u=scen.u, y=scen.y)
+    run = sp.PROBLEM.run(sp.fault_scenario("paper_a_half", {"a": 0.5}, length=3000), [1])
+    return run, ship_design.run(u=run.U[0], y=run.Y[0])
 
 
 def linear_plant(rng: np.random.Generator, n: int, p: int) -> tuple[NonlinearPlant, dict[str, np.ndarray]]:
@@ -104,10 +104,10 @@ def test_nf_converges_to_the_true_parameters(seed: int) -> None:
     """
     pl = sp.plant()
     dsg = nafdf(pl, x0=[0.0], P0=100.0, theta0=[0.0, 0.0], R0=sp.R0, forgetting_final=1.0, **NEVER_ALARM)
-    scen = sp.scenario(length=4000, fault_time=None, seed=seed)
-    out = dsg.run(u=scen.u, y=scen.y)
+    run = sp.PROBLEM.run(sp.fault_scenario("fault_free", length=4000), [seed])
+    out = dsg.run(u=run.U[0], y=run.Y[0])
     est = dsg.unpack_state(out["state"][-1])["nf_theta"]
-    sd = cramer_rao_sd(pl, 0.0, scen.u, pl.theta_nominal)
+    sd = cramer_rao_sd(pl, 0.0, run.U[0], pl.theta_nominal)
     assert np.all(np.abs(est - pl.theta_nominal) <= 5 * sd), (est, sd)
     assert np.all(sd < 0.01)  # the bound is informative: the estimate is pinned to ~1 % or better
 
@@ -121,11 +121,11 @@ def test_wssr_fault_free_law_is_chi_square() -> None:
     N, pf = 10, 0.01
     dsg = nafdf(sp.plant(), x0=[0.0], P0=100.0, theta0=[0.0, 0.0], R0=sp.R0, window=N,
                 false_alarm_probability=pf, convergence_tolerance=[1e-12, 1e-12])
-    scen = sp.scenario(length=40_000, fault_time=None, seed=11)
-    out = dsg.run(u=scen.u, y=scen.y)
+    run = sp.PROBLEM.run(sp.fault_scenario("fault_free", length=40_000), [11])
+    out = dsg.run(u=run.U[0], y=run.Y[0])
     assert dsg.unpack_state(out["state"][-1])["ekf_reparameterisations"] == 0
     jn = list(dsg.J_names)
-    idx = np.arange(200 + N - 1, scen.y.shape[0], N)  # skip the EKF's start-up from P(0) = 100
+    idx = np.arange(200 + N - 1, run.Y.shape[1], N)  # skip the EKF's start-up from P(0) = 100
     L = out["J"][idx, jn.index("wssr")]
     thr = out["J"][idx, jn.index("wssr_threshold")]
     np.testing.assert_array_equal(thr, scipy.stats.chi2.isf(pf, N) / N)
@@ -184,8 +184,8 @@ def test_state_layout_round_trip(ship_design) -> None:
 )
 def test_non_finite_samples_are_skipped(ship_design, bad) -> None:
     """A non-finite u or y: status 1, no alarm, state unchanged except the skip counter."""
-    scen = sp.scenario(length=400, scale={"a": 0.5}, fault_time=200, seed=2)
-    u, y = scen.u.copy(), scen.y.copy()
+    run = sp.PROBLEM.run(sp.fault_scenario("a_half", {"a": 0.5}, length=400, fault_time=200), [2])
+    u, y = run.U[0].copy(), run.Y[0].copy()
     for k, which, val in bad:
         (u if which == "u" else y)[k, 0] = val
     out = ship_design.run(u=u, y=y)
@@ -253,7 +253,7 @@ def test_divergence_reinitialises_and_reports(ship_design, corrupt: dict, counte
 def test_isolation_and_fault_size_stay_latched(ship_design, ship_paper_run) -> None:
     """After the classifier isolates ``a``, ``isolated`` and the fault size (2.8) never change again,
     although the filters re-converge and the EKF is re-parameterised; re-initialising clears them."""
-    scen, out = ship_paper_run
+    _, out = ship_paper_run
     iso = out["isolated"]
     first = int(np.flatnonzero(iso >= 0)[0])
     assert np.all(iso[:first] == -1) and np.all(iso[first:] == 0)
@@ -275,8 +275,8 @@ def test_payload_round_trip_rebuilds_the_identical_step(ship_design, ship_paper_
     text = json.dumps(nafdf_payload(ship_design), allow_nan=False)  # strict JSON: no inf/NaN tokens
     payload = json.loads(text)
     rebuilt = nafdf_from_payload(payload)
-    scen, out = ship_paper_run
-    again = rebuilt.run(u=scen.u[:1500], y=scen.y[:1500])
+    run, out = ship_paper_run
+    again = rebuilt.run(u=run.U[0, :1500], y=run.Y[0, :1500])
     for k in ("state", "r", "J", "alarm", "isolated", "status"):
         np.testing.assert_array_equal(again[k], out[k][:1500])
     np.testing.assert_array_equal(rebuilt.init_state(), np.array(payload["init_state"]))
