@@ -55,7 +55,10 @@ class SampledDataPlant:
     (step-invariant, eq. (13), the paper's ``B_uD``), ``E_J``, ``Fx_J``
     (Lemma 1, the paper's ``B_dJ``, ``B_fJ``) and, for the paper's indirect
     comparison, ``E_D``, ``Fx_D`` (ZOH of the disturbance and fault, as if they
-    were held between samples; the paper's ``B_dD``, ``B_fD``).
+    were held between samples; the paper's ``B_dD``, ``B_fD``). The discrete
+    systems are named by their input signal, as the paper and every
+    certificate write them: :meth:`G_d` from ``d`` and :meth:`G_f` from ``f``
+    to ``y``.
     """
 
     A: np.ndarray
