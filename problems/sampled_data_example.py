@@ -4,12 +4,12 @@ Qiu, Wen & Jiang, "Optimal diagnostic observer for sampled-data systems",
 Control Theory & Applications 27(8), 2010, section 4; equation, lemma,
 theorem and figure numbers below are theirs.
 
-Continuous plant ``ẋ = A x + Bu u + Bd d + Bf f``, ``y = C x`` with
-``A = [[−1, 5], [0, −2]]``, ``Bu = [0, 1]ᵀ``, ``Bd = [0.1, 1]ᵀ``,
-``Bf = [0, 1]ᵀ``, ``C = I``, sampled at ``h = 1 s`` (ZOH input, sampled
-outputs); ``d`` is continuous white noise of unit intensity (the paper's
-"variance 1"), ``f`` the fault. Signals: input ``u``, outputs ``y1``, ``y2``,
-fault ``f``.
+Continuous plant ``ẋ = A x + B u + E d + Fx f``, ``y = C x`` with
+``A = [[−1, 5], [0, −2]]``, ``B = [0, 1]ᵀ``, ``E = [0.1, 1]ᵀ``,
+``Fx = [0, 1]ᵀ``, ``C = I``, sampled at ``Ts = 1 s`` (ZOH input, sampled
+outputs; the paper writes ``B_u``, ``B_d``, ``B_f`` and ``h``); ``d`` is
+continuous white noise of unit intensity (the paper's "variance 1"), ``f``
+the fault. Signals: input ``u``, outputs ``y1``, ``y2``, fault ``f``.
 
 Designs: ``direct`` (Theorem 1 on Lemma 1's norm-invariant model, the default),
 ``indirect`` (ZOH-discretise the plant first, then design — the paper's
@@ -41,13 +41,13 @@ __all__ = ["PAPER", "PAPER_GAINS", "PLANT", "PROBLEM", "noise_plant"]
 
 PAPER: Mapping[str, Any] = {
     "A": np.array([[-1.0, 5.0], [0.0, -2.0]]),
-    "Bu": np.array([[0.0], [1.0]]),
-    "Bd": np.array([[0.1], [1.0]]),
-    "Bf": np.array([[0.0], [1.0]]),
+    "B": np.array([[0.0], [1.0]]),
+    "E": np.array([[0.1], [1.0]]),
+    "Fx": np.array([[0.0], [1.0]]),
     "C": np.eye(2),
-    "h": 1.0,
+    "Ts": 1.0,
 }
-"""Qiu, Wen & Jiang 2010, section 4: the example plant."""
+"""Qiu, Wen & Jiang 2010, section 4: the example plant (the keywords of :meth:`SampledDataPlant.create`)."""
 
 PAPER_GAINS: Mapping[str, np.ndarray] = {
     "L": np.array([[0.38, 1.16], [0.0, 0.14]]),
@@ -55,7 +55,8 @@ PAPER_GAINS: Mapping[str, np.ndarray] = {
     "W": np.array([[0.90, -0.90], [0.0, 2.86]]),
     "V": np.array([[0.90, -0.90], [0.0, 2.86]]),
 }
-"""The gains the paper prints (two decimals; its "H" is E)."""
+"""The gains the paper prints (two decimals), by the paper's letters: its ``E`` (printed as "H") is the
+observer's input gain ``G``."""
 
 PLANT = SampledDataPlant.create(**PAPER)
 DURATION = 100.0
@@ -66,23 +67,24 @@ FAULT_SIZE = 10.0
 def noise_plant(plant: SampledDataPlant = PLANT) -> LinearPlant:
     """The discrete model the χ² statistics and the gain file use.
 
-    ``x⁺ = A_D x + B_uD u + w``, ``y = C x`` with ``w`` the exactly sampled
-    disturbance, ``Cov w = ∫₀ʰ e^{Aτ} Bd Bdᵀ e^{Aᵀτ} dτ = B_dJ B_dJᵀ`` (Lemma 1),
-    no sensor noise (the paper's ``y = C x``); ``E = B_dJ`` (its columns are the
-    lifted disturbance of Lemma 1: one per rank of the Gramian), ``Fx = B_fD``
-    (the fault held over the sample, exact for a step at a sampling instant).
+    ``x⁺ = A_D x + B_D u + w``, ``y = C x`` with ``w`` the exactly sampled
+    disturbance, ``Cov w = ∫₀^Ts e^{Aτ} E Eᵀ e^{Aᵀτ} dτ = E_J E_Jᵀ`` (Lemma 1),
+    no sensor noise (the paper's ``y = C x``); its ``E`` is ``E_J`` (its columns
+    are the lifted disturbance of Lemma 1: one per rank of the Gramian), its
+    ``Fx`` is ``Fx_D`` (the fault held over the sample, exact for a step at a
+    sampling instant).
     """
     return LinearPlant.create(
         A=plant.A_D,
-        B=plant.B_uD,
+        B=plant.B_D,
         C=plant.C,
-        E=plant.B_dJ,
-        Fx=plant.B_fD,
-        Q=van_loan(plant.A, plant.Bd @ plant.Bd.T, plant.h),
+        E=plant.E_J,
+        Fx=plant.Fx_D,
+        Q=van_loan(plant.A, plant.E @ plant.E.T, plant.Ts),
         R=np.zeros((plant.p, plant.p)),
-        Ts=plant.h,
+        Ts=plant.Ts,
         inputs=("u",),
-        unknown_inputs=tuple(f"d_lifted{i}" for i in range(plant.B_dJ.shape[1])),
+        unknown_inputs=tuple(f"d_lifted{i}" for i in range(plant.E_J.shape[1])),
         outputs=("y1", "y2"),
         component_faults=("f",),
     )
@@ -101,7 +103,7 @@ def _diagnoser(design: str, observer: Any, *, P_f: float) -> GainFile:
         P_f=P_f,
         faults=[FaultClass("f", components=("f",))],
         certificates=[observer.certificate],
-        options={"P_f": P_f, "J": dict(observer.J), "h": PLANT.h},
+        options={"P_f": P_f, "J": dict(observer.J), "h": PLANT.Ts},  # "h": the key gain files have always held
     )
 
 
@@ -145,8 +147,8 @@ SCENARIOS = {
 
 def _simulate(sc: Scenario, seeds: Sequence[int], **_options: object) -> Batch:
     """Exact samples of the sampled-data plant (the disturbance integrated between samples)."""
-    n = int(round(sc.duration / PLANT.h))
-    t = np.arange(n) * PLANT.h
+    n = int(round(sc.duration / PLANT.Ts))
+    t = np.arange(n) * PLANT.Ts
     u = np.ones((n, 1))
     f = (float(sc.params.get("size", 0.0)) * sc.active(t)).astype(float)[:, None]
     runs = [simulate_sampled_data(plant=PLANT, v=u, rng=np.random.default_rng(int(s)), f=f) for s in seeds]
@@ -179,14 +181,14 @@ def _report(ctx: ReportContext) -> list[tuple[str, str]]:
     ]
     perf = table(["J = ‖G_rψ G_dJ‖∞ / ‖G_rψ G_fJ‖_η", "η = ∞", "η = 2", "η = −"], rows, left=1)
     gains = []
-    for key, ours in (("L", direct.L), ("E", direct.E), ("W", direct.W), ("V", direct.V)):
+    for key, ours in (("L", direct.L), ("E", direct.G), ("W", direct.W), ("V", direct.V)):
         gains.append([key, _matrix(PAPER_GAINS[key], 2), _matrix(ours, 4)])
     gtab = table(["matrix", "paper (printed)", "fdisyn, direct design"], gains, left=3)
     sections = [
         (
             "Performance and gains beside the paper",
             perf
-            + '<p class="small">The paper rounds L[0,0] = e⁻¹ = 0.368 to 0.38, prints E as "H", and prints V = W as the '
+            + '<p class="small">The paper rounds L[0,0] = e⁻¹ = 0.368 to 0.38, prints E (fdisyn\'s input gain G) as "H", and prints V = W as the '
             "transpose of a valid N# (VᵀV = X⁻¹ holds for ours, VVᵀ ≈ X⁻¹ for the printed one); F ≈ 0 as printed.</p>"
             + gtab,
         )
@@ -267,7 +269,7 @@ PROBLEM = Problem(
     name="sampled_data_example",
     title="Optimal diagnostic observer for a sampled-data system",
     summary=(
-        "A continuous plant sampled at h = 1 s: the diagnostic observer designed directly for the sampled-data system "
+        "A continuous plant sampled at Ts = 1 s: the diagnostic observer designed directly for the sampled-data system "
         "(co-inner–outer factorisation of Lemma 1's norm-invariant model, Theorem 1), against discretising first and "
         "against an LMI synthesis (Qiu, Wen & Jiang, Control Theory & Applications 27(8), 2010)."
     ),

@@ -4,9 +4,10 @@ Zhou, Xi & Zhang, "Detection and diagnostics of parameter jump for a class of
 nonlinear systems", Shanghai Jiao Tong University, c. 1991; equation, section
 and figure numbers below are theirs.
 
-    x(t+1) = 0.1 a x(t)² + x(t) + 0.1 b u(t) + v(t),     v ~ N(0, Q1), Q1 = 0
-    y(t)   = x(t) + e(t),                                 e ~ N(0, Q2), Q2 = 0.01
+    x(t+1) = 0.1 a x(t)² + x(t) + 0.1 b u(t) + v(t),     v ~ N(0, Q), Q = 0
+    y(t)   = x(t) + e(t),                                 e ~ N(0, R), R = 0.01
 
+(``Q``, ``R``: the paper's ``Q1``, ``Q2``.)
 ``a`` is the hull resistance (nominal ``a0 = −0.58``), ``b`` the engine
 efficiency (``b0 = 0.2``); ``x(0) = 0``. Signals: input ``u``, output ``y``;
 parameters (and the gain file's faults) ``a`` and ``b``. The paper's fault:
@@ -32,14 +33,12 @@ and ``u`` (of ``b``): over 500 samples the Cramér–Rao bound is
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from fdisyn.app.report import ReportContext, plt, shade, table, timeline
 from fdisyn.models.nonlinear import NonlinearPlant
-from fdisyn.models.problem import Batch, Problem
-from fdisyn.models.problem import Scenario as PipelineScenario
+from fdisyn.models.problem import Batch, Problem, Scenario
 from fdisyn.runtime.errors import ArgumentError
 from fdisyn.runtime.gainfile import GainFile
 from fdisyn.synthesis.nafdf.design import NafdfDesign, nafdf
@@ -48,15 +47,15 @@ from fdisyn.synthesis.nafdf.payload import nafdf_gain_file
 __all__ = [
     "PROBLEM",
     "FAULT_TIME",
+    "MODEL",
     "NOMINAL",
     "PAPER",
-    "Record",
     "design",
+    "fault_scenario",
     "input_signal",
     "plant",
     "reproduce_paper",
     "run_metrics",
-    "scenario",
 ]
 
 NOMINAL: Mapping[str, float] = {"a": -0.58, "b": 0.2}
@@ -81,6 +80,11 @@ PAPER: Mapping[str, object] = {
 }
 """What Zhou, Xi & Zhang 1991 report for their fault scenario (section 3, figs. 3–4)."""
 
+RECORD_LENGTH = 2000
+"""Samples of a faulty run (the paper plots 0–2000)."""
+FAULT_FREE_LENGTH = 20_000
+"""Samples of the long fault-free run used for false alarms."""
+
 # The paper's filter initialisation (section 3).
 X0 = 0.0
 THETA0_HAT = (0.0, 0.0)
@@ -88,19 +92,23 @@ P0 = 100.0
 R0 = ((100.0, 5.0), (5.0, 10.0))
 
 
+MODEL: Mapping[str, Any] = {
+    "states": ["x"],
+    "inputs": ["u"],
+    "outputs": ["y"],
+    "parameters": ["a", "b"],
+    "nominal": NOMINAL,
+    "f": {"x": "0.1*a*x^2 + x + 0.1*b*u"},
+    "h": {"y": "x"},
+    "Q": 0.0,
+    "R": 0.01,
+}
+"""Eq. (3.1) as expression strings: the keywords of :meth:`NonlinearPlant.from_expressions`."""
+
+
 def plant() -> NonlinearPlant:
-    """Eq. (3.1) as a :class:`NonlinearPlant`, built from expression strings."""
-    return NonlinearPlant.from_expressions(
-        states=["x"],
-        inputs=["u"],
-        outputs=["y"],
-        parameters=["a", "b"],
-        nominal=dict(NOMINAL),
-        f={"x": "0.1*a*x^2 + x + 0.1*b*u"},
-        h={"y": "x"},
-        Q1=0.0,
-        Q2=0.01,
-    )
+    """Eq. (3.1) as a :class:`NonlinearPlant`, built from :data:`MODEL`."""
+    return NonlinearPlant.from_expressions(**MODEL)
 
 
 def input_signal(length: int, *, low: float = 1.0, high: float = 9.0, period: int = 50) -> np.ndarray:
@@ -109,65 +117,38 @@ def input_signal(length: int, *, low: float = 1.0, high: float = 9.0, period: in
     return np.where((k % period) < period // 2, high, low).astype(float)[:, None]
 
 
-@dataclass(frozen=True, eq=False)
-class Record:
-    """One simulated run: inputs, true states and parameters, measurements and the fault."""
+def fault_scenario(
+    name: str, scale: Mapping[str, float] | None = None, *, length: int | None = None, fault_time: int = FAULT_TIME
+) -> Scenario:
+    """Parameter jumps ``θ_i → scale_i · θ_i0`` from ``fault_time`` over ``length`` samples.
 
-    name: str
-    u: np.ndarray
-    x: np.ndarray
-    y: np.ndarray
-    theta: np.ndarray
-    """True parameters per transition, shape ``(T, 2)``."""
-    fault_time: int | None
-    faulty: tuple[str, ...]
-    """Names of the parameters that jump (empty: fault-free)."""
-    fault_size: Mapping[str, float]
-    """``θ_faulty − θ_nominal`` per jumping parameter."""
-
-
-def scenario(
-    *,
-    length: int = 2000,
-    fault_time: int | None = FAULT_TIME,
-    scale: Mapping[str, float] | None = None,
-    seed: int,
-    name: str | None = None,
-) -> Record:
-    """Simulate eq. (3.1) with parameter jumps ``θ_i → scale_i · θ_i0`` from ``fault_time``.
-
-    ``scale=None`` or ``{}`` (or ``fault_time=None``) is the fault-free run;
-    the paper's scenario is ``scale={"a": 0.5}``.
+    ``scale=None`` or ``{}`` (or all scales 1) is a fault-free run (default
+    length :data:`FAULT_FREE_LENGTH`); a faulty one lasts :data:`RECORD_LENGTH`
+    samples by default. The paper's scenario is ``scale={"a": 0.5}``. The
+    scenario's fault is the jumping parameters joined by ``+``; its
+    ``params`` hold the ``scale`` and the true ``fault_size``
+    ``θ_faulty − θ_nominal`` per jumping parameter.
     """
-    pl = plant()
     sc = dict(scale or {})
-    unknown = sorted(set(sc) - set(pl.parameters))
+    unknown = sorted(set(sc) - set(NOMINAL))
     if unknown:
-        raise ArgumentError(f"scale names unknown parameters {unknown}; parameters are {list(pl.parameters)}")
-    T = int(length)
-    theta = np.tile(pl.theta_nominal, (T, 1))
-    tf = None if fault_time is None else int(fault_time)
-    faulty = tuple(k for k in pl.parameters if k in sc and sc[k] != 1.0) if tf is not None else ()
-    sizes: dict[str, float] = {}
-    if faulty and tf is not None:
-        if not 0 < tf < T:
-            raise ArgumentError(f"fault_time must lie inside the record (0, {T}); got {fault_time}")
-        for k in faulty:
-            i = pl.parameters.index(k)
-            theta[tf:, i] = sc[k] * pl.theta_nominal[i]
-            sizes[k] = float((sc[k] - 1.0) * pl.theta_nominal[i])
-    u = input_signal(T)
-    x, y = pl.simulate(x0=[X0], u=u, theta=theta, rng=np.random.default_rng(seed))
-    label = name or ("fault_free" if not faulty else "+".join(f"{k}x{sc[k]:g}" for k in faulty))
-    return Record(
-        name=label,
-        u=u,
-        x=x,
-        y=y,
-        theta=theta,
-        fault_time=tf if faulty else None,
-        faulty=faulty,
-        fault_size=sizes,
+        raise ArgumentError(f"scale names unknown parameters {unknown}; parameters are {list(NOMINAL)}")
+    jumping = [k for k, v in sc.items() if v != 1.0]
+    if not jumping:
+        n = FAULT_FREE_LENGTH if length is None else int(length)
+        return Scenario(name, f"No fault, {n} samples: false alarms and wrong isolations.", float(n))
+    n = RECORD_LENGTH if length is None else int(length)
+    if not 0 < fault_time < n:
+        raise ArgumentError(f"fault_time must lie inside the run (0, {n}); got {fault_time}")
+    what = ", ".join(f"{k} → {v:g}·{k}0" for k, v in sc.items())
+    paper = " (the paper's fault)" if sc == {"a": 0.5} and fault_time == FAULT_TIME else ""
+    return Scenario(
+        name,
+        f"{what} from t = {fault_time}{paper}.",
+        float(n),
+        fault="+".join(jumping),
+        onset=float(fault_time),
+        params={"scale": sc, "fault_size": {k: (sc[k] - 1.0) * NOMINAL[k] for k in jumping}},
     )
 
 
@@ -228,9 +209,9 @@ def design(*, false_alarm_probability: float = 1e-4, window: int = 10) -> NafdfD
     )
 
 
-def run_metrics(dsg: NafdfDesign, scen: Record, out: Mapping[str, np.ndarray] | None = None) -> dict[str, Any]:
-    """Detection, isolation, fault size and re-tracking of one run (``out`` from ``dsg.run`` or recomputed)."""
-    res = dict(out) if out is not None else dsg.run(u=scen.u, y=scen.y)
+def run_metrics(dsg: NafdfDesign, batch: Batch, out: Mapping[str, np.ndarray] | None = None) -> dict[str, Any]:
+    """Detection, isolation, fault size and re-tracking of the first run of ``batch`` (``out`` from ``dsg.run`` or recomputed)."""
+    res = dict(out) if out is not None else dsg.run(u=batch.U[0], y=batch.Y[0])
     alarm, iso, J, states = res["alarm"], res["isolated"], res["J"], res["state"]
     jn = list(dsg.J_names)
     off = dsg.layout.offsets()
@@ -242,13 +223,13 @@ def run_metrics(dsg: NafdfDesign, scen: Record, out: Mapping[str, np.ndarray] | 
         c = np.concatenate([[0.0], column(name)])
         return [int(t) for t in np.flatnonzero(np.diff(c) > 0)]
 
-    tf = scen.fault_time
+    tf = None if batch.scenario.onset is None else int(batch.scenario.onset)
     before = alarm if tf is None else alarm[:tf]
     onsets = np.flatnonzero(np.diff(np.concatenate([[0.0], before])) > 0)
     reparam = events("ekf_reparameterisations")
     last = dsg.unpack_state(states[-1])
     m: dict[str, Any] = {
-        "scenario": scen.name,
+        "scenario": batch.scenario.name,
         "samples": len(alarm),
         "false_alarm_samples": int(before.sum()),
         "false_alarm_episodes": int(onsets.size),
@@ -284,64 +265,44 @@ def run_metrics(dsg: NafdfDesign, scen: Record, out: Mapping[str, np.ndarray] | 
 def reproduce_paper(*, seed: int = 1, length: int = 2000) -> dict[str, Any]:
     """The paper's scenario (``a → a0/2`` at 701) through the recommended design, beside the paper's numbers."""
     dsg = design()
-    scen = scenario(length=length, scale={"a": 0.5}, seed=seed, name="paper_a_half")
-    m = run_metrics(dsg, scen)
-    m["true_fault_size"] = dict(scen.fault_size)
+    batch = _simulate(fault_scenario("paper_a_half", {"a": 0.5}, length=length), [seed])
+    m = run_metrics(dsg, batch)
+    m["true_fault_size"] = dict(batch.scenario.params["fault_size"])
     m["paper"] = dict(PAPER)
     return m
 
 
 # --------------------------------------------------------------------------- the pipeline's problem
 
-RECORD_LENGTH = 2000
-"""Samples of a faulty run (the paper plots 0–2000)."""
-FAULT_FREE_LENGTH = 20_000
-"""Samples of the long fault-free run used for false alarms."""
+def _pipeline_scenarios() -> dict[str, Scenario]:
+    return {"fault_free": fault_scenario("fault_free"), **{nm: fault_scenario(nm, sc) for nm, sc in STANDARD_FAULTS}}
 
 
-def _pipeline_scenarios() -> dict[str, PipelineScenario]:
-    out = {
-        "fault_free": PipelineScenario(
-            "fault_free", f"No fault, {FAULT_FREE_LENGTH} samples: false alarms and wrong isolations.", float(FAULT_FREE_LENGTH)
-        )
-    }
-    for nm, sc in STANDARD_FAULTS:
-        jumping = [k for k, v in sc.items() if v != 1.0]
-        what = ", ".join(f"{k} → {v:g}·{k}0" for k, v in sc.items())
-        paper = " (the paper's fault)" if nm == "paper_a_half" else ""
-        out[nm] = PipelineScenario(
-            nm,
-            f"{what} from t = {FAULT_TIME}{paper}.",
-            float(RECORD_LENGTH),
-            fault="+".join(jumping),
-            onset=float(FAULT_TIME),
-            params={"scale": dict(sc), "fault_size": {k: (v - 1.0) * NOMINAL[k] for k, v in sc.items() if v != 1.0}},
-        )
-    return out
+def _simulate(sc: Scenario, seeds: Sequence[int], **_options: object) -> Batch:
+    """Eq. (3.1) for each seed (the documented square-wave input, ``x(0) = 0``), stacked for the pipeline.
 
-
-def _simulate(sc: PipelineScenario, seeds: Sequence[int], **_options: object) -> Batch:
-    """Eq. (3.1) for each seed (the documented square-wave input), stacked for the pipeline."""
-    recs = [
-        scenario(
-            length=int(sc.duration),
-            fault_time=FAULT_TIME if sc.fault else None,
-            scale=sc.params.get("scale"),
-            seed=int(s),
-            name=sc.name,
-        )
-        for s in seeds
-    ]
-    theta = np.stack([r.theta for r in recs])
+    Row ``k`` of the true parameters ``extra["a"]``, ``extra["b"]`` drives the transition
+    ``x(k) → x(k+1)`` (module docstring); ``extra["x"]`` is the true state.
+    """
+    pl = plant()
+    T = int(sc.duration)
+    theta = np.tile(pl.theta_nominal, (T, 1))
+    if sc.fault is not None:
+        tf, scale = int(sc.onset or 0), sc.params["scale"]
+        for k in sc.fault.split("+"):
+            i = pl.parameters.index(k)
+            theta[tf:, i] = scale[k] * pl.theta_nominal[i]
+    u = input_signal(T)
+    runs = [pl.simulate(x0=[X0], u=u, theta=theta, rng=np.random.default_rng(int(s))) for s in seeds]
     return Batch(
         scenario=sc,
         seeds=tuple(int(s) for s in seeds),
-        t=np.arange(int(sc.duration), dtype=float),
+        t=np.arange(T, dtype=float),
         inputs=("u",),
         outputs=("y",),
-        U=np.stack([r.u for r in recs]),
-        Y=np.stack([r.y for r in recs]),
-        extra={"x": np.stack([r.x[:, 0] for r in recs]), "a": theta[:, :, 0], "b": theta[:, :, 1]},
+        U=np.stack([u for _ in runs]),
+        Y=np.stack([y for _, y in runs]),
+        extra={"x": np.stack([x[:, 0] for x, _ in runs]), "a": np.stack([theta[:, 0] for _ in runs]), "b": np.stack([theta[:, 1] for _ in runs])},
     )
 
 

@@ -32,7 +32,9 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
+import casadi as ca
 import numpy as np
 from fdisyn.app.report import ReportContext, fmt, plt, shade, table, timeline
 from fdisyn.evaluation.simulate import Signal, simulate_linear
@@ -89,6 +91,36 @@ class DriveTrain:
     """Generator-torque ripple, standard deviation of its 100 Hz average (N·m)."""
     sigma_tau_s: float = 0.0
     """Unmodelled shaft-torque fluctuation, standard deviation of its 100 Hz average (N·m)."""
+
+    def matrices(self, eta: float | ca.SX | None = None, *, twist_scale: float = 1.0) -> tuple[Any, Any]:
+        """``A(η)`` and ``B`` of the continuous model (module docstring), inputs ``[τ_r, τ_g]``.
+
+        States ``[ω_r, ω_g, twist_scale·θ_Δ]`` (``twist_scale = 1e3``: the twist in
+        milliradians). ``eta`` defaults to the set's efficiency; a float gives NumPy
+        arrays, a CasADi ``SX`` gives ``SX`` matrices holding only the nonzero
+        entries, so that ``∂A/∂η`` comes from automatic differentiation
+        (:mod:`fdisyn.problems.wind_turbine_efficiency`).
+        """
+        e = self.eta if eta is None else eta
+        a = {
+            (0, 0): -(self.B_dt + self.B_r) / self.J_r,
+            (0, 1): self.B_dt / (self.N_g * self.J_r),
+            (0, 2): -self.K_dt / self.J_r / twist_scale,
+            (1, 0): e * self.B_dt / (self.N_g * self.J_g),
+            (1, 1): -(e * self.B_dt / self.N_g**2 + self.B_g) / self.J_g,
+            (1, 2): e * self.K_dt / (self.N_g * self.J_g) / twist_scale,
+            (2, 0): twist_scale,
+            (2, 1): -twist_scale / self.N_g,
+        }
+        b = {(0, 0): 1.0 / self.J_r, (1, 1): -1.0 / self.J_g}
+        symbolic = isinstance(e, ca.SX)
+        out = []
+        for entries, shape in ((a, (3, 3)), (b, (3, 2))):
+            m = ca.SX(*shape) if symbolic else np.zeros(shape)
+            for ij, v in entries.items():
+                m[ij] = v
+            out.append(m)
+        return out[0], out[1]
 
 
 PARAMETER_SETS: dict[str, DriveTrain] = {
@@ -158,15 +190,8 @@ def continuous_model(p: DriveTrain) -> LinearPlant:
     ripple through ``B``, shaft-torque fluctuation acting on both shafts);
     it is zero for a set whose noise is given per sample.
     """
-    a = np.array(
-        [
-            [-(p.B_dt + p.B_r) / p.J_r, p.B_dt / (p.N_g * p.J_r), -p.K_dt / p.J_r],
-            [p.eta * p.B_dt / (p.N_g * p.J_g), -(p.eta * p.B_dt / p.N_g**2 + p.B_g) / p.J_g, p.eta * p.K_dt / (p.N_g * p.J_g)],
-            [1.0, -1.0 / p.N_g, 0.0],
-        ]
-    )
-    b = np.array([[0.0], [-1.0 / p.J_g], [0.0]])
-    e = np.array([[1.0 / p.J_r], [0.0], [0.0]])
+    a, torques = p.matrices()
+    b, e = torques[:, 1:], torques[:, :1]  # τ_g known, τ_r unknown
     c = np.array([[1.0, 0, 0], [1.0, 0, 0], [0, 1.0, 0], [0, 1.0, 0]])
     # noise torques: generator ripple enters like -tau_g; a shaft-torque error acts on both shafts
     bw = np.array([[0.0, 1.0 / p.J_r], [-1.0 / p.J_g, -p.eta / (p.N_g * p.J_g)], [0.0, 0.0]])

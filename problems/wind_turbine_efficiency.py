@@ -2,18 +2,19 @@
 
 The plant of Hu, Sun, Jiang, He & Zhang (Acta Automatica Sinica 39(8), 2013)
 with the NAFDF of Zhou, Xi & Zhang (Shanghai Jiao Tong University, c. 1991):
-the Odgaard–Stoustrup–Kinnaert benchmark drive train (IFAC Safeprocess 2009;
-the "benchmark" parameter set of :mod:`fdisyn.problems.wind_turbine`),
-continuous in time,
+the Odgaard–Stoustrup–Kinnaert benchmark drive train (IFAC Safeprocess 2009),
+the continuous model of :mod:`fdisyn.problems.wind_turbine` with its
+"benchmark" parameter set (:meth:`~fdisyn.problems.wind_turbine.DriveTrain.matrices`,
+written once for both problems),
 
     J_r ω̇_r = τ_r − (B_dt + B_r) ω_r + (B_dt/N_g) ω_g − K_dt θ_Δ
     J_g ω̇_g = (η B_dt/N_g) ω_r − (η B_dt/N_g² + B_g) ω_g + (η K_dt/N_g) θ_Δ − τ_g
     θ̇_Δ     = ω_r − ω_g / N_g
 
-sampled exactly (zero-order hold) at 100 Hz: ``x(t+1) = A_d(η) x + B_d(η) u``
-with ``[A_d B_d; 0 I] = exp([A(η) B; 0 0] Ts)``. The efficiency ``η``
+sampled exactly (zero-order hold) at 100 Hz: ``x(t+1) = A_D(η) x + B_D(η) u``
+with ``[A_D B_D; 0 I] = exp([A(η) B; 0 0] Ts)``. The efficiency ``η``
 (nominal 0.97; the benchmark's fault: 0.92) is the parameter ``θ``, so the
-discrete model is nonlinear in the joint state/parameter sense (``A_d`` is
+discrete model is nonlinear in the joint state/parameter sense (``A_D`` is
 an entire function of ``η`` multiplying ``x``).
 
 The matrix exponential is written as an SX expression, so that ``∂f/∂η`` comes
@@ -32,85 +33,56 @@ decoupling: ``τ_r`` stands for the aerodynamic torque estimate); outputs
 ``y = [ω_r, ω_g]`` with the benchmark's sensor noise used as standard
 deviations, σ = 0.025 and 0.05 rad/s. Process noise: a rotor-torque
 disturbance of 1e4 N·m (standard deviation per sample, held over the
-sample), ``Q1 = σ_τ² b_r b_rᵀ`` with ``b_r`` the ZOH column of ``τ_r``.
+sample), ``Q = σ_τ² b_r b_rᵀ`` with ``b_r`` the ZOH column of ``τ_r``.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 
 import casadi as ca
 import numpy as np
 from fdisyn.app.report import ReportContext, plt, shade, timeline
 from fdisyn.models.nonlinear import NonlinearPlant
-from fdisyn.models.problem import Batch, Problem
-from fdisyn.models.problem import Scenario as PipelineScenario
+from fdisyn.models.problem import Batch, Problem, Scenario
 from fdisyn.models.sampling import zoh
+from fdisyn.problems.wind_turbine import PARAMETER_SETS, TS
 from fdisyn.runtime.gainfile import GainFile
 from fdisyn.synthesis.nafdf.design import NafdfDesign, nafdf
 from fdisyn.synthesis.nafdf.payload import nafdf_gain_file
 
 __all__ = [
     "PROBLEM",
-    "BENCHMARK",
+    "DRIVE_TRAIN",
     "ETA_FAULTY",
     "ETA_NOMINAL",
     "TS",
-    "continuous_matrices",
+    "TWIST_SCALE",
     "design",
     "input_signal",
     "operating_point",
     "plant",
-    "scenario",
     "zoh_matrices",
 ]
 
-BENCHMARK: Mapping[str, float] = {
-    "B_dt": 775.49,
-    "B_r": 7.11,
-    "B_g": 45.6,
-    "K_dt": 2.7e9,
-    "J_g": 390.0,
-    "J_r": 55e6,
-    "N_g": 95.0,
-}
-"""The benchmark's drive-train parameters (the "benchmark" set of :mod:`fdisyn.problems.wind_turbine`)."""
-TS = 0.01
-"""Sample time (the benchmark's 100 Hz)."""
-ETA_NOMINAL = 0.97
+DRIVE_TRAIN = PARAMETER_SETS["benchmark"]
+"""The benchmark's drive train (the "benchmark" set of :mod:`fdisyn.problems.wind_turbine`); ``TS`` is its 100 Hz."""
+ETA_NOMINAL = DRIVE_TRAIN.eta
 ETA_FAULTY = 0.92
 SIGMA_Y = (0.025, 0.05)
 """Sensor noise standard deviations of ``ω_r`` and ``ω_g`` (rad/s)."""
 SIGMA_TAU_R = 1e4
 """Rotor-torque disturbance standard deviation per sample (N·m)."""
-_MRAD = 1e3  # θ_Δ is carried in milliradians
+TWIST_SCALE = 1e3
+"""θ_Δ is carried in milliradians: the states are ``[ω_r, ω_g, TWIST_SCALE·θ_Δ]``."""
 _TAYLOR_ORDER = 12
 _SQUARINGS = 2
-
-
-def continuous_matrices(eta: ca.SX | float) -> tuple[ca.SX, ca.SX]:
-    """``A(η)``, ``B`` of the drive train in the states ``[ω_r, ω_g, θ_Δ (mrad)]``."""
-    p = BENCHMARK
-    bdt, br, bg, k, jg, jr, ng = (p[s] for s in ("B_dt", "B_r", "B_g", "K_dt", "J_g", "J_r", "N_g"))
-    a = ca.SX(3, 3)
-    a[0, 0] = -(bdt + br) / jr
-    a[0, 1] = bdt / (ng * jr)
-    a[0, 2] = -k / jr / _MRAD
-    a[1, 0] = eta * bdt / (ng * jg)
-    a[1, 1] = -(eta * bdt / ng**2 + bg) / jg
-    a[1, 2] = eta * k / (ng * jg) / _MRAD
-    a[2, 0] = _MRAD
-    a[2, 1] = -_MRAD / ng
-    b = ca.SX(3, 2)
-    b[0, 0] = 1.0 / jr
-    b[1, 1] = -1.0 / jg
-    return a, b
 
 
 # Balancing scale of [x; u] for the exponential: ω_g per N_g, and the twist scaled so that the two
 # coupling entries of the torsional mode are equal (d3² = 1e3·N_g / (η K_dt / (N_g J_g) / 1e3) ≈ 36.7²);
 # torques per 1e6 / 1e4 N·m, their typical sizes.
-_BALANCE = np.array([1.0, BENCHMARK["N_g"], 36.7, 1e6, 1e4])
+_BALANCE = np.array([1.0, DRIVE_TRAIN.N_g, 36.7, 1e6, 1e4])
 
 
 def _expm_sx(m: ca.SX) -> ca.SX:
@@ -128,8 +100,8 @@ def _expm_sx(m: ca.SX) -> ca.SX:
 
 
 def zoh_matrices(eta: ca.SX | float) -> tuple[ca.SX, ca.SX]:
-    """Exact ZOH ``A_d(η)``, ``B_d(η)`` at :data:`TS` as SX expressions (module docstring)."""
-    a, b = continuous_matrices(eta)
+    """Exact ZOH ``A_D(η)``, ``B_D(η)`` at :data:`TS` as SX expressions (module docstring)."""
+    a, b = DRIVE_TRAIN.matrices(ca.SX(eta), twist_scale=TWIST_SCALE)
     big = ca.SX(5, 5)
     big[:3, :3] = a * TS
     big[:3, 3:] = b * TS
@@ -147,10 +119,10 @@ def plant() -> NonlinearPlant:
     ad, bd = zoh_matrices(th[0])
     f = ca.Function("f", [x, u, th], [ca.mtimes(ad, x) + ca.mtimes(bd, u)])
     h = ca.Function("h", [x, th], [x[:2]])
-    a_num, b_num = (np.array(ca.DM(ca.evalf(v)), dtype=float) for v in continuous_matrices(ETA_NOMINAL))
+    a_num, b_num = DRIVE_TRAIN.matrices(ETA_NOMINAL, twist_scale=TWIST_SCALE)
     _, bd_num = zoh(a_num, b_num, TS)
     b_r = bd_num[:, :1]
-    q1 = SIGMA_TAU_R**2 * (b_r @ b_r.T)
+    q = SIGMA_TAU_R**2 * (b_r @ b_r.T)
     return NonlinearPlant.create(
         f=f,
         h=h,
@@ -159,8 +131,8 @@ def plant() -> NonlinearPlant:
         outputs=["omega_r", "omega_g"],
         parameters=["eta"],
         nominal={"eta": ETA_NOMINAL},
-        Q1=q1,
-        Q2=np.diag(np.square(SIGMA_Y)),
+        Q=q,
+        R=np.diag(np.square(SIGMA_Y)),
         Ts=TS,
         units={"omega_r": "rad/s", "omega_g": "rad/s", "theta_delta": "mrad", "tau_r": "N m", "tau_g": "N m", "eta": "1"},
     )
@@ -168,13 +140,13 @@ def plant() -> NonlinearPlant:
 
 def operating_point(*, omega_r: float = 1.6, shaft_torque: float = 1.5e6, eta: float = ETA_NOMINAL) -> tuple[np.ndarray, np.ndarray]:
     """Equilibrium ``(x, u)`` at rotor speed ``omega_r`` transmitting ``shaft_torque`` (N·m)."""
-    p = BENCHMARK
-    ng = p["N_g"]
+    p = DRIVE_TRAIN
+    ng = p.N_g
     omega_g = ng * omega_r
-    twist = shaft_torque / p["K_dt"]  # the damping term vanishes when ω_g = N_g ω_r
-    tau_r = shaft_torque + p["B_r"] * omega_r
-    tau_g = eta * shaft_torque / ng - p["B_g"] * omega_g
-    return np.array([omega_r, omega_g, twist * _MRAD]), np.array([tau_r, tau_g])
+    twist = shaft_torque / p.K_dt  # the damping term vanishes when ω_g = N_g ω_r
+    tau_r = shaft_torque + p.B_r * omega_r
+    tau_g = eta * shaft_torque / ng - p.B_g * omega_g
+    return np.array([omega_r, omega_g, twist * TWIST_SCALE]), np.array([tau_r, tau_g])
 
 
 def input_signal(length: int) -> np.ndarray:
@@ -191,19 +163,6 @@ def input_signal(length: int) -> np.ndarray:
     sq_r = np.where((t % 20.0) < 10.0, 1.0, -1.0)
     sq_g = np.where((t % 6.2) < 3.1, 1.0, -1.0)
     return np.column_stack([u0[0] * (1.0 + 0.05 * sq_r), u0[1] * (1.0 + 0.03 * sq_g)])
-
-
-def scenario(*, length: int = 8000, fault_time: int | None = 4000, eta_faulty: float = ETA_FAULTY, seed: int) -> dict[str, object]:
-    """The benchmark's efficiency fault ``η: 0.97 → 0.92`` from ``fault_time`` (``None``: fault-free)."""
-    pl = plant()
-    T = int(length)
-    theta = np.full((T, 1), ETA_NOMINAL)
-    if fault_time is not None:
-        theta[int(fault_time) :, 0] = eta_faulty
-    x0, _ = operating_point()
-    u = input_signal(T)
-    x, y = pl.simulate(x0=x0, u=u, theta=theta, rng=np.random.default_rng(seed))
-    return {"u": u, "x": x, "y": y, "theta": theta, "fault_time": fault_time, "fault_size": None if fault_time is None else eta_faulty - ETA_NOMINAL}
 
 
 def design(*, false_alarm_probability: float = 1e-4) -> NafdfDesign:
@@ -243,33 +202,40 @@ RECORD_SAMPLES = 8000
 FAULT_SAMPLE = 4000
 
 
-def _pipeline_scenarios() -> dict[str, PipelineScenario]:
+def _pipeline_scenarios() -> dict[str, Scenario]:
     return {
-        "fault_free": PipelineScenario("fault_free", f"No fault, {RECORD_SAMPLES * TS:g} s.", RECORD_SAMPLES * TS),
-        "eta_drop": PipelineScenario(
+        "fault_free": Scenario("fault_free", f"No fault, {RECORD_SAMPLES * TS:g} s.", RECORD_SAMPLES * TS),
+        "eta_drop": Scenario(
             "eta_drop",
             f"The benchmark's efficiency fault η: {ETA_NOMINAL} → {ETA_FAULTY} from t = {FAULT_SAMPLE * TS:g} s.",
             RECORD_SAMPLES * TS,
             fault="eta",
             onset=FAULT_SAMPLE * TS,
-            params={"fault_size": {"eta": ETA_FAULTY - ETA_NOMINAL}},
+            params={"eta": ETA_FAULTY, "fault_size": {"eta": ETA_FAULTY - ETA_NOMINAL}},
         ),
     }
 
 
-def _simulate(sc: PipelineScenario, seeds: Sequence[int], **_options: object) -> Batch:
+def _simulate(sc: Scenario, seeds: Sequence[int], **_options: object) -> Batch:
+    """The drive train from its operating point under :func:`input_signal`, for each seed; a fault sets
+    ``η = params["eta"]`` from the onset on (``extra["eta"]``: the true η per transition)."""
+    pl = plant()
     n = int(round(sc.duration / TS))
-    fault_time = None if sc.fault is None else int(round((sc.onset or 0.0) / TS))
-    recs = [scenario(length=n, fault_time=fault_time, seed=int(s)) for s in seeds]
+    theta = np.full((n, 1), ETA_NOMINAL)
+    if sc.fault is not None:
+        theta[int(round((sc.onset or 0.0) / TS)) :, 0] = sc.params["eta"]
+    x0, _ = operating_point()
+    u = input_signal(n)
+    runs = [pl.simulate(x0=x0, u=u, theta=theta, rng=np.random.default_rng(int(s))) for s in seeds]
     return Batch(
         scenario=sc,
         seeds=tuple(int(s) for s in seeds),
         t=np.arange(n) * TS,
         inputs=("tau_r", "tau_g"),
         outputs=("omega_r", "omega_g"),
-        U=np.stack([np.asarray(r["u"]) for r in recs]),
-        Y=np.stack([np.asarray(r["y"]) for r in recs]),
-        extra={"eta": np.stack([np.asarray(r["theta"])[:, 0] for r in recs])},
+        U=np.stack([u for _ in runs]),
+        Y=np.stack([y for _, y in runs]),
+        extra={"eta": np.stack([theta[:, 0] for _ in runs])},
     )
 
 

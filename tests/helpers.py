@@ -35,25 +35,6 @@ def random_plant(seed: int, *, n: int | None = None, p: int | None = None, q: in
     )
 
 
-# Qiu, Wen & Jiang, Control Theory & Applications 27(8), 2010, section 4: the paper's continuous plant,
-# sampled at h = 1 s.
-PAPER = {
-    "A": np.array([[-1.0, 5.0], [0.0, -2.0]]),
-    "Bu": np.array([[0.0], [1.0]]),
-    "Bd": np.array([[0.1], [1.0]]),
-    "Bf": np.array([[0.0], [1.0]]),
-    "C": np.eye(2),
-    "h": 1.0,
-}
-# The gains the paper prints (2 decimals); its "H" is E.
-PAPER_GAINS = {
-    "L": np.array([[0.38, 1.16], [0.0, 0.14]]),
-    "E": np.array([[1.0], [0.43]]),
-    "W": np.array([[0.90, -0.90], [0.0, 2.86]]),
-    "V": np.array([[0.90, -0.90], [0.0, 2.86]]),
-}
-
-
 def random_stable(rng: np.random.Generator, n: int, m: int, p: int, *, radius: float = 0.9, d: bool = True) -> DiscreteLTI:
     """A random Schur-stable system with spectral radius ``radius``."""
     a = rng.standard_normal((n, n))
@@ -107,7 +88,7 @@ def coupling_markov(plant: dict, gen: object, count: int | None = None) -> tuple
 
 
 def random_sampled_data_plant(
-    *, n: int, p: int, rng: np.random.Generator, q: int = 1, h: float = 0.5, stable: bool = True
+    *, n: int, p: int, rng: np.random.Generator, q: int = 1, Ts: float = 0.5, stable: bool = True
 ) -> SampledDataPlant:
     """A random continuous plant with ``n`` states, ``p`` outputs, 1 input, ``q`` disturbances, 1 fault.
 
@@ -116,8 +97,8 @@ def random_sampled_data_plant(
     ``q = n`` keeps it moderate (≤ ~1e6 at n = 16 in the timing runs).
 
     Eigenvalues ``−U(0.3, 2)`` or ``−U(0.3, 2) ± j·U(0.1, 1.5)`` in a random
-    basis of condition ≤ 4; with ``|Im λ| < 1.5`` and ``h = 0.5`` the sampling is
-    never pathological (that needs ``h·|Im(λ_i − λ_j)| = 2πk``).
+    basis of condition ≤ 4; with ``|Im λ| < 1.5`` and ``Ts = 0.5`` the sampling is
+    never pathological (that needs ``Ts·|Im(λ_i − λ_j)| = 2πk``).
     ``stable=False`` makes the first mode unstable (real part ``+U(0.06, 0.4)``).
     """
     blocks, k = [], 0
@@ -135,9 +116,9 @@ def random_sampled_data_plant(
     a = t @ sla.block_diag(*blocks) @ np.linalg.inv(t)
     return SampledDataPlant.create(
         A=a,
-        Bu=rng.standard_normal((n, 1)),
-        Bd=rng.standard_normal((n, q)),
-        Bf=rng.standard_normal((n, 1)),
+        B=rng.standard_normal((n, 1)),
+        E=rng.standard_normal((n, q)),
+        Fx=rng.standard_normal((n, 1)),
         C=rng.standard_normal((p, n)),
-        h=h,
+        Ts=Ts,
     )

@@ -213,7 +213,7 @@ def sdp_timings(*, sizes: Sequence[int] = (2, 4, 8, 16), seed: int = 0) -> list[
 def _workload_plant(n: int, rng: np.random.Generator) -> SampledDataPlant:
     """The SDP timing workload: a seeded random stable continuous plant with ``n`` states,
     ``p = q = n`` outputs and disturbances (κ = cond(C X Cᵀ) stays ≤ ~1e6 at n = 16), one input
-    and one fault, sampled at ``h = 0.5`` s; modes ``−U(0.3, 2) ± j·U(0.1, 1.5)`` in a basis of
+    and one fault, sampled at ``Ts = 0.5`` s; modes ``−U(0.3, 2) ± j·U(0.1, 1.5)`` in a basis of
     condition ≤ 4 (never a pathological sampling)."""
     blocks, k = [], 0
     while k < n:
@@ -230,9 +230,9 @@ def _workload_plant(n: int, rng: np.random.Generator) -> SampledDataPlant:
     a = t @ sla.block_diag(*blocks) @ np.linalg.inv(t)
     return SampledDataPlant.create(
         A=a,
-        Bu=rng.standard_normal((n, 1)),
-        Bd=rng.standard_normal((n, n)),
-        Bf=rng.standard_normal((n, 1)),
+        B=rng.standard_normal((n, 1)),
+        E=rng.standard_normal((n, n)),
+        Fx=rng.standard_normal((n, 1)),
         C=rng.standard_normal((n, n)),
-        h=0.5,
+        Ts=0.5,
     )

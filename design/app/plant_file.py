@@ -81,7 +81,7 @@ is written with ``time = "nonlinear"`` and designed by the NAFDF::
     nominal = { a = -0.58, b = 0.2 }  # every parameter
     constants = { g = 9.81 }          # optional
     Q = [[0.0]]                       # covariance of v per sample (scalar, diagonal or matrix)
-    R = [[0.01]]                      # covariance of e per sample
+    R = [[0.01]]                      # covariance of e per sample (the paper's Q1 and Q2 are accepted too)
     [design]
     method = "nafdf"                  # the options of the method nafdf (``fdisyn methods``);
     P_f = 1e-4                        # x0 defaults to [simulation].x0; per-parameter ones
@@ -128,6 +128,9 @@ SAMPLED_DATA_LETTERS = {"Bu": "B", "Bd": "E", "Bf": "Fx", "h": "Ts"}
 """Qiu, Wen & Jiang 2010 (eq. (1)) write a sampled-data plant as ``ẋ = A x + Bu u + Bd d + Bf f``,
 ``y = C x`` sampled every ``h``: those names are accepted for ``B``, ``E``,
 ``Fx`` and ``Ts``."""
+NONLINEAR_LETTERS = {"Q1": "Q", "Q2": "R"}
+"""Zhou, Xi & Zhang 1991 (eq. (2.1)) call the covariances of ``v`` and ``e`` ``Q1`` and ``Q2``: those
+names are accepted for ``Q`` and ``R`` of a nonlinear plant."""
 
 def load_spec(spec: str | Path) -> Problem:
     """A built-in problem by name, or the problem a ``.toml`` file describes.
@@ -168,6 +171,15 @@ class _Section:
         self.doc, self.where = doc, where
         self.aliases: dict[str, str] = {}
         """Key read → key the file wrote (``Bu``, ``Bd``, ``Bf``, ``h``), for error messages."""
+
+    def accept_letters(self, letters: Mapping[str, str]) -> None:
+        """Read a paper's names (``letters``: theirs → ours) as fdisyn's keys; a file gives one of the two."""
+        for theirs, ours in letters.items():
+            if theirs in self.doc and ours in self.doc:
+                raise SpecError(f"{self.where} gives both {theirs!r} and {ours!r}: they are the same matrix, give one")
+            if theirs in self.doc:
+                self.doc = {**self.doc, ours: self.doc[theirs]}
+                self.aliases[ours] = theirs
 
     def get(self, key: str, default: Any = None, *, required: bool = False) -> Any:
         if key not in self.doc:
@@ -313,12 +325,7 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
         f"{path} [model]",
         {"time", "Ts", "A", "B", "C", "D", "E", "Fx", "Q", "R", "state_scale", *SAMPLED_DATA_LETTERS},
     )
-    for ours, theirs in SAMPLED_DATA_LETTERS.items():
-        if ours in mod.doc and theirs in mod.doc:
-            raise SpecError(f"{path} [model] gives both {ours!r} and {theirs!r}: they are the same matrix, give one")
-        if ours in mod.doc:
-            mod.doc = {**mod.doc, theirs: mod.doc[ours]}
-            mod.aliases[theirs] = ours
+    mod.accept_letters(SAMPLED_DATA_LETTERS)
     time = mod.get("time", "continuous")
     if time not in ("continuous", "discrete"):
         raise SpecError(f"{path} [model].time must be 'continuous', 'discrete' or 'nonlinear', got {short_repr(time)}")
@@ -521,7 +528,8 @@ def _nonlinear_problem(path: Path, top: _Section, name: str) -> Problem:
     from fdisyn.models.nonlinear import NonlinearPlant, covariance_matrix
 
     sig = _Section(top.get("signals", {}), f"{path} [signals]", {"states", "inputs", "outputs", "parameters"})
-    mod = _Section(top.get("model", required=True), f"{path} [model]", {"time", "Ts", "f", "h", "nominal", "constants", "Q", "R"})
+    mod = _Section(top.get("model", required=True), f"{path} [model]", {"time", "Ts", "f", "h", "nominal", "constants", "Q", "R", *NONLINEAR_LETTERS})
+    mod.accept_letters(NONLINEAR_LETTERS)
     ts = mod.number("Ts")
     names = {}
     for key in ("states", "inputs", "outputs", "parameters"):
@@ -532,7 +540,7 @@ def _nonlinear_problem(path: Path, top: _Section, name: str) -> Problem:
     noise = {}
     for key, size, definite in (("Q", len(names["states"]), False), ("R", len(names["outputs"]), True)):
         try:
-            noise[key] = covariance_matrix(mod.get(key, required=True), key, size, definite=definite)
+            noise[key] = covariance_matrix(mod.get(key, required=True), mod.aliases.get(key, key), size, definite=definite)
         except (ShapeError, ArgumentError) as exc:
             raise SpecError(f"{path} [model].{exc}") from None
     for key in ("f", "h", "nominal"):
@@ -549,8 +557,8 @@ def _nonlinear_problem(path: Path, top: _Section, name: str) -> Problem:
             nominal=mod.get("nominal"),
             f=mod.get("f"),
             h=mod.get("h"),
-            Q1=noise["Q"],
-            Q2=noise["R"],
+            Q=noise["Q"],
+            R=noise["R"],
             constants=mod.get("constants"),
             Ts=ts,
         )

@@ -23,17 +23,17 @@ __all__ = ['SimulationResult', 'sampled_disturbance', 'simulate_sampled_data']
 def sampled_disturbance(
     *, plant: SampledDataPlant, steps: int, rng: np.random.Generator, intensity: object | None = None
 ) -> np.ndarray:
-    """``w_k = ∫_{kh}^{(k+1)h} e^{A((k+1)h − t)} Bd dβ(t)`` for ``k < steps``; shape ``(steps, n)``.
+    """``w_k = ∫_{k Ts}^{(k+1) Ts} e^{A((k+1) Ts − t)} E dβ(t)`` for ``k < steps``; shape ``(steps, n)``.
 
     ``d`` is continuous white noise with intensity (power spectral density)
     ``Σ_d`` (``intensity``, default ``I``; the paper's "variance 1"). The
     ``w_k`` are independent Gaussians with covariance
-    ``∫₀ʰ e^{Aτ} Bd Σ_d Bdᵀ e^{Aᵀτ} dτ`` (Van Loan), so the state at the sampling
+    ``∫₀^Ts e^{Aτ} E Σ_d Eᵀ e^{Aᵀτ} dτ`` (Van Loan), so the state at the sampling
     instants is exact — no intersample discretisation error.
     """
-    q = plant.Bd.shape[1]
+    q = plant.E.shape[1]
     sig = np.eye(q) if intensity is None else as_matrix(intensity, "intensity", rows=q, cols=q)
-    cov = van_loan(plant.A, plant.Bd @ sig @ plant.Bd.T, plant.h)
+    cov = van_loan(plant.A, plant.E @ sig @ plant.E.T, plant.Ts)
     fac = psd_factor(cov, "covariance of the sampled disturbance")
     if int(steps) < 0:
         raise ArgumentError(f"steps must be ≥ 0; got {steps}")
@@ -42,7 +42,7 @@ def sampled_disturbance(
 
 @dataclass(frozen=True, eq=False)
 class SimulationResult:
-    """Samples of the sampled-data plant: ``x(kh)`` and ``ψ(k) = C x(kh)``, ``k = 0..N−1``."""
+    """Samples of the sampled-data plant: ``x(k Ts)`` and ``ψ(k) = C x(k Ts)``, ``k = 0..N−1``."""
 
     x: np.ndarray
     psi: np.ndarray
@@ -57,10 +57,10 @@ def simulate_sampled_data(
     intensity: object | None = None,
     x0: object | None = None,
 ) -> SimulationResult:
-    """Exact samples of eqs. (1)–(3): ``x(k+1) = A_D x + B_uD v(k) + B_fD f(k) + w_k``.
+    """Exact samples of eqs. (1)–(3): ``x(k+1) = A_D x + B_D v(k) + Fx_D f(k) + w_k``.
 
     ``v`` has shape ``(N, m)`` and is held (ZOH, eq. (3)); ``f`` has shape
-    ``(N, n_f)`` and is read as piecewise constant on ``[kh, (k+1)h)``, which is
+    ``(N, n_f)`` and is read as piecewise constant on ``[k Ts, (k+1) Ts)``, which is
     exact for the paper's step fault at a sampling instant; ``d`` is
     continuous white noise of intensity ``intensity`` (default ``I``), sampled
     exactly by :func:`sampled_disturbance`.
@@ -69,7 +69,7 @@ def simulate_sampled_data(
     if vv.shape[1] != plant.m:
         raise ShapeError(f"v has {vv.shape[1]} columns; the plant has m = {plant.m} inputs")
     steps = vv.shape[0]
-    nf = plant.Bf.shape[1]
+    nf = plant.Fx.shape[1]
     ff = np.zeros((steps, nf)) if f is None else as_matrix(f, "f", rows=steps, cols=nf if np.ndim(np.asarray(f)) == 2 else 1)
     if ff.shape != (steps, nf):
         raise ShapeError(f"f has shape {ff.shape}; expected ({steps}, {nf})")
@@ -78,5 +78,5 @@ def simulate_sampled_data(
     xs = np.empty((steps, plant.n))
     for k in range(steps):
         xs[k] = x
-        x = plant.A_D @ x + plant.B_uD @ vv[k] + plant.B_fD @ ff[k] + w[k]
+        x = plant.A_D @ x + plant.B_D @ vv[k] + plant.Fx_D @ ff[k] + w[k]
     return SimulationResult(x=xs, psi=xs @ plant.C.T)

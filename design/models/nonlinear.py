@@ -5,11 +5,13 @@ nonlinear systems", Shanghai Jiao Tong University, c. 1991.
 
 ``NonlinearPlant`` holds
 
-    x(t+1) = f(x(t), u(t), θ) + v(t),     v ~ N(0, Q1)
-    y(t)   = h(x(t), θ) + e(t),           e ~ N(0, Q2)
+    x(t+1) = f(x(t), u(t), θ) + v(t),     v ~ N(0, Q)
+    y(t)   = h(x(t), θ) + e(t),           e ~ N(0, R)
 
 with named states, inputs, outputs and parameters ``θ``, and a nominal value
-for every parameter. Zhou, Xi & Zhang write the measurement as ``H(θ) X`` (their
+for every parameter. ``Q`` and ``R`` are the paper's ``Q1`` and ``Q2``; fdisyn
+names the noise covariances ``Q`` (process) and ``R`` (measurement) on every
+plant, as :class:`~fdisyn.models.linear.LinearPlant` does. Zhou, Xi & Zhang write the measurement as ``H(θ) X`` (their
 assumption A3, a linear measurement); ``h(x, θ)`` contains that case.
 
 ``f`` and ``h`` are CasADi ``Function`` objects. Every Jacobian and parameter
@@ -27,7 +29,7 @@ A plant can also be written as expression strings
         states=["x"], inputs=["u"], outputs=["y"], parameters=["a", "b"],
         nominal={"a": -0.58, "b": 0.2},
         f={"x": "0.1*a*x^2 + x + 0.1*b*u"}, h={"y": "x"},
-        Q1=0.0, Q2=0.01)
+        Q=0.0, R=0.01)
 
 Numbers are data: a model may hold no NaN or infinite constant. A literal
 that overflows (``1e999``), a constant subexpression that folds to one
@@ -629,10 +631,10 @@ class NonlinearPlant:
     parameters: tuple[str, ...]
     theta_nominal: np.ndarray
     """Nominal parameter values, in the order of :attr:`parameters`."""
-    Q1: np.ndarray
-    """Process-noise covariance (``Q1`` of eq. (2.1))."""
-    Q2: np.ndarray
-    """Measurement-noise covariance (``Q2`` of eq. (2.1)); positive definite."""
+    Q: np.ndarray
+    """Process-noise covariance of ``v`` (the paper's ``Q1``, eq. (2.1))."""
+    R: np.ndarray
+    """Measurement-noise covariance of ``e`` (the paper's ``Q2``, eq. (2.1)); positive definite."""
     Ts: float | None = None
     """Sample time in seconds (informational; the model is already discrete)."""
     expressions: Mapping[str, object] | None = None
@@ -651,8 +653,8 @@ class NonlinearPlant:
         outputs: Sequence[str],
         parameters: Sequence[str],
         nominal: Mapping[str, float],
-        Q1: object,
-        Q2: object,
+        Q: object,
+        R: object,
         Ts: float | None = None,
         units: Mapping[str, str] | None = None,
         expressions: Mapping[str, object] | None = None,
@@ -679,8 +681,8 @@ class NonlinearPlant:
         theta = _nominal_vector(par, nominal)
         f_sx = _as_sx_function(f, "f", (n, m, l), n, ("x", "u", "theta"), "x_next")
         h_sx = _as_sx_function(h, "h", (n, l), p, ("x", "theta"), "y")
-        q1 = covariance_matrix(Q1, "Q1", n, definite=False)
-        q2 = covariance_matrix(Q2, "Q2", p, definite=True)
+        q = covariance_matrix(Q, "Q", n, definite=False)
+        r = covariance_matrix(R, "R", p, definite=True)
         return cls(
             f=f_sx,
             h=h_sx,
@@ -689,8 +691,8 @@ class NonlinearPlant:
             outputs=out,
             parameters=par,
             theta_nominal=frozen_array(theta),
-            Q1=frozen_array(q1),
-            Q2=frozen_array(q2),
+            Q=frozen_array(q),
+            R=frozen_array(r),
             Ts=None if Ts is None else check_sample_time(Ts),
             expressions=None if expressions is None else dict(expressions),
             units=dict(units or {}),
@@ -707,8 +709,8 @@ class NonlinearPlant:
         nominal: Mapping[str, float],
         f: Mapping[str, str],
         h: Mapping[str, str],
-        Q1: object,
-        Q2: object,
+        Q: object,
+        R: object,
         constants: Mapping[str, float] | None = None,
         Ts: float | None = None,
         units: Mapping[str, str] | None = None,
@@ -778,8 +780,8 @@ class NonlinearPlant:
             outputs=out,
             parameters=par,
             nominal=nominal,
-            Q1=Q1,
-            Q2=Q2,
+            Q=Q,
+            R=R,
             Ts=Ts,
             units=units,
             expressions={"f": dict(f), "h": dict(h), "constants": {k: v for k, v in consts.items() if k != "pi"}},
@@ -892,8 +894,8 @@ class NonlinearPlant:
         if th.shape != (T, self.l):
             raise ShapeError(f"theta has shape {th.shape}; expected ({self.l},) or ({T}, {self.l})")
         x0v = _vector(x0, "x0", self.n)
-        v = _gaussian(rng, self.Q1, T)
-        e = _gaussian(rng, self.Q2, T)
+        v = _gaussian(rng, self.Q, T)
+        e = _gaussian(rng, self.R, T)
         xs = ca.SX.sym("x", self.n)
         drive = ca.SX.sym("drive", self.m + self.l + self.n)
         step = ca.Function(

@@ -24,23 +24,24 @@ __all__ = ['SampledDataPlant', 'check_sampling', 'norm_invariant_discretisation'
 # ---------------------------------------------------------------------------
 
 
-def norm_invariant_discretisation(*, A: object, B: object, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def norm_invariant_discretisation(*, A: object, B: object, Ts: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Lemma 1 (eq. (5)): ``(A_D, B_J, W)`` with ``‖S G‖_η = ‖G_J‖_η``.
 
-    ``A_D = e^{Ah}``, ``W = ∫₀ʰ e^{Aτ} B Bᵀ e^{Aᵀτ} dτ`` (Van Loan's block
+    ``A_D = e^{A Ts}``, ``W = ∫₀^Ts e^{Aτ} B Bᵀ e^{Aᵀτ} dτ`` (Van Loan's block
     exponential) and ``B_J`` the full-column-rank factor ``B_J B_Jᵀ = W``
     (:func:`~fdisyn.numerics.linalg.psd_factor`, ``n × rank W``). ``W`` is the
-    covariance of ``∫₀ʰ e^{A(h−τ)} B dβ(τ)`` for unit-intensity white noise
-    ``dβ``, which is why the same matrix gives exact noise sampling.
+    covariance of ``∫₀^Ts e^{A(Ts−τ)} B dβ(τ)`` for unit-intensity white noise
+    ``dβ``, which is why the same matrix gives exact noise sampling. (The paper
+    writes the sample time ``h``.)
     """
-    h = check_sample_time(h, "h")
+    Ts = check_sample_time(Ts, "Ts")
     a = as_matrix(A, "A")
     n = a.shape[0]
     if a.shape != (n, n):
         raise ShapeError(f"A must be square; got shape {a.shape}")
     b = as_matrix(B, "B", rows=n)
-    ad = sla.expm(a * h)
-    w = van_loan(a, b @ b.T, h)
+    ad = sla.expm(a * Ts)
+    w = van_loan(a, b @ b.T, Ts)
     return ad, psd_factor(w, "W = ∫ e^{Aτ} B Bᵀ e^{Aᵀτ} dτ"), w
 
 
@@ -48,63 +49,75 @@ def norm_invariant_discretisation(*, A: object, B: object, h: float) -> tuple[np
 class SampledDataPlant:
     """Eqs. (1)–(3): continuous plant, sampler, ZOH; with its discretisations.
 
-    ``A_D``, ``B_uD`` (step-invariant, eq. (13)), ``B_dJ``, ``B_fJ`` (Lemma 1)
-    and, for the paper's indirect comparison, ``B_dD``, ``B_fD`` (ZOH of the
-    disturbance and fault, as if they were held between samples).
+    ``ẋ = A x + B u + E d + Fx f``, ``y = C x``, sampled every ``Ts`` — the
+    letters of :class:`~fdisyn.models.linear.LinearPlant`; the paper writes
+    ``B_u``, ``B_d``, ``B_f`` and ``h``. Discretisations: ``A_D``, ``B_D``
+    (step-invariant, eq. (13), the paper's ``B_uD``), ``E_J``, ``Fx_J``
+    (Lemma 1, the paper's ``B_dJ``, ``B_fJ``) and, for the paper's indirect
+    comparison, ``E_D``, ``Fx_D`` (ZOH of the disturbance and fault, as if they
+    were held between samples; the paper's ``B_dD``, ``B_fD``). The discrete
+    systems are named by their input signal, as the paper and every
+    certificate write them: :meth:`G_d` from ``d`` and :meth:`G_f` from ``f``
+    to ``y``.
     """
 
     A: np.ndarray
-    Bu: np.ndarray
-    Bd: np.ndarray
-    Bf: np.ndarray
+    B: np.ndarray
+    """Known inputs ``u`` (the paper's ``B_u``)."""
+    E: np.ndarray
+    """Disturbance ``d``, continuous white noise (the paper's ``B_d``)."""
+    Fx: np.ndarray
+    """Faults ``f`` (the paper's ``B_f``)."""
     C: np.ndarray
-    h: float
+    Ts: float
+    """Sample time (the paper's ``h``)."""
     A_D: np.ndarray
-    B_uD: np.ndarray
-    B_dJ: np.ndarray
-    B_fJ: np.ndarray
-    W_d: np.ndarray
-    """``B_dJ B_dJᵀ``: also the covariance of the sampled unit-intensity disturbance."""
-    W_f: np.ndarray
-    B_dD: np.ndarray
-    B_fD: np.ndarray
+    B_D: np.ndarray
+    E_J: np.ndarray
+    Fx_J: np.ndarray
+    W_E: np.ndarray
+    """``E_J E_Jᵀ = ∫₀^Ts e^{Aτ} E Eᵀ e^{Aᵀτ} dτ``: also the covariance of the sampled unit-intensity disturbance."""
+    W_Fx: np.ndarray
+    """``Fx_J Fx_Jᵀ``."""
+    E_D: np.ndarray
+    Fx_D: np.ndarray
 
     @classmethod
-    def create(cls, *, A: object, Bu: object, Bd: object, Bf: object, C: object, h: float) -> SampledDataPlant:
-        """Validate (shapes, ``h > 0``) and discretise."""
-        h = check_sample_time(h, "h")
+    def create(cls, *, A: object, B: object, E: object, Fx: object, C: object, Ts: float) -> SampledDataPlant:
+        """Validate (shapes, ``Ts > 0``) and discretise."""
+        Ts = check_sample_time(Ts, "Ts")
         a = as_matrix(A, "A")
         n = a.shape[0]
         if a.shape != (n, n):
             raise ShapeError(f"A must be square; got shape {a.shape}")
-        bu = as_matrix(Bu, "Bu", rows=n, cols=None if np.ndim(np.asarray(Bu)) == 2 else 1)
-        bd = as_matrix(Bd, "Bd", rows=n, cols=None if np.ndim(np.asarray(Bd)) == 2 else 1)
-        bf = as_matrix(Bf, "Bf", rows=n, cols=None if np.ndim(np.asarray(Bf)) == 2 else 1)
+        b = as_matrix(B, "B", rows=n, cols=None if np.ndim(np.asarray(B)) == 2 else 1)
+        e = as_matrix(E, "E", rows=n, cols=None if np.ndim(np.asarray(E)) == 2 else 1)
+        fx = as_matrix(Fx, "Fx", rows=n, cols=None if np.ndim(np.asarray(Fx)) == 2 else 1)
         c = as_matrix(C, "C", cols=n)
-        ad, held = zoh(a, np.hstack([bu, bd, bf]), h)
-        m, q = bu.shape[1], bd.shape[1]
-        _, bdj, wd = norm_invariant_discretisation(A=a, B=bd, h=h)
-        _, bfj, wf = norm_invariant_discretisation(A=a, B=bf, h=h)
+        ad, held = zoh(a, np.hstack([b, e, fx]), Ts)
+        m, q = b.shape[1], e.shape[1]
+        _, ej, we = norm_invariant_discretisation(A=a, B=e, Ts=Ts)
+        _, fxj, wfx = norm_invariant_discretisation(A=a, B=fx, Ts=Ts)
         return cls(
             A=a,
-            Bu=bu,
-            Bd=bd,
-            Bf=bf,
+            B=b,
+            E=e,
+            Fx=fx,
             C=c,
-            h=h,
+            Ts=Ts,
             A_D=ad,
-            B_uD=held[:, :m],
-            B_dJ=bdj,
-            B_fJ=bfj,
-            W_d=wd,
-            W_f=wf,
-            B_dD=held[:, m : m + q],
-            B_fD=held[:, m + q :],
+            B_D=held[:, :m],
+            E_J=ej,
+            Fx_J=fxj,
+            W_E=we,
+            W_Fx=wfx,
+            E_D=held[:, m : m + q],
+            Fx_D=held[:, m + q :],
         )
 
     @classmethod
-    def from_linear_plant(cls, plant: LinearPlant, *, h: float) -> SampledDataPlant:
-        """From a continuous :class:`LinearPlant`: ``B → Bu``, ``E → Bd``, ``Fx → Bf``.
+    def from_linear_plant(cls, plant: LinearPlant, *, Ts: float) -> SampledDataPlant:
+        """From a continuous :class:`LinearPlant` (the same ``A``, ``B``, ``C``, ``E``, ``Fx``), sampled every ``Ts``.
 
         The paper's plant is strictly proper (``D = 0``) and noise enters
         through ``d``; a nonzero ``D`` is refused rather than dropped.
@@ -113,7 +126,7 @@ class SampledDataPlant:
             raise ArgumentError(f"the sampled-data design needs a continuous plant; this one has Ts = {plant.Ts}")
         if np.any(plant.D != 0):
             raise ExistenceError("the sampled-data plant must be strictly proper (D = 0, Qiu, Wen & Jiang 2010, eq. (1))")
-        return cls.create(A=plant.A, Bu=plant.B, Bd=plant.E, Bf=plant.Fx, C=plant.C, h=h)
+        return cls.create(A=plant.A, B=plant.B, E=plant.E, Fx=plant.Fx, C=plant.C, Ts=Ts)
 
     @property
     def n(self) -> int:
@@ -125,30 +138,29 @@ class SampledDataPlant:
 
     @property
     def m(self) -> int:
-        return self.Bu.shape[1]
+        return self.B.shape[1]
 
     def G_d(self, *, model: Literal["norm_invariant", "zoh"] = "norm_invariant") -> DiscreteLTI:
-        """``G_dJ = (A_D, B_dJ, C, 0)`` (Lemma 1) or the ZOH model ``(A_D, B_dD, C, 0)``."""
-        return DiscreteLTI(A=self.A_D, B=self.B_dJ if model == "norm_invariant" else self.B_dD, C=self.C, D=np.zeros((self.p, self._cols(model, "d"))))
+        """From the disturbance ``d`` to ``y``: ``G_dJ = (A_D, E_J, C, 0)`` (Lemma 1) or the ZOH model ``(A_D, E_D, C, 0)``."""
+        b = self._input(model, "d")
+        return DiscreteLTI(A=self.A_D, B=b, C=self.C, D=np.zeros((self.p, b.shape[1])))
 
     def G_f(self, *, model: Literal["norm_invariant", "zoh"] = "norm_invariant") -> DiscreteLTI:
-        """``G_fJ = (A_D, B_fJ, C, 0)`` (Lemma 1) or the ZOH model ``(A_D, B_fD, C, 0)``."""
-        return DiscreteLTI(A=self.A_D, B=self.B_fJ if model == "norm_invariant" else self.B_fD, C=self.C, D=np.zeros((self.p, self._cols(model, "f"))))
+        """From the fault ``f`` to ``y``: ``G_fJ = (A_D, Fx_J, C, 0)`` (Lemma 1) or the ZOH model ``(A_D, Fx_D, C, 0)``."""
+        b = self._input(model, "f")
+        return DiscreteLTI(A=self.A_D, B=b, C=self.C, D=np.zeros((self.p, b.shape[1])))
 
-    def _cols(self, model: str, ch: str) -> int:
+    def _input(self, model: str, ch: str) -> np.ndarray:
+        """The discrete input matrix of channel ``d`` or ``f`` under ``model``."""
         if model == "norm_invariant":
-            return (self.B_dJ if ch == "d" else self.B_fJ).shape[1]
+            return self.E_J if ch == "d" else self.Fx_J
         if model == "zoh":
-            return (self.B_dD if ch == "d" else self.B_fD).shape[1]
+            return self.E_D if ch == "d" else self.Fx_D
         raise ArgumentError(f"model must be 'norm_invariant' or 'zoh'; got {model!r}")
 
     def discrete_plant(self, *, model: Literal["norm_invariant", "zoh"] = "norm_invariant") -> LinearPlant:
-        """The discrete :class:`LinearPlant` ``(A_D, B_uD, C, E=B_dJ or B_dD, Fx=B_fJ or B_fD, Ts=h)``."""
-        e = self.B_dJ if model == "norm_invariant" else self.B_dD
-        fx = self.B_fJ if model == "norm_invariant" else self.B_fD
-        if model not in ("norm_invariant", "zoh"):
-            raise ArgumentError(f"model must be 'norm_invariant' or 'zoh'; got {model!r}")
-        return LinearPlant.create(A=self.A_D, B=self.B_uD, C=self.C, E=e, Fx=fx, Ts=self.h)
+        """The discrete :class:`LinearPlant` ``(A_D, B_D, C, E=E_J or E_D, Fx=Fx_J or Fx_D, Ts)``."""
+        return LinearPlant.create(A=self.A_D, B=self.B_D, C=self.C, E=self._input(model, "d"), Fx=self._input(model, "f"), Ts=self.Ts)
 
 
 # ---------------------------------------------------------------------------
@@ -162,14 +174,14 @@ def _nullity(mat: np.ndarray) -> int:
     return int(mat.shape[1] - np.sum(s > tol))
 
 
-def _pathological_losses(a: np.ndarray, c: np.ndarray, h: float) -> list[tuple[complex, complex, int, int]]:
-    """Groups of distinct eigenvalues of ``A`` that sampling maps onto one ``e^{λh}``
+def _pathological_losses(a: np.ndarray, c: np.ndarray, ts: float) -> list[tuple[complex, complex, int, int]]:
+    """Groups of distinct eigenvalues of ``A`` that sampling maps onto one ``e^{λ Ts}``
     *and* that lose observability doing so: ``(λ_i, λ_j, k, modes lost)`` with
-    ``h (λ_i − λ_j) = 2πk·j`` (Chen & Francis, 1995, the pathological case)."""
+    ``Ts (λ_i − λ_j) = 2πk·j`` (Chen & Francis, 1995, the pathological case)."""
     n = a.shape[0]
     lam = np.linalg.eigvals(a)
-    ad = sla.expm(a * h)
-    mu = np.exp(lam * h)
+    ad = sla.expm(a * ts)
+    mu = np.exp(lam * ts)
     out: list[tuple[complex, complex, int, int]] = []
     seen: set[int] = set()
     for i in range(n):
@@ -187,26 +199,26 @@ def _pathological_losses(a: np.ndarray, c: np.ndarray, h: float) -> list[tuple[c
         disc = _nullity(np.vstack([mu[i] * np.eye(n) - ad, c.astype(complex)]))
         if disc > cont:
             l1, l2 = distinct[0], distinct[1]
-            k = int(round(((l1 - l2) * h / (2j * math.pi)).real))
+            k = int(round(((l1 - l2) * ts / (2j * math.pi)).real))
             out.append((l1, l2, k, disc - cont))
     return out
 
 
-def check_sampling(*, A: object, C: object, h: float, allow_pathological: bool = False) -> None:
+def check_sampling(*, A: object, C: object, Ts: float, allow_pathological: bool = False) -> None:
     """Theorem 1's assumptions on the plant and the sampling.
 
     Raises :class:`ExistenceError` naming the condition:
 
     * ``(A, C)`` not detectable (an unstable mode, ``Re λ ≥ 0``, unobservable);
-    * pathological sampling: distinct eigenvalues with ``h(λ_i − λ_j) = 2πk·j``
-      whose images ``e^{λh}`` coincide and become unobservable from ``C``
+    * pathological sampling: distinct eigenvalues with ``Ts(λ_i − λ_j) = 2πk·j``
+      whose images ``e^{λ Ts}`` coincide and become unobservable from ``C``
       (``allow_pathological=True`` accepts this when ``(A_D, C)`` stays
       detectable, i.e. only stable modes are lost);
     * ``(A_D, C)`` not detectable.
 
-    ``h ≤ 0`` or non-finite raises :class:`ArgumentError` (not a sample time).
+    ``Ts ≤ 0`` or non-finite raises :class:`ArgumentError` (not a sample time).
     """
-    h = check_sample_time(h, "h")
+    Ts = check_sample_time(Ts, "Ts")
     a = as_matrix(A, "A")
     n = a.shape[0]
     if a.shape != (n, n):
@@ -218,20 +230,20 @@ def check_sampling(*, A: object, C: object, h: float, allow_pathological: bool =
             f"(A, C) is not detectable: the mode(s) λ = {[complex(round(z.real, 9), round(z.imag, 9)) for z in bad]} "
             "with Re λ ≥ 0 are unobservable from C (Theorem 1 of Qiu, Wen & Jiang 2010 assumes (A, C) detectable)"
         )
-    ad = sla.expm(a * h)
+    ad = sla.expm(a * Ts)
     undetectable = unobservable_modes(ad, c, region="unstable-discrete")
-    losses = _pathological_losses(a, c, h)
+    losses = _pathological_losses(a, c, Ts)
     if losses and (undetectable or not allow_pathological):
         l1, l2, k, lost = losses[0]
         raise ExistenceError(
-            f"pathological sampling: h = {h:g} maps the eigenvalues λ = {l1:.6g} and {l2:.6g} of A "
-            f"(h(λ1 − λ2) = 2π·{k}·j) onto one eigenvalue e^(λh) = {np.exp(l1 * h):.6g} of A_D, and {lost} mode(s) "
+            f"pathological sampling: Ts = {Ts:g} maps the eigenvalues λ = {l1:.6g} and {l2:.6g} of A "
+            f"(Ts(λ1 − λ2) = 2π·{k}·j) onto one eigenvalue e^(λ·Ts) = {np.exp(l1 * Ts):.6g} of A_D, and {lost} mode(s) "
             "become unobservable from C (Theorem 1 of Qiu, Wen & Jiang 2010 assumes non-pathological sampling); "
-            "choose h with h·|Im(λ1 − λ2)| ≠ 2πk"
+            "choose Ts with Ts·|Im(λ1 − λ2)| ≠ 2πk"
             + ("" if undetectable else ", or pass allow_pathological=True (the lost modes are stable)")
         )
     if undetectable:
         raise ExistenceError(
             f"(A_D, C) is not detectable: the mode(s) μ = {[complex(round(z.real, 9), round(z.imag, 9)) for z in undetectable]} "
-            f"of A_D = e^(A·{h:g}) with |μ| ≥ 1 are unobservable from C"
+            f"of A_D = e^(A·{Ts:g}) with |μ| ≥ 1 are unobservable from C"
         )

@@ -16,15 +16,15 @@ from fdisyn.synthesis.certificate import worst
 
 __all__ = ['CoInnerOuter', 'Dtars', 'INNER_TOL', 'KAPPA_FACTOR', 'KAPPA_MAX', 'co_inner_outer', 'solve_dtars']
 KAPPA_FACTOR = 2e-13
-"""Per unit of κ = cond(NᵀN): ``B_dJ`` (from ``expm``) is accurate to
-eps·‖W_d‖, so its weakly excited directions, which ``N# = N⁻¹`` amplifies by
+"""Per unit of κ = cond(NᵀN): ``E_J`` (from ``expm``) is accurate to
+eps·‖W_E‖, so its weakly excited directions, which ``N# = N⁻¹`` amplifies by
 ~√κ, carry relative errors ~eps·κ into every identity below; measured worst
 6.4e-14·κ over 160 random plants (n ≤ 4, one disturbance), so 2e-13·κ."""
 KAPPA_MAX = 1e10
 """Beyond κ = 1e10 the identities keep fewer than three digits (2e-13·κ >
 2e-3): the disturbance barely excites some output direction within a sample
-(typical with fewer disturbances than outputs and a short h), and the computed
-optimum is not trustworthy. Remedies: fewer outputs, a longer h, or a
+(typical with fewer disturbances than outputs and a short Ts), and the computed
+optimum is not trustworthy. Remedies: fewer outputs, a longer Ts, or a
 disturbance model that excites every state."""
 INNER_TOL = 1e-8
 """|‖G_rψ G_dJ‖∞ − 1| and |‖·‖₋ − 1| at κ ≲ 1e5: the sweep is exact to ~1e-12

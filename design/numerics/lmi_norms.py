@@ -37,14 +37,15 @@ tolerances: see ``_NORM_LADDER``):
     bands, which ones depending on the OpenBLAS kernel; the real two-multiplier
     SDP reaches "solved" on ~90 % and every kernel certifies all 100.
 
-Design (:func:`lmi_diagnostic_observer`): the observer ``x̂⁺ = A_D x̂ + B_uD v +
+Design (:func:`lmi_diagnostic_observer`): the observer ``x̂⁺ = A_D x̂ + B_D v +
 L(ψ − C x̂)``, ``r = V(ψ − C x̂)`` — Theorem 1's structure with ``s = n``,
-``T = I``, ``F = A_D − LC``, ``W = VC``, ``E = B_uD``, ``Q = 0`` — with the
-error ``e = x − x̂`` driven by ``G_dJ`` and ``G_fJ``.
+``T = I``, ``F = A_D − LC``, ``W = VC``, ``G = B_D``, ``D = 0`` (the paper's
+``E = B_uD``, ``Q = 0``) — with the error ``e = x − x̂`` driven by ``G_dJ`` and
+``G_fJ``.
 
 1. Observer gain, convex in ``(P, Z = P L)``: the H2-optimal one-step
-   predictor, ``min trace Σ`` subject to ``Σ ⪰ (A − LC) Σ (A − LC)ᵀ + B_d B_dᵀ``,
-   written with ``P = Σ⁻¹`` as ``[[P, PA − ZC, PB_d], [·, P, 0], [·, 0, I]] ⪰ 0``.
+   predictor, ``min trace Σ`` subject to ``Σ ⪰ (A − LC) Σ (A − LC)ᵀ + E_J E_Jᵀ``,
+   written with ``P = Σ⁻¹`` as ``[[P, PA − ZC, PE_J], [·, P, 0], [·, 0, I]] ⪰ 0``.
 2. Post-filter ``Π = VᵀV``, convex for the fixed gain: a mixed problem,
    ``min γ²`` subject to ``‖V G_ed‖∞ ≤ γ`` (bounded real lemma, linear in
    ``(P, Π, γ²)``) and the fault side normalised, linear in ``Π``:

@@ -39,11 +39,12 @@ __all__ = ['LmiObserver', 'lmi_diagnostic_observer']
 
 
 def _h2_observer_gain(
-    a: np.ndarray, c: np.ndarray, bd: np.ndarray, *, reg: float, accept_inaccurate: bool = False
+    a: np.ndarray, c: np.ndarray, e: np.ndarray, *, reg: float, accept_inaccurate: bool = False
 ) -> tuple[np.ndarray, SdpStats]:
-    """Step 1: ``min trace Σ`` s.t. ``Σ ⪰ (A − LC)Σ(A − LC)ᵀ + B_d B_dᵀ + reg·I`` (``P = Σ⁻¹``, ``Z = P L``).
+    """Step 1: ``min trace Σ`` s.t. ``Σ ⪰ (A − LC)Σ(A − LC)ᵀ + E Eᵀ + reg·I`` (``P = Σ⁻¹``, ``Z = P L``).
 
-    ``reg`` (relative to ``‖B_d‖²``) keeps ``Σ`` nonsingular when the exact
+    ``E`` is the discrete disturbance input (``E_J`` or ``E_D``); ``reg``
+    (relative to ``‖E‖²``) keeps ``Σ`` nonsingular when the exact
     optimum is singular (``P → ∞``); in the regular case ``1e-9`` moves the
     gain by ~1e-9 relative.
     """
@@ -51,10 +52,10 @@ def _h2_observer_gain(
     # Scale the noise to unit size and balance the state coordinates: the
     # optimal gain minimises Σ in the PSD order, so it is invariant to both
     # (L → T⁻¹ L); only the conditioning of P improves.
-    sc = max(float(np.linalg.norm(bd, 2)), np.finfo(float).tiny)
-    t, ti = _balancing(a, bd / sc, c) if spectral_radius(a) < 1.0 else (np.eye(n), np.eye(n))
-    a, c, bd = ti @ a @ t, c @ t, ti @ bd
-    bq = np.hstack([bd / sc, math.sqrt(reg) * np.eye(n)])
+    sc = max(float(np.linalg.norm(e, 2)), np.finfo(float).tiny)
+    t, ti = _balancing(a, e / sc, c) if spectral_radius(a) < 1.0 else (np.eye(n), np.eye(n))
+    a, c, e = ti @ a @ t, c @ t, ti @ e
+    bq = np.hstack([e / sc, math.sqrt(reg) * np.eye(n)])
     pv = cp.Variable((n, n), symmetric=True)
     z = cp.Variable((n, p_))
     wv = cp.Variable((n, n), symmetric=True)
@@ -83,56 +84,59 @@ def _postfilter(
     *,
     al: np.ndarray,
     c: np.ndarray,
-    bd: np.ndarray,
-    bf: np.ndarray,
+    e: np.ndarray,
+    fx: np.ndarray,
     eta: Eta,
     band: tuple[float, float] | None,
     peak: tuple[float, np.ndarray] | None,
 ) -> tuple[np.ndarray, float, SdpStats]:
-    """Step 2: ``min γ²`` s.t. ``‖V G_ed‖∞ ≤ γ`` and the fault side ≥ 1, linear in ``Π = VᵀV``."""
+    """Step 2: ``min γ²`` s.t. ``‖V G_ed‖∞ ≤ γ`` and the fault side ≥ 1, linear in ``Π = VᵀV``.
+
+    ``e``, ``fx``: the discrete disturbance and fault inputs (``E_J``, ``Fx_J`` or ``E_D``, ``Fx_D``).
+    """
     n, p_ = al.shape[0], c.shape[0]
-    mf, md = bf.shape[1], bd.shape[1]
+    mf, md = fx.shape[1], e.shape[1]
     # Scale both channels to unit size in their own measure (sweep/Gramian
     # values, used only as scalings): the fault normalisation "≥ 1" and γ² are
     # then O(1) even when ‖G_ef‖₋ is 1e-4 of ‖G_ef‖∞ (a scalar fault whose
     # lifted channel is nearly rank one).
-    gef = DiscreteLTI(A=al, B=bf, C=c, D=np.zeros((p_, mf)))
+    gef = DiscreteLTI(A=al, B=fx, C=c, D=np.zeros((p_, mf)))
     sf = system_norm(gef, eta=eta, band=band if eta != "2" else None)
     if sf <= 0.0:
         raise ExistenceError(
-            f"‖C (zI − A + LC)⁻¹ B_f‖_{eta} = 0: no post-filter makes the fault visible in this measure"
+            f"‖C (zI − A + LC)⁻¹ Fx‖_{eta} = 0: no post-filter makes the fault visible in this measure"
         )
-    sd = _scale(DiscreteLTI(A=al, B=bd, C=c, D=np.zeros((p_, md))))
-    bfs = bf / sf
-    bd = bd / sd
+    sd = _scale(DiscreteLTI(A=al, B=e, C=c, D=np.zeros((p_, md))))
+    fxs = fx / sf
+    e = e / sd
     # Balanced state coordinates for both channels together: the Lyapunov
     # and KYP multipliers are then O(1) (measured: Clarabel fails on the raw
     # realisation of a scalar fault's lifted channel, whose singular values
     # span 1e4, and solves the balanced one to 2e-8).
-    t, ti = _balancing(al, np.hstack([bd, bfs]), c)
-    al, bd, bfs, c = ti @ al @ t, ti @ bd, ti @ bfs, c @ t
+    t, ti = _balancing(al, np.hstack([e, fxs]), c)
+    al, e, fxs, c = ti @ al @ t, ti @ e, ti @ fxs, c @ t
     pi = cp.Variable((p_, p_), symmetric=True)
     pv = cp.Variable((n, n), symmetric=True)
     g2 = cp.Variable(nonneg=True)
     brl = cp.bmat(
         [
-            [al.T @ pv @ al - pv + c.T @ pi @ c, al.T @ pv @ bd],
-            [bd.T @ pv @ al, bd.T @ pv @ bd - g2 * np.eye(md)],
+            [al.T @ pv @ al - pv + c.T @ pi @ c, al.T @ pv @ e],
+            [e.T @ pv @ al, e.T @ pv @ e - g2 * np.eye(md)],
         ]
     )
     cons = [pi >> 0, pv >> 0, _sym(brl) << 0]
     if eta == "-":
-        lhs, _, _, extra = _kyp_lhs(al, bfs, band)
+        lhs, _, _, extra = _kyp_lhs(al, fxs, band)
         theta = cp.bmat([[-c.T @ pi @ c, np.zeros((n, mf))], [np.zeros((mf, n)), np.eye(mf)]])
         cons += extra + [_sym(lhs + theta) << 0]
     elif eta == "2":
-        sig_f = gramian(al, bfs @ bfs.T)
+        sig_f = gramian(al, fxs @ fxs.T)
         cons.append(cp.trace(pi @ (c @ sig_f @ c.T)) >= 1.0)
     elif eta == "inf":
         if peak is None:
             raise InternalError("internal: the H∞ fault normalisation needs a peak (ω, w)")
         om, w = peak
-        gw = (DiscreteLTI(A=al, B=bfs, C=c, D=np.zeros((p_, mf))).freqresp(np.array([om]))[0]) @ w
+        gw = (DiscreteLTI(A=al, B=fxs, C=c, D=np.zeros((p_, mf))).freqresp(np.array([om]))[0]) @ w
         # wᴴ Gᴴ Π G w = Re(g)ᵀ Π Re(g) + Im(g)ᵀ Π Im(g) for real symmetric Π.
         cons.append(cp.quad_form(gw.real, pi, assume_PSD=True) + cp.quad_form(gw.imag, pi, assume_PSD=True) >= 1.0)
     else:
@@ -147,7 +151,7 @@ def _postfilter(
         what=f"post-filter (mixed H∞ / {'H₋' if eta == '-' else 'H2' if eta == '2' else 'H∞'} LMI)",
         meaning={
             "infeasible": "no post-filter makes the fault visible: the fault does not reach the residual "
-            "through this observer (check Bf and C)",
+            "through this observer (check Fx and C)",
         },
         accept_inaccurate=True,
     )
@@ -174,11 +178,13 @@ class LmiObserver:
     band: tuple[float, float] | None
     model: str
     F: np.ndarray
-    E: np.ndarray
+    G: np.ndarray
+    """Input gain (the paper's ``E``, eq. (6)): ``B_D``, as ``T = I``."""
     L: np.ndarray
     W: np.ndarray
     V: np.ndarray
-    Q: np.ndarray
+    D: np.ndarray
+    """Input feedthrough of the residual (the paper's ``Q``): zero."""
     J_bound: float
     """The SDP's certified ``γ ≥ J_η`` on the design model."""
     J: Mapping[str, float]
@@ -195,16 +201,16 @@ class LmiObserver:
         return residual_dynamics(F=self.F, L=self.L, W=self.W, V=self.V)
 
     def generator(self, *, name: str = "sampled_data_observer_lmi") -> Generator:
-        """Canonical form ``Ar = F, Bu = E, By = L, Cr = −W, Du = −Q, Dy = V``."""
+        """Canonical form ``Ar = F, Bu = G, By = L, Cr = −W, Du = −D, Dy = V``."""
         return canonical_generator(
             name=name,
             F=self.F,
-            E=self.E,
+            G=self.G,
             L=self.L,
             W=self.W,
             V=self.V,
-            Q=self.Q,
-            h=self.plant.h,
+            D=self.D,
+            Ts=self.plant.Ts,
             method={"design": "lmi", "eta": self.eta, "model": self.model},
         )
 
@@ -230,13 +236,13 @@ def lmi_diagnostic_observer(
         raise ArgumentError(f"eta must be one of {ETAS}; got {eta!r}")
     if band is not None and eta == "2":
         raise ArgumentError("band applies to η = 'inf' or '-'; the H2 norm is over the whole circle")
-    check_sampling(A=plant.A, C=plant.C, h=plant.h)
+    check_sampling(A=plant.A, C=plant.C, Ts=plant.Ts)
     gd, gf = plant.G_d(model=model), plant.G_f(model=model)
     a, c = plant.A_D, plant.C
     if eta == "-" and gf.n_in > plant.p:
         raise ExistenceError(
             f"‖G_rψ G_f‖₋ = 0 for every generator: the fault channel has {gf.n_in} inputs "
-            f"(rank of B_f{'J' if model == 'norm_invariant' else 'D'}) but only p = {plant.p} outputs; "
+            f"(rank of Fx_{'J' if model == 'norm_invariant' else 'D'}) but only p = {plant.p} outputs; "
             "the H₋ index needs p ≥ that rank"
         )
     stats: list[SdpStats] = []
@@ -257,7 +263,7 @@ def lmi_diagnostic_observer(
         )
 
     def design_for(peak):
-        v, bound, st2 = _postfilter(al=al, c=c, bd=gd.B, bf=gf.B, eta=eta, band=band, peak=peak)
+        v, bound, st2 = _postfilter(al=al, c=c, e=gd.B, fx=gf.B, eta=eta, band=band, peak=peak)
         stats.append(st2)
         return v, bound
 
@@ -280,8 +286,8 @@ def lmi_diagnostic_observer(
 
     F = al
     W = v @ c
-    E = plant.B_uD.copy()
-    Q = np.zeros((v.shape[0], plant.m))
+    G = plant.B_D.copy()
+    D = np.zeros((v.shape[0], plant.m))
     grpsi = residual_dynamics(F=F, L=gain, W=W, V=v)
     eye = np.eye(plant.n)
 
@@ -291,7 +297,7 @@ def lmi_diagnostic_observer(
             return performance(plant=plant, G_rpsi=grpsi, eta=e, model=mdl, band=bnd)
         # Unstable plant: the series realisation is not stable; T = I here.
         return error_performance(
-            F=F, T=eye, W=W, B_d=plant.G_d(model=mdl).B, B_f=plant.G_f(model=mdl).B, eta=e, band=bnd
+            F=F, T=eye, W=W, E=plant.G_d(model=mdl).B, Fx=plant.G_f(model=mdl).B, eta=e, band=bnd
         )
 
     j_model: dict[str, float] = {e: perf(e, model) for e in ETAS}
@@ -342,11 +348,11 @@ def lmi_diagnostic_observer(
         band=band,
         model=model,
         F=F,
-        E=E,
+        G=G,
         L=gain,
         W=W,
         V=v,
-        Q=Q,
+        D=D,
         J_bound=bound,
         J=j_model,
         J_sampled_data=j_sd,
@@ -358,19 +364,19 @@ def lmi_diagnostic_observer(
 
 
 def _postfilter_h2_start(
-    al: np.ndarray, c: np.ndarray, bd: np.ndarray, bf: np.ndarray, stats: list[SdpStats]
+    al: np.ndarray, c: np.ndarray, e: np.ndarray, fx: np.ndarray, stats: list[SdpStats]
 ) -> tuple[np.ndarray, float]:
     """The η = "2" post-filter: the starting point of the η = "inf" peak iteration."""
-    v, bound, st = _postfilter(al=al, c=c, bd=bd, bf=bf, eta="2", band=None, peak=None)
+    v, bound, st = _postfilter(al=al, c=c, e=e, fx=fx, eta="2", band=None, peak=None)
     stats.append(st)
     return v, bound
 
 
 def _peak(
-    al: np.ndarray, c: np.ndarray, bf: np.ndarray, v: np.ndarray, band: tuple[float, float] | None
+    al: np.ndarray, c: np.ndarray, fx: np.ndarray, v: np.ndarray, band: tuple[float, float] | None
 ) -> tuple[float, np.ndarray]:
     """Peak frequency of ``‖V G_ef‖`` over ``band`` and the input direction attaining it."""
-    g = DiscreteLTI(A=al, B=bf, C=v @ c, D=np.zeros((v.shape[0], bf.shape[1])))
+    g = DiscreteLTI(A=al, B=fx, C=v @ c, D=np.zeros((v.shape[0], fx.shape[1])))
     pk = hinf_norm(g, band=band)
     om = float(pk.omega if pk.omega is not None else 0.0)
     _, _, vh = np.linalg.svd(g.freqresp(np.array([om]))[0])

@@ -32,7 +32,9 @@ class InternalForm:
     """State-space data of plant + generator, per input channel.
 
     Channels: ``u`` (known input), ``d`` (unknown input), ``f`` (component
-    faults ``Fx``) and ``s`` (additive sensor faults, one per output).
+    faults) and ``s`` (additive sensor faults, one per output). The input
+    matrices are named by channel, like the generator's ``Bu`` and ``By``:
+    ``Bd = [E; 0]`` and ``Bf = [Fx; 0]`` carry the plant's ``E`` and ``Fx``.
     """
 
     A: np.ndarray

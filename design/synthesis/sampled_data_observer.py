@@ -4,21 +4,25 @@ Qiu, Wen & Jiang, "Optimal diagnostic observer for sampled-data systems",
 Control Theory & Applications 27(8), 2010; equation, lemma and theorem
 numbers below are theirs.
 
-Continuous plant, sampled output, held input (eqs. (1)–(3))::
+Continuous plant, sampled output, held input (eqs. (1)–(3)), in the letters of
+every fdisyn plant (the paper writes ``B_u``, ``B_d``, ``B_f`` for ``B``,
+``E``, ``Fx`` and ``h`` for ``Ts``)::
 
-    ẋ = A x + Bu u + Bd d + Bf f,   y = C x,   ψ(k) = y(kh),   u(t) = v(k) on [kh, (k+1)h)
+    ẋ = A x + B u + E d + Fx f,   y = C x,   ψ(k) = y(k Ts),   u(t) = v(k) on [k Ts, (k+1) Ts)
 
-and the discrete diagnostic observer (eq. (6))::
+and the discrete diagnostic observer (eq. (6)), with fdisyn's names for the
+paper's ``E`` (the input gain ``G``) and ``Q`` (the input feedthrough ``D``)::
 
-    λ(k+1) = F λ + E v + L ψ,   r(k) = −W λ − Q v + V ψ
+    λ(k+1) = F λ + G v + L ψ,   r(k) = −W λ − D v + V ψ
 
-— in fdisyn's canonical form ``Ar = F, Bu = E, By = L, Cr = −W, Du = −Q,
+— in fdisyn's canonical form ``Ar = F, Bu = G, By = L, Cr = −W, Du = −D,
 Dy = V``. What is here:
 
 * Lemma 1, the norm-invariant discretisation ``G_J = (A_D, B_J, C, 0)``,
-  ``A_D = e^{Ah}``, ``B_J B_Jᵀ = ∫₀ʰ e^{Aτ} B Bᵀ e^{Aᵀτ} dτ``
+  ``A_D = e^{A Ts}``, ``B_J B_Jᵀ = ∫₀^Ts e^{Aτ} B Bᵀ e^{Aᵀτ} dτ``
   (:func:`norm_invariant_discretisation`), and the step-invariant
-  ``B_uD = ∫₀ʰ e^{Aτ} dτ Bu`` (eq. (13)); :class:`SampledDataPlant` holds both.
+  ``B_D = ∫₀^Ts e^{Aτ} dτ B`` (eq. (13), the paper's ``B_uD``);
+  :class:`SampledDataPlant` holds both.
 * Exact sampling of continuous white noise for simulation
   (:func:`sampled_disturbance`, :func:`simulate_sampled_data`).
 * Lemma 4 / eq. (20), the discrete-time algebraic Riccati system (DTARS) and the
@@ -46,7 +50,7 @@ Interpretations of the paper:
   system; that is the convention under which inequality (4) and Theorem 1's
   bound hold. Lemma 1's ``‖S G‖₋`` is read on the orthogonal complement of the
   sampled operator's kernel (see :mod:`fdisyn.numerics.norms`). Consequence: a
-  design with fewer residuals than ``rank B_fJ`` (e.g. the indirect one, when
+  design with fewer residuals than ``rank Fx_J`` (e.g. the indirect one, when
   ``q < p``) has ``‖G_rψ G_fJ‖₋ = 0`` and ``J₋ = ∞``.
 """
 
@@ -129,20 +133,22 @@ def error_performance(
     F: np.ndarray,
     T: np.ndarray,
     W: np.ndarray,
-    B_d: np.ndarray,
-    B_f: np.ndarray,
+    E: np.ndarray,
+    Fx: np.ndarray,
     eta: Eta,
     band: tuple[float, float] | None = None,
 ) -> float:
     """Eq. (19) from the error form: ``e = T x − λ``, ``e⁺ = F e + T B w``, ``r = W e``.
 
-    Valid for any generator that satisfies Corollary 1's conditions (then
-    ``G_rψ G_d = (F, T B_d, W, 0)``), also for an unstable plant, where the
-    series realisation of :func:`performance` is not stable.
+    ``E`` and ``Fx`` are the discrete disturbance and fault input matrices of
+    the model (``E_J``, ``Fx_J`` or ``E_D``, ``Fx_D``). Valid for any generator
+    that satisfies Corollary 1's conditions (then ``G_rψ G_d = (F, T E, W, 0)``),
+    also for an unstable plant, where the series realisation of
+    :func:`performance` is not stable.
     """
     nr = W.shape[0]
-    gd = DiscreteLTI(A=F, B=T @ B_d, C=W, D=np.zeros((nr, B_d.shape[1])))
-    gf = DiscreteLTI(A=F, B=T @ B_f, C=W, D=np.zeros((nr, B_f.shape[1])))
+    gd = DiscreteLTI(A=F, B=T @ E, C=W, D=np.zeros((nr, E.shape[1])))
+    gf = DiscreteLTI(A=F, B=T @ Fx, C=W, D=np.zeros((nr, Fx.shape[1])))
     den = system_norm(gf, eta=eta, band=band)
     return hinf_norm(gd).value / den if den > 0 else math.inf
 
@@ -150,6 +156,10 @@ def error_performance(
 @dataclass(frozen=True, eq=False)
 class DiagnosticObserver:
     """A sampled-data diagnostic observer (eq. (6)) with its certificate.
+
+    ``G`` is the input gain (the paper's ``E``) and ``D`` the input
+    feedthrough of the residual (the paper's ``Q``, zero in Theorem 1):
+    ``λ(k+1) = F λ + G v + L ψ``, ``r(k) = −W λ − D v + V ψ``.
 
     ``J`` is the achieved performance on the true sampled-data system (Lemma 1's
     ``G_dJ``, ``G_fJ``) for each ``η``; ``J_star`` is the analytic optimum
@@ -161,11 +171,11 @@ class DiagnosticObserver:
     design: str
     plant: SampledDataPlant
     F: np.ndarray
-    E: np.ndarray
+    G: np.ndarray
     L: np.ndarray
     W: np.ndarray
     V: np.ndarray
-    Q: np.ndarray
+    D: np.ndarray
     T: np.ndarray
     T_t: np.ndarray
     A_d: np.ndarray
@@ -187,11 +197,11 @@ class DiagnosticObserver:
         return residual_dynamics(F=self.F, L=self.L, W=self.W, V=self.V)
 
     def generator(self, *, name: str = "sampled_data_observer") -> Generator:
-        """Canonical form ``Ar = F, Bu = E, By = L, Cr = −W, Du = −Q, Dy = V`` (the gain file's ``generators``, README)."""
+        """Canonical form ``Ar = F, Bu = G, By = L, Cr = −W, Du = −D, Dy = V`` (the gain file's ``generators``, README)."""
         dt = self.factorisation.dtars
         method = {"name": "sampled_data_observer", "design": self.design, "T": self.T, "X": dt.X, "M": dt.M, "N": dt.N}
         return canonical_generator(
-            name=name, F=self.F, E=self.E, L=self.L, W=self.W, V=self.V, Q=self.Q, h=self.plant.h, method=method
+            name=name, F=self.F, G=self.G, L=self.L, W=self.W, V=self.V, D=self.D, Ts=self.plant.Ts, method=method
         )
 
 
@@ -199,25 +209,29 @@ def canonical_generator(
     *,
     name: str,
     F: np.ndarray,
-    E: np.ndarray,
+    G: np.ndarray,
     L: np.ndarray,
     W: np.ndarray,
     V: np.ndarray,
-    Q: np.ndarray,
-    h: float,
+    D: np.ndarray,
+    Ts: float,
     method: Mapping[str, object] | None = None,
 ) -> Generator:
-    """Eq. (6) in canonical form: ``Ar = F, Bu = E, By = L, Cr = −W, Du = −Q, Dy = V``."""
+    """Eq. (6) in canonical form: ``Ar = F, Bu = G, By = L, Cr = −W, Du = −D, Dy = V``.
+
+    The generator's ``method`` keeps the paper's letters, as the gain file stores them:
+    ``E`` (= ``G``), ``Q`` (= ``D``) and ``h`` (= ``Ts``).
+    """
     meta: dict[str, object] = {"name": "sampled_data_observer", **(method or {})}
-    meta.update({"F": F, "E": E, "L": L, "W": W, "V": V, "Q": Q, "h": h})
+    meta.update({"F": F, "E": G, "L": L, "W": W, "V": V, "Q": D, "h": Ts})
     return Generator.from_canonical(
         name=name,
         outputs_used=range(L.shape[1]),
         Ar=np.array(F, dtype=float),
-        Bu=np.array(E, dtype=float),
+        Bu=np.array(G, dtype=float),
         By=np.array(L, dtype=float),
         Cr=-np.asarray(W, dtype=float),
-        Du=-np.asarray(Q, dtype=float),
+        Du=-np.asarray(D, dtype=float),
         Dy=np.array(V, dtype=float),
         method=meta,
     )
@@ -265,17 +279,18 @@ def optimal_diagnostic_observer(
 ) -> DiagnosticObserver:
     """Theorem 1 (eqs. (20)–(26)): the optimal diagnostic observer of order ``s ≥ n``.
 
-    ``design="direct"`` factorises Lemma 1's ``G_dJ = (A_D, B_dJ, C, 0)``;
-    ``"indirect"`` factorises the ZOH model ``(A_D, B_dD, C, 0)`` (the paper's
+    ``design="direct"`` factorises Lemma 1's ``G_dJ = (A_D, E_J, C, 0)``;
+    ``"indirect"`` factorises the ZOH model ``(A_D, E_D, C, 0)`` (the paper's
     comparison: discretise first, then design). With ``(X, M)`` the stabilising
     DTARS solution and ``N Nᵀ = C X Cᵀ``::
 
         F = T_t diag(A_D + MᵀC, A_d) T_t⁻¹,   L = T_t [−Mᵀ; L_d],   T = T_t [I; T_d],
-        W = [N# C, 0] T_t⁻¹,   V = N#,   E = T B_uD,   Q = 0,
+        W = [N# C, 0] T_t⁻¹,   V = N#,   G = T B_D,   D = 0
 
-    ``A_d`` (``(s−n) × (s−n)``, Schur) and ``Y`` (``(s−n) × p``) give the extra
-    block of eq. (21); omit both for ``s = n``. ``T_t`` is any nonsingular
-    ``s × s`` matrix (default ``I``). The certificate checks Corollary 1's
+    (the paper's ``E = T B_uD``, ``Q = 0``); ``A_d`` (``(s−n) × (s−n)``,
+    Schur) and ``Y`` (``(s−n) × p``) give the extra block of eq. (21); omit
+    both for ``s = n``. ``T_t`` is any nonsingular ``s × s`` matrix (default
+    ``I``). The certificate checks Corollary 1's
     Luenberger conditions, ``F`` Schur, the co-inner property of ``G_rψ G_d``
     (‖·‖∞ = ‖·‖₋ = 1) and the achieved ``J`` against ``J* = 1/‖G_do# G_f‖_η``
     for η ∈ {∞, 2, −}; a failed check raises
@@ -284,7 +299,7 @@ def optimal_diagnostic_observer(
     if design not in ("direct", "indirect"):
         raise ArgumentError(f"design must be 'direct' or 'indirect'; got {design!r}")
     n, p = plant.n, plant.p
-    check_sampling(A=plant.A, C=plant.C, h=plant.h, allow_pathological=allow_pathological)
+    check_sampling(A=plant.A, C=plant.C, Ts=plant.Ts, allow_pathological=allow_pathological)
     model: Literal["norm_invariant", "zoh"] = "norm_invariant" if design == "direct" else "zoh"
     gd = plant.G_d(model=model)
     fac = co_inner_outer(A=gd.A, B=gd.B, C=gd.C, D=gd.D)
@@ -324,8 +339,8 @@ def optimal_diagnostic_observer(
     T = tt @ t0
     W = w0 @ tt_inv
     V = npi.copy()
-    E = T @ plant.B_uD
-    Q = np.zeros((V.shape[0], plant.m))
+    G = T @ plant.B_D
+    D = np.zeros((V.shape[0], plant.m))
 
     checks: list[Check] = []
     tol_l = LUENBERGER_TOL * max(cond_t, 1.0)
@@ -367,14 +382,15 @@ def optimal_diagnostic_observer(
             "<=",
             "exact algebraically; round-off ~eps·cond(T_t)",
         ),
+        # the paper's letters, as every gain file's certificate holds them: E = G, B_uD = B_D, Q = D
         Check(
             "E − T B_uD (eq. (15))",
-            rel(E - T @ plant.B_uD, E),
+            rel(G - T @ plant.B_D, G),
             RESIDUAL_TOL,
             "<=",
             "E is formed as T B_uD; only round-off remains",
         ),
-        Check("max |Q| (eq. (15): Q = 0)", float(np.max(np.abs(Q), initial=0.0)), 0.0, "<=", "Q is set to zero exactly"),
+        Check("max |Q| (eq. (15): Q = 0)", float(np.max(np.abs(D), initial=0.0)), 0.0, "<=", "Q is set to zero exactly"),
         Check("spectral radius of F (eq. (8))", spectral_radius(F), 1.0 - STABILITY_MARGIN, "<=", "F must be Schur"),
         Check(
             "co-inner identities of G_di (Lemma 4)",
@@ -384,7 +400,7 @@ def optimal_diagnostic_observer(
             "N# C X Cᵀ N#ᵀ = I and (A + MᵀC) X Cᵀ = 0 hold exactly; round-off ~eps·κ",
         ),
     ]
-    # Inner property on the order-s generator's error form (F, T B_d, W, 0) —
+    # Inner property on the order-s generator's error form (F, T E, W, 0) —
     # equal to G_rψ G_d under the Luenberger identities checked above, and
     # free of the cancellation through N# (size ~√κ) that the series
     # realisation of :func:`performance` carries. The sweep is a route
@@ -411,7 +427,7 @@ def optimal_diagnostic_observer(
     ]
     # u → r decoupling of the internal form (Corollary 1 / Lemma 2's proof).
     dplant = plant.discrete_plant(model=model)
-    gen = canonical_generator(name="check", F=F, E=E, L=L, W=W, V=V, Q=Q, h=plant.h)
+    gen = canonical_generator(name="check", F=F, G=G, L=L, W=W, V=V, D=D, Ts=plant.Ts)
     checks.append(
         Check(
             "internal form coupling u → r",
@@ -433,8 +449,8 @@ def optimal_diagnostic_observer(
         j_star[eta] = 1.0 / kn if kn > 0 else math.inf
         # Order-s error form (valid under the certified Corollary 1 conditions,
         # also for an unstable plant) against the order-n formula for J*.
-        j_model[eta] = error_performance(F=F, T=T, W=W, B_d=gd.B, B_f=gf_model.B, eta=eta)
-        j_sd[eta] = error_performance(F=F, T=T, W=W, B_d=plant.B_dJ, B_f=plant.B_fJ, eta=eta)
+        j_model[eta] = error_performance(F=F, T=T, W=W, E=gd.B, Fx=gf_model.B, eta=eta)
+        j_sd[eta] = error_performance(F=F, T=T, W=W, E=plant.E_J, Fx=plant.Fx_J, eta=eta)
         both_inf = math.isinf(j_star[eta]) and math.isinf(j_model[eta])
         checks.append(
             Check(
@@ -465,11 +481,11 @@ def optimal_diagnostic_observer(
         design=design,
         plant=plant,
         F=F,
-        E=E,
+        G=G,
         L=L,
         W=W,
         V=V,
-        Q=Q,
+        D=D,
         T=T,
         T_t=tt,
         A_d=a_d,
@@ -514,11 +530,11 @@ def sampled_data_generator(observer: Callable[..., object]) -> Callable[..., tup
         from fdisyn.synthesis.residual import embed_outputs, residual_covariance
 
         assert isinstance(plant, LinearPlant)
-        sd = SampledDataPlant.from_linear_plant(plant.select_outputs(outputs_used), h=Ts)
+        sd = SampledDataPlant.from_linear_plant(plant.select_outputs(outputs_used), Ts=Ts)
         obs: Any = observer(plant=sd, **options)
         gen = embed_outputs(obs.generator(name=name), outputs_used, plant.p)
         phys = plant.discretise(Ts)
-        noise = phys.with_noise(Q=np.asarray(phys.Q) + van_loan(np.asarray(plant.A), sd.Bd @ sd.Bd.T, Ts))
+        noise = phys.with_noise(Q=np.asarray(phys.Q) + van_loan(np.asarray(plant.A), sd.E @ sd.E.T, Ts))
         return gen, residual_covariance(gen, noise), obs.certificate
 
     return generator

@@ -37,7 +37,7 @@ Gains:
 ``kalman_uio(variant="paper")``
     The steady state of the paper's recursion (eqs. (14), (16)), from the DARE
     in ``(A1, C, T Q Tᵀ + H R Hᵀ, R)``, certified as the recursion's fixed point.
-``pole_placement_uio``
+``uio_pole_placement``
     The plain UIO the paper compares against: ``eig(A1 − L C)`` assigned.
 """
 
@@ -63,7 +63,7 @@ __all__ = [
     "UIODesign",
     "uio_structure",
     "kalman_uio",
-    "pole_placement_uio",
+    "uio_pole_placement",
     "uio_error_covariance",
     "ce_condition",
 ]
@@ -619,7 +619,7 @@ def _nlp_gain(red: ReducedProblem, lt0: np.ndarray) -> tuple[np.ndarray, dict[st
     }
 
 
-def pole_placement_uio(plant: LinearPlant, *, poles: Sequence[complex]) -> UIODesign:
+def uio_pole_placement(plant: LinearPlant, *, poles: Sequence[complex]) -> UIODesign:
     """The plain UIO: ``L`` assigns ``eig(A1 − L C) = poles`` (the baseline of Hu et al. 2013, fig. 1).
 
     Uses SciPy's robust pole assignment (Kautsky–Nichols–Van Dooren) on the
@@ -684,7 +684,7 @@ def _uio_generator(variant: str) -> Any:
     def generator(plant: LinearPlant, outputs_used: Sequence[int], name: str, **options: Any) -> tuple[Generator, np.ndarray, Certificate]:
         sub = plant.select_outputs(outputs_used)
         if variant == "poles":
-            d = pole_placement_uio(sub, poles=options["poles"])
+            d = uio_pole_placement(sub, poles=options["poles"])
         else:
             d = kalman_uio(sub, variant=variant)  # type: ignore[arg-type]
         return d.generator(name, outputs_used, plant.p), d.Sigma_r, d.certificate

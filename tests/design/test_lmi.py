@@ -288,7 +288,7 @@ def test_lmi_design_reaches_theorem1_on_the_paper_example(paper_plant: SampledDa
 @settings(derandomize=True, max_examples=6, deadline=None)
 @given(n=st.integers(2, 3), seed=st.integers(0, 2**16))
 def test_lmi_design_reaches_theorem1_on_random_plants(n: int, seed: int) -> None:
-    """p = n outputs so that all three η are finite (‖·‖₋ needs p ≥ rank B_fJ = n);
+    """p = n outputs so that all three η are finite (‖·‖₋ needs p ≥ rank Fx_J = n);
     q = n disturbances keep κ moderate (one disturbance drives κ past 1e10)."""
     pl = random_sampled_data_plant(n=n, p=n, q=n, rng=np.random.default_rng(seed))
     opt = optimal_diagnostic_observer(plant=pl)
@@ -332,7 +332,7 @@ def test_lmi_design_of_an_unstable_plant() -> None:
     """A_D unstable: J is evaluated on the error form; still at Theorem 1's optimum (measured 2e-12)."""
     rng = np.random.default_rng(5)
     pl = SampledDataPlant.create(
-        A=[[0.4, 1.0], [0.0, -1.0]], Bu=[[0.0], [1.0]], Bd=rng.standard_normal((2, 2)), Bf=[[1.0], [0.5]], C=np.eye(2), h=0.5
+        A=[[0.4, 1.0], [0.0, -1.0]], B=[[0.0], [1.0]], E=rng.standard_normal((2, 2)), Fx=[[1.0], [0.5]], C=np.eye(2), Ts=0.5
     )
     opt = optimal_diagnostic_observer(plant=pl)
     for eta in ("inf", "2"):

@@ -20,9 +20,7 @@ from fdisyn.synthesis.nafdf.payload import nafdf_from_payload, nafdf_payload, st
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-NEVER_ALARM = dict(threshold_rule="beta0", beta0=1e300)
-SHIP_EXPR = dict(states=["x"], inputs=["u"], outputs=["y"], parameters=["a", "b"], nominal={"a": -0.58, "b": 0.2},
-                 f={"x": "0.1*a*x^2 + x + 0.1*b*u"}, h={"y": "x"}, Q1=0.0, Q2=0.01)  # the WSSR can never exceed it: filters run undisturbed
+NEVER_ALARM = dict(threshold_rule="beta0", beta0=1e300)  # the WSSR can never exceed it: filters run undisturbed
 
 
 @pytest.fixture(scope="module")
@@ -32,8 +30,8 @@ def ship_design():
 
 @pytest.fixture(scope="module")
 def ship_paper_run(ship_design):
-    scen = sp.scenario(length=3000, scale={"a": 0.5}, seed=1)
-    return scen, ship_design.run(u=scen.u, y=scen.y)
+    run = sp.PROBLEM.run(sp.fault_scenario("paper_a_half", {"a": 0.5}, length=3000), [1])
+    return run, ship_design.run(u=run.U[0], y=run.Y[0])
 
 
 def linear_plant(rng: np.random.Generator, n: int, p: int) -> tuple[NonlinearPlant, dict[str, np.ndarray]]:
@@ -52,7 +50,7 @@ def linear_plant(rng: np.random.Generator, n: int, p: int) -> tuple[NonlinearPla
     h = ca.Function("h", [x, th], [ca.mtimes(ca.DM(c), x)])
     pl = NonlinearPlant.create(
         f=f, h=h, states=[f"x{i}" for i in range(n)], inputs=["u"], outputs=[f"y{i}" for i in range(p)],
-        parameters=["theta"], nominal={"theta": 0.0}, Q1=q, Q2=r,
+        parameters=["theta"], nominal={"theta": 0.0}, Q=q, R=r,
     )
     return pl, {"A": a, "C": c, "Q": q, "R": r}
 
@@ -81,9 +79,9 @@ def test_ekf_steady_gain_equals_dare_kalman_gain(seed: int, n: int, p: int) -> N
 
 
 def cramer_rao_sd(pl: NonlinearPlant, x0: float, u: np.ndarray, theta: np.ndarray) -> np.ndarray:
-    """Standard deviations of the Cramér–Rao bound for θ from y = x + e (output error, Q1 = 0).
+    """Standard deviations of the Cramér–Rao bound for θ from y = x + e (output error, Q = 0).
 
-    Fisher information ``Σ ψ ψᵀ / Q2`` with ``ψ(t) = ∂x(t)/∂θ`` propagated along the true
+    Fisher information ``Σ ψ ψᵀ / R`` with ``ψ(t) = ∂x(t)/∂θ`` propagated along the true
     trajectory with the AD Jacobians (``ψ⁺ = F_x ψ + F_θ``).
     """
     der = pl.derivatives()
@@ -91,7 +89,7 @@ def cramer_rao_sd(pl: NonlinearPlant, x0: float, u: np.ndarray, theta: np.ndarra
     psi = np.zeros((1, pl.l))
     info = np.zeros((pl.l, pl.l))
     for k in range(u.shape[0]):
-        info += psi.T @ psi / pl.Q2[0, 0]
+        info += psi.T @ psi / pl.R[0, 0]
         f, fx, fth, _, _, _ = (np.array(v) for v in der(x, u[k], theta))
         psi = fx @ psi + fth
         x = f.reshape(-1)
@@ -106,10 +104,10 @@ def test_nf_converges_to_the_true_parameters(seed: int) -> None:
     """
     pl = sp.plant()
     dsg = nafdf(pl, x0=[0.0], P0=100.0, theta0=[0.0, 0.0], R0=sp.R0, forgetting_final=1.0, **NEVER_ALARM)
-    scen = sp.scenario(length=4000, fault_time=None, seed=seed)
-    out = dsg.run(u=scen.u, y=scen.y)
+    run = sp.PROBLEM.run(sp.fault_scenario("fault_free", length=4000), [seed])
+    out = dsg.run(u=run.U[0], y=run.Y[0])
     est = dsg.unpack_state(out["state"][-1])["nf_theta"]
-    sd = cramer_rao_sd(pl, 0.0, scen.u, pl.theta_nominal)
+    sd = cramer_rao_sd(pl, 0.0, run.U[0], pl.theta_nominal)
     assert np.all(np.abs(est - pl.theta_nominal) <= 5 * sd), (est, sd)
     assert np.all(sd < 0.01)  # the bound is informative: the estimate is pinned to ~1 % or better
 
@@ -123,11 +121,11 @@ def test_wssr_fault_free_law_is_chi_square() -> None:
     N, pf = 10, 0.01
     dsg = nafdf(sp.plant(), x0=[0.0], P0=100.0, theta0=[0.0, 0.0], R0=sp.R0, window=N,
                 false_alarm_probability=pf, convergence_tolerance=[1e-12, 1e-12])
-    scen = sp.scenario(length=40_000, fault_time=None, seed=11)
-    out = dsg.run(u=scen.u, y=scen.y)
+    run = sp.PROBLEM.run(sp.fault_scenario("fault_free", length=40_000), [11])
+    out = dsg.run(u=run.U[0], y=run.Y[0])
     assert dsg.unpack_state(out["state"][-1])["ekf_reparameterisations"] == 0
     jn = list(dsg.J_names)
-    idx = np.arange(200 + N - 1, scen.y.shape[0], N)  # skip the EKF's start-up from P(0) = 100
+    idx = np.arange(200 + N - 1, run.Y.shape[1], N)  # skip the EKF's start-up from P(0) = 100
     L = out["J"][idx, jn.index("wssr")]
     thr = out["J"][idx, jn.index("wssr_threshold")]
     np.testing.assert_array_equal(thr, scipy.stats.chi2.isf(pf, N) / N)
@@ -186,8 +184,8 @@ def test_state_layout_round_trip(ship_design) -> None:
 )
 def test_non_finite_samples_are_skipped(ship_design, bad) -> None:
     """A non-finite u or y: status 1, no alarm, state unchanged except the skip counter."""
-    scen = sp.scenario(length=400, scale={"a": 0.5}, fault_time=200, seed=2)
-    u, y = scen.u.copy(), scen.y.copy()
+    run = sp.PROBLEM.run(sp.fault_scenario("a_half", {"a": 0.5}, length=400, fault_time=200), [2])
+    u, y = run.U[0].copy(), run.Y[0].copy()
     for k, which, val in bad:
         (u if which == "u" else y)[k, 0] = val
     out = ship_design.run(u=u, y=y)
@@ -255,7 +253,7 @@ def test_divergence_reinitialises_and_reports(ship_design, corrupt: dict, counte
 def test_isolation_and_fault_size_stay_latched(ship_design, ship_paper_run) -> None:
     """After the classifier isolates ``a``, ``isolated`` and the fault size (2.8) never change again,
     although the filters re-converge and the EKF is re-parameterised; re-initialising clears them."""
-    scen, out = ship_paper_run
+    _, out = ship_paper_run
     iso = out["isolated"]
     first = int(np.flatnonzero(iso >= 0)[0])
     assert np.all(iso[:first] == -1) and np.all(iso[first:] == 0)
@@ -277,8 +275,8 @@ def test_payload_round_trip_rebuilds_the_identical_step(ship_design, ship_paper_
     text = json.dumps(nafdf_payload(ship_design), allow_nan=False)  # strict JSON: no inf/NaN tokens
     payload = json.loads(text)
     rebuilt = nafdf_from_payload(payload)
-    scen, out = ship_paper_run
-    again = rebuilt.run(u=scen.u[:1500], y=scen.y[:1500])
+    run, out = ship_paper_run
+    again = rebuilt.run(u=run.U[0, :1500], y=run.Y[0, :1500])
     for k in ("state", "r", "J", "alarm", "isolated", "status"):
         np.testing.assert_array_equal(again[k], out[k][:1500])
     np.testing.assert_array_equal(rebuilt.init_state(), np.array(payload["init_state"]))
@@ -340,7 +338,7 @@ def test_state_size_is_checked_from_the_layout_before_the_step_is_built() -> Non
     f = ca.Function("f", [x, u, th], [th[0] * x + th[1] * u + th[2] * x * u + th[3]])
     h = ca.Function("h", [x, th], [x])
     pl = NonlinearPlant.create(f=f, h=h, states=["x"], inputs=["u"], outputs=["y"], parameters=list("abcd"),
-                               nominal=dict(a=0.5, b=1.0, c=0.0, d=0.0), Q1=0.0, Q2=0.01)
+                               nominal=dict(a=0.5, b=1.0, c=0.0, d=0.0), Q=0.0, R=0.01)
     with pytest.raises(ArgumentError, match=r"state would have 50\d\d entries .*; at most 4096"):
         nafdf(pl, x0=[0.0], P0=1.0, classifier_window=1000)
 
@@ -375,7 +373,7 @@ def test_stack_use_of_the_documented_problems_is_within_the_limits(ship_design) 
     ],
 )
 def test_model_not_finite_where_the_filters_start_is_refused(f: str, theta0, where: str) -> None:
-    pl = NonlinearPlant.from_expressions(**{**SHIP_EXPR, "f": {"x": f}})
+    pl = NonlinearPlant.from_expressions(**{**sp.MODEL, "f": {"x": f}})
     with pytest.raises(ArgumentError, match=where) as info:
         nafdf(pl, x0=[0.0], P0=1.0, theta0=theta0)
     assert "\n" not in str(info.value)
@@ -388,6 +386,6 @@ def test_certificate_fails_on_a_nan_jacobian_even_past_the_model_check(monkeypat
     from fdisyn.synthesis.nafdf import design as mod
 
     monkeypatch.setattr(mod, "_check_model_finite", lambda plant, s: None)
-    pl = NonlinearPlant.from_expressions(**{**SHIP_EXPR, "f": {"x": "x**x + a*b*u"}})
+    pl = NonlinearPlant.from_expressions(**{**sp.MODEL, "f": {"x": "x**x + a*b*u"}})
     with pytest.raises(CertificateError, match=r"AD Jacobians vs central differences at x0 \(max relative\) = nan"):
         nafdf(pl, x0=[0.0], P0=1.0)

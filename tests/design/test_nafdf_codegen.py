@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from fdisyn.codegen.library import codegen
@@ -48,12 +50,12 @@ def test_ship_c_step_equals_casadi_over_a_5000_step_faulty_run(ship, tmp_path) -
     sequence in IEEE double (no fast-math, no FMA contraction at -O2 on x86-64), so only libm's
     log may differ, by an ulp, in the classifier statistic."""
     T = 5000
-    scen = sp.scenario(length=T, scale={"a": 0.5}, seed=7)
-    theta = scen.theta.copy()
+    run = sp.PROBLEM.run(sp.fault_scenario("a_half", {"a": 0.5}, length=T), [7])
+    theta = np.column_stack([run.extra["a"][0], run.extra["b"][0]])
     theta[3000:, 1] = 0.1  # b halves at 3000: a second episode after the first one is closed
-    x, y = sp.plant().simulate(x0=[0.0], u=scen.u, theta=theta, rng=np.random.default_rng(7))
+    x, y = sp.plant().simulate(x0=[0.0], u=run.U[0], theta=theta, rng=np.random.default_rng(7))
     y[[100, 1500, 2500], 0] = [np.nan, np.inf, -np.inf]
-    u = scen.u.copy()
+    u = run.U[0].copy()
     u[2000, 0] = np.nan
     ref = ship.run(u=u, y=y)
     got = c_run(compiled(ship, "ship_propulsion", tmp_path), u, y)
@@ -70,11 +72,12 @@ def test_wind_turbine_efficiency_fault_in_c(tmp_path) -> None:
     a second, isolated as η, and its size estimated to 0.005 (10 % of the jump; the converged η̂
     spreads by ~4e-4); C equals CasADi (≤ 1e-10) on the first 1200 samples."""
     dsg = wt.design()
-    sc = wt.scenario(length=9000, fault_time=4000, seed=3)
+    run = wt.PROBLEM.run(replace(wt.PROBLEM.scenario("eta_drop"), duration=9000 * wt.TS), [3])  # η drops at 40 s (sample 4000)
+    u, y = run.U[0], run.Y[0]
     cd = compiled(dsg, "wind_turbine_efficiency", tmp_path)
-    head = dsg.run(u=sc["u"][:1200], y=sc["y"][:1200])
-    assert max_scaled_gap(c_run(cd, sc["u"][:1200], sc["y"][:1200]), head) <= 1e-10
-    got = cd.run(sc["u"], sc["y"])
+    head = dsg.run(u=u[:1200], y=y[:1200])
+    assert max_scaled_gap(c_run(cd, u[:1200], y[:1200]), head) <= 1e-10
+    got = cd.run(u, y)
     alarm = got.alarm
     assert not np.any(alarm[:4000]), "false alarm before the fault"
     delay = int(np.flatnonzero(alarm[4000:])[0])

@@ -179,8 +179,8 @@ def run_mutations(seed: int, count: int, workdir: str) -> None:
     text = base_path.read_bytes()
     base = json.loads(text)
     rng = np.random.default_rng(seed)
-    scen = sp.scenario(length=20, fault_time=None, seed=1)
-    u, y = scen.u, scen.y
+    run = sp.PROBLEM.run(sp.fault_scenario("fault_free", length=20), [1])
+    u, y = run.U[0], run.Y[0]
     cases = [("unchanged", text), *sweep(base)]
     for i in range(len(cases) + count):
         desc, data = cases[i] if i < len(cases) else mutate(base, text, rng)

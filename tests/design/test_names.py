@@ -111,7 +111,7 @@ def _nonlinear(**names: list[str]) -> NonlinearPlant:
     kw = {"states": ["x"], "inputs": ["u"], "outputs": ["y"], "parameters": ["a"]} | names
     x, u, a = kw["states"][0], kw["inputs"][0], kw["parameters"][0]
     return NonlinearPlant.from_expressions(
-        **kw, nominal={a: 0.5}, f={x: f"{a}*{x} + {u}"}, h={kw["outputs"][0]: x}, Q1=0.0, Q2=0.01  # type: ignore[arg-type]
+        **kw, nominal={a: 0.5}, f={x: f"{a}*{x} + {u}"}, h={kw["outputs"][0]: x}, Q=0.0, R=0.01  # type: ignore[arg-type]
     )
 
 

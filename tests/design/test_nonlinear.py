@@ -8,21 +8,12 @@ import casadi as ca
 import numpy as np
 import pytest
 from fdisyn.models.nonlinear import NonlinearPlant, function_from_program, model_program
+from fdisyn.problems import ship_propulsion as sp
 from fdisyn.runtime.errors import ArgumentError, NominalValueError, NonDifferentiableError, ShapeError
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-SHIP = dict(
-    states=["x"],
-    inputs=["u"],
-    outputs=["y"],
-    parameters=["a", "b"],
-    nominal={"a": -0.58, "b": 0.2},
-    f={"x": "0.1*a*x^2 + x + 0.1*b*u"},
-    h={"y": "x"},
-    Q1=0.0,
-    Q2=0.01,
-)
+SHIP = sp.MODEL  # the ship of Zhou, Xi & Zhang 1991, eq. (3.1)
 
 # A smooth two-state plant exercising every kind of dependence (x, u, θ in f and h).
 PENDULUM = dict(
@@ -36,8 +27,8 @@ PENDULUM = dict(
         "omega": "omega - 0.01*(g_over_l*sin(phi) + damping*omega) + 0.01*gain*torque",
     },
     h={"angle": "atan2(sin(phi), cos(phi))", "energy": "0.5*omega^2 + g_over_l*(1 - cos(phi)) + exp(-damping)*tanh(omega)"},
-    Q1=np.diag([1e-6, 1e-4]),
-    Q2=np.diag([1e-4, 1e-3]),
+    Q=np.diag([1e-6, 1e-4]),
+    R=np.diag([1e-4, 1e-3]),
 )
 
 
@@ -124,7 +115,7 @@ def test_non_differentiable_function_is_refused() -> None:
     h = ca.Function("h", [x, th], [x])
     with pytest.raises(NonDifferentiableError, match="'max'"):
         NonlinearPlant.create(f=f, h=h, states=["x"], inputs=["u"], outputs=["y"], parameters=["a", "b"],
-                              nominal={"a": 1.0, "b": 1.0}, Q1=0.0, Q2=1.0)
+                              nominal={"a": 1.0, "b": 1.0}, Q=0.0, R=1.0)
 
 
 def test_mx_functions_are_expanded_to_the_same_model() -> None:
@@ -132,7 +123,7 @@ def test_mx_functions_are_expanded_to_the_same_model() -> None:
     f = ca.Function("f", [x, u, th], [0.1 * th[0] * x**2 + x + 0.1 * th[1] * u])
     h = ca.Function("h", [x, th], [x])
     pl = NonlinearPlant.create(f=f, h=h, states=["x"], inputs=["u"], outputs=["y"], parameters=["a", "b"],
-                               nominal={"a": -0.58, "b": 0.2}, Q1=0.0, Q2=0.01)
+                               nominal={"a": -0.58, "b": 0.2}, Q=0.0, R=0.01)
     ref = NonlinearPlant.from_expressions(**SHIP)
     for k, v in ref.linearise(x=[0.7], u=[3.0]).items():
         np.testing.assert_array_equal(pl.linearise(x=[0.7], u=[3.0])[k], v)  # same arithmetic, same bits
@@ -148,8 +139,8 @@ def test_mx_functions_are_expanded_to_the_same_model() -> None:
         ({"f": {}}, ArgumentError, r"missing \['x'\]"),
         ({"h": {"y": "x + u"}}, ArgumentError, "may not depend on u"),
         ({"f": {"x": "x +"}}, ArgumentError, "cannot parse"),
-        ({"Q2": 0.0}, ArgumentError, "positive definite"),
-        ({"Q1": -1.0}, ArgumentError, "positive semidefinite"),
+        ({"R": 0.0}, ArgumentError, "positive definite"),
+        ({"Q": -1.0}, ArgumentError, "positive semidefinite"),
         ({"states": ["x", "x"]}, ArgumentError, "unique"),
     ],
 )
@@ -164,11 +155,11 @@ def test_wrong_function_shapes_are_refused() -> None:
     h = ca.Function("h", [x, th], [x[0]])
     with pytest.raises(ShapeError, match="input 0"):
         NonlinearPlant.create(f=f, h=h, states=["x"], inputs=["u"], outputs=["y"], parameters=["a", "b"],
-                              nominal={"a": 1.0, "b": 1.0}, Q1=0.0, Q2=1.0)
+                              nominal={"a": 1.0, "b": 1.0}, Q=0.0, R=1.0)
 
 
 def test_simulation_follows_the_model_and_the_time_convention() -> None:
-    """x[k+1] = f(x[k], u[k], θ[k]) + v[k]; with Q1 = 0 the states are the noise-free recursion."""
+    """x[k+1] = f(x[k], u[k], θ[k]) + v[k]; with Q = 0 the states are the noise-free recursion."""
     pl = NonlinearPlant.from_expressions(**SHIP)
     T = 50
     u = np.linspace(0.0, 4.0, T)[:, None]
@@ -219,7 +210,7 @@ def test_a_function_holding_a_nan_constant_is_refused() -> None:
     h = ca.Function("h", [x, th], [x])
     with pytest.raises(ArgumentError, match="holds the constant nan"):
         NonlinearPlant.create(f=f, h=h, states=["x"], inputs=["u"], outputs=["y"], parameters=["a", "b"],
-                              nominal={"a": 1.0, "b": 1.0}, Q1=0.0, Q2=1.0)
+                              nominal={"a": 1.0, "b": 1.0}, Q=0.0, R=1.0)
 
 
 @pytest.mark.parametrize(

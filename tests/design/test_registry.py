@@ -131,7 +131,7 @@ def _continuous() -> LinearPlant:
 def _nonlinear() -> NonlinearPlant:
     return NonlinearPlant.from_expressions(
         states=["x"], inputs=["u"], outputs=["y"], parameters=["a"], nominal={"a": -0.5}, f={"x": "0.5*x + a*u"}, h={"y": "x"},
-        Q1=[[0.0]], Q2=[[0.01]],
+        Q=[[0.0]], R=[[0.01]],
     )
 
 

@@ -18,13 +18,14 @@ from fdisyn.numerics.factorisation import co_inner_outer, solve_dtars
 from fdisyn.numerics.linalg import spectral_radius
 from fdisyn.numerics.norms import DiscreteLTI, h2_norm, hinf_norm
 from fdisyn.numerics.riccati import solve_filter_dare
+from fdisyn.problems.sampled_data_example import PAPER, PAPER_GAINS
 from fdisyn.runtime.errors import ArgumentError, CertificateError, ExistenceError, ShapeError
 from fdisyn.synthesis.residual import internal_form
 from fdisyn.synthesis.sampled_data_observer import ETAS, _extra_block, optimal_diagnostic_observer, performance, residual_dynamics
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from tests.helpers import PAPER, PAPER_GAINS, random_sampled_data_plant
+from tests.helpers import random_sampled_data_plant
 
 # Grid of frequencies (rad/sample) for transfer-function identities.
 W_TEST = np.array([0.0, 0.3, 1.1, 2.0, math.pi])
@@ -36,42 +37,42 @@ W_TEST = np.array([0.0, 0.3, 1.1, 2.0, math.pi])
 
 
 @settings(derandomize=True, max_examples=8, deadline=None)
-@given(n=st.integers(1, 4), q=st.integers(1, 2), h=st.floats(0.05, 2.0), seed=st.integers(0, 2**16))
-def test_lemma1_gramian_is_the_integral(n: int, q: int, h: float, seed: int) -> None:
+@given(n=st.integers(1, 4), q=st.integers(1, 2), ts=st.floats(0.05, 2.0), seed=st.integers(0, 2**16))
+def test_lemma1_gramian_is_the_integral(n: int, q: int, ts: float, seed: int) -> None:
     """``W = ∫₀ʰ e^{Aτ} B Bᵀ e^{Aᵀτ} dτ`` by adaptive quadrature (any A, stable or not)."""
     rng = np.random.default_rng(seed)
     a, b = rng.standard_normal((n, n)), rng.standard_normal((n, q))
-    ad, bj, w = norm_invariant_discretisation(A=a, B=b, h=h)
-    ref, _ = sint.quad_vec(lambda t: sla.expm(a * t) @ b @ b.T @ sla.expm(a.T * t), 0.0, h, epsabs=1e-14, epsrel=1e-12)
+    ad, bj, w = norm_invariant_discretisation(A=a, B=b, Ts=ts)
+    ref, _ = sint.quad_vec(lambda t: sla.expm(a * t) @ b @ b.T @ sla.expm(a.T * t), 0.0, ts, epsabs=1e-14, epsrel=1e-12)
     # Quadrature is asked for 1e-12 relative; expm for ~1e-15.
     assert np.linalg.norm(w - ref) <= 1e-10 * np.linalg.norm(ref)
     assert np.linalg.norm(bj @ bj.T - w) <= 1e-13 * np.linalg.norm(w)
-    assert np.linalg.norm(ad - sla.expm(a * h)) == 0.0
+    assert np.linalg.norm(ad - sla.expm(a * ts)) == 0.0
 
 
 def test_lemma1_rank_deficient_gramian_gives_fewer_columns() -> None:
     """An uncontrollable mode: ``B_J`` has ``rank W`` columns, not ``n`` (zero columns would zero H₋)."""
     a = np.diag([-1.0, -2.0, -3.0])
     b = np.array([[1.0], [1.0], [0.0]])  # third mode not excited
-    _, bj, w = norm_invariant_discretisation(A=a, B=b, h=0.7)
+    _, bj, w = norm_invariant_discretisation(A=a, B=b, Ts=0.7)
     assert bj.shape == (3, 2)
     assert np.linalg.norm(bj @ bj.T - w) <= 1e-14 * np.linalg.norm(w)
     assert np.all(bj[2] == 0.0) or np.max(np.abs(bj[2])) <= 1e-16
 
 
 @settings(derandomize=True, max_examples=10, deadline=None)
-@given(n=st.integers(1, 4), p=st.integers(1, 2), h=st.floats(0.1, 2.0), seed=st.integers(0, 2**16))
-def test_lemma1_h2_is_the_continuous_h2_norm(n: int, p: int, h: float, seed: int) -> None:
+@given(n=st.integers(1, 4), p=st.integers(1, 2), ts=st.floats(0.1, 2.0), seed=st.integers(0, 2**16))
+def test_lemma1_h2_is_the_continuous_h2_norm(n: int, p: int, ts: float, seed: int) -> None:
     """``Σ_k A_D^k W A_Dᵀ^k = ∫₀^∞ e^{At}BBᵀe^{Aᵀt}dt``, so ``‖G_J‖₂ = ‖G‖_H2`` of the continuous plant (slycot)."""
-    pl = random_sampled_data_plant(rng=np.random.default_rng(seed), n=n, p=p, q=n, h=h)
-    ref = control.norm(control.ss(pl.A, pl.Bd, pl.C, np.zeros((p, pl.Bd.shape[1]))), 2)
+    pl = random_sampled_data_plant(rng=np.random.default_rng(seed), n=n, p=p, q=n, Ts=ts)
+    ref = control.norm(control.ss(pl.A, pl.E, pl.C, np.zeros((p, pl.E.shape[1]))), 2)
     assert abs(h2_norm(pl.G_d()) - ref) <= 1e-9 * ref  # two Lyapunov solves, ~1e-13 each
 
 
 def test_lemma1_hinf_is_the_limit_of_piecewise_constant_inputs(paper_plant: SampledDataPlant) -> None:
     """The lifting argument behind Lemma 1, checked directly.
 
-    Inputs piecewise constant on ``N`` subintervals of ``[kh, (k+1)h)`` give the
+    Inputs piecewise constant on ``N`` subintervals of ``[k Ts, (k+1) Ts)`` give the
     discrete system ``(A_D, B_N, C, 0)`` with ``B_N B_Nᵀ = 𝔅 Π_N 𝔅* ⪯ W``; so its
     H∞ norm is below ``‖G_J‖∞`` and converges to it as ``N → ∞`` (the
     Riemann error is O(1/N²)).
@@ -79,15 +80,15 @@ def test_lemma1_hinf_is_the_limit_of_piecewise_constant_inputs(paper_plant: Samp
     pl = paper_plant
     gaps = []
     for nsub in (8, 16, 32, 64):
-        dt = pl.h / nsub
+        dt = pl.Ts / nsub
         cols = []
-        # ∫₀^δ e^{As} ds B_d, the ZOH input matrix of one subinterval.
-        phi = sla.expm(np.block([[pl.A, pl.Bd], [np.zeros((1, 3))]]) * dt)[:2, 2:]
+        # ∫₀^δ e^{As} ds E, the ZOH input matrix of one subinterval.
+        phi = sla.expm(np.block([[pl.A, pl.E], [np.zeros((1, 3))]]) * dt)[:2, 2:]
         for i in range(nsub):
-            # ∫ over [iδ, (i+1)δ] of e^{A(h−τ)} B_d dτ, per unit L2 norm of the input (÷√δ).
-            cols.append(sla.expm(pl.A * (pl.h - (i + 1) * dt)) @ phi / math.sqrt(dt))
+            # ∫ over [iδ, (i+1)δ] of e^{A(Ts−τ)} E dτ, per unit L2 norm of the input (÷√δ).
+            cols.append(sla.expm(pl.A * (pl.Ts - (i + 1) * dt)) @ phi / math.sqrt(dt))
         bn = np.hstack(cols)
-        deficit = np.linalg.eigvalsh(pl.W_d - bn @ bn.T)
+        deficit = np.linalg.eigvalsh(pl.W_E - bn @ bn.T)
         assert deficit.min() >= -1e-14  # W − B_N B_Nᵀ ⪰ 0 (a projection of the lifted input)
         gn = DiscreteLTI(A=pl.A_D, B=bn, C=pl.C, D=np.zeros((2, nsub)))
         gaps.append(hinf_norm(pl.G_d()).value - hinf_norm(gn).value)
@@ -98,13 +99,13 @@ def test_lemma1_hinf_is_the_limit_of_piecewise_constant_inputs(paper_plant: Samp
 
 
 def test_step_invariant_input_matrix_matches_the_ode(paper_plant: SampledDataPlant) -> None:
-    """``B_uD``: state after one held unit step from rest, by an ODE solver, and in closed form."""
+    """``B_D``: state after one held unit step from rest, by an ODE solver, and in closed form."""
     pl = paper_plant
-    sol = sint.solve_ivp(lambda t, x: pl.A @ x + pl.Bu[:, 0], (0.0, pl.h), np.zeros(2), rtol=1e-12, atol=1e-14)
-    assert np.linalg.norm(sol.y[:, -1] - pl.B_uD[:, 0]) <= 1e-10  # solver asked for 1e-12 relative
+    sol = sint.solve_ivp(lambda t, x: pl.A @ x + pl.B[:, 0], (0.0, pl.Ts), np.zeros(2), rtol=1e-12, atol=1e-14)
+    assert np.linalg.norm(sol.y[:, -1] - pl.B_D[:, 0]) <= 1e-10  # solver asked for 1e-12 relative
     e1, e2 = math.exp(-1.0), math.exp(-2.0)
     closed = np.array([5 * (1 - e1) - 2.5 * (1 - e2), 0.5 * (1 - e2)])
-    assert np.linalg.norm(pl.B_uD[:, 0] - closed) <= 1e-14  # expm: a few ulps
+    assert np.linalg.norm(pl.B_D[:, 0] - closed) <= 1e-14  # expm: a few ulps
     assert np.linalg.norm(pl.A_D - np.array([[e1, 5 * (e1 - e2)], [0.0, e2]])) <= 1e-14
 
 
@@ -117,16 +118,16 @@ def test_simulation_matches_the_ode_and_samples_noise_exactly(paper_plant: Sampl
     sim = simulate_sampled_data(plant=pl, v=v, f=f, intensity=np.zeros((1, 1)), rng=np.random.default_rng(0))
 
     def rhs(t: float, x: np.ndarray) -> np.ndarray:
-        return pl.A @ x + pl.Bu[:, 0] * 1.0 + pl.Bf[:, 0] * (10.0 if t >= 3 * pl.h else 0.0)
+        return pl.A @ x + pl.B[:, 0] * 1.0 + pl.Fx[:, 0] * (10.0 if t >= 3 * pl.Ts else 0.0)
 
-    sol = sint.solve_ivp(rhs, (0.0, (steps - 1) * pl.h), np.zeros(2), t_eval=np.arange(steps) * pl.h, rtol=1e-11, atol=1e-13, max_step=0.05)
+    sol = sint.solve_ivp(rhs, (0.0, (steps - 1) * pl.Ts), np.zeros(2), t_eval=np.arange(steps) * pl.Ts, rtol=1e-11, atol=1e-13, max_step=0.05)
     assert np.max(np.abs(sim.psi - sol.y.T)) <= 1e-8  # ODE tolerance 1e-11 over 7 s with a jump
 
-    # Exact noise sampling: the sample covariance of w_k is W_d (Wishart: relative
+    # Exact noise sampling: the sample covariance of w_k is W_E (Wishart: relative
     # s.d. ≈ √(2/N) = 0.006 at N = 50 000; 5 s.d. = 0.03).
     w = sampled_disturbance(plant=pl, steps=50_000, rng=np.random.default_rng(1))
     cov = w.T @ w / w.shape[0]
-    assert np.max(np.abs(cov - pl.W_d)) <= 0.03 * np.max(np.abs(pl.W_d))
+    assert np.max(np.abs(cov - pl.W_E)) <= 0.03 * np.max(np.abs(pl.W_E))
 
 
 # ---------------------------------------------------------------------------
@@ -179,14 +180,14 @@ def test_lemma4_strictly_proper_wide(n: int, p: int, seed: int, unstable: bool) 
 
 
 @settings(derandomize=True, max_examples=15, deadline=None)
-@given(n=st.integers(1, 4), q=st.integers(1, 3), h=st.floats(0.1, 2.0), seed=st.integers(0, 2**16))
-def test_dtars_closed_form_with_identity_output(n: int, q: int, h: float, seed: int) -> None:
-    """``C = I``: ``X = B_dJ B_dJᵀ``, ``M = −A_Dᵀ`` (eq. (20) with ``C = I``: ``M = −A_Dᵀ`` solves the second
-    block row ``X A_Dᵀ + X M = 0``, and the first then reduces to ``X = B_dJ B_dJᵀ``), whether ``B_dJ`` has
+@given(n=st.integers(1, 4), q=st.integers(1, 3), ts=st.floats(0.1, 2.0), seed=st.integers(0, 2**16))
+def test_dtars_closed_form_with_identity_output(n: int, q: int, ts: float, seed: int) -> None:
+    """``C = I``: ``X = E_J E_Jᵀ``, ``M = −A_Dᵀ`` (eq. (20) with ``C = I``: ``M = −A_Dᵀ`` solves the second
+    block row ``X A_Dᵀ + X M = 0``, and the first then reduces to ``X = E_J E_Jᵀ``), whether ``E_J`` has
     rank n or less."""
     rng = np.random.default_rng(seed)
     pl = SampledDataPlant.create(
-        A=rng.standard_normal((n, n)), Bu=np.zeros((n, 1)), Bd=rng.standard_normal((n, q)), Bf=np.ones((n, 1)), C=np.eye(n), h=h
+        A=rng.standard_normal((n, n)), B=np.zeros((n, 1)), E=rng.standard_normal((n, q)), Fx=np.ones((n, 1)), C=np.eye(n), Ts=ts
     )
     for model in ("norm_invariant", "zoh"):
         g = pl.G_d(model=model)
@@ -244,14 +245,14 @@ def test_paper_example_closed_forms_and_optimum(paper_plant: SampledDataPlant) -
     pl = paper_plant
     ob = optimal_diagnostic_observer(plant=pl)
     dt = ob.factorisation.dtars
-    # C = I: X = B_dJ B_dJᵀ = W_d, M = −A_Dᵀ, so F = A_D + MᵀC = 0 and L = A_D.
-    assert np.linalg.norm(dt.X - pl.W_d) <= 1e-13
+    # C = I: X = E_J E_Jᵀ = W_E, M = −A_Dᵀ, so F = A_D + MᵀC = 0 and L = A_D.
+    assert np.linalg.norm(dt.X - pl.W_E) <= 1e-13
     assert np.linalg.norm(dt.M + pl.A_D.T) <= 1e-13
     assert np.max(np.abs(ob.F)) <= 1e-14  # the paper prints F ≈ 1e-16
     assert np.linalg.norm(ob.L - pl.A_D) <= 1e-13
-    # J* without the DTARS: with C = I, G_do# G_fJ = z⁻¹ N# B_fJ, whose squared
-    # singular values are the generalised eigenvalues of (W_f, W_d).
-    lam = np.sort(sla.eigvalsh(pl.W_f, pl.W_d))
+    # J* without the DTARS: with C = I, G_do# G_fJ = z⁻¹ N# Fx_J, whose squared
+    # singular values are the generalised eigenvalues of (W_Fx, W_E).
+    lam = np.sort(sla.eigvalsh(pl.W_Fx, pl.W_E))
     closed = {"inf": 1 / math.sqrt(lam[-1]), "2": 1 / math.sqrt(lam.sum()), "-": 1 / math.sqrt(lam[0])}
     for eta in ETAS:
         assert abs(ob.J[eta] - closed[eta]) <= 1e-12 * closed[eta]
@@ -274,7 +275,7 @@ def test_paper_printed_gains_rounded_and_transposed(paper_plant: SampledDataPlan
     mask[0, 0] = False
     assert np.all(np.abs(L - PAPER_GAINS["L"])[mask] <= 0.005)
     assert abs(L[0, 0] - math.exp(-1)) <= 1e-15 and abs(PAPER_GAINS["L"][0, 0] - 0.38) == 0.0
-    assert np.all(np.abs(ob.E - PAPER_GAINS["E"]) <= 0.005)
+    assert np.all(np.abs(ob.G - PAPER_GAINS["E"]) <= 0.005)
     assert np.all(np.abs(ob.V.T - PAPER_GAINS["V"]) <= 0.005)
     assert np.all(np.abs(ob.W.T - PAPER_GAINS["W"]) <= 0.005)
     xinv = np.linalg.inv(ob.factorisation.dtars.X)
@@ -338,7 +339,7 @@ def test_theorem1_any_order_any_basis(n: int, p: int, extra: int, seed: int, uns
     g1, g0 = ob.G_rpsi().freqresp(W_TEST), base.G_rpsi().freqresp(W_TEST)
     assert np.max(np.abs(g1 - g0)) <= tol * np.max(np.abs(g0))
     for eta in ETAS:
-        if math.isinf(base.J[eta]):  # η = "-" with p < rank B_fJ: ‖G_rψ G_fJ‖₋ = 0
+        if math.isinf(base.J[eta]):  # η = "-" with p < rank Fx_J: ‖G_rψ G_fJ‖₋ = 0
             assert math.isinf(ob.J[eta])
         else:
             assert abs(ob.J[eta] - base.J[eta]) <= tol * base.J[eta]
@@ -387,8 +388,8 @@ def test_generator_canonical_form_and_monte_carlo_whiteness(paper_plant: Sampled
     pl = paper_plant
     ob = optimal_diagnostic_observer(plant=pl)
     gen = ob.generator()
-    assert np.array_equal(gen.Ar, ob.F) and np.array_equal(gen.By, ob.L) and np.array_equal(gen.Bu, ob.E)
-    assert np.array_equal(gen.Cr, -ob.W) and np.array_equal(gen.Dy, ob.V) and np.array_equal(gen.Du, -ob.Q)
+    assert np.array_equal(gen.Ar, ob.F) and np.array_equal(gen.By, ob.L) and np.array_equal(gen.Bu, ob.G)
+    assert np.array_equal(gen.Cr, -ob.W) and np.array_equal(gen.Dy, ob.V) and np.array_equal(gen.Du, -ob.D)
     internal = internal_form(gen, pl.discrete_plant())
     assert internal.coupling("u") <= 1e-12
 
@@ -414,14 +415,14 @@ def test_generator_canonical_form_and_monte_carlo_whiteness(paper_plant: Sampled
     clean = run(np.ones((100, 1)), f, np.zeros((1, 1)), 0)
     assert np.max(np.abs(clean[:60])) <= 1e-12  # no fault, no noise: r ≡ 0 (u decoupled)
     # 40 samples after the step the response is at its DC value
-    # G_rψ(1) C (I − A_D)⁻¹ B_fD · 10 (transients decay like e^{−40}).
-    dc = ob.G_rpsi().freqresp(np.array([0.0]))[0].real @ pl.C @ np.linalg.solve(np.eye(2) - pl.A_D, pl.B_fD[:, 0]) * 10.0
+    # G_rψ(1) C (I − A_D)⁻¹ Fx_D · 10 (transients decay like e^{−40}).
+    dc = ob.G_rpsi().freqresp(np.array([0.0]))[0].real @ pl.C @ np.linalg.solve(np.eye(2) - pl.A_D, pl.Fx_D[:, 0]) * 10.0
     assert np.max(np.abs(clean[-1] - dc)) <= 1e-12 * np.linalg.norm(dc)
     assert np.linalg.norm(dc) > 9.0  # ≈ 9.6: nine standard deviations of the unit-covariance residual
 
 
 def test_nearly_rank_deficient_disturbance_is_refused_by_the_certificate() -> None:
-    """One disturbance, four outputs, h = 0.5: W_d's eigenvalues span ~14 decades (κ ≈ 5e14)."""
+    """One disturbance, four outputs, Ts = 0.5: W_E's eigenvalues span ~14 decades (κ ≈ 5e14)."""
     pl = random_sampled_data_plant(n=4, p=4, q=1, rng=np.random.default_rng(10))
     with pytest.raises(CertificateError, match=r"κ = cond\(Nᵀ N\), N Nᵀ = C X Cᵀ = [0-9.e+]+ \(must be <= 1e\+10"):
         optimal_diagnostic_observer(plant=pl)
@@ -455,7 +456,7 @@ def test_unstable_plant_is_designed_through_the_error_form() -> None:
     # the unstable plant's optimum, judged by the sweep of its spectral density (G G~ is defined
     # on the circle whatever the poles); measured agreement ~1e-15
     ref = _j_star_sweep(pl)
-    assert math.isinf(ref["-"]) and math.isinf(ob.J["-"])  # p = 2 outputs, rank B_fJ = 3: ‖G_o⁻¹ G_f‖₋ = 0
+    assert math.isinf(ref["-"]) and math.isinf(ob.J["-"])  # p = 2 outputs, rank Fx_J = 3: ‖G_o⁻¹ G_f‖₋ = 0
     for eta in ("inf", "2"):
         assert abs(ob.J[eta] / ref[eta] - 1.0) <= 1e-9, eta
 
@@ -465,31 +466,31 @@ def test_unstable_plant_is_designed_through_the_error_form() -> None:
 # ---------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("h", [0.0, -1.0, float("nan"), float("inf")])
-def test_nonpositive_or_nonfinite_sample_time(h: float) -> None:
-    with pytest.raises(ArgumentError, match="h must be a positive, finite number of seconds"):
-        SampledDataPlant.create(**{**PAPER, "h": h})
-    with pytest.raises(ArgumentError, match="h must be a positive"):
-        check_sampling(A=PAPER["A"], C=PAPER["C"], h=h)
+@pytest.mark.parametrize("ts", [0.0, -1.0, float("nan"), float("inf")])
+def test_nonpositive_or_nonfinite_sample_time(ts: float) -> None:
+    with pytest.raises(ArgumentError, match="Ts must be a positive, finite number of seconds"):
+        SampledDataPlant.create(**{**PAPER, "Ts": ts})
+    with pytest.raises(ArgumentError, match="Ts must be a positive"):
+        check_sampling(A=PAPER["A"], C=PAPER["C"], Ts=ts)
 
 
 def test_non_detectable_continuous_pair() -> None:
     with pytest.raises(ExistenceError, match=r"\(A, C\) is not detectable: the mode\(s\) λ = \[\(1\+0j\)\]"):
         optimal_diagnostic_observer(
-            plant=SampledDataPlant.create(A=np.diag([1.0, -1.0]), Bu=[[0.0], [1.0]], Bd=[[1.0], [1.0]], Bf=[[1.0], [0.0]], C=[[0.0, 1.0]], h=0.5)
+            plant=SampledDataPlant.create(A=np.diag([1.0, -1.0]), B=[[0.0], [1.0]], E=[[1.0], [1.0]], Fx=[[1.0], [0.0]], C=[[0.0, 1.0]], Ts=0.5)
         )
 
 
 def test_pathological_sampling() -> None:
-    """``h = π/ω`` maps ``±jω`` (or ``−σ ± jω``) to one eigenvalue of ``A_D``; one output loses a mode."""
+    """``Ts = π/ω`` maps ``±jω`` (or ``−σ ± jω``) to one eigenvalue of ``A_D``; one output loses a mode."""
     om = 2.0
-    h = math.pi / om
+    ts = math.pi / om
     c = [[1.0, 0.0]]
-    undamped = SampledDataPlant.create(A=[[0.0, om], [-om, 0.0]], Bu=[[0.0], [1.0]], Bd=[[1.0], [0.5]], Bf=[[0.0], [1.0]], C=c, h=h)
+    undamped = SampledDataPlant.create(A=[[0.0, om], [-om, 0.0]], B=[[0.0], [1.0]], E=[[1.0], [0.5]], Fx=[[0.0], [1.0]], C=c, Ts=ts)
     for allow in (False, True):  # marginal modes lost: never acceptable
-        with pytest.raises(ExistenceError, match=r"pathological sampling: h = 1\.5708 .*h\(λ1 − λ2\) = 2π·1·j"):
+        with pytest.raises(ExistenceError, match=r"pathological sampling: Ts = 1\.5708 .*Ts\(λ1 − λ2\) = 2π·1·j"):
             optimal_diagnostic_observer(plant=undamped, allow_pathological=allow)
-    damped = SampledDataPlant.create(A=[[-0.3, om], [-om, -0.3]], Bu=[[0.0], [1.0]], Bd=[[1.0], [0.5]], Bf=[[0.0], [1.0]], C=c, h=h)
+    damped = SampledDataPlant.create(A=[[-0.3, om], [-om, -0.3]], B=[[0.0], [1.0]], E=[[1.0], [0.5]], Fx=[[0.0], [1.0]], C=c, Ts=ts)
     with pytest.raises(ExistenceError, match="or pass allow_pathological=True"):
         optimal_diagnostic_observer(plant=damped)
     ob = optimal_diagnostic_observer(plant=damped, allow_pathological=True)  # lost modes stable: detectable
@@ -497,8 +498,8 @@ def test_pathological_sampling() -> None:
     ref = _j_star_sweep(damped)  # one output, two fault directions: ‖G_o⁻¹ G_f‖₋ = 0, J₋ = ∞
     for eta in ("inf", "2"):
         assert abs(ob.J[eta] / ref[eta] - 1.0) <= 1e-9, eta
-    # A slightly different h is fine.
-    check_sampling(A=damped.A, C=damped.C, h=h * 1.01)
+    # A slightly different Ts is fine.
+    check_sampling(A=damped.A, C=damped.C, Ts=ts * 1.01)
 
 
 def test_bad_extra_block_and_basis(paper_plant: SampledDataPlant) -> None:
@@ -513,14 +514,14 @@ def test_bad_extra_block_and_basis(paper_plant: SampledDataPlant) -> None:
 
 
 def test_from_linear_plant_refuses_discrete_and_feedthrough() -> None:
-    lp = LinearPlant.create(A=PAPER["A"], B=PAPER["Bu"], C=PAPER["C"], E=PAPER["Bd"], Fx=PAPER["Bf"])
-    sd = SampledDataPlant.from_linear_plant(lp, h=1.0)
-    assert np.array_equal(sd.B_dJ, SampledDataPlant.create(**PAPER).B_dJ)
+    lp = LinearPlant.create(A=PAPER["A"], B=PAPER["B"], C=PAPER["C"], E=PAPER["E"], Fx=PAPER["Fx"])
+    sd = SampledDataPlant.from_linear_plant(lp, Ts=1.0)
+    assert np.array_equal(sd.E_J, SampledDataPlant.create(**PAPER).E_J)
     with pytest.raises(ArgumentError, match="continuous plant"):
-        SampledDataPlant.from_linear_plant(lp.discretise(1.0), h=1.0)
+        SampledDataPlant.from_linear_plant(lp.discretise(1.0), Ts=1.0)
     with pytest.raises(ExistenceError, match="strictly proper"):
         SampledDataPlant.from_linear_plant(
-            LinearPlant.create(A=PAPER["A"], B=PAPER["Bu"], C=PAPER["C"], D=[[1.0], [0.0]], E=PAPER["Bd"]), h=1.0
+            LinearPlant.create(A=PAPER["A"], B=PAPER["B"], C=PAPER["C"], D=[[1.0], [0.0]], E=PAPER["E"]), Ts=1.0
         )
 
 
@@ -532,8 +533,8 @@ def _spectral_density(pl: SampledDataPlant, w: float) -> np.ndarray:
     frequency response alone, without the DTARS or any factorisation.
     """
     z = np.exp(1j * w)
-    g = pl.C @ np.linalg.solve(z * np.eye(pl.n) - pl.A_D, np.hstack([pl.B_dJ, pl.B_fJ]))
-    gd, gf = g[:, : pl.B_dJ.shape[1]], g[:, pl.B_dJ.shape[1] :]
+    g = pl.C @ np.linalg.solve(z * np.eye(pl.n) - pl.A_D, np.hstack([pl.E_J, pl.Fx_J]))
+    gd, gf = g[:, : pl.E_J.shape[1]], g[:, pl.E_J.shape[1] :]
     m = gf.conj().T @ np.linalg.solve(gd @ gd.conj().T, gf)
     return np.linalg.eigvalsh(0.5 * (m + m.conj().T))
 
@@ -562,7 +563,7 @@ def _j_star_sweep(pl: SampledDataPlant) -> dict[str, float]:
 
 @pytest.mark.parametrize("which", ["paper", "random n=2", "random n=3"])
 def test_j_star_matches_a_sweep_of_the_spectral_density(paper_plant: SampledDataPlant, which: str) -> None:
-    """The certificate's J* (from the DTARS: ``1/‖(A_D + MᵀC, B_fJ, N#C, 0)‖_η``) against an
+    """The certificate's J* (from the DTARS: ``1/‖(A_D + MᵀC, Fx_J, N#C, 0)‖_η``) against an
     independent route, the frequency sweep of ``G_f~ (G_d G_d~)⁻¹ G_f`` (:func:`_j_star_sweep`)."""
     pl = {"paper": paper_plant, "random n=2": None, "random n=3": None}[which]
     if pl is None:

@@ -134,6 +134,18 @@ def test_bad_nonlinear_files_name_the_problem(tmp_path, old, new, match) -> None
     assert "\n" not in str(info.value)
 
 
+def test_the_papers_noise_letters_are_read_as_q_and_r(problem, tmp_path) -> None:
+    """Zhou, Xi & Zhang's ``Q1``, ``Q2`` (eq. (2.1)) may stand for ``Q``, ``R``; errors name the key the file wrote."""
+    lettered = _write(tmp_path, "Q = [[0.0]]", "Q1 = [[0.0]]")
+    lettered.write_text(lettered.read_text().replace("R = [[0.01]]", "Q2 = [[0.01]]", 1))
+    assert load_spec(lettered).design().extensions["nafdf"]["plant"] == problem.design().extensions["nafdf"]["plant"]
+    lettered.write_text(lettered.read_text().replace("Q2 = [[0.01]]", "Q2 = 0.0", 1))
+    with pytest.raises(SpecError, match=r"\[model\].Q2 must be positive definite"):
+        load_spec(lettered).design()
+    with pytest.raises(SpecError, match=r"\[model\] gives both 'Q1' and 'Q': they are the same matrix"):
+        load_spec(_write(tmp_path, "Q = [[0.0]]", "Q = [[0.0]]\nQ1 = [[0.0]]"))
+
+
 @pytest.mark.parametrize(
     "old, new",
     [(F_SHIP, 'f = { x = "x**x + 0.1*a*x^2'), (F_SHIP, 'f = { x = "' + "x+" * 5000 + '0.1*a*x^2'), ("window = 10", "window = 100000")],

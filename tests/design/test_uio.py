@@ -9,7 +9,7 @@ import scipy.linalg
 from fdisyn.models.linear import LinearPlant
 from fdisyn.numerics.linalg import dlyap
 from fdisyn.runtime.errors import ArgumentError, CertificateError, ExistenceError, ShapeError
-from fdisyn.synthesis.uio import GAIN_TOL, kalman_uio, pole_placement_uio, uio_error_covariance, uio_structure
+from fdisyn.synthesis.uio import GAIN_TOL, kalman_uio, uio_error_covariance, uio_pole_placement, uio_structure
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -134,7 +134,7 @@ def test_an_unstable_gain_fails_the_certificate():
     import fdisyn.synthesis.uio as uio
 
     plant = random_plant(2, n=3, p=2, q=1)
-    d = pole_placement_uio(plant, poles=[0.1, 0.2, 0.3])
+    d = uio_pole_placement(plant, poles=[0.1, 0.2, 0.3])
     bad = 25.0 * d.L  # far from the assigned gain: F = A1 − L C leaves the unit circle
     assert max(abs(np.linalg.eigvals(d.structure.A1 - bad @ plant.C))) > 1.0
     with pytest.raises(CertificateError, match="spectral radius of F"):
@@ -273,17 +273,17 @@ def test_residual_ignores_the_unknown_input_exactly():
 
 def test_pole_placement_assigns_the_poles():
     plant = random_plant(2, n=3, p=2, q=1)
-    d = pole_placement_uio(plant, poles=[0.1, 0.2, 0.3])
+    d = uio_pole_placement(plant, poles=[0.1, 0.2, 0.3])
     np.testing.assert_allclose(np.sort(np.linalg.eigvals(d.F).real), [0.1, 0.2, 0.3], atol=1e-8)
     with pytest.raises(ArgumentError, match="inside the unit circle"):
-        pole_placement_uio(plant, poles=[0.1, 0.2, 1.2])
+        uio_pole_placement(plant, poles=[0.1, 0.2, 1.2])
     with pytest.raises(ShapeError, match="expected 3 poles"):
-        pole_placement_uio(plant, poles=[0.1, 0.2])
+        uio_pole_placement(plant, poles=[0.1, 0.2])
 
 
 def test_optimal_residual_is_white_and_pole_placement_is_not():
     plant = random_plant(5, n=3, p=2, q=1, radius=0.9)
-    for design, white in ((kalman_uio(plant), True), (pole_placement_uio(plant, poles=[0.8, 0.85, 0.9]), False)):
+    for design, white in ((kalman_uio(plant), True), (uio_pole_placement(plant, poles=[0.8, 0.85, 0.9]), False)):
         # lag-1 covariance of the residual: F-driven for a non-optimal gain, zero for the innovation
         st_ = design.structure
         c, r = np.asarray(plant.C), np.asarray(plant.R)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from fdisyn.problems import ship_propulsion as sp
+from fdisyn.runtime.errors import SpecError
 
 
 @pytest.fixture(scope="module")
@@ -21,17 +22,19 @@ def test_input_is_the_documented_square_wave() -> None:
 
 
 def test_scenario_time_convention() -> None:
-    sc = sp.scenario(length=800, scale={"a": 0.5}, seed=0)
-    assert sc.faulty == ("a",) and sc.fault_size == {"a": pytest.approx(0.29)}
-    np.testing.assert_array_equal(sc.theta[:701, 0], -0.58)
-    np.testing.assert_array_equal(sc.theta[701:, 0], -0.29)
-    np.testing.assert_array_equal(sc.theta[:, 1], 0.2)
-    # Q1 = 0: x(702) is the first state the new a changes
-    a, b = sc.theta[701]
-    x701 = sc.x[701, 0]
-    assert sc.x[702, 0] == pytest.approx(0.1 * a * x701**2 + x701 + 0.1 * b * sc.u[701, 0], rel=1e-14)  # same formula
-    free = sp.scenario(length=100, fault_time=None, seed=0)
-    assert free.faulty == () and free.fault_time is None
+    run = sp.PROBLEM.run(sp.fault_scenario("a_half", {"a": 0.5}, length=800), [0])
+    assert run.scenario.fault == "a" and run.scenario.params["fault_size"] == {"a": pytest.approx(0.29)}
+    true_a, true_b, x = run.extra["a"][0], run.extra["b"][0], run.extra["x"][0]
+    np.testing.assert_array_equal(true_a[:701], -0.58)
+    np.testing.assert_array_equal(true_a[701:], -0.29)
+    np.testing.assert_array_equal(true_b, 0.2)
+    # Q = 0: x(702) is the first state the new a changes
+    a, b = true_a[701], true_b[701]
+    assert x[702] == pytest.approx(0.1 * a * x[701] ** 2 + x[701] + 0.1 * b * run.U[0, 701, 0], rel=1e-14)  # same formula
+    free = sp.fault_scenario("fault_free", length=100)
+    assert free.fault is None and free.onset is None and free.duration == 100
+    with pytest.raises(SpecError, match="unknown parameters"):
+        sp.fault_scenario("c_half", {"c": 0.5})
 
 
 def test_paper_scenario_is_reproduced(design) -> None:
@@ -58,20 +61,19 @@ def test_other_faults_are_isolated(design, scale, expect) -> None:
     """Faults in b, in a the other way, and in both: the right parameter is isolated (for both, the
     lower index, and both classes are latched), with the size within 0.05 (a) / 0.02 (b) —
     ~4 Monte Carlo standard deviations of the size error."""
-    sc = sp.scenario(length=2500, scale=scale, seed=21)
-    m = sp.run_metrics(design, sc)
+    run = sp.PROBLEM.run(sp.fault_scenario("fault", scale, length=2500), [21])
+    m = sp.run_metrics(design, run)
     assert m["detection_delay"] is not None and m["detection_delay"] <= 60
     assert m["isolated"] == expect
-    for name, size in sc.fault_size.items():
+    for name, size in run.scenario.params["fault_size"].items():
         assert m["fault_class"][name] >= 1
         assert abs(m["fault_size"][name] - size) <= (0.05 if name == "a" else 0.02)
-    for name in set(design.fault_names) - set(sc.faulty):
+    for name in set(design.fault_names) - set(run.scenario.fault.split("+")):
         assert m["fault_class"][name] == 0
 
 
 def test_fault_free_run_isolates_nothing(design) -> None:
-    sc = sp.scenario(length=10_000, fault_time=None, seed=5)
-    m = sp.run_metrics(design, sc)
+    m = sp.run_metrics(design, sp.PROBLEM.run(sp.fault_scenario("fault_free", length=10_000), [5]))
     assert m["isolated"] is None
     assert all(v == 0 for v in m["fault_class"].values())
     # P_f = 1e-4 per sample: over 10^4 samples more than 5 alarm episodes has probability < 1e-3

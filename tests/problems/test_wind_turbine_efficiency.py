@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from fdisyn.models.sampling import zoh
 from fdisyn.problems import wind_turbine_efficiency as wt
+from fdisyn.problems.wind_turbine import PARAMETER_SETS, continuous_model
 
 
 @pytest.mark.parametrize("eta", [0.5, 0.92, 0.97, 1.2])
@@ -14,16 +15,30 @@ def test_symbolic_zoh_equals_scipy_expm(eta: float) -> None:
     """The Taylor/squaring exponential in SX equals scipy's expm-based ZOH to 1e-14 relative
     (its truncation error is < 1e-19; what remains is the round-off of either method)."""
     ad, bd = (np.array(ca.evalf(v)) for v in wt.zoh_matrices(eta))
-    a, b = (np.array(ca.evalf(v)) for v in wt.continuous_matrices(eta))
+    a, b = wt.DRIVE_TRAIN.matrices(eta, twist_scale=wt.TWIST_SCALE)
     ad_ref, bd_ref = zoh(a, b, wt.TS)
     np.testing.assert_allclose(ad, ad_ref, rtol=1e-14, atol=1e-14 * np.max(np.abs(ad_ref)))
     for j in range(2):  # the input columns differ by 6 decades: compare each on its own scale
         np.testing.assert_allclose(bd[:, j], bd_ref[:, j], rtol=1e-12, atol=1e-14 * np.max(np.abs(bd_ref[:, j])))
 
 
+def test_the_drive_train_is_the_wind_turbine_problems() -> None:
+    """One model for both problems: symbolic and numeric ``A(η)`` agree to the bit, and at the nominal η
+    it is the wind_turbine problem's continuous model with the twist in milliradians."""
+    a_sx, b_sx = (np.array(ca.evalf(v)) for v in wt.DRIVE_TRAIN.matrices(ca.SX(0.93), twist_scale=wt.TWIST_SCALE))
+    a, b = wt.DRIVE_TRAIN.matrices(0.93, twist_scale=wt.TWIST_SCALE)
+    np.testing.assert_array_equal(a_sx, a)
+    np.testing.assert_array_equal(b_sx, b)
+    m = continuous_model(PARAMETER_SETS["benchmark"])
+    t = np.diag([1.0, 1.0, wt.TWIST_SCALE])
+    a0, b0 = wt.DRIVE_TRAIN.matrices(twist_scale=wt.TWIST_SCALE)
+    np.testing.assert_allclose(a0, t @ m.A @ np.linalg.inv(t), rtol=1e-15, atol=0.0)
+    np.testing.assert_array_equal(b0, np.hstack([m.E, m.B]))  # [τ_r, τ_g]
+
+
 def test_benchmark_modes() -> None:
     """The benchmark drive train's modes: ≈ −0.0072 and −0.055 ± 28.16j (the 4.5 Hz torsional mode)."""
-    a, _ = (np.array(ca.evalf(v)) for v in wt.continuous_matrices(wt.ETA_NOMINAL))
+    a, _ = wt.DRIVE_TRAIN.matrices(twist_scale=wt.TWIST_SCALE)
     ev = np.sort_complex(np.linalg.eigvals(a))
     # reference: the same parameters' A written out by hand, eigenvalues by NumPy: −0.0072367 and
     # −0.0549572 ± 28.1633456j; tolerances 5e-5 and 5e-4 cover the rounding of the values below
@@ -35,7 +50,7 @@ def test_operating_point_is_an_equilibrium() -> None:
     pl = wt.plant()
     x0, u0 = wt.operating_point()
     step = np.array(pl.f(x0, u0, wt.ETA_NOMINAL)).reshape(-1) - x0
-    assert np.max(np.abs(step) / np.maximum(np.abs(x0), 1e-3)) < 1e-12  # round-off of A_d x + B_d u
+    assert np.max(np.abs(step) / np.maximum(np.abs(x0), 1e-3)) < 1e-12  # round-off of A_D x + B_D u
 
 
 def test_eta_sensitivity_is_automatic_differentiation() -> None:

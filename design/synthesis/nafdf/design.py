@@ -11,7 +11,9 @@ allocation-free C.
 
 Block 1 — fast detection (eqs. (2.3)–(2.4)). An EKF on the model with
 parameters ``θ_e`` (the nominal ``θ0`` until re-parameterised), in the
-textbook filter form: at sample ``t``
+textbook filter form. The equations keep the paper's letters ``Q1``, ``Q2``
+for the noise covariances, the plant's ``Q`` and ``R`` (``R(t)`` of block 2 is
+the NF's own matrix). At sample ``t``
 
     γ = y − h(x̂, θ_e),   V0 = H P Hᵀ + Q2,   K_f = P Hᵀ V0⁻¹             (2.3)
     x̂⁺ = f(x̂ + K_f γ, u, θ_e),   P⁺ = F [(I − K_f H) P (I − K_f H)ᵀ + K_f Q2 K_fᵀ] Fᵀ + Q1

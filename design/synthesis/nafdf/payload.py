@@ -12,7 +12,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 from fdisyn.evaluators.wssr import wssr_threshold_table
-from fdisyn.models.nonlinear import NonlinearPlant, function_from_program, model_program, short_repr
+from fdisyn.models.nonlinear import NonlinearPlant, covariance_matrix, function_from_program, model_program, short_repr
 from fdisyn.models.sampling import check_sample_time
 from fdisyn.runtime.errors import FdisynError, GainFileError
 from fdisyn.runtime.gainfile import GainFile, StepSpec
@@ -25,6 +25,9 @@ __all__ = ['PAYLOAD_FORMAT', 'PAYLOAD_VERSION', 'nafdf_from_gain_file', 'nafdf_f
 PAYLOAD_FORMAT = "fdisyn.nafdf"
 PAYLOAD_VERSION = 2
 """Version 2 stores the model as validated operation lists (version 1 held CasADi serialised strings)."""
+_NOISE_KEYS: Mapping[str, str] = {"Q": "Q1", "R": "Q2"}
+"""The plant's noise covariances → their keys in ``plant`` of the payload: Zhou, Xi & Zhang's letters
+(eq. (2.1)), which the payload format (version 2) keeps."""
 
 
 # --------------------------------------------------------------------------- payload
@@ -55,8 +58,8 @@ def nafdf_payload(design: NafdfDesign) -> dict[str, object]:
             "outputs": list(pl.outputs),
             "parameters": list(pl.parameters),
             "theta_nominal": [float(v) for v in pl.theta_nominal],
-            "Q1": np.asarray(pl.Q1).tolist(),
-            "Q2": np.asarray(pl.Q2).tolist(),
+            _NOISE_KEYS["Q"]: np.asarray(pl.Q).tolist(),
+            _NOISE_KEYS["R"]: np.asarray(pl.R).tolist(),
             "Ts": pl.Ts,
             "f": model_program(pl.f),
             "h": model_program(pl.h),
@@ -92,7 +95,7 @@ _PAYLOAD_FIELDS = frozenset(
     }
 )
 _PLANT_FIELDS = frozenset(
-    {"states", "inputs", "outputs", "parameters", "theta_nominal", "Q1", "Q2", "Ts", "f", "h", "expressions", "units"}
+    {"states", "inputs", "outputs", "parameters", "theta_nominal", *_NOISE_KEYS.values(), "Ts", "f", "h", "expressions", "units"}
 )
 _SETTINGS_FIELDS = tuple(NafdfSettings.__dataclass_fields__)
 # The WSSR table is recomputed on reading and compared at this relative tolerance: SciPy's χ² quantile is
@@ -199,7 +202,7 @@ def _read_plant(doc: object, where: str) -> NonlinearPlant:
     inputs = f.names("inputs", allow_empty=True)
     n, m, p, l = len(states), len(inputs), len(outputs), len(parameters)
     theta = f.numbers("theta_nominal", l)
-    q1, q2 = f.matrix("Q1", n, n), f.matrix("Q2", p, p)
+    mats = {ours: f.matrix(key, size, size) for (ours, key), size in zip(_NOISE_KEYS.items(), (n, p), strict=True)}
     ts = f.number("Ts", allow_none=True)
     if ts is not None:
         _wrap(f"{where}.Ts", check_sample_time, ts)
@@ -212,9 +215,11 @@ def _read_plant(doc: object, where: str) -> NonlinearPlant:
         "f": _wrap(f"{where}.f", function_from_program, f.doc["f"], name="f", in_names=("x", "u", "theta"), in_sizes=(n, m, l), out_name="x_next", out_size=n),
         "h": _wrap(f"{where}.h", function_from_program, f.doc["h"], name="h", in_names=("x", "theta"), in_sizes=(n, l), out_name="y", out_size=p),
     }
+    for ours, key in _NOISE_KEYS.items():  # the plant checks them too; here a refusal names the payload's key
+        _wrap(where, covariance_matrix, mats[ours], key, len(mats[ours]), definite=ours == "R")
     common = dict(
         states=states, inputs=inputs, outputs=outputs, parameters=parameters, nominal=dict(zip(parameters, theta.tolist(), strict=True)),
-        Q1=q1, Q2=q2, Ts=ts, units=dict(units),
+        Q=mats["Q"], R=mats["R"], Ts=ts, units=dict(units),
     )
     expressions = f.doc["expressions"]
     e = None if expressions is None else _Fields(expressions, f"{where}.expressions", required=frozenset({"f", "h", "constants"}))

@@ -114,7 +114,7 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
     N, N2 = s.window, s.classifier_window
     lay = _layout(n, l, N, N2)
     D = plant.derivatives()
-    Q1, Q2 = ca.DM(plant.Q1), ca.DM(plant.Q2)
+    Q, R = ca.DM(plant.Q), ca.DM(plant.R)  # noise covariances (the paper's Q1, Q2), not the NF's R(t) = nf_R
     P0, R0 = ca.DM(s.P0), ca.DM(s.R0)
     x0, th0 = ca.DM(s.x0), ca.DM(s.theta0)
     I_n = ca.SX.eye(n)
@@ -129,17 +129,17 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
     xe, Pe, the = old["ekf_x"], old["ekf_P"], old["ekf_theta"]
     _, _, _, he, He, _ = D(xe, u, the)  # h and ∂h/∂x at the prediction (u unused by h)
     gamma = y - he
-    V0 = _sym(ca.mtimes([He, Pe, He.T]) + Q2)  # V0 = H P Hᵀ + Q2
+    V0 = _sym(ca.mtimes([He, Pe, He.T]) + R)  # V0 = H P Hᵀ + R
     lv, dv = _ldl(V0)
     v0inv_gamma = _ldl_solve(lv, dv, gamma)
     nis_e = ca.dot(gamma, v0inv_gamma)  # γᵀ V0⁻¹ γ, χ²(p) under H0
     Kf = _ldl_solve(lv, dv, ca.mtimes(He, Pe)).T  # K_f = P Hᵀ V0⁻¹
     xe_f = xe + ca.mtimes(Kf, gamma)
     ikh = I_n - ca.mtimes(Kf, He)
-    Pe_f = ca.mtimes([ikh, Pe, ikh.T]) + ca.mtimes([Kf, Q2, Kf.T])  # Joseph form
+    Pe_f = ca.mtimes([ikh, Pe, ikh.T]) + ca.mtimes([Kf, R, Kf.T])  # Joseph form
     fe, Fe, _, _, _, _ = D(xe_f, u, the)
     xe_next = fe
-    Pe_next = _sym(ca.mtimes([Fe, Pe_f, Fe.T]) + Q1)
+    Pe_next = _sym(ca.mtimes([Fe, Pe_f, Fe.T]) + Q)
     ekf_ok = ca.logic_and(_all_finite(xe_next, nis_e), _psd_ok(Pe_next))
     ekf_ok = ca.logic_and(ekf_ok, _positive(dv))
 
@@ -157,7 +157,7 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
     xn, Pn, thn, Rn, Wn = old["nf_x"], old["nf_P"], old["nf_theta"], old["nf_R"], old["nf_W"]
     _, Fn, Fth, hn, Hn, Hth = D(xn, u, thn)
     eps = y - hn  # ε(t)
-    S = _sym(ca.mtimes([Hn, Pn, Hn.T]) + Q2)  # S = H P Hᵀ + Q2
+    S = _sym(ca.mtimes([Hn, Pn, Hn.T]) + R)  # S = H P Hᵀ + R
     ls_, ds_ = _ldl(S)
     sinv_eps = _ldl_solve(ls_, ds_, eps)
     nis_n = ca.dot(eps, sinv_eps)
@@ -181,7 +181,7 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
     fn_new, _, _, _, _, _ = D(xn, u, th_new)
     xn_next = fn_new + Bx + ca.mtimes(K, eps)
     Wn_next = ca.mtimes(FKH, Wn) + Fth - ca.mtimes(K, Hth)
-    Pn_next = _sym(ca.mtimes([FKH, Pn, FKH.T]) + Q1 + ca.mtimes([K, Q2, K.T]))
+    Pn_next = _sym(ca.mtimes([FKH, Pn, FKH.T]) + Q + ca.mtimes([K, R, K.T]))
     nf_ok = ca.logic_and(_all_finite(xn_next, Wn_next, th_new, Rn_new, nis_n), _psd_ok(Pn_next))
     nf_ok = ca.logic_and(nf_ok, ca.logic_and(_positive(dr), _positive(ds_)))
 
