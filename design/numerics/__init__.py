@@ -1,3 +1,3 @@
-"""Numerical building blocks: linear algebra, Riccati equations, system norms (frequency sweeps and LMIs),
+"""Numerical building blocks: linear algebra, Riccati equations, system norms (level set, frequency sweeps and LMIs),
 semidefinite programmes, factorisations.
 """

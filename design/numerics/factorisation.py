@@ -27,7 +27,7 @@ KAPPA_MAX = 1e10
 optimum is not trustworthy. Remedies: fewer outputs, a longer Ts, or a
 disturbance model that excites every state."""
 INNER_TOL = 1e-8
-"""|‖G_rψ G_dJ‖∞ − 1| and |‖·‖₋ − 1| at κ ≲ 1e5: the sweep is exact to ~1e-12
+"""|‖G_rψ G_dJ‖∞ − 1| and |‖·‖₋ − 1| at κ ≲ 1e5: the norm (AB13DD) and the sweep are exact to ~1e-12
 relative and the DTARS solution to ~1e-14·κ (larger κ: see :data:`KAPPA_FACTOR`)."""
 
 

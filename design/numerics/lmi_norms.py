@@ -142,8 +142,8 @@ def hinf_norm_lmi(sys: DiscreteLTI) -> SdpResult:
 
     A band-limited version by the generalised KYP lemma is not offered: with
     Clarabel it ends ``optimal_inaccurate`` (errors ~3e-6) on interior bands,
-    outside the 1e-6 relative agreement with the sweep that the norm LMIs are held to; the sweep :func:`fdisyn.numerics.norms.hinf_norm`
-    takes a band.
+    outside the 1e-6 relative agreement with the sweep that the norm LMIs are held to; :func:`fdisyn.numerics.norms.hinf_norm`
+    takes a band (by the sweep).
     """
     _require_stable(sys, "H∞ norm LMI")
     if sys.n_in == 0 or sys.n_out == 0:

@@ -16,6 +16,15 @@ Van Dooren, SIAM J. Sci. Stat. Comput. 2(2), 1981). The pencil is the dual
 (``A → Aᵀ``, ``C → Bᵀ``) of the control-form pencil
 
     λ [[I, 0, 0], [0, Aᵀ, 0], [0, −Bᵀ, 0]] − [[A, 0, B], [−Q, I, −S], [Sᵀ, 0, R]].
+
+SciPy's ``solve_discrete_are`` is exactly this method (symplectic balancing,
+compression of the ``R`` columns, ordered QZ) and accepts a singular ``R``
+while the pencil is regular: :func:`solve_filter_dare` calls it on the dual
+problem. This module forms the pencil itself only where SciPy cannot answer:
+:func:`dare_pencil_eigenvalues`, and the diagnosis of *why* there is no
+stabilising solution when SciPy fails or returns a solution that does not
+stabilise (eigenvalues on the unit circle, named with their moduli, or a
+stable deflating subspace of the wrong dimension).
 """
 
 from __future__ import annotations
@@ -69,8 +78,8 @@ def _rcond(w: np.ndarray) -> float:
     return rank_tol(w) / s if s > 0 else 0.0
 
 
-def _reduced_pencil(a: np.ndarray, c: np.ndarray, q: np.ndarray, r: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The balanced, column-compressed ``2n × 2n`` pencil ``(m2, n2)`` and its scaling."""
+def _reduced_pencil(a: np.ndarray, c: np.ndarray, q: np.ndarray, r: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The balanced, column-compressed ``2n × 2n`` pencil ``(m2, n2)``."""
     n = a.shape[0]
     p = c.shape[0]
     # Control-form extended pencil of the dual problem (a, b) = (Aᵀ, Cᵀ).
@@ -104,7 +113,7 @@ def _reduced_pencil(a: np.ndarray, c: np.ndarray, q: np.ndarray, r: np.ndarray, 
     w = qq[:, p:].T
     m2 = w @ mm[:, : 2 * n]
     n2 = w @ nn[:, : 2 * n]
-    return m2, n2, sca
+    return m2, n2
 
 
 def _dare_data(A: object, C: object, Q: object, R: object, S: object | None) -> tuple[np.ndarray, ...]:
@@ -141,58 +150,31 @@ def solve_filter_dare(
         The QZ decomposition failed.
     """
     a, c, q, r, s = _dare_data(A, C, Q, R, S)
-    n = a.shape[0]
     bad = unobservable_modes(a, c, region="unstable-discrete")
     if bad:
         raise ExistenceError(
             f"the DARE has no stabilising solution: (C, A) is not detectable (mode λ = {bad[0]:.6g}, "
             f"|λ| = {abs(bad[0]):.6g}, is invisible in the measurements)"
         )
-
-    m2, n2, sca = _reduced_pencil(a, c, q, r, s)
     try:
-        aa, bb, alpha, beta, _, z = sla.ordqz(m2, n2, sort="iuc", output="real")
-    except (ValueError, np.linalg.LinAlgError) as exc:
-        # Reordering by |λ| < 1 is ill conditioned exactly when eigenvalues lie
-        # on the unit circle; LAPACK's tgsen then fails with some BLAS kernels
-        # (OpenBLAS SandyBridge) and not others. The unordered eigenvalues tell
-        # whether that, the existence condition below, is the cause.
-        alpha, beta = sla.eigvals(m2, n2, homogeneous_eigvals=True)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            mod = np.where(np.abs(beta) > 0, np.abs(alpha) / np.abs(beta), np.inf)
-        if not np.any(np.abs(mod - 1.0) < UNIT_CIRCLE_TOL):
-            raise SolverError(f"QZ decomposition of the DARE pencil failed: {exc}") from exc
-    with np.errstate(divide="ignore", invalid="ignore"):
-        mod = np.where(np.abs(beta) > 0, np.abs(alpha) / np.abs(beta), np.inf)
-    on_circle = np.abs(mod - 1.0) < UNIT_CIRCLE_TOL
-    if np.any(on_circle):
-        raise ExistenceError(
-            "the DARE has no stabilising solution: its pencil has eigenvalue(s) on the unit circle "
-            f"(moduli {np.sort(mod[on_circle])}); a mode of (C, A) on the unit circle is undetectable "
-            "or not excited by the noise Q"
-        )
-    stable = int(np.sum(mod < 1.0))
-    if stable != n:
-        raise ExistenceError(
-            f"the DARE pencil has {stable} stable eigenvalues, expected {n}: "
-            "(C, A) is not detectable or the problem is degenerate"
-        )
-    u11 = z[:n, :n]
-    u21 = z[n:, :n]
-    cond = np.linalg.cond(u11)
-    if not np.isfinite(cond) or cond > 1.0 / (1e3 * np.finfo(float).eps):
-        raise ExistenceError(
-            f"the stable deflating subspace cannot be solved for X (cond(U11) = {cond:.3g}); "
-            "the DARE has no stabilising solution"
-        )
-    x = np.linalg.solve(u11.T, u21.T).T
-    x *= sca[:n, None] * sca[None, :n]  # undo the balancing: X = D X̂ D
-    x = 0.5 * (x + x.T)
+        # SciPy's control-form DARE of the dual problem (a, b) = (Aᵀ, Cᵀ)
+        x = sla.solve_discrete_are(a.T, c.T, q, r, s=s)
+    except ValueError as exc:  # SciPy's ordered QZ failed (the data were validated above)
+        raise _no_solution(a, c, q, r, s, SolverError(f"QZ decomposition of the DARE pencil failed: {exc}")) from exc
+    except np.linalg.LinAlgError as exc:  # SciPy: the stable subspace is not the graph of an X
+        unsolvable = f"the stable deflating subspace cannot be solved for X ({exc}); the DARE has no stabilising solution"
+        raise _no_solution(a, c, q, r, s, ExistenceError(unsolvable)) from exc
     g = a @ x @ c.T + s
     wmat = c @ x @ c.T + r
     wpinv = np.linalg.pinv(wmat, rcond=_rcond(wmat), hermitian=True)
     gain = g @ wpinv
     ev = np.linalg.eigvals(a - gain @ c)
+    # With eigenvalues of the pencil on the unit circle the ordered QZ may still
+    # succeed and return a solution that is not stabilising; the pencil says why.
+    radius = float(np.max(np.abs(ev), initial=0.0))
+    if not radius < 1.0 - UNIT_CIRCLE_TOL:
+        unstable = f"the DARE has no stabilising solution: A − L C has spectral radius {radius:.6g}, expected < 1"
+        raise _no_solution(a, c, q, r, s, ExistenceError(unstable))
     return DareSolution(
         X=x,
         L=gain,
@@ -200,6 +182,32 @@ def solve_filter_dare(
         residual=dare_residual(a, c, q, r, s, x),
         innovation_rank=int(np.linalg.matrix_rank(wmat, tol=rank_tol(wmat))),
     )
+
+
+def _no_solution(
+    a: np.ndarray, c: np.ndarray, q: np.ndarray, r: np.ndarray, s: np.ndarray, otherwise: ExistenceError | SolverError
+) -> ExistenceError | SolverError:
+    """Why there is no stabilising solution, read off the eigenvalues of the extended pencil.
+
+    Eigenvalues on the unit circle (named with their moduli), or a stable
+    deflating subspace of the wrong dimension; else ``otherwise``.
+    """
+    n = a.shape[0]
+    mod = np.abs(dare_pencil_eigenvalues(a, c, q, r, s))
+    on_circle = np.abs(mod - 1.0) < UNIT_CIRCLE_TOL
+    if np.any(on_circle):
+        return ExistenceError(
+            "the DARE has no stabilising solution: its pencil has eigenvalue(s) on the unit circle "
+            f"(moduli {np.sort(mod[on_circle])}); a mode of (C, A) on the unit circle is undetectable "
+            "or not excited by the noise Q"
+        )
+    stable = int(np.sum(mod < 1.0))
+    if stable != n:
+        return ExistenceError(
+            f"the DARE pencil has {stable} stable eigenvalues, expected {n}: "
+            "(C, A) is not detectable or the problem is degenerate"
+        )
+    return otherwise
 
 
 def dare_pencil_eigenvalues(A: object, C: object, Q: object, R: object, S: object | None = None) -> np.ndarray:
@@ -214,7 +222,6 @@ def dare_pencil_eigenvalues(A: object, C: object, Q: object, R: object, S: objec
     on the circle. Infinite eigenvalues are returned as ``inf``.
     """
     a, c, q, r, s = _dare_data(A, C, Q, R, S)
-    m2, n2, _ = _reduced_pencil(a, c, q, r, s)
-    alpha, beta = sla.eigvals(m2, n2, homogeneous_eigvals=True)
+    alpha, beta = sla.eigvals(*_reduced_pencil(a, c, q, r, s), homogeneous_eigvals=True)
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where(np.abs(beta) > 0, alpha / np.where(beta == 0, 1, beta), np.inf)

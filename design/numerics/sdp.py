@@ -39,7 +39,7 @@ _CLARABEL_TIGHT = {
 }
 _NORM_LADDER = ((_CLARABEL_TIGHT, True), (_CLARABEL, False))
 SDP_BOUND_TOL = 1e-4
-"""Achieved J (sweep) against the SDP's bound γ: the LMIs hold to Clarabel's
+"""Achieved J (frequency response) against the SDP's bound γ: the LMIs hold to Clarabel's
 feasibility tolerance 1e-9 times the size of their entries; measured excess
 ≤ 2e-5 when ``G_d`` has full row normal rank."""
 SDP_BOUND_TOL_SINGULAR = 1e-3

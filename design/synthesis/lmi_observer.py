@@ -15,7 +15,7 @@ from fdisyn.models.sampled_data import SampledDataPlant, check_sampling
 from fdisyn.numerics.factorisation import co_inner_outer
 from fdisyn.numerics.linalg import normal_rank, psd_factor, spectral_radius
 from fdisyn.numerics.lmi_norms import _kyp_lhs
-from fdisyn.numerics.norms import DiscreteLTI, Eta, gramian, hinf_norm, system_norm
+from fdisyn.numerics.norms import DiscreteLTI, Eta, gramian, hinf_sweep, system_norm
 from fdisyn.numerics.sdp import SDP_BOUND_TOL, SDP_BOUND_TOL_SINGULAR, SdpStats, _balancing, _psd_part, _scale, _solve, _sym, _val
 from fdisyn.runtime.errors import ArgumentError, ExistenceError, InternalError, SolverError
 from fdisyn.runtime.gainfile import Generator
@@ -101,7 +101,7 @@ def _postfilter(
     # then O(1) even when ‖G_ef‖₋ is 1e-4 of ‖G_ef‖∞ (a scalar fault whose
     # lifted channel is nearly rank one).
     gef = DiscreteLTI(A=al, B=fx, C=c, D=np.zeros((p_, mf)))
-    sf = system_norm(gef, eta=eta, band=band if eta != "2" else None)
+    sf = hinf_sweep(gef, band=band).value if eta == "inf" else system_norm(gef, eta=eta, band=band if eta != "2" else None)
     if sf <= 0.0:
         raise ExistenceError(
             f"‖C (zI − A + LC)⁻¹ Fx‖_{eta} = 0: no post-filter makes the fault visible in this measure"
@@ -145,7 +145,7 @@ def _postfilter(
     # At the optimum both frequency inequalities are tight at every frequency
     # (G_rψ G_d co-inner), a degenerate SDP on which Clarabel often stops at
     # "almost solved"; that status is accepted here because the design is
-    # re-evaluated by the sweep and its bound checked in the certificate.
+    # re-evaluated on its frequency response and its bound checked in the certificate.
     stats = _solve(
         prob,
         what=f"post-filter (mixed H∞ / {'H₋' if eta == '-' else 'H2' if eta == '2' else 'H∞'} LMI)",
@@ -188,7 +188,7 @@ class LmiObserver:
     J_bound: float
     """The SDP's certified ``γ ≥ J_η`` on the design model."""
     J: Mapping[str, float]
-    """Achieved ``J`` on the design model, by the sweep/Gramian, for each η."""
+    """Achieved ``J`` on the design model, by :func:`~fdisyn.numerics.norms.system_norm`, for each η."""
     J_sampled_data: Mapping[str, float]
     """Achieved ``J`` on the true sampled-data system (Lemma 1's ``G_dJ``, ``G_fJ``)."""
     J_star: Mapping[str, float] | None
@@ -324,7 +324,7 @@ def lmi_diagnostic_observer(
             (j_model[eta] - bound) / bound if not bound <= 0 else 0.0,  # a NaN γ gives NaN: fails
             SDP_BOUND_TOL_SINGULAR if singular else SDP_BOUND_TOL,
             "<=",
-            "the SDP's γ bounds J_η; the sweep may exceed it only by solver round-off",
+            "the SDP's γ bounds J_η; the achieved J_η may exceed it only by solver round-off",
         ),
     ]
     info: dict[str, object] = {
@@ -377,7 +377,7 @@ def _peak(
 ) -> tuple[float, np.ndarray]:
     """Peak frequency of ``‖V G_ef‖`` over ``band`` and the input direction attaining it."""
     g = DiscreteLTI(A=al, B=fx, C=v @ c, D=np.zeros((v.shape[0], fx.shape[1])))
-    pk = hinf_norm(g, band=band)
+    pk = hinf_sweep(g, band=band)
     om = float(pk.omega if pk.omega is not None else 0.0)
     _, _, vh = np.linalg.svd(g.freqresp(np.array([om]))[0])
     return om, vh[0].conj()

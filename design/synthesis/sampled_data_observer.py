@@ -403,7 +403,7 @@ def optimal_diagnostic_observer(
     # Inner property on the order-s generator's error form (F, T E, W, 0) —
     # equal to G_rψ G_d under the Luenberger identities checked above, and
     # free of the cancellation through N# (size ~√κ) that the series
-    # realisation of :func:`performance` carries. The sweep is a route
+    # realisation of :func:`performance` carries. The frequency response is a route
     # independent of the identities below.
     gd_r = DiscreteLTI(A=F, B=T @ gd.B, C=W, D=np.zeros((V.shape[0], gd.n_in)))
     inner_max = hinf_norm(gd_r).value
@@ -415,7 +415,7 @@ def optimal_diagnostic_observer(
             abs(inner_max - 1.0),
             tol_inner,
             "<=",
-            "G_rψ G_d = G_di is co-inner (Theorem 1 proof); sweep exact to ~1e-12, data to ~eps·κ",
+            "G_rψ G_d = G_di is co-inner (Theorem 1 proof); AB13DD exact to ~1e-12, data to ~eps·κ",
         ),
         Check(
             "|‖(G_rψ G_d)ᵀ‖₋ − 1| (all singular values 1)",

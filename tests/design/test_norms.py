@@ -1,4 +1,4 @@
-"""Independent norm evaluations (sweep, Gramian) against slycot and closed forms."""
+"""Norm evaluations (level set, sweep, Gramian) against the frequency response, slycot and closed forms."""
 
 from __future__ import annotations
 
@@ -7,8 +7,10 @@ import math
 import control
 import numpy as np
 import pytest
+import slycot
+from fdisyn.numerics import norms
 from fdisyn.numerics.norms import DiscreteLTI, h2_norm, hinf_norm, hminus_index, series, singular_values, system_norm
-from fdisyn.runtime.errors import ArgumentError, ExistenceError
+from fdisyn.runtime.errors import ArgumentError, ExistenceError, SolverError
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -20,6 +22,11 @@ from tests.helpers import random_stable
 # 5.19562248 where the peak, checked in extended precision, is 5.19562253.)
 AGREE = 1e-9
 TOL_SLYCOT = 1e-12
+# The H∞ norm is AB13DD's itself (python-control's norm runs the same routine), so it is held to the
+# frequency response instead: attained at the frequency it names, and no frequency above it. AB13DD
+# evaluates the gain in its own (balanced, Hessenberg) coordinates: measured ≤ 2e-12 from σ_max at
+# its frequency over 300 random systems with poles up to radius 0.999.
+ATTAINED = 1e-11
 
 
 def _ctrl(sys: DiscreteLTI):
@@ -28,11 +35,14 @@ def _ctrl(sys: DiscreteLTI):
 
 @settings(derandomize=True, max_examples=25, deadline=None)
 @given(n=st.integers(1, 8), m=st.integers(1, 3), p=st.integers(1, 3), seed=st.integers(0, 2**16))
-def test_hinf_and_h2_match_slycot(n: int, m: int, p: int, seed: int) -> None:
+def test_hinf_is_the_peak_of_the_response_and_h2_matches_slycot(n: int, m: int, p: int, seed: int) -> None:
     sys = random_stable(np.random.default_rng(seed), n, m, p, radius=0.97)
-    ref_inf = control.norm(_ctrl(sys), "inf", tol=TOL_SLYCOT)
+    hinf = hinf_norm(sys)
+    assert hinf.omega is not None and 0.0 <= hinf.omega <= math.pi
+    assert abs(singular_values(sys, np.array([hinf.omega]))[0, 0] - hinf.value) <= ATTAINED * hinf.value
+    grid = np.concatenate([np.linspace(0.0, math.pi, 20001), hinf.omega + np.linspace(-1e-3, 1e-3, 201)])
+    assert singular_values(sys, np.clip(grid, 0.0, math.pi))[:, 0].max() <= hinf.value * (1 + ATTAINED)
     ref_2 = control.norm(_ctrl(sys), 2)
-    assert abs(hinf_norm(sys).value - ref_inf) <= AGREE * ref_inf
     assert abs(h2_norm(sys) - ref_2) <= AGREE * ref_2
 
 
@@ -114,3 +124,28 @@ def test_first_order_closed_forms() -> None:
     assert abs(hinf_norm(g).value - b * c / (1 - a)) <= 1e-14
     assert abs(h2_norm(g) - b * c / math.sqrt(1 - a * a)) <= 1e-14
     assert abs(hminus_index(g).value - b * c / (1 + a)) <= 1e-12  # minimum at ω = π
+
+
+def test_level_set_retries_a_larger_tolerance_then_names_the_routine(monkeypatch) -> None:
+    """AB13DD's info = 4 (no convergence in 30 iterations) is retried at 1e-9, SLICOT's remedy;
+    any other failure is a SolverError naming the routine and what to do."""
+    sys = random_stable(np.random.default_rng(4), 3, 1, 1)
+    real = slycot.ab13dd
+    tols: list[float] = []
+
+    def flaky(*args):
+        tols.append(args[-1])
+        if args[-1] < 1e-10:
+            raise slycot.exceptions.SlycotArithmeticError("The tolerance is too small", 4)
+        return real(*args)
+
+    monkeypatch.setattr(norms.slycot, "ab13dd", flaky)
+    assert hinf_norm(sys).value == pytest.approx(real("D", "I", "S", "D", 3, 1, 1, sys.A, np.eye(3), sys.B, sys.C, sys.D, 1e-9)[0])
+    assert tols == [norms.HINF_TOL, 1e-9]
+
+    def broken(*args):
+        raise slycot.exceptions.SlycotArithmeticError("The SVD algorithm did not converge", 3)
+
+    monkeypatch.setattr(norms.slycot, "ab13dd", broken)
+    with pytest.raises(SolverError, match=r"SLICOT AB13DD could not compute the H∞ norm \(info = 3: .*rescale"):
+        hinf_norm(sys)

@@ -5,9 +5,9 @@ nonlinear systems", Shanghai Jiao Tong University, c. 1991 (equation and
 figure numbers below are theirs). The four blocks of their fig. 1 run inside
 one CasADi ``Function``
 ``(state, u, y) → (state_next, r, J, alarm, isolated, status)``, the step
-contract shared with every fdisyn diagnoser. It is pure SX with hand-unrolled
-LDLᵀ factorisations (no linear-solver plugin), so it code-generates to
-allocation-free C.
+contract shared with every fdisyn diagnoser. It is pure SX with the LDLᵀ
+factorisations unrolled by ``casadi.ldl`` (no linear-solver plugin), so it
+code-generates to allocation-free C.
 
 Block 1 — fast detection (eqs. (2.3)–(2.4)). An EKF on the model with
 parameters ``θ_e`` (the nominal ``θ0`` until re-parameterised), in the

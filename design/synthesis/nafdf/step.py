@@ -40,49 +40,29 @@ def _sym(a: ca.SX) -> ca.SX:
     return 0.5 * (a + a.T)
 
 
-def _ldl(a: ca.SX) -> tuple[ca.SX, list[ca.SX]]:
-    """Unrolled LDLᵀ of a symmetric matrix without pivoting: unit lower ``L`` and the pivots ``d``.
+def _ldl(a: ca.SX) -> tuple[ca.SX, ca.SX]:
+    """LDLᵀ of a symmetric matrix without pivoting (``casadi.ldl``, natural order): ``Lᵀ`` and the pivots ``d``.
 
-    All pivots are positive iff the matrix is positive definite (Sylvester);
-    the factorisation is then backward stable without pivoting.
+    ``Lᵀ`` holds the strictly upper part of the unit triangular factor; only
+    the upper triangle of ``a`` is read. All pivots are positive iff the matrix
+    is positive definite (Sylvester); the factorisation is then backward stable
+    without pivoting. The AMD reordering is off, so the pivots are the ratios of
+    leading principal minors; a NaN in the upper triangle makes a pivot NaN,
+    which fails the ``d > 0`` test of :func:`_positive`.
     """
-    k = a.shape[0]
-    low = ca.SX.eye(k)
-    d: list[ca.SX] = []
-    for j in range(k):
-        dj = a[j, j]
-        for s in range(j):
-            dj = dj - low[j, s] * low[j, s] * d[s]
-        d.append(dj)
-        for i in range(j + 1, k):
-            v = a[i, j]
-            for s in range(j):
-                v = v - low[i, s] * low[j, s] * d[s]
-            low[i, j] = v / dj
-    return low, d
+    d, lt, _ = ca.ldl(a, False)
+    return lt, d
 
 
-def _ldl_solve(low: ca.SX, d: list[ca.SX], b: ca.SX) -> ca.SX:
-    """Solve ``L D Lᵀ x = b`` (``b`` may have several columns)."""
-    k = low.shape[0]
-    cols = []
-    for c in range(b.shape[1]):
-        z = [b[i, c] for i in range(k)]
-        for i in range(k):
-            for s in range(i):
-                z[i] = z[i] - low[i, s] * z[s]
-        z = [z[i] / d[i] for i in range(k)]
-        for i in reversed(range(k)):
-            for s in range(i + 1, k):
-                z[i] = z[i] - low[s, i] * z[s]
-        cols.append(ca.vertcat(*z))
-    return ca.horzcat(*cols) if cols else ca.SX(k, 0)
+def _ldl_solve(lt: ca.SX, d: ca.SX, b: ca.SX) -> ca.SX:
+    """Solve ``L D Lᵀ x = b`` (``b`` may have several columns) with the factors of :func:`_ldl`."""
+    return ca.ldl_solve(b, d, lt, list(range(d.numel())))
 
 
-def _positive(d: list[ca.SX]) -> ca.SX:
+def _positive(d: ca.SX) -> ca.SX:
     ok = ca.SX(1)
-    for dj in d:
-        ok = ca.logic_and(ok, dj > 0)
+    for j in range(d.numel()):
+        ok = ca.logic_and(ok, d[j] > 0)
     return ok
 
 
