@@ -61,6 +61,7 @@ from fdisyn.runtime.names import (
     check_signal_names,
     shown,
 )
+from fdisyn.runtime.values import real_number
 
 __all__ = [
     "FORMAT",
@@ -549,17 +550,13 @@ def gain_file_from_dict(doc: object, *, source: str = "gain file") -> GainFile:
 
 
 def _check_holds(value: object, bound: object, relation: object) -> bool:
-    """``value <relation> bound`` with both finite numbers (booleans and strings are not numbers)."""
-    if isinstance(value, bool) or isinstance(bound, bool) or not isinstance(value, (int, float)) or not isinstance(bound, (int, float)):
-        return False
-    try:
-        if not (math.isfinite(value) and math.isfinite(bound)):
-            return False
-    except OverflowError:  # an integer beyond the double range
+    """``value <relation> bound`` with both finite numbers (:func:`~fdisyn.runtime.values.real_number`)."""
+    v, b = real_number(value), real_number(bound)
+    if v is None or b is None or not (math.isfinite(v) and math.isfinite(b)):
         return False
     if relation == "<=":
-        return value <= bound
-    return relation == ">=" and value >= bound
+        return v <= b
+    return relation == ">=" and v >= b
 
 
 def _check_certificate_checks(node: object, where: str, depth: int = 0) -> None:
@@ -618,13 +615,10 @@ class _Reader:
 
     def number(self, key: str) -> float:
         v = self._get(key)
-        try:
-            ok = not isinstance(v, bool) and isinstance(v, (int, float)) and math.isfinite(v)
-        except OverflowError:  # an integer beyond the double range
-            ok = False
-        if not ok:
+        x = real_number(v)
+        if x is None or not math.isfinite(x):
             raise GainFileError(f"{self.where}: field {key!r} must be a finite number, found {shown(v)}")
-        return float(v)  # type: ignore[arg-type]
+        return x
 
     def integer(self, key: str, *, minimum: int | None = None) -> int:
         v = self._get(key)

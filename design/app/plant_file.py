@@ -106,6 +106,7 @@ the transitions from the onset sample on.
 
 from __future__ import annotations
 
+import math
 import tomllib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -115,7 +116,7 @@ from typing import Any
 import numpy as np
 from fdisyn.evaluation.simulate import SENSOR_FAULT_KINDS, SensorFaultSpec, Signal, simulate_linear
 from fdisyn.models.linear import LinearPlant
-from fdisyn.models.problem import Batch, Problem, Scenario, check_option, get_problem, short_repr
+from fdisyn.models.problem import Batch, Problem, Scenario, check_option, get_problem
 from fdisyn.models.sampled_data import SampledDataPlant
 from fdisyn.models.sampling import van_loan
 from fdisyn.runtime.errors import FdisynError, ShapeError, SpecError
@@ -128,7 +129,9 @@ from fdisyn.runtime.names import (
     check_fault_name,
     check_label,
     check_signal_names,
+    shown,
 )
+from fdisyn.runtime.values import real_number
 from fdisyn.synthesis.certificate import Certificate
 from fdisyn.synthesis.linear_diagnoser import FaultClass, default_fault_classes, linear_diagnoser
 from fdisyn.synthesis.lmi_observer import lmi_diagnostic_observer
@@ -240,7 +243,7 @@ allocator."""
 class _Section:
     def __init__(self, doc: Any, where: str, allowed: set[str]) -> None:
         if not isinstance(doc, Mapping):
-            raise SpecError(f"{where} must be a table (key = value pairs), got {short_repr(doc)}")
+            raise SpecError(f"{where} must be a table (key = value pairs), got {shown(doc)}")
         unknown = sorted(set(doc) - allowed)
         if unknown:
             raise SpecError(f"{where}: unknown key(s) {unknown}; allowed: {sorted(allowed)}")
@@ -288,25 +291,26 @@ class _Section:
         v = self.get(key, default, required=required)
         if v is None:
             return None
-        if isinstance(v, bool) or not isinstance(v, (int, float)):
-            raise SpecError(f"{self.where}.{key} must be a number, got {short_repr(v)}")
-        if not np.isfinite(v):
-            raise SpecError(f"{self.where}.{key} must be a finite number, got {v!r}")
-        return float(v)
+        x = real_number(v)
+        if x is None:
+            raise SpecError(f"{self.where}.{key} must be a number, got {shown(v)}")
+        if not math.isfinite(x):
+            raise SpecError(f"{self.where}.{key} must be a finite number, got {shown(v)}")
+        return x
 
     def vector(self, key: str, size: int) -> np.ndarray:
         """A list of ``size`` finite numbers (default: zeros)."""
         v = self.get(key, [0.0] * size)
         if not isinstance(v, list) or not all(_is_number(x) for x in v):
-            raise SpecError(f"{self.where}.{key} must be a list of {size} numbers, got {short_repr(v)}")
+            raise SpecError(f"{self.where}.{key} must be a list of {size} numbers, got {shown(v)}")
         try:
             a = np.asarray(v, dtype=float)
         except OverflowError:
-            raise SpecError(f"{self.where}.{key} must hold finite numbers, got {short_repr(v)}") from None
+            raise SpecError(f"{self.where}.{key} must hold finite numbers, got {shown(v)}") from None
         if a.shape != (size,):
             raise SpecError(f"{self.where}.{key} must have {size} entries, got {a.size}")
         if not np.all(np.isfinite(a)):
-            raise SpecError(f"{self.where}.{key} must hold finite numbers, got {short_repr(v)}")
+            raise SpecError(f"{self.where}.{key} must hold finite numbers, got {shown(v)}")
         return a
 
     def matrix(self, key: str, *, required: bool = False) -> np.ndarray | None:
@@ -318,23 +322,23 @@ class _Section:
         label = f"{self.where}.{self.aliases.get(key, key)}"
         # numbers only: NumPy would turn "1.5" and true into 1.5 and 1.0 without a word
         if not (_is_number(v) or (isinstance(v, list) and all(_is_number(x) or (isinstance(x, list) and all(map(_is_number, x))) for x in v))):
-            raise SpecError(f"{label} must be a matrix of numbers (a list of rows), got {short_repr(v)}")
+            raise SpecError(f"{label} must be a matrix of numbers (a list of rows), got {shown(v)}")
         try:
             a = np.asarray(v, dtype=float)
         except ValueError:  # rows of different lengths
-            raise SpecError(f"{label} must be a matrix of numbers (a list of rows of one length), got {short_repr(v)}") from None
+            raise SpecError(f"{label} must be a matrix of numbers (a list of rows of one length), got {shown(v)}") from None
         except OverflowError:  # an integer beyond the double range
-            raise SpecError(f"{label} must hold finite numbers, got {short_repr(v)}") from None
+            raise SpecError(f"{label} must hold finite numbers, got {shown(v)}") from None
         if a.ndim == 1:
             a = a.reshape(-1, 1) if key in ("B", "E", "Fx") else a.reshape(1, -1)
         if a.ndim != 2:
-            raise SpecError(f"{label} must be a matrix (a list of rows), got {short_repr(v)}")
+            raise SpecError(f"{label} must be a matrix (a list of rows), got {shown(v)}")
         return a
 
 
 def _is_number(x: Any) -> bool:
-    """An integer or a float as TOML writes them: a boolean or a string is no number, whatever NumPy makes of it."""
-    return isinstance(x, (int, float)) and not isinstance(x, bool)
+    """A number as :func:`~fdisyn.runtime.values.real_number` reads it: a boolean or a string is no number, whatever NumPy makes of it."""
+    return real_number(x) is not None
 
 
 def _signal(d: Any, where: str) -> Signal:
@@ -343,7 +347,7 @@ def _signal(d: Any, where: str) -> Signal:
     sec = _Section(d, where, {"kind", "offset", "amplitude", "period", "start"})
     kind = sec.get("kind", "constant")
     if kind not in Signal.KINDS:
-        raise SpecError(f"{where}.kind must be one of {list(Signal.KINDS)}, got {short_repr(kind)}")
+        raise SpecError(f"{where}.kind must be one of {list(Signal.KINDS)}, got {shown(kind)}")
     # every value is read as written: 0 is a value, not "use the default"
     return Signal(
         kind=kind,
@@ -400,7 +404,7 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
             mod.aliases[theirs] = ours
     time = mod.get("time", "continuous")
     if time not in ("continuous", "discrete"):
-        raise SpecError(f"{path} [model].time must be 'continuous', 'discrete' or 'nonlinear', got {short_repr(time)}")
+        raise SpecError(f"{path} [model].time must be 'continuous', 'discrete' or 'nonlinear', got {shown(time)}")
     ts = mod.number("Ts", required=True)
     if ts is None or ts <= 0:  # number() has refused NaN and ±inf
         raise SpecError(f"{path} [model].{mod.aliases.get('Ts', 'Ts')} must be a positive sample time in seconds, got {ts!r}")
@@ -434,7 +438,7 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
     des = _Section(top.get("design", {}), f"{path} [design]", set(_DESIGN_KEYS))
     method = des.get("method", "kalman_uio")
     if not isinstance(method, str) or method not in LINEAR_METHODS:
-        raise SpecError(f"{path} [design].method {short_repr(method)} is not one of {sorted(LINEAR_METHODS)}")
+        raise SpecError(f"{path} [design].method {shown(method)} is not one of {sorted(LINEAR_METHODS)}")
     _diagnoser_name(name, method, path)
     white = method in ("sampled_data_observer", "lmi")
     if white and time != "continuous":
@@ -453,9 +457,9 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
     if method == "uio_pole_placement":
         _poles(des.get("poles", required=True), design_plant.n, f"{path} [design].poles")
     if "eta" in des.doc and des.get("eta") not in ETAS:
-        raise SpecError(f"{path} [design].eta must be one of {list(ETAS)} (the fault measure), got {short_repr(des.get('eta'))}")
+        raise SpecError(f"{path} [design].eta must be one of {list(ETAS)} (the fault measure), got {shown(des.get('eta'))}")
     if "sampling" in des.doc and des.get("sampling") not in ("direct", "indirect"):
-        raise SpecError(f"{path} [design].sampling must be 'direct' (Theorem 1) or 'indirect' (ZOH first), got {short_repr(des.get('sampling'))}")
+        raise SpecError(f"{path} [design].sampling must be 'direct' (Theorem 1) or 'indirect' (ZOH first), got {shown(des.get('sampling'))}")
     if "bank" in des.doc and des.entries("bank") == []:  # not replaced by the default: an empty bank is a mistake
         raise SpecError(f"{path} [design].bank is empty; expected groups of outputs, one observer each, or no key for one observer on all outputs")
     groups = des.entries("bank") or [list(physical.outputs)]
@@ -525,7 +529,7 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
         if fname is not None and (
             not isinstance(fname, str) or (fname not in known if known is not None else not set(fname.split("|")) <= sources)
         ):
-            raise SpecError(f"{w}.fault {short_repr(fname)} is not a fault class; classes: {sorted(known or sources)}")
+            raise SpecError(f"{w}.fault {shown(fname)} is not a fault class; classes: {sorted(known or sources)}")
         cfs = []
         for j, f in enumerate(sc.entries("component_faults")):
             fs = _Section(f, f"{w}.component_faults[{j}]", {"fault", "value"})
@@ -538,9 +542,9 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
             fs = _Section(f, f"{w}.sensor_faults[{j}]", {"sensor", "kind", "value"})
             sensor, kind = fs.get("sensor", required=True), fs.get("kind", required=True)
             if sensor not in physical.outputs:
-                raise SpecError(f"{w}.sensor_faults[{j}].sensor {short_repr(sensor)} is not an output; outputs are {list(physical.outputs)}")
+                raise SpecError(f"{w}.sensor_faults[{j}].sensor {shown(sensor)} is not an output; outputs are {list(physical.outputs)}")
             if kind not in SENSOR_FAULT_KINDS:
-                raise SpecError(f"{w}.sensor_faults[{j}].kind must be one of {list(SENSOR_FAULT_KINDS)}, got {short_repr(kind)}")
+                raise SpecError(f"{w}.sensor_faults[{j}].kind must be one of {list(SENSOR_FAULT_KINDS)}, got {shown(kind)}")
             sfs.append(SensorFaultSpec(sensor, kind, float(fs.number("value", required=True))))  # type: ignore[arg-type]
         duration = sc.duration("duration", Ts=ts)
         onset, end = sc.number("onset"), sc.number("end")
@@ -584,13 +588,14 @@ def _poles(value: Any, n: int, where: str) -> list[float]:
     TOML has no complex numbers, so complex pairs cannot be written; a string or
     a nested list would otherwise reach NumPy's ``complex()`` and fail there.
     """
-    if not isinstance(value, list) or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in value):
-        raise SpecError(f"{where} must be a list of {n} real numbers inside (-1, 1), one per state; got {short_repr(value)}")
+    if not isinstance(value, list) or not all(_is_number(x) for x in value):
+        raise SpecError(f"{where} must be a list of {n} real numbers inside (-1, 1), one per state; got {shown(value)}")
     if len(value) != n:
         raise SpecError(f"{where} must have {n} poles (one per state), got {len(value)}")
-    if not all(np.isfinite(x) and abs(x) < 1.0 for x in value):
+    poles = np.array([real_number(x) for x in value], dtype=float)  # an integer beyond the double range is inf
+    if not np.all(np.abs(poles) < 1.0):
         raise SpecError(f"{where} must lie strictly inside the unit circle (a discrete observer's poles), got {value}")
-    return [float(x) for x in value]
+    return poles.tolist()
 
 
 def _check_fault_window(where: str, fault: str | None, onset: float | None, end: float | None, duration: float, injects: bool) -> None:
@@ -730,7 +735,7 @@ def _nonlinear_problem(path: Path, top: _Section, name: str) -> Problem:
         if not isinstance(mod.get(key, required=True), Mapping):
             raise SpecError(f"{path} [model].{key} must be a table such as {{ x = \"...\" }}")
     if not isinstance(mod.get("constants", {}), Mapping):
-        raise SpecError(f"{path} [model].constants must be a table such as {{ g = 9.81 }}, got {short_repr(mod.get('constants'))}")
+        raise SpecError(f"{path} [model].constants must be a table such as {{ g = 9.81 }}, got {shown(mod.get('constants'))}")
     try:
         plant = NonlinearPlant.from_expressions(
             states=names["states"],

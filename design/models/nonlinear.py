@@ -65,7 +65,6 @@ import io
 import keyword
 import math
 import re
-import reprlib
 import tokenize
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -77,7 +76,8 @@ from fdisyn.models.linear import frozen_array, identifier_names
 from fdisyn.models.sampling import check_sample_time
 from fdisyn.numerics.linalg import as_matrix, real_array
 from fdisyn.runtime.errors import NominalValueError, NonDifferentiableError, ShapeError, SpecError
-from fdisyn.runtime.names import check_distinct
+from fdisyn.runtime.names import check_distinct, shown
+from fdisyn.runtime.values import real_number
 
 __all__ = [
     "MAX_EXPRESSION_CHARS",
@@ -90,7 +90,6 @@ __all__ = [
     "covariance_matrix",
     "function_from_program",
     "model_program",
-    "short_repr",
 ]
 
 MAX_EXPRESSION_CHARS = 10_000
@@ -277,7 +276,7 @@ def _as_sx_function(fun: object, name: str, in_shapes: Sequence[int], out_size: 
         out = fun.expand()(*args) if fun.is_a("MXFunction") else fun(*args)
     except RuntimeError as exc:
         first = next((ln.strip() for ln in str(exc).splitlines() if ln.strip()), type(exc).__name__)  # CasADi's text runs to many lines
-        raise SpecError(f"{name} cannot be evaluated on SX symbols (it must be expandable to SX): {short_repr(first, 200)}") from exc
+        raise SpecError(f"{name} cannot be evaluated on SX symbols (it must be expandable to SX): {shown(first, 200)}") from exc
     out = ca.densify(ca.reshape(ca.SX(out), out_size, 1))
     wrapped = ca.Function(name, sym, [out], list(in_names), [out_name])
     _check_model_function(wrapped, name)
@@ -376,29 +375,29 @@ def function_from_program(
 
     def index(v: object, limit: int, what: str) -> int:
         if isinstance(v, bool) or not isinstance(v, int) or not 0 <= v < limit:
-            raise SpecError(f"{name}: {what} must be an integer in 0..{limit - 1}; found {short_repr(v)}")
+            raise SpecError(f"{name}: {what} must be an integer in 0..{limit - 1}; found {shown(v)}")
         return v
 
     for i, op in enumerate(ops):
         if not isinstance(op, list) or not op or not isinstance(op[0], str):
-            raise SpecError(f"{name}.ops[{i}] must be a list starting with an operation name; found {short_repr(op)}")
+            raise SpecError(f"{name}.ops[{i}] must be a list starting with an operation name; found {shown(op)}")
         kind = op[0]
         if kind == "input":
             if len(op) != 3:
-                raise SpecError(f"{name}.ops[{i}]: 'input' takes a port and an entry; found {short_repr(op)}")
+                raise SpecError(f"{name}.ops[{i}]: 'input' takes a port and an entry; found {shown(op)}")
             port = index(op[1], len(in_sizes), f"ops[{i}] port")
             index(op[2], in_sizes[port], f"ops[{i}] entry of {in_names[port]}")
         elif kind == "const":
             if len(op) != 2 or isinstance(op[1], bool) or not isinstance(op[1], (int, float)) or not math.isfinite(op[1]):
-                raise SpecError(f"{name}.ops[{i}]: 'const' takes one finite number; found {short_repr(op)}")
+                raise SpecError(f"{name}.ops[{i}]: 'const' takes one finite number; found {shown(op)}")
         elif kind in SMOOTH_OPERATIONS:
             arity = 2 if kind in _BINARY_OPERATIONS else 1
             if len(op) != arity + 1:
-                raise SpecError(f"{name}.ops[{i}]: {kind!r} takes {arity} operand(s); found {short_repr(op)}")
+                raise SpecError(f"{name}.ops[{i}]: {kind!r} takes {arity} operand(s); found {shown(op)}")
             for v in op[1:]:
                 index(v, i, f"ops[{i}] operand (an earlier value)")
         else:
-            raise SpecError(f"{name}.ops[{i}]: unknown operation {short_repr(kind)}; expected 'input', 'const' or one of {sorted(SMOOTH_OPERATIONS)}")
+            raise SpecError(f"{name}.ops[{i}]: unknown operation {shown(kind)}; expected 'input', 'const' or one of {sorted(SMOOTH_OPERATIONS)}")
     for k, v in enumerate(out):
         index(v, len(ops), f"out[{k}]")
 
@@ -416,17 +415,6 @@ def function_from_program(
             values.append(ca.SX.unary(_UNARY_OPERATIONS[kind], values[op[1]]))
     result = ca.vertcat(*[values[v] for v in out]) if out else ca.SX(0, 1)
     return ca.Function(name, sym, [ca.densify(result)], list(in_names), [out_name])
-
-
-_REPR = reprlib.Repr()
-_REPR.maxlevel, _REPR.maxlist, _REPR.maxdict, _REPR.maxstring, _REPR.maxother = 2, 4, 4, 40, 40
-
-
-def short_repr(value: object, limit: int = 60) -> str:
-    """A bounded ``repr(value)``: error messages stay one short line whatever a file holds
-    (``reprlib`` also stops at a nesting depth, where ``repr`` of a deeply nested list would recurse)."""
-    text = _REPR.repr(value)
-    return text if len(text) <= limit else text[: limit - 1] + "…"
 
 
 def _operator_count(text: str) -> int:
@@ -467,7 +455,7 @@ class _ExpressionCompiler:
 
     def compile(self, text: str) -> ca.SX:
         if not isinstance(text, str) or not text.strip():
-            raise SpecError(f"{self.where}: expected a non-empty expression string; got {short_repr(text)}")
+            raise SpecError(f"{self.where}: expected a non-empty expression string; got {shown(text)}")
         self.text = text
         if len(text) > MAX_EXPRESSION_CHARS:
             raise SpecError(
@@ -484,22 +472,22 @@ class _ExpressionCompiler:
         try:
             tree = ast.parse(self.source, mode="eval")
         except SyntaxError as exc:
-            raise SpecError(f"{self.where}: cannot parse expression {short_repr(text)}: {exc.msg}") from None
+            raise SpecError(f"{self.where}: cannot parse expression {shown(text)}: {exc.msg}") from None
         except (RecursionError, MemoryError, ValueError) as exc:
             # ValueError: an integer literal beyond Python's digit limit; the others: nesting too deep
-            raise SpecError(f"{self.where}: cannot parse expression {short_repr(text)}: {type(exc).__name__}") from None
+            raise SpecError(f"{self.where}: cannot parse expression {shown(text)}: {type(exc).__name__}") from None
         return self._evaluate(tree.body)
 
     def _fail_nonsmooth(self, what: str) -> NonDifferentiableError:
         return NonDifferentiableError(
-            f"{self.where}: expression {short_repr(self.text)} uses {what}, which is not differentiable everywhere; "
+            f"{self.where}: expression {shown(self.text)} uses {what}, which is not differentiable everywhere; "
             f"expected only smooth operations ({', '.join(sorted(SMOOTH_FUNCTIONS))}, +, −, *, /, ^ or **), "
             "because every Jacobian comes from automatic differentiation"
         )
 
     def _segment(self, node: ast.AST) -> str:
         seg = ast.get_source_segment(self.source, node)
-        return short_repr(seg if seg is not None else self.text)
+        return shown(seg if seg is not None else self.text)
 
     def _evaluate(self, root: ast.AST) -> ca.SX:
         """Post-order walk with an explicit stack: check each node on the way down, combine on the way up."""
@@ -534,37 +522,37 @@ class _ExpressionCompiler:
             if isinstance(node.op, (ast.Mod, ast.FloorDiv)):
                 raise self._fail_nonsmooth("the operator '%' or '//'")
             if not isinstance(node.op, (ast.Add, ast.Sub, ast.Mult, ast.Div, ast.Pow)):
-                raise SpecError(f"{self.where}: operator {type(node.op).__name__} is not allowed in {short_repr(self.text)}")
+                raise SpecError(f"{self.where}: operator {type(node.op).__name__} is not allowed in {shown(self.text)}")
         elif isinstance(node, ast.UnaryOp):
             if not isinstance(node.op, (ast.USub, ast.UAdd)):
                 raise self._fail_nonsmooth(f"the operator {type(node.op).__name__}")
         elif isinstance(node, ast.Constant):
             if isinstance(node.value, bool) or not isinstance(node.value, (int, float)):
-                raise SpecError(f"{self.where}: constant {short_repr(node.value)} in {short_repr(self.text)} is not a real number")
+                raise SpecError(f"{self.where}: constant {shown(node.value)} in {shown(self.text)} is not a real number")
         elif isinstance(node, ast.Name):
             if node.id not in self.symbols and node.id not in self.constants:
                 allowed = sorted([*self.symbols, *self.constants])
-                raise SpecError(f"{self.where}: unknown name {node.id!r} in {short_repr(self.text)}; allowed names are {allowed}")
+                raise SpecError(f"{self.where}: unknown name {node.id!r} in {shown(self.text)}; allowed names are {allowed}")
         elif isinstance(node, ast.Call):
             if not isinstance(node.func, ast.Name) or node.keywords:
-                raise SpecError(f"{self.where}: only plain calls such as sin(x) are allowed in {short_repr(self.text)}")
+                raise SpecError(f"{self.where}: only plain calls such as sin(x) are allowed in {shown(self.text)}")
             fname = node.func.id
             if fname in _NONSMOOTH_NAMES:
                 raise self._fail_nonsmooth(f"the function {fname}()")
             if fname not in SMOOTH_FUNCTIONS:
                 raise SpecError(
-                    f"{self.where}: unknown function {fname!r} in {short_repr(self.text)}; allowed: {sorted(SMOOTH_FUNCTIONS)}"
+                    f"{self.where}: unknown function {fname!r} in {shown(self.text)}; allowed: {sorted(SMOOTH_FUNCTIONS)}"
                 )
             arity = _BINARY_FUNCTIONS.get(fname, 1)
             if len(node.args) != arity:
                 raise SpecError(
                     f"{self.where}: {fname}() takes {arity} argument{'s' if arity > 1 else ''}, "
-                    f"got {len(node.args)} in {short_repr(self.text)}"
+                    f"got {len(node.args)} in {shown(self.text)}"
                 )
         elif isinstance(node, (ast.Compare, ast.BoolOp, ast.IfExp)):
             raise self._fail_nonsmooth("a comparison or a conditional")
         else:
-            raise SpecError(f"{self.where}: {type(node).__name__} is not allowed in the expression {short_repr(self.text)}")
+            raise SpecError(f"{self.where}: {type(node).__name__} is not allowed in the expression {shown(self.text)}")
 
     def _combine(self, node: ast.AST, args: list[ca.SX]) -> ca.SX:
         if isinstance(node, ast.BinOp):
@@ -589,7 +577,7 @@ class _ExpressionCompiler:
                 value = math.inf
             if not math.isfinite(value):
                 raise SpecError(
-                    f"{self.where}: the number {self._segment(node)} in {short_repr(self.text)} is not a finite double; "
+                    f"{self.where}: the number {self._segment(node)} in {shown(self.text)} is not a finite double; "
                     "expected a finite number"
                 )
             return ca.SX(value)
@@ -603,7 +591,7 @@ class _ExpressionCompiler:
         # CasADi folds constant operands at once: a non-finite result is a NaN/inf constant in the model
         if out.is_constant() and not math.isfinite(float(out)):
             raise SpecError(
-                f"{self.where}: the constant subexpression {self._segment(node)} in {short_repr(self.text)} evaluates to "
+                f"{self.where}: the constant subexpression {self._segment(node)} in {shown(self.text)} evaluates to "
                 f"{float(out)!r}; expected a finite number"
             )
         return out
@@ -741,8 +729,8 @@ class NonlinearPlant:
             raise SpecError(f"constant names {clash} clash with signal or parameter names")
         for what, given, expected in (("f", f, st), ("h", h, out)):
             if not isinstance(given, Mapping):
-                raise SpecError(f"{what}: expected a table of expression strings by name; got {short_repr(given)}")
-            wrong = {k: short_repr(v) for k, v in given.items() if not isinstance(v, str)}
+                raise SpecError(f"{what}: expected a table of expression strings by name; got {shown(given)}")
+            wrong = {k: shown(v) for k, v in given.items() if not isinstance(v, str)}
             if wrong:
                 raise SpecError(f"{what}: expressions must be strings; got {wrong}")
             keys = set(given)
@@ -853,7 +841,7 @@ class NonlinearPlant:
             row = rows[fun][i]
             what = f"{fun}[{row!r}]" if "_" not in key else f"∂{fun}[{row!r}]/∂{cols[key.split('_', 1)[1]][j]}"
             exprs = (self.expressions or {}).get(fun)
-            text = f" (the expression {short_repr(exprs[row])})" if isinstance(exprs, Mapping) and isinstance(exprs.get(row), str) else ""
+            text = f" (the expression {shown(exprs[row])})" if isinstance(exprs, Mapping) and isinstance(exprs.get(row), str) else ""
             raise SpecError(
                 f"the model is not finite at {point}: {what} = {float(vals[key][i, j])!r}{text}; "
                 "expected finite values of f, h and their Jacobians there"
@@ -912,19 +900,16 @@ def _constants(constants: object) -> dict[str, float]:
     if constants is None:
         return {}
     if not isinstance(constants, Mapping):
-        raise SpecError(f"constants must be a table of names and numbers; got {short_repr(constants)}")
+        raise SpecError(f"constants must be a table of names and numbers; got {shown(constants)}")
     out: dict[str, float] = {}
     for k, v in constants.items():
         if not isinstance(k, str) or not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", k):
-            raise SpecError(f"constant name {short_repr(k)} is not an identifier (letters, digits, underscore; no leading digit)")
-        if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
-            raise SpecError(f"constant {k!r} must be a number; got {short_repr(v)}")
-        try:
-            fv = float(v)
-        except OverflowError:
-            fv = math.inf
+            raise SpecError(f"constant name {shown(k)} is not an identifier (letters, digits, underscore; no leading digit)")
+        fv = real_number(v)
+        if fv is None:
+            raise SpecError(f"constant {k!r} must be a number; got {shown(v)}")
         if not math.isfinite(fv):
-            raise SpecError(f"constant {k!r} must be a finite number; got {short_repr(v)}")
+            raise SpecError(f"constant {k!r} must be a finite number; got {shown(v)}")
         out[k] = fv
     return out
 
@@ -958,14 +943,10 @@ def _nominal_vector(parameters: Sequence[str], nominal: Mapping[str, float]) -> 
     vals = []
     for p in parameters:
         raw = nominal[p]
-        # float() would read the string "0.2" and true; an integer beyond the double range overflows
-        if isinstance(raw, (bool, np.bool_)) or not isinstance(raw, (int, float, np.integer, np.floating)):
-            raise NominalValueError(f"nominal value of parameter {p!r} must be a number; found {short_repr(raw)}")
-        try:
-            v = float(raw)
-        except OverflowError:
-            v = math.inf
-        if not np.isfinite(v):
+        v = real_number(raw)  # float() would read the string "0.2" and true
+        if v is None:
+            raise NominalValueError(f"nominal value of parameter {p!r} must be a number; found {shown(raw)}")
+        if not math.isfinite(v):
             raise NominalValueError(f"nominal value of parameter {p!r} must be finite; found {v!r}")
         vals.append(v)
     return np.array(vals)

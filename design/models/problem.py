@@ -20,19 +20,10 @@ from typing import Any
 import numpy as np
 from fdisyn.runtime.errors import SpecError
 from fdisyn.runtime.gainfile import LIMITS, GainFile
+from fdisyn.runtime.names import shown
+from fdisyn.runtime.values import real_number
 
-__all__ = ["Scenario", "Batch", "Problem", "get_problem", "problem_names", "OPTION_RULES", "check_option", "short_repr"]
-
-
-def short_repr(value: Any, limit: int = 60) -> str:
-    """``repr(value)`` cut to ``limit`` characters: error messages stay one readable line
-    whatever a user passed (``repr`` already escapes newlines)."""
-    text = repr(value)
-    return text if len(text) <= limit else text[: limit - 1] + "…"
-
-
-def _is_real(v: Any) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool)
+__all__ = ["Scenario", "Batch", "Problem", "get_problem", "problem_names", "OPTION_RULES", "check_option"]
 
 
 def _is_count(v: Any) -> bool:
@@ -40,7 +31,7 @@ def _is_count(v: Any) -> bool:
 
 
 OPTION_RULES: Mapping[str, tuple[str, Callable[[Any], bool]]] = {
-    "P_f": ("a false-alarm probability per statistic and sample: a number in (0, 1)", lambda v: _is_real(v) and 0.0 < v < 1.0),
+    "P_f": ("a false-alarm probability per statistic and sample: a number in (0, 1)", lambda v: (x := real_number(v)) is not None and 0.0 < x < 1.0),
     "persistence": (
         f"a whole number ≥ 1 of consecutive exceedances, at most {LIMITS['persistence']}",
         lambda v: _is_count(v) and v <= LIMITS["persistence"],  # a count in a double; the gain file's limit
@@ -66,14 +57,14 @@ def check_option(key: str, value: Any, default: Any, where: str) -> Any:
     elif isinstance(default, int):
         what, ok = "a whole number", lambda v: isinstance(v, int) and not isinstance(v, bool)
     elif isinstance(default, float):
-        what, ok = "a finite number", lambda v: _is_real(v) and math.isfinite(v)
+        what, ok = "a finite number", lambda v: (x := real_number(v)) is not None and math.isfinite(x)
     elif isinstance(default, str):
         what, ok = f"a string such as {default!r}", lambda v: isinstance(v, str)
     else:
         return value
     if not ok(value):
-        raise SpecError(f"{where} = {short_repr(value)}: expected {what}")
-    return float(value) if isinstance(default, float) else value
+        raise SpecError(f"{where} = {shown(value)}: expected {what}")
+    return real_number(value) if isinstance(default, float) else value
 
 
 @dataclass(frozen=True)
@@ -176,7 +167,7 @@ class Problem:
         sc = self.scenario(scenario) if isinstance(scenario, str) else scenario
         bad = [s for s in seeds if isinstance(s, bool) or not isinstance(s, (int, np.integer)) or s < 0]
         if bad:
-            raise SpecError(f"seeds must be whole numbers ≥ 0; got {short_repr(bad)}")
+            raise SpecError(f"seeds must be whole numbers ≥ 0; got {shown(bad)}")
         return self.simulate(sc, tuple(int(s) for s in seeds), **self.check_options(options))
 
     def check_options(self, options: Mapping[str, Any]) -> dict[str, Any]:

@@ -6,12 +6,13 @@ stated tolerance, discrete Lyapunov solves, and Markov parameters.
 
 from __future__ import annotations
 
-import reprlib
 from collections.abc import Sequence
 
 import numpy as np
 import scipy.linalg as sla
 from fdisyn.runtime.errors import ShapeError
+from fdisyn.runtime.names import shown
+from fdisyn.runtime.values import real_number
 
 __all__ = [
     "real_array",
@@ -48,8 +49,8 @@ def real_array(value: object, name: str) -> np.ndarray:
     except ValueError:  # rows of different lengths
         raise ShapeError(f"{name} must be a number or a matrix of numbers (rows of one length)") from None
     for x in leaves.flat:
-        if isinstance(x, (bool, np.bool_)) or not isinstance(x, (int, float, np.integer, np.floating)):
-            raise ShapeError(f"{name} must hold numbers only; found {reprlib.repr(x)}")
+        if real_number(x) is None:
+            raise ShapeError(f"{name} must hold numbers only; found {shown(x)}")
     try:
         return leaves.astype(float)
     except OverflowError:

@@ -190,9 +190,10 @@ from typing import Any, Literal
 import casadi as ca
 import numpy as np
 from fdisyn.evaluators.wssr import wssr_threshold_table
-from fdisyn.models.nonlinear import NonlinearPlant, short_repr
+from fdisyn.models.nonlinear import NonlinearPlant
 from fdisyn.runtime.errors import ShapeError, SpecError
 from fdisyn.runtime.gainfile import GainFile
+from fdisyn.runtime.names import shown
 from fdisyn.synthesis.certificate import Certificate, Check, worst
 from fdisyn.synthesis.nafdf.settings import _IDENT, _MAX_NAME, NafdfSettings, StateLayout, _ro, _settings
 from fdisyn.synthesis.nafdf.step import _build_step, _check_step_size
@@ -323,7 +324,7 @@ def nafdf(
         u0=u0,
     )
     if not isinstance(name, str) or not _IDENT.fullmatch(name) or len(name) > _MAX_NAME:
-        raise SpecError(f"name must be an identifier of at most {_MAX_NAME} characters; got {short_repr(name)}")
+        raise SpecError(f"name must be an identifier of at most {_MAX_NAME} characters; got {shown(name)}")
     return _design(plant, settings, name=name)
 
 
@@ -376,12 +377,12 @@ def _design(plant: NonlinearPlant, settings: NafdfSettings, *, name: str, thresh
 def _check_model_finite(plant: NonlinearPlant, s: NafdfSettings) -> None:
     """The model and its Jacobians are finite where the filters start: ``(x0, u0)`` with the nominal
     ``θ`` (the EKF) and with ``θ̂(0)`` (the NF). Raises :class:`SpecError` naming the expression."""
-    where = f"x0 = {short_repr(s.x0.tolist())}, u0 = {short_repr(s.u0.tolist())}"
+    where = f"x0 = {shown(s.x0.tolist())}, u0 = {shown(s.u0.tolist())}"
     nominal = dict(zip(plant.parameters, plant.theta_nominal.tolist(), strict=True))
-    plant.check_finite(x=s.x0, u=s.u0, theta=plant.theta_nominal, point=f"the EKF's start ({where}, nominal θ = {short_repr(nominal)})")
+    plant.check_finite(x=s.x0, u=s.u0, theta=plant.theta_nominal, point=f"the EKF's start ({where}, nominal θ = {shown(nominal)})")
     if not np.array_equal(s.theta0, plant.theta_nominal):
         start = dict(zip(plant.parameters, s.theta0.tolist(), strict=True))
-        plant.check_finite(x=s.x0, u=s.u0, theta=s.theta0, point=f"the NF's start ({where}, theta0 = {short_repr(start)})")
+        plant.check_finite(x=s.x0, u=s.u0, theta=s.theta0, point=f"the NF's start ({where}, theta0 = {shown(start)})")
 
 
 def _init_state(plant: NonlinearPlant, s: NafdfSettings, layout: StateLayout) -> np.ndarray:

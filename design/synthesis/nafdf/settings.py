@@ -11,9 +11,11 @@ from typing import Any, Literal
 
 import casadi as ca
 import numpy as np
-from fdisyn.models.nonlinear import NonlinearPlant, short_repr
+from fdisyn.models.nonlinear import NonlinearPlant
 from fdisyn.numerics.linalg import real_array
 from fdisyn.runtime.errors import ShapeError, SpecError
+from fdisyn.runtime.names import shown
+from fdisyn.runtime.values import real_number
 
 __all__ = ['MAX_CLASSIFIER_WINDOW', 'MAX_COUNT', 'MAX_DIMENSION', 'MAX_STATE', 'MAX_STEP_INSTRUCTIONS', 'MAX_STEP_WORK', 'MAX_WINDOW', 'NafdfSettings', 'StateLayout']
 
@@ -109,7 +111,7 @@ def _float_array(value: object, name: str) -> np.ndarray:
     try:
         return real_array(value, name)  # numbers only: "100" or true are refused, not converted
     except ShapeError:
-        raise SpecError(f"{name} must be a number or an array of numbers; got {short_repr(value)}") from None
+        raise SpecError(f"{name} must be a number or an array of numbers; got {shown(value)}") from None
 
 
 def _vec(value: object, name: str, size: int) -> np.ndarray:
@@ -125,7 +127,7 @@ def _vec(value: object, name: str, size: int) -> np.ndarray:
 def _finite_vec(value: object, name: str, size: int) -> np.ndarray:
     arr = _vec(value, name, size)
     if not np.all(np.isfinite(arr)):
-        raise SpecError(f"{name} must be finite; got {short_repr(arr.tolist())}")
+        raise SpecError(f"{name} must be finite; got {shown(arr.tolist())}")
     return arr
 
 
@@ -155,25 +157,26 @@ def _positive_int(value: object, name: str, maximum: int = MAX_COUNT) -> int:
     elif isinstance(value, (float, np.floating)) and math.isfinite(value) and float(value).is_integer():
         whole = int(value)
     if whole is None or whole < 1:
-        raise SpecError(f"{name} must be a positive integer; got {short_repr(value)}")
+        raise SpecError(f"{name} must be a positive integer; got {shown(value)}")
     if whole > maximum:
         raise SpecError(f"{name} is {whole}; at most {maximum} is allowed (see the limits in fdisyn.synthesis.nafdf.design)")
     return whole
 
 
 def _number(value: object, name: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise SpecError(f"{name} must be a number; got {short_repr(value)}")
-    try:
-        return float(value)
-    except OverflowError:
-        raise SpecError(f"{name} must be a finite number; got {short_repr(value)}") from None
+    """A real number (NaN and ±inf pass: each setting's range check refuses them with its own words)."""
+    v = real_number(value)
+    if v is None:
+        raise SpecError(f"{name} must be a number; got {shown(value)}")
+    if math.isinf(v) and isinstance(value, int):  # an integer beyond the double range
+        raise SpecError(f"{name} must be a finite number; got {shown(value)}")
+    return v
 
 
 def _unit_open(value: float, name: str) -> float:
     v = _number(value, name)
     if not 0.0 < v < 1.0:
-        raise SpecError(f"{name} must lie strictly between 0 and 1; got {short_repr(value)}")
+        raise SpecError(f"{name} must lie strictly between 0 and 1; got {shown(value)}")
     return v
 
 
@@ -342,22 +345,22 @@ def _settings(plant: NonlinearPlant, **kw: Any) -> NafdfSettings:
     th_nom = np.asarray(plant.theta_nominal)
     rule = kw["threshold_rule"]
     if rule not in ("chi2", "beta0"):
-        raise SpecError(f"threshold_rule must be 'chi2' or 'beta0'; got {short_repr(rule)}")
+        raise SpecError(f"threshold_rule must be 'chi2' or 'beta0'; got {shown(rule)}")
     lo = np.full(l, -np.inf) if kw["theta_lower"] is None else _vec(kw["theta_lower"], "theta_lower", l)
     hi = np.full(l, np.inf) if kw["theta_upper"] is None else _vec(kw["theta_upper"], "theta_upper", l)
     if np.any(np.isnan(lo)) or np.any(np.isnan(hi)) or np.any(lo >= hi) or np.any(lo == np.inf) or np.any(hi == -np.inf):
-        raise SpecError(f"theta_lower must be below theta_upper for every parameter; got {short_repr(lo.tolist())} and {short_repr(hi.tolist())}")
+        raise SpecError(f"theta_lower must be below theta_upper for every parameter; got {shown(lo.tolist())} and {shown(hi.tolist())}")
     tol = (
         np.where(th_nom != 0.0, 0.05 * np.abs(th_nom), 0.05)
         if kw["convergence_tolerance"] is None
         else _vec(kw["convergence_tolerance"], "convergence_tolerance", l)
     )
     if np.any(~np.isfinite(tol)) or np.any(tol <= 0):
-        raise SpecError(f"convergence_tolerance must be positive and finite; got {short_repr(tol.tolist())}")
+        raise SpecError(f"convergence_tolerance must be positive and finite; got {shown(tol.tolist())}")
     th0 = th_nom.copy() if kw["theta0"] is None else _finite_vec(kw["theta0"], "theta0", l)
     beta0 = None if kw["beta0"] is None else _number(kw["beta0"], "beta0")
     if beta0 is not None and not (math.isfinite(beta0) and beta0 > 0):
-        raise SpecError(f"beta0 must be a positive finite number; got {short_repr(kw['beta0'])}")
+        raise SpecError(f"beta0 must be a positive finite number; got {shown(kw['beta0'])}")
     settings = NafdfSettings(
         x0=_ro(_finite_vec(kw["x0"], "x0", n)),
         P0=_ro(_spd(kw["P0"], "P0", n)),
@@ -385,8 +388,8 @@ def _settings(plant: NonlinearPlant, **kw: Any) -> NafdfSettings:
         raise SpecError(f"the classifier thresholds must satisfy 0 <= W1 < W2 < inf; got W1 = {kw['W1']}, W2 = {kw['W2']}")
     if np.any(settings.theta0 < lo) or np.any(settings.theta0 > hi):
         raise SpecError(
-            f"theta0 = {short_repr(settings.theta0.tolist())} lies outside the parameter box "
-            f"[{short_repr(lo.tolist())}, {short_repr(hi.tolist())}]"
+            f"theta0 = {shown(settings.theta0.tolist())} lies outside the parameter box "
+            f"[{shown(lo.tolist())}, {shown(hi.tolist())}]"
         )
     return settings
 
@@ -394,6 +397,6 @@ def _settings(plant: NonlinearPlant, **kw: Any) -> NafdfSettings:
 def _unit_interval(value: float, name: str) -> float:
     v = _number(value, name)
     if not 0.0 < v <= 1.0:
-        raise SpecError(f"{name} must lie in (0, 1]; got {short_repr(value)}")
+        raise SpecError(f"{name} must lie in (0, 1]; got {shown(value)}")
     return v
 
