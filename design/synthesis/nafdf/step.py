@@ -8,6 +8,8 @@ import math
 import casadi as ca
 import numpy as np
 import scipy.stats
+from fdisyn.codegen.step import all_finite as _all_finite
+from fdisyn.codegen.step import finite
 from fdisyn.evaluators.wssr import _NEVER
 from fdisyn.models.nonlinear import NonlinearPlant
 from fdisyn.runtime.errors import SpecError
@@ -24,16 +26,6 @@ from fdisyn.synthesis.nafdf.settings import (
 )
 
 # --------------------------------------------------------------------------- SX helpers
-
-
-def _all_finite(*exprs: ca.SX) -> ca.SX:
-    """1 if every entry is finite, else 0 — as ``|v| < inf``, which code generation keeps."""
-    ok = ca.SX(1)
-    for e in exprs:
-        v = ca.vec(ca.SX(e))
-        for i in range(v.numel()):
-            ok = ca.logic_and(ok, ca.fabs(v[i]) < ca.inf)
-    return ok
 
 
 def _sym(a: ca.SX) -> ca.SX:
@@ -360,7 +352,7 @@ def _sanitise(v: ca.SX) -> ca.SX:
     out = []
     for i in range(v.numel()):
         overflow = _select(v[i] > 0, _NEVER, _select(v[i] < 0, -_NEVER, 0.0))
-        out.append(_select(ca.fabs(v[i]) < ca.inf, v[i], overflow))
+        out.append(_select(finite(v[i]), v[i], overflow))
     return ca.vertcat(*out)
 
 
