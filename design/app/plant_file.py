@@ -712,7 +712,8 @@ def _per_parameter(value: Any, parameters: tuple[str, ...], where: str) -> Any:
 
 def _nonlinear_problem(path: Path, top: _Section, name: str) -> Problem:
     """A ``time = "nonlinear"`` plant file: the model of Zhou, Xi & Zhang 1991 (eq. (2.1)) and the NAFDF (format in the README)."""
-    from fdisyn.models.nonlinear import NonlinearPlant, covariance_matrix
+    from fdisyn.models.nonlinear import NonlinearPlant
+    from fdisyn.numerics.linalg import as_covariance
     from fdisyn.synthesis.nafdf.design import nafdf, nafdf_extra_metrics
     from fdisyn.synthesis.nafdf.payload import nafdf_gain_file
 
@@ -728,7 +729,7 @@ def _nonlinear_problem(path: Path, top: _Section, name: str) -> Problem:
     noise = {}
     for key, size, definite in (("Q", len(names["states"]), False), ("R", len(names["outputs"]), True)):
         try:
-            noise[key] = covariance_matrix(mod.get(key, required=True), key, size, definite=definite)
+            noise[key] = as_covariance(mod.get(key, required=True), key, size, definite=definite)
         except ShapeError as exc:
             raise SpecError(f"{path} [model].{exc}") from None
     for key in ("f", "h", "nominal"):

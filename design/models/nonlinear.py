@@ -72,9 +72,9 @@ from typing import Any
 
 import casadi as ca
 import numpy as np
-from fdisyn.models.linear import frozen_array, identifier_names
+from fdisyn.models.linear import identifier_names
 from fdisyn.models.sampling import check_sample_time
-from fdisyn.numerics.linalg import as_matrix, real_array
+from fdisyn.numerics.linalg import as_covariance, as_vector, frozen_array
 from fdisyn.runtime.errors import NominalValueError, NonDifferentiableError, ShapeError, SpecError
 from fdisyn.runtime.names import check_distinct, shown
 from fdisyn.runtime.values import real_number
@@ -87,7 +87,6 @@ __all__ = [
     "SMOOTH_FUNCTIONS",
     "SMOOTH_OPERATIONS",
     "NonlinearPlant",
-    "covariance_matrix",
     "function_from_program",
     "model_program",
 ]
@@ -228,30 +227,6 @@ def _distinct_names(states: tuple[str, ...], inputs: tuple[str, ...], outputs: t
         {"inputs": inputs, "outputs": outputs, "simulated truth columns": truth},
         why="they are columns of the trace CSV `fdisyn simulate` writes",
     )
-
-
-def covariance_matrix(value: object, name: str, size: int, *, definite: bool) -> np.ndarray:
-    """A ``size × size`` covariance from a scalar (times ``I``), a vector (diagonal) or a matrix.
-
-    Raises :class:`ShapeError` naming ``name`` for non-numbers, a wrong
-    shape, asymmetry, or an eigenvalue below zero (``definite``: not above).
-    """
-    arr = real_array(value, name)  # numbers only: "1e-2" or true are refused, not converted
-    if arr.ndim == 0:
-        arr = float(arr) * np.eye(size)
-    elif arr.ndim == 1 and arr.size == size:
-        arr = np.diag(arr)
-    mat = as_matrix(arr, name, rows=size, cols=size)
-    if not np.allclose(mat, mat.T, rtol=1e-12, atol=0.0):
-        raise ShapeError(f"{name} must be symmetric; max |{name} − {name}ᵀ| = {np.max(np.abs(mat - mat.T)):.3g}")
-    mat = 0.5 * mat + 0.5 * mat.T  # halves first: 1e308 + 1e308 would overflow
-    ev = np.linalg.eigvalsh(mat) if size else np.zeros(0)
-    scale = max(1.0, float(np.max(np.abs(ev)))) if ev.size else 1.0
-    if definite and ev.size and ev[0] <= 0.0:
-        raise ShapeError(f"{name} must be positive definite; smallest eigenvalue {ev[0]:.3g}")
-    if ev.size and ev[0] < -1e-12 * scale:
-        raise ShapeError(f"{name} must be positive semidefinite (a covariance); smallest eigenvalue {ev[0]:.3g}")
-    return mat
 
 
 def _as_sx_function(fun: object, name: str, in_shapes: Sequence[int], out_size: int, in_names: Sequence[str], out_name: str) -> ca.Function:
@@ -663,8 +638,8 @@ class NonlinearPlant:
         theta = _nominal_vector(par, nominal)
         f_sx = _as_sx_function(f, "f", (n, m, l), n, ("x", "u", "theta"), "x_next")
         h_sx = _as_sx_function(h, "h", (n, l), p, ("x", "theta"), "y")
-        q1 = covariance_matrix(Q1, "Q1", n, definite=False)
-        q2 = covariance_matrix(Q2, "Q2", p, definite=True)
+        q1 = as_covariance(Q1, "Q1", n)
+        q2 = as_covariance(Q2, "Q2", p, definite=True)
         return cls(
             f=f_sx,
             h=h_sx,
@@ -812,9 +787,9 @@ class NonlinearPlant:
         th = self.theta_nominal if theta is None else theta
         vals = self.derivatives().call(
             {
-                "x": _vector(x, "x", self.n),
-                "u": _vector(u, "u", self.m),
-                "theta": _vector(th, "theta", self.l),
+                "x": as_vector(x, "x", self.n),
+                "u": as_vector(u, "u", self.m),
+                "theta": as_vector(th, "theta", self.l),
             }
         )
         return {k: np.array(v, dtype=float) for k, v in vals.items()}
@@ -875,7 +850,7 @@ class NonlinearPlant:
             th = np.broadcast_to(th, (T, self.l))
         if th.shape != (T, self.l):
             raise ShapeError(f"theta has shape {th.shape}; expected ({self.l},) or ({T}, {self.l})")
-        x0v = _vector(x0, "x0", self.n)
+        x0v = as_vector(x0, "x0", self.n)
         v = _gaussian(rng, self.Q1, T)
         e = _gaussian(rng, self.Q2, T)
         xs = ca.SX.sym("x", self.n)
@@ -912,13 +887,6 @@ def _constants(constants: object) -> dict[str, float]:
             raise SpecError(f"constant {k!r} must be a finite number; got {shown(v)}")
         out[k] = fv
     return out
-
-
-def _vector(value: object, name: str, size: int) -> np.ndarray:
-    v = np.asarray(value, dtype=float).reshape(-1)
-    if v.size != size:
-        raise ShapeError(f"{name} has {v.size} entries; expected {size}")
-    return v
 
 
 def _gaussian(rng: np.random.Generator, cov: np.ndarray, count: int) -> np.ndarray:

@@ -1,12 +1,15 @@
 """Small linear-algebra helpers shared by every design method.
 
-One shape checker that names the offending matrix, numerical rank with a
-stated tolerance, discrete Lyapunov solves, and Markov parameters.
+The validators every model and setting is read with — numbers only
+(:func:`real_array`), matrices and vectors of a stated shape that name the
+offending argument (:func:`as_matrix`, :func:`as_square`, :func:`as_vector`),
+symmetric matrices and covariances (:func:`as_symmetric`,
+:func:`as_covariance`), read-only copies (:func:`frozen_array`) — then
+numerical rank with a stated tolerance, the discrete Lyapunov solve, and
+Markov parameters.
 """
 
 from __future__ import annotations
-
-from collections.abc import Sequence
 
 import numpy as np
 import scipy.linalg as sla
@@ -16,10 +19,13 @@ from fdisyn.runtime.values import real_number
 
 __all__ = [
     "real_array",
+    "frozen_array",
     "as_matrix",
+    "as_vector",
     "check_shape",
     "as_square",
     "as_symmetric",
+    "as_covariance",
     "rank",
     "rank_tol",
     "dlyap",
@@ -27,7 +33,6 @@ __all__ = [
     "markov_parameters",
     "rel_diff",
     "transfer_size",
-    "block_diag",
     "psd_factor",
     "normal_rank",
     "unobservable_modes",
@@ -55,6 +60,28 @@ def real_array(value: object, name: str) -> np.ndarray:
         return leaves.astype(float)
     except OverflowError:
         raise ShapeError(f"{name} holds an integer beyond the range of a double; expected a finite number") from None
+
+
+def frozen_array(a: object) -> np.ndarray:
+    """A read-only float copy (plants, designs and settings are immutable)."""
+    out = np.array(a, dtype=float, copy=True)
+    out.setflags(write=False)
+    return out
+
+
+def as_vector(value: object, name: str, size: int, *, fill: bool = False) -> np.ndarray:
+    """``size`` numbers (:func:`real_array`) as a 1-D float array; nested lists are flattened.
+
+    With ``fill``, a single number stands for all ``size`` entries. Raises
+    :class:`ShapeError` naming ``name`` for another number of entries.
+    """
+    a = real_array(value, name)
+    if fill and a.ndim == 0:
+        a = np.full(size, float(a))
+    a = a.reshape(-1)
+    if a.size != size:
+        raise ShapeError(f"{name} has {a.size} entries; expected {size}")
+    return a
 
 
 def as_matrix(value: object, name: str, *, rows: int | None = None, cols: int | None = None) -> np.ndarray:
@@ -97,23 +124,40 @@ def as_square(value: object, name: str) -> np.ndarray:
     return a
 
 
-def as_symmetric(value: object, name: str, n: int, *, psd: bool = False) -> np.ndarray:
-    """A symmetric ``n × n`` matrix (symmetrised), optionally positive semidefinite.
+def as_symmetric(value: object, name: str, n: int, *, psd: bool = False, definite: bool = False) -> np.ndarray:
+    """A symmetric ``n × n`` matrix (symmetrised), optionally positive semidefinite or definite.
 
     Symmetry is tested to 1e-10 relative (a covariance computed in floating
     point is symmetric to round-off); PSD allows eigenvalues down to
-    −1e-12 times the largest.
+    −1e-12 times the largest; ``definite`` wants the smallest above zero.
     """
     a = as_matrix(value, name, rows=n, cols=n)
     scale = max(1.0, float(np.abs(a).max(initial=0.0)))
     if not np.allclose(a, a.T, rtol=0.0, atol=1e-10 * scale):
         raise ShapeError(f"{name} must be symmetric; max |{name} − {name}ᵀ| = {np.max(np.abs(a - a.T)):.3g}")
-    a = 0.5 * (a + a.T)
-    if psd and n:
+    a = 0.5 * a + 0.5 * a.T  # halves first: 1e308 + 1e308 would overflow
+    if (psd or definite) and n:
         ev = np.linalg.eigvalsh(a)
+        if definite and ev[0] <= 0.0:
+            raise ShapeError(f"{name} must be positive definite; smallest eigenvalue {ev[0]:.3g}")
         if ev[0] < -1e-12 * max(1.0, float(np.max(np.abs(ev)))):
             raise ShapeError(f"{name} must be positive semidefinite (a covariance); smallest eigenvalue {ev[0]:.3g}")
     return a
+
+
+def as_covariance(value: object, name: str, n: int, *, definite: bool = False) -> np.ndarray:
+    """An ``n × n`` covariance from a number (times ``I``), a vector (the diagonal) or a matrix.
+
+    Then :func:`as_symmetric` with ``psd`` (and ``definite`` when asked): a
+    :class:`ShapeError` names ``name`` for non-numbers, a wrong shape,
+    asymmetry or a negative (``definite``: a non-positive) eigenvalue.
+    """
+    a = real_array(value, name)  # numbers only: "1e-2" or true are refused, not converted
+    if a.ndim == 0:
+        a = float(a) * np.eye(n)
+    elif a.ndim == 1 and a.size == n:
+        a = np.diag(a)
+    return as_symmetric(a, name, n, psd=True, definite=definite)
 
 
 def _dim(d: int | None) -> str:
@@ -215,11 +259,6 @@ def rel_diff(a: np.ndarray, b: np.ndarray) -> float:
     b = np.asarray(b, dtype=float)
     nb = float(np.linalg.norm(b))
     return float(np.linalg.norm(a - b)) / max(nb, np.finfo(float).tiny)
-
-
-def block_diag(blocks: Sequence[np.ndarray]) -> np.ndarray:
-    """Block-diagonal matrix of possibly empty blocks."""
-    return sla.block_diag(*blocks) if blocks else np.zeros((0, 0))
 
 
 def psd_factor(w: np.ndarray, name: str = "W") -> np.ndarray:

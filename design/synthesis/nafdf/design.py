@@ -191,11 +191,12 @@ import casadi as ca
 import numpy as np
 from fdisyn.evaluators.wssr import wssr_threshold_table
 from fdisyn.models.nonlinear import NonlinearPlant
+from fdisyn.numerics.linalg import frozen_array
 from fdisyn.runtime.errors import ShapeError, SpecError
 from fdisyn.runtime.gainfile import GainFile
 from fdisyn.runtime.names import shown
 from fdisyn.synthesis.certificate import Certificate, Check, worst
-from fdisyn.synthesis.nafdf.settings import _IDENT, _MAX_NAME, NafdfSettings, StateLayout, _ro, _settings
+from fdisyn.synthesis.nafdf.settings import _IDENT, _MAX_NAME, NafdfSettings, StateLayout, _settings
 from fdisyn.synthesis.nafdf.step import _build_step, _check_step_size
 
 __all__ = ['NafdfDesign', 'nafdf', 'nafdf_extra_metrics']
@@ -363,7 +364,7 @@ def _design(plant: NonlinearPlant, settings: NafdfSettings, *, name: str, thresh
         name=name,
         plant=plant,
         settings=settings,
-        thresholds=_ro(thr),
+        thresholds=frozen_array(thr),
         step=step,
         layout=layout,
         certificate=Certificate.of(name, []),

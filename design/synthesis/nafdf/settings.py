@@ -12,7 +12,7 @@ from typing import Any, Literal
 import casadi as ca
 import numpy as np
 from fdisyn.models.nonlinear import NonlinearPlant
-from fdisyn.numerics.linalg import real_array
+from fdisyn.numerics.linalg import as_covariance, as_vector, frozen_array, real_array
 from fdisyn.runtime.errors import ShapeError, SpecError
 from fdisyn.runtime.names import shown
 from fdisyn.runtime.values import real_number
@@ -101,12 +101,6 @@ class NafdfSettings:
         return out
 
 
-def _ro(a: np.ndarray) -> np.ndarray:
-    a = np.array(a, dtype=float, copy=True)
-    a.setflags(write=False)
-    return a
-
-
 def _float_array(value: object, name: str) -> np.ndarray:
     try:
         return real_array(value, name)  # numbers only: "100" or true are refused, not converted
@@ -115,13 +109,7 @@ def _float_array(value: object, name: str) -> np.ndarray:
 
 
 def _vec(value: object, name: str, size: int) -> np.ndarray:
-    arr = _float_array(value, name)
-    if arr.ndim == 0:
-        arr = np.full(size, float(arr))
-    arr = arr.reshape(-1)
-    if arr.size != size:
-        raise ShapeError(f"{name} has {arr.size} entries; expected {size}")
-    return arr
+    return as_vector(_float_array(value, name), name, size, fill=True)
 
 
 def _finite_vec(value: object, name: str, size: int) -> np.ndarray:
@@ -132,21 +120,7 @@ def _finite_vec(value: object, name: str, size: int) -> np.ndarray:
 
 
 def _spd(value: object, name: str, size: int) -> np.ndarray:
-    arr = _float_array(value, name)
-    if arr.ndim == 0:
-        arr = float(arr) * np.eye(size)
-    elif arr.ndim == 1 and arr.size == size:
-        arr = np.diag(arr)
-    if arr.shape != (size, size):
-        raise ShapeError(f"{name} has shape {arr.shape}; expected ({size}, {size})")
-    if not np.all(np.isfinite(arr)):
-        raise ShapeError(f"{name} contains non-finite entries")
-    if not np.allclose(arr, arr.T, rtol=1e-12, atol=0.0):
-        raise ShapeError(f"{name} must be symmetric")
-    ev = np.linalg.eigvalsh(arr)
-    if ev[0] <= 0.0:
-        raise ShapeError(f"{name} must be positive definite; smallest eigenvalue {ev[0]:.3g}")
-    return 0.5 * arr + 0.5 * arr.T  # halves first: 1e308 + 1e308 would overflow
+    return as_covariance(_float_array(value, name), name, size, definite=True)
 
 
 def _positive_int(value: object, name: str, maximum: int = MAX_COUNT) -> int:
@@ -362,10 +336,10 @@ def _settings(plant: NonlinearPlant, **kw: Any) -> NafdfSettings:
     if beta0 is not None and not (math.isfinite(beta0) and beta0 > 0):
         raise SpecError(f"beta0 must be a positive finite number; got {shown(kw['beta0'])}")
     settings = NafdfSettings(
-        x0=_ro(_finite_vec(kw["x0"], "x0", n)),
-        P0=_ro(_spd(kw["P0"], "P0", n)),
-        theta0=_ro(th0),
-        R0=_ro(_spd(np.eye(l) if kw["R0"] is None else kw["R0"], "R0", l)),
+        x0=frozen_array(_finite_vec(kw["x0"], "x0", n)),
+        P0=frozen_array(_spd(kw["P0"], "P0", n)),
+        theta0=frozen_array(th0),
+        R0=frozen_array(_spd(np.eye(l) if kw["R0"] is None else kw["R0"], "R0", l)),
         window=window,
         threshold_rule=rule,
         false_alarm_probability=_unit_open(kw["false_alarm_probability"], "false_alarm_probability"),
@@ -373,16 +347,16 @@ def _settings(plant: NonlinearPlant, **kw: Any) -> NafdfSettings:
         forgetting_initial=_unit_interval(kw["forgetting_initial"], "forgetting_initial"),
         forgetting_rate=_unit_open(kw["forgetting_rate"], "forgetting_rate"),
         forgetting_final=_unit_interval(kw["forgetting_final"], "forgetting_final"),
-        theta_lower=_ro(lo),
-        theta_upper=_ro(hi),
+        theta_lower=frozen_array(lo),
+        theta_upper=frozen_array(hi),
         nominal_samples=_positive_int(kw["nominal_samples"], "nominal_samples"),
         classifier_window=n2,
         W1=_number(kw["W1"], "W1"),
         W2=_number(kw["W2"], "W2"),
         T1=_positive_int(kw["T1"], "T1"),
-        convergence_tolerance=_ro(tol),
+        convergence_tolerance=frozen_array(tol),
         convergence_level=_unit_open(kw["convergence_level"], "convergence_level"),
-        u0=_ro(np.zeros(m) if kw["u0"] is None else _finite_vec(kw["u0"], "u0", m)),
+        u0=frozen_array(np.zeros(m) if kw["u0"] is None else _finite_vec(kw["u0"], "u0", m)),
     )
     if not 0.0 <= settings.W1 < settings.W2 or not math.isfinite(settings.W2):
         raise SpecError(f"the classifier thresholds must satisfy 0 <= W1 < W2 < inf; got W1 = {kw['W1']}, W2 = {kw['W2']}")
