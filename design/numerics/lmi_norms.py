@@ -81,7 +81,8 @@ from collections.abc import Iterator, Sequence
 import clarabel
 import cvxpy as cp
 import numpy as np
-from fdisyn.numerics.norms import DiscreteLTI, check_band, gramian, hinf_norm, hminus_index
+from fdisyn.numerics.linalg import dlyap
+from fdisyn.numerics.norms import DiscreteLTI, check_band, hinf_norm, hminus_index
 from fdisyn.numerics.sdp import (
     _CLARABEL_TIGHT,
     _NORM_LADDER,
@@ -377,7 +378,7 @@ class _KypLmi:
         self.nb = len(self.basis)
         self.lifted = np.concatenate([self._lift(_PHI, self.basis)] + [self._lift(p, self.basis) for p in self.psis])
         # P₀ = Σ (Aᵀ)ᵏAᵏ solves AᵀP₀A − P₀ = −I: Nᵀ(Φ ⊗ P₀)N has state block −I (see certify).
-        self._shift = self._lift(_PHI, gramian(a.T, np.eye(n))[None])[0].real
+        self._shift = self._lift(_PHI, dlyap(a.T, np.eye(n), refine=False)[None])[0].real
 
     def _lift(self, mult: np.ndarray, h: np.ndarray) -> np.ndarray:
         """``Nᴴ(M ⊗ H)N = Σᵢⱼ Mᵢⱼ NᵢᵀHNⱼ`` for a stack of ``H`` (``N₁ = [A B]``, ``N₂ = [I 0]``)."""

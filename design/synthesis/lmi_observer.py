@@ -13,9 +13,9 @@ import cvxpy as cp
 import numpy as np
 from fdisyn.models.sampled_data import SampledDataPlant, check_sampling
 from fdisyn.numerics.factorisation import co_inner_outer
-from fdisyn.numerics.linalg import normal_rank, psd_factor, spectral_radius
+from fdisyn.numerics.linalg import dlyap, normal_rank, psd_factor, spectral_radius
 from fdisyn.numerics.lmi_norms import _kyp_lhs
-from fdisyn.numerics.norms import DiscreteLTI, Eta, gramian, hinf_norm, system_norm
+from fdisyn.numerics.norms import DiscreteLTI, Eta, hinf_norm, system_norm
 from fdisyn.numerics.sdp import SDP_BOUND_TOL, SDP_BOUND_TOL_SINGULAR, SdpStats, _balancing, _psd_part, _scale, _solve, _sym, _val
 from fdisyn.runtime.errors import ExistenceError, ShapeError, SolverError
 from fdisyn.runtime.gainfile import Generator
@@ -118,7 +118,7 @@ def _postfilter(
         theta = cp.bmat([[-c.T @ pi @ c, np.zeros((n, mf))], [np.zeros((mf, n)), np.eye(mf)]])
         cons += extra + [_sym(lhs + theta) << 0]
     elif eta == "2":
-        sig_f = gramian(al, bfs @ bfs.T)
+        sig_f = dlyap(al, bfs @ bfs.T, refine=False)
         cons.append(cp.trace(pi @ (c @ sig_f @ c.T)) >= 1.0)
     elif eta == "inf":
         if peak is None:
