@@ -52,6 +52,7 @@ from typing import Any, NoReturn
 
 import numpy as np
 from fdisyn.runtime.errors import FdisynError, GainFileError
+from fdisyn.runtime.layout import StateLayout
 from fdisyn.runtime.names import (
     SHORT_LABEL_MAX,
     check_diagnoser_name,
@@ -341,7 +342,7 @@ class GainFile:
         return doc
 
 
-def linear_state_layout(generators: Sequence[Generator], n_statistics: int) -> dict[str, slice]:
+def linear_state_layout(generators: Sequence[Generator], n_statistics: int) -> StateLayout:
     """Where each part of a linear diagnoser's state vector lives.
 
     ``xi<g>``: generator ``g``'s state; ``counters``: one persistence counter
@@ -349,18 +350,9 @@ def linear_state_layout(generators: Sequence[Generator], n_statistics: int) -> d
     sample has initialised it at equilibrium); ``nonfinite``: the number of
     samples that held a non-finite input or output.
     """
-    out: dict[str, slice] = {}
-    k = 0
-    for g, gen in enumerate(generators):
-        out[f"xi{g}"] = slice(k, k + gen.n_state)
-        k += gen.n_state
-    out["counters"] = slice(k, k + n_statistics)
-    k += n_statistics
-    out["ready"] = slice(k, k + len(generators))
-    k += len(generators)
-    out["nonfinite"] = slice(k, k + 1)
-    out["total"] = slice(0, k + 1)
-    return out
+    blocks = [(f"xi{g}", gen.n_state, 1) for g, gen in enumerate(generators)]
+    blocks += [("counters", n_statistics, 1), ("ready", len(generators), 1), ("nonfinite", 1, 1)]
+    return StateLayout(tuple(blocks), scalars=frozenset({"nonfinite"}))
 
 
 # --------------------------------------------------------------------------- I/O
@@ -949,10 +941,10 @@ def _validate_linear(gf: GainFile) -> None:
             _fail(f"decision.signatures: fault {gf.faults[f]!r} shares its signature {list(row)} with another fault")
     st = gf.step
     lay = linear_state_layout(gf.generators, len(gf.evaluators))
-    if st.nr != nr or st.nj != len(gf.evaluators) or st.nstate != lay["total"].stop:
+    if st.nr != nr or st.nj != len(gf.evaluators) or st.nstate != lay.size:
         _fail(
             f"step sizes nr={st.nr}, nj={st.nj}, nstate={st.nstate} do not match the generators "
-            f"(nr={nr}, nj={len(gf.evaluators)}, nstate={lay['total'].stop})"
+            f"(nr={nr}, nj={len(gf.evaluators)}, nstate={lay.size})"
         )
     # the linear step starts from zero: no generator ready (each starts at the equilibrium of its first
     # valid sample), no persistence counted, no sample skipped; anything else is an edited file

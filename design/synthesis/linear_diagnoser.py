@@ -110,8 +110,8 @@ def linear_diagnoser(
         ny=plant.p,
         nr=nr,
         nj=len(evals),
-        nstate=lay["total"].stop,
-        init_state=np.zeros(lay["total"].stop),
+        nstate=lay.size,
+        init_state=np.zeros(lay.size),
         residual_names=tuple(_residual_names(gens, plant)),
         statistic_names=tuple(f"J_{gens[e.generator].name}" for e in evals),
     )

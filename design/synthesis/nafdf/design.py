@@ -194,9 +194,10 @@ from fdisyn.models.nonlinear import NonlinearPlant
 from fdisyn.numerics.linalg import frozen_array
 from fdisyn.runtime.errors import ShapeError, SpecError
 from fdisyn.runtime.gainfile import GainFile
+from fdisyn.runtime.layout import StateLayout
 from fdisyn.runtime.names import shown
 from fdisyn.synthesis.certificate import Certificate, Check, worst
-from fdisyn.synthesis.nafdf.settings import _IDENT, _MAX_NAME, NafdfSettings, StateLayout, _settings
+from fdisyn.synthesis.nafdf.settings import _IDENT, _MAX_NAME, NafdfSettings, _settings
 from fdisyn.synthesis.nafdf.step import _build_step, _check_step_size
 
 __all__ = ['NafdfDesign', 'nafdf', 'nafdf_extra_metrics']

@@ -16,11 +16,12 @@ from fdisyn.models.nonlinear import NonlinearPlant, function_from_program, model
 from fdisyn.models.sampling import check_sample_time
 from fdisyn.runtime.errors import FdisynError, GainFileError
 from fdisyn.runtime.gainfile import GainFile, StepSpec
+from fdisyn.runtime.layout import StateLayout
 from fdisyn.runtime.names import shown
 from fdisyn.runtime.values import real_number
 from fdisyn.synthesis.linear_diagnoser import provenance
 from fdisyn.synthesis.nafdf.design import NafdfDesign, _design, _init_state, _names_r_J
-from fdisyn.synthesis.nafdf.settings import _IDENT, _MAX_NAME, MAX_DIMENSION, NafdfSettings, StateLayout, _layout, _settings
+from fdisyn.synthesis.nafdf.settings import _IDENT, _MAX_NAME, MAX_DIMENSION, NafdfSettings, _layout, _settings
 
 __all__ = ['PAYLOAD_FORMAT', 'PAYLOAD_VERSION', 'nafdf_from_gain_file', 'nafdf_from_payload', 'nafdf_gain_file', 'nafdf_payload', 'step_from_payload']
 

@@ -5,19 +5,18 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
-import casadi as ca
 import numpy as np
 from fdisyn.models.nonlinear import NonlinearPlant
 from fdisyn.numerics.linalg import as_covariance, as_vector, frozen_array, real_array
 from fdisyn.runtime.errors import ShapeError, SpecError
+from fdisyn.runtime.layout import StateLayout
 from fdisyn.runtime.names import shown
 from fdisyn.runtime.values import real_number
 
-__all__ = ['MAX_CLASSIFIER_WINDOW', 'MAX_COUNT', 'MAX_DIMENSION', 'MAX_STATE', 'MAX_STEP_INSTRUCTIONS', 'MAX_STEP_WORK', 'MAX_WINDOW', 'NafdfSettings', 'StateLayout']
+__all__ = ['MAX_CLASSIFIER_WINDOW', 'MAX_COUNT', 'MAX_DIMENSION', 'MAX_STATE', 'MAX_STEP_INSTRUCTIONS', 'MAX_STEP_WORK', 'MAX_WINDOW', 'NafdfSettings']
 
 # Resource limits (module docstring).
 MAX_DIMENSION = 30
@@ -155,78 +154,6 @@ def _unit_open(value: float, name: str) -> float:
 
 
 # --------------------------------------------------------------------------- state layout
-
-
-@dataclass(frozen=True)
-class StateLayout:
-    """Named blocks of the diagnoser state vector; matrices stored column-major (CasADi's order).
-
-    ``scalars`` names the blocks that are counters or flags (unpacked as ``float``);
-    every other block with one column unpacks as a 1-D array, even of length one.
-    """
-
-    entries: tuple[tuple[str, int, int], ...]
-    scalars: frozenset[str] = frozenset()
-    matrices: frozenset[str] = frozenset()
-    """Blocks that unpack as 2-D arrays whatever their size (covariances, sensitivities, windows)."""
-
-    @property
-    def size(self) -> int:
-        return sum(r * c for _, r, c in self.entries)
-
-    def offsets(self) -> dict[str, tuple[int, int, int]]:
-        out, k = {}, 0
-        for name, r, c in self.entries:
-            out[name] = (k, r, c)
-            k += r * c
-        return out
-
-    def unpack(self, vec: object) -> dict[str, np.ndarray | float]:
-        """Split a state vector: scalars as float, columns as 1-D arrays, matrices as 2-D arrays."""
-        v = np.asarray(vec, dtype=float).reshape(-1)
-        if v.size != self.size:
-            raise ShapeError(f"state has {v.size} entries; expected {self.size}")
-        out: dict[str, np.ndarray | float] = {}
-        for name, (k, r, c) in self.offsets().items():
-            block = v[k : k + r * c]
-            if name in self.scalars:
-                out[name] = float(block[0])
-            elif c == 1 and name not in self.matrices:
-                out[name] = block.copy()
-            else:
-                out[name] = block.reshape((r, c), order="F").copy()
-        return out
-
-    def pack(self, values: Mapping[str, object]) -> np.ndarray:
-        """Join named blocks into a state vector (every block required)."""
-        missing = [name for name, _, _ in self.entries if name not in values]
-        extra = sorted(set(values) - {name for name, _, _ in self.entries})
-        if missing or extra:
-            raise ShapeError(f"state blocks: missing {missing}, unknown {extra}")
-        parts = []
-        for name, r, c in self.entries:
-            a = np.asarray(values[name], dtype=float)
-            if a.size != r * c:
-                raise ShapeError(f"state block {name!r} has {a.size} entries; expected {r}×{c}")
-            parts.append(a.reshape((r, c)).reshape(-1, order="F") if a.ndim == 2 else a.reshape(-1))
-        return np.concatenate(parts) if parts else np.zeros(0)
-
-    def split_sx(self, sx: ca.SX) -> dict[str, ca.SX]:
-        return {name: ca.reshape(sx[k : k + r * c], r, c) for name, (k, r, c) in self.offsets().items()}
-
-    def join_sx(self, blocks: Mapping[str, ca.SX]) -> ca.SX:
-        return ca.vertcat(*[ca.vec(ca.SX(blocks[name])) for name, _, _ in self.entries])
-
-    def component_names(self) -> list[str]:
-        out = []
-        for name, r, c in self.entries:
-            if name in self.scalars:
-                out.append(name)
-            elif c == 1 and name not in self.matrices:
-                out.extend(f"{name}[{i}]" for i in range(r))
-            else:
-                out.extend(f"{name}[{i},{j}]" for j in range(c) for i in range(r))
-        return out
 
 
 def _layout(n: int, l: int, window: int, n2: int) -> StateLayout:

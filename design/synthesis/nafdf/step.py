@@ -13,6 +13,7 @@ from fdisyn.codegen.step import finite
 from fdisyn.evaluators.wssr import _NEVER
 from fdisyn.models.nonlinear import NonlinearPlant
 from fdisyn.runtime.errors import SpecError
+from fdisyn.runtime.layout import StateLayout
 from fdisyn.synthesis.nafdf.settings import (
     _D_OVERFLOW,
     _PSD_SHIFT,
@@ -21,7 +22,6 @@ from fdisyn.synthesis.nafdf.settings import (
     MAX_STEP_INSTRUCTIONS,
     MAX_STEP_WORK,
     NafdfSettings,
-    StateLayout,
     _layout,
 )
 
@@ -114,7 +114,7 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
     state = ca.SX.sym("state", lay.size)
     u = ca.SX.sym("u", m)
     y = ca.SX.sym("y", p)
-    old = lay.split_sx(state)
+    old = _split_sx(lay, state)
     new = dict(old)
 
     # ---- block 1: EKF on the model θ_e (eq. (2.3)) --------------------------------------
@@ -321,7 +321,7 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
         0.0,
     )
     ok_in = _all_finite(u, y)
-    state_next = _select(ok_in, lay.join_sx(new), lay.join_sx(held))
+    state_next = _select(ok_in, _join_sx(lay, new), _join_sx(lay, held))
     r_out = _select(ok_in, _sanitise(r_proc), ca.SX.zeros(2 * p, 1))
     J_out = _select(ok_in, _sanitise(J_proc), _sanitise(J_hold))
     alarm_out = _select(ok_in, alarm, 0.0)
@@ -362,6 +362,16 @@ def _table_lookup(k: ca.SX, table: np.ndarray) -> ca.SX:
     for i, val in enumerate(table):
         out = out + _select(k == i + 1, float(val), 0.0)
     return out
+
+
+def _split_sx(layout: StateLayout, sx: ca.SX) -> dict[str, ca.SX]:
+    """The blocks of a symbolic state vector, each ``rows × cols`` (column-major, as :class:`StateLayout` stores them)."""
+    return {name: ca.reshape(sx[k : k + r * c], r, c) for name, (k, r, c) in layout.offsets().items()}
+
+
+def _join_sx(layout: StateLayout, blocks: dict[str, ca.SX]) -> ca.SX:
+    """A symbolic state vector from its named blocks (:func:`_split_sx` inverted)."""
+    return ca.vertcat(*[ca.vec(ca.SX(blocks[name])) for name, _, _ in layout.entries])
 
 
 def _check_step_size(step: ca.Function, layout: StateLayout) -> None:
