@@ -21,6 +21,7 @@ import numpy as np
 from fdisyn.runtime.errors import SpecError
 from fdisyn.runtime.gainfile import LIMITS, GainFile
 from fdisyn.runtime.names import shown
+from fdisyn.runtime.trace import Trace
 from fdisyn.runtime.values import real_number
 
 __all__ = ["Scenario", "Batch", "Problem", "get_problem", "problem_names", "OPTION_RULES", "check_option"]
@@ -98,7 +99,10 @@ class Batch:
     """Simulated runs of one scenario, stacked over seeds.
 
     ``U`` is ``runs × N × nu``, ``Y`` is ``runs × N × ny``; ``extra`` holds
-    per-run signals worth keeping (true unknown inputs, true states).
+    per-run signals worth keeping (true unknown inputs, true states), each
+    ``runs × N``. Run ``i`` is the :class:`~fdisyn.runtime.trace.Trace`
+    :meth:`trace` ``(i)``; the runs stay stacked here because the Monte Carlo
+    evaluation and the metrics work on all of them at once.
     """
 
     scenario: Scenario
@@ -113,6 +117,13 @@ class Batch:
     @property
     def active(self) -> np.ndarray:
         return self.scenario.active(self.t)
+
+    def trace(self, run: int = 0) -> Trace:
+        """Run ``run`` as the trace ``fdisyn simulate`` writes: inputs, outputs, the extra
+        signals and ``fault_active`` (1 where the scenario's fault is active)."""
+        extra = {k: np.asarray(v)[run] for k, v in self.extra.items()}
+        extra["fault_active"] = self.active.astype(float)
+        return Trace(t=self.t, inputs=self.inputs, outputs=self.outputs, U=self.U[run], Y=self.Y[run], extra=extra)
 
 
 DesignFn = Callable[..., GainFile]
