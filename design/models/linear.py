@@ -228,13 +228,6 @@ class LinearPlant:
             outputs=tuple(self.outputs[i] for i in ii),
         )
 
-    def output_index(self, name: str) -> int:
-        """Index of the output called ``name`` (error lists the valid names)."""
-        try:
-            return self.outputs.index(name)
-        except ValueError:
-            raise ShapeError(f"no output called {name!r}; outputs are {list(self.outputs)}") from None
-
     def matrices(self) -> dict[str, np.ndarray]:
         """The model matrices as a plain dict (for the gain file)."""
         return {k: np.asarray(getattr(self, k)) for k in ("A", "B", "C", "D", "E", "Q", "R")}

@@ -96,14 +96,14 @@ from fdisyn.numerics.sdp import (
     _sym,
     _val,
 )
-from fdisyn.runtime.errors import CertificateError, ShapeError, SolverError
+from fdisyn.runtime.errors import CertificateError, SolverError
 from fdisyn.synthesis.certificate import Certificate, Check
 from scipy import sparse
 
-__all__ = ['HMINUS_TOL', 'h2_norm_lmi', 'hinf_bound_lmi', 'hinf_norm_lmi', 'hminus_index_lmi']
+__all__ = ['HMINUS_TOL', 'h2_norm_lmi', 'hinf_norm_lmi', 'hminus_index_lmi']
 
 
-def _kyp_lhs(a: np.ndarray, b: np.ndarray, band: tuple[float, float] | None, *, complex_ok: bool = True):
+def _kyp_lhs(a: np.ndarray, b: np.ndarray, band: tuple[float, float] | None):
     """``Nᴴ (Φ ⊗ P + Ψ ⊗ Q) N`` with ``N = [[A, B], [I, 0]]`` and the band's multiplier.
 
     Returns ``(expr, P, Q, constraints)``. Full circle: ``Q`` absent (plain
@@ -165,37 +165,6 @@ def hinf_norm_lmi(sys: DiscreteLTI) -> SdpResult:
         meaning={"infeasible": "no γ bounds the gain: A has an eigenvalue on or outside the unit circle"},
     )
     return SdpResult(s * math.sqrt(max(float(_val(t)), 0.0)), stats)
-
-
-def hinf_bound_lmi(sys: DiscreteLTI, *, gamma: float) -> SdpResult:
-    """Feasibility of the bounded real lemma for a given ``γ`` (raises when ``‖G‖∞ ≥ γ``).
-
-    Returns ``γ`` when some ``P ≻ 0`` certifies ``‖G‖∞ ≤ γ``; an infeasible LMI
-    raises :class:`SolverError` naming the status and what it means.
-    """
-    _require_stable(sys, "H∞ bound LMI")
-    if not gamma > 0:
-        raise ShapeError(f"gamma must be positive; got {gamma!r}")
-    g = _balance(sys)
-    s = _scale(sys)
-    c, d = g.C / s, g.D / s
-    gs = float(gamma) / s
-    p = cp.Variable((g.n, g.n), symmetric=True)
-    m = g.n_in
-    lhs = cp.bmat(
-        [
-            [g.A.T @ p @ g.A - p + c.T @ c, g.A.T @ p @ g.B + c.T @ d],
-            [g.B.T @ p @ g.A + d.T @ c, g.B.T @ p @ g.B + d.T @ d - gs**2 * np.eye(m)],
-        ]
-    )
-    prob = cp.Problem(cp.Minimize(0), [p >> 0, _sym(lhs) << 0])
-    stats = _solve(
-        prob,
-        what=f"H∞ bound γ = {gamma:g} (bounded real lemma)",
-        settings=_NORM_LADDER,
-        meaning={"infeasible": f"‖G‖∞ ≥ γ = {gamma:g}; try a larger γ (or compute the norm with hinf_norm_lmi)"},
-    )
-    return SdpResult(float(gamma), stats)
 
 
 def h2_norm_lmi(sys: DiscreteLTI) -> SdpResult:
