@@ -80,7 +80,7 @@ def subplots(nrows: int = 1, ncols: int = 1, *, figsize: tuple[float, float], **
 
 @dataclass
 class ReportContext:
-    """What a problem's report hook gets: the results and a figure helper."""
+    """What a problem's report hook gets: the results and :meth:`figure`, which saves a figure next to the page."""
 
     problem: Problem
     variants: Sequence[Any]

@@ -1,4 +1,4 @@
-"""Small linear-algebra helpers shared by every design method.
+"""Small linear-algebra functions shared by every design method.
 
 The validators every model and setting is read with — numbers only
 (:func:`real_array`), matrices and vectors of a stated shape that name the

@@ -71,7 +71,7 @@ class SdpResult:
     stats: SdpStats | None
     """``None`` when no SDP was needed (e.g. ``‖G‖₋ = 0`` for a wide system)."""
     route: str = "sdp"
-    """Which formulation produced ``value`` (:func:`hminus_index_lmi` names its routes)."""
+    """Which formulation produced ``value`` (:func:`~fdisyn.numerics.lmi_norms.hminus_index_lmi` names its routes)."""
     bracket: tuple[float, float] | None = None
     """``(proven lower bound, attained upper bound)`` when ``value`` was verified (H₋ index)."""
     certificate: Certificate | None = None

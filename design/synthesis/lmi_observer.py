@@ -1,5 +1,40 @@
 """The diagnostic observer of Qiu, Wen & Jiang (Control Theory & Applications 27(8), 2010)
-designed by LMIs, for the H∞, H₂ and H₋ fault measures.
+designed by LMIs, for the H∞, H₂ and H₋ fault measures (the norm LMIs are
+:mod:`fdisyn.numerics.lmi_norms`).
+
+Design (:func:`lmi_diagnostic_observer`): the observer
+``x̂⁺ = A_D x̂ + B_uD v + L(ψ − C x̂)``, ``r = V(ψ − C x̂)`` — Theorem 1's
+structure with ``s = n``, ``T = I``, ``F = A_D − LC``, ``W = VC``,
+``E = B_uD``, ``Q = 0`` — with the error ``e = x − x̂`` driven by ``G_dJ``
+and ``G_fJ``.
+
+1. Observer gain, convex in ``(P, Z = P L)``: the H2-optimal one-step
+   predictor, ``min trace Σ`` subject to ``Σ ⪰ (A − LC) Σ (A − LC)ᵀ + B_d B_dᵀ``,
+   written with ``P = Σ⁻¹`` as ``[[P, PA − ZC, PB_d], [·, P, 0], [·, 0, I]] ⪰ 0``.
+2. Post-filter ``Π = VᵀV``, convex for the fixed gain: a mixed problem,
+   ``min γ²`` subject to ``‖V G_ed‖∞ ≤ γ`` (bounded real lemma, linear in
+   ``(P, Π, γ²)``) and the fault side normalised, linear in ``Π``:
+   ``η = "-"``: ``‖V G_ef‖₋ ≥ 1`` by the (generalised) KYP lemma;
+   ``η = "2"``: ``trace(Π C Σ_f Cᵀ) ≥ 1`` (``Σ_f`` the fault Gramian);
+   ``η = "inf"``: ``wᴴ G_ef(ω*)ᴴ Π G_ef(ω*) w ≥ 1`` at the current peak
+   ``(ω*, w)``, iterated (each step convex, ``γ`` non-increasing).
+   ``J_η ≤ γ`` is the certified bound; the achieved ``J`` is re-evaluated by
+   the sweep.
+
+The joint problem in ``(L, Π)`` with the fault side is not convex (the fault
+multipliers multiply ``L``); the split is exact when ``G_dJ`` has full row
+normal rank: then the H2-optimal predictor's gain is the DTARS gain (the
+Kalman predictor minimises ``Σ`` in the PSD order), ``Π = (C X Cᵀ)⁻¹`` is the
+largest post-filter with ``‖V G_ed‖∞ ≤ 1`` (by the maximum modulus principle
+``‖V G_ed‖∞ ≥ σ_max(V N)`` for any gain), so every η reaches ``J*`` (within
+solver accuracy). Both SDPs are solved in balanced state coordinates, and
+Clarabel's "almost solved" is accepted for them (their optimum is degenerate:
+the frequency inequalities are tight at every frequency), because the design
+is re-evaluated by the sweep and its bound certified. When ``G_dJ`` has normal rank below
+``p`` (e.g. the ZOH model of a plant with fewer disturbances than outputs,
+which the paper's indirect design factorises), Theorem 1's bound is not a
+bound — ``G_do`` has no inverse and residuals can be (nearly) decoupled — and
+the SDP finds ``J`` far below the factorisation's value.
 """
 
 from __future__ import annotations

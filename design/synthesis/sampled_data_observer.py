@@ -13,18 +13,21 @@ and the discrete diagnostic observer (eq. (6))::
     λ(k+1) = F λ + E v + L ψ,   r(k) = −W λ − Q v + V ψ
 
 — in fdisyn's canonical form ``Ar = F, Bu = E, By = L, Cr = −W, Du = −Q,
-Dy = V``. What is here:
+Dy = V``. The paper's parts and where they live:
 
 * Lemma 1, the norm-invariant discretisation ``G_J = (A_D, B_J, C, 0)``,
   ``A_D = e^{Ah}``, ``B_J B_Jᵀ = ∫₀ʰ e^{Aτ} B Bᵀ e^{Aᵀτ} dτ``
-  (:func:`norm_invariant_discretisation`), and the step-invariant
-  ``B_uD = ∫₀ʰ e^{Aτ} dτ Bu`` (eq. (13)); :class:`SampledDataPlant` holds both.
+  (:func:`~fdisyn.models.sampled_data.norm_invariant_discretisation`), and the
+  step-invariant ``B_uD = ∫₀ʰ e^{Aτ} dτ Bu`` (eq. (13));
+  :class:`~fdisyn.models.sampled_data.SampledDataPlant` holds both.
 * Exact sampling of continuous white noise for simulation
-  (:func:`sampled_disturbance`, :func:`simulate_sampled_data`).
+  (:func:`~fdisyn.evaluation.sampled_data_simulation.sampled_disturbance`,
+  :func:`~fdisyn.evaluation.sampled_data_simulation.simulate_sampled_data`).
 * Lemma 4 / eq. (20), the discrete-time algebraic Riccati system (DTARS) and the
-  co-inner–outer factorisation ``G = G_o G_i`` (:func:`solve_dtars`,
-  :func:`co_inner_outer`).
-* Theorem 1, the optimal diagnostic observer of any order ``s ≥ n``
+  co-inner–outer factorisation ``G = G_o G_i``
+  (:func:`~fdisyn.numerics.factorisation.solve_dtars`,
+  :func:`~fdisyn.numerics.factorisation.co_inner_outer`).
+* Theorem 1, here: the optimal diagnostic observer of any order ``s ≥ n``
   (:func:`optimal_diagnostic_observer`), ``design="direct"`` (the paper's
   method) or ``"indirect"`` (ZOH-discretise the plant first, the paper's
   comparison), with a :class:`~fdisyn.synthesis.certificate.Certificate`.

@@ -143,8 +143,9 @@ fault names), ``status`` (0 processed, 1 skipped). All dense column vectors.
   alarm_resets, ekf_reparameterisations, ekf_divergence_resets,
   nf_divergence_resets``.
 
-Limits (checked before anything is built or generated, at design time and
-again on reading a gain file; each keeps one resource bounded, with room for
+Limits (constants of :mod:`fdisyn.synthesis.nafdf.settings`, checked before
+anything is built or generated, at design time and again on reading a gain
+file; each keeps one resource bounded, with room for
 the documented problems — ship: ``N = 10``, ``N2 = 50``, 3 086 operations;
 drive train: ``N = 50``, ``N2 = 200``, 11 202 operations):
 
@@ -167,7 +168,8 @@ drive train: ``N = 50``, ``N2 = 200``, 11 202 operations):
   ``gcc -O2 -fstack-usage``: ship 1.7 KiB, drive train 4.1 KiB, the ship
   with ``N = 1000`` 9.5 KiB — the state copy dominates.
 
-Gain files. :func:`nafdf_payload` stores the model as data, not code:
+Gain files (:mod:`fdisyn.synthesis.nafdf.payload`). :func:`nafdf_payload`
+stores the model as data, not code:
 ``f`` and ``h`` as lists of elementary operations
 (:func:`fdisyn.models.nonlinear.model_program`) that the reader validates
 entry by entry before it builds anything, never as CasADi serialised

@@ -233,7 +233,7 @@ def _check_sizes(plant: NonlinearPlant, window: int, classifier_window: int) -> 
 
 
 def _settings(plant: NonlinearPlant, **kw: Any) -> NafdfSettings:
-    """Validate the keywords of :func:`nafdf` (also applied to a gain file's stored settings).
+    """Validate the keywords of :func:`~fdisyn.synthesis.nafdf.design.nafdf` (also applied to a gain file's stored settings).
 
     Sizes first (windows, counters, dimensions, state size), then every
     vector and matrix: shapes, finiteness, definiteness, ranges, the box.
