@@ -38,7 +38,7 @@ from typing import Literal
 
 import numpy as np
 import scipy.optimize as sopt
-from fdisyn.numerics.linalg import as_matrix, dlyap, spectral_radius
+from fdisyn.numerics.linalg import as_matrix, as_square, dlyap, spectral_radius
 from fdisyn.runtime.errors import ExistenceError, ShapeError
 
 __all__ = [
@@ -75,10 +75,8 @@ class DiscreteLTI:
     @classmethod
     def create(cls, *, A: object, B: object, C: object, D: object | None = None) -> DiscreteLTI:
         """Validate shapes (the error names the matrix) and build."""
-        a = as_matrix(A, "A")
+        a = as_square(A, "A")
         n = a.shape[0]
-        if a.shape != (n, n):
-            raise ShapeError(f"A must be square; got shape {a.shape}")
         b = as_matrix(B, "B", rows=n)
         c = as_matrix(C, "C", cols=n)
         d = np.zeros((c.shape[0], b.shape[1])) if D is None else as_matrix(D, "D", rows=c.shape[0], cols=b.shape[1])
