@@ -440,7 +440,7 @@ def gain_file_from_dict(doc: object, *, source: str = "gain file") -> GainFile:
 
     Besides the content (see the module docstring), the file must record a
     passed verification: ``certificate.passed`` is ``true``. This reader is
-    what ``fdisyn codegen``, ``fdisyn replay`` and :class:`Monitor` load
+    what ``fdisyn codegen``, ``fdisyn replay`` and :class:`~fdisyn.runtime.monitor.Monitor` load
     gain files with, so a design that failed its certificate is never
     compiled or run.
     """

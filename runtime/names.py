@@ -5,8 +5,8 @@ trace CSV that ``fdisyn simulate`` writes and ``replay`` reads, a key of a
 nonlinear plant's expressions and a C string literal (``<name>_input_names``);
 a fault name is a C string literal; the diagnoser's name prefixes every C
 symbol, macro and generated file name. So every name is checked where it
-enters — the plant-file reader, :class:`LinearPlant` and
-:class:`NonlinearPlant`, the gain-file reader — by the functions below, and
+enters — the plant-file reader, :class:`~fdisyn.models.linear.LinearPlant` and
+:class:`~fdisyn.models.nonlinear.NonlinearPlant`, the gain-file reader — by the functions below, and
 the C generator escapes every string it writes all the same.
 
 Grammar (``NAME`` below is ``[A-Za-z][A-Za-z0-9_]*``):
