@@ -204,7 +204,7 @@ def dlyap(a: np.ndarray, q: np.ndarray, *, refine: bool = True) -> np.ndarray:
     9e3 to 2.6e7 at ``ρ(A) ≤ 0.35``. The sum stops when the last increment
     is at round-off and ``‖A_k‖₂ ≤ 1/2``, so the remaining tail is below it
     too; ``ρ(A) ≥ 1`` (no solution of that form) raises
-    :class:`ExistenceError` after 80 doublings.
+    :class:`ExistenceError` when the sum overflows or after 80 doublings.
 
     The residual ``A X Aᵀ + Q − X`` of the sum grows with ``‖A‖₂²``: for the
     strongly non-normal ``F`` of minimum-variance UIOs of random plants
@@ -231,15 +231,16 @@ def _lyapunov_sum(a: np.ndarray, q: np.ndarray) -> np.ndarray:
     """``Σ_k A^k Q A^kᵀ`` by Smith's doubling (:func:`dlyap`), symmetrised."""
     x = 0.5 * (q + q.T)
     ak = a.copy()
-    for _ in range(80):
-        inc = ak @ x @ ak.T
-        x = x + inc
-        if np.linalg.norm(inc) <= np.finfo(float).eps * np.linalg.norm(x) and np.linalg.norm(ak, 2) <= 0.5:
-            break
-        ak = ak @ ak
-    else:
-        raise ExistenceError(f"the Lyapunov sum did not converge: spectral radius of A is {spectral_radius(a):.12g}")
-    return 0.5 * (x + x.T)
+    with np.errstate(over="ignore", invalid="ignore"):  # an unstable A overflows: refused below
+        for _ in range(80):
+            inc = ak @ x @ ak.T
+            x = x + inc
+            if not np.all(np.isfinite(x)):
+                break
+            if np.linalg.norm(inc) <= np.finfo(float).eps * np.linalg.norm(x) and np.linalg.norm(ak, 2) <= 0.5:
+                return 0.5 * (x + x.T)
+            ak = ak @ ak
+    raise ExistenceError(f"the Lyapunov sum did not converge: spectral radius of A is {spectral_radius(a):.12g}")
 
 
 def spectral_radius(a: np.ndarray) -> float:
