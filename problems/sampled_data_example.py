@@ -25,7 +25,7 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
-from fdisyn.app.report import ReportContext, plt, shade, table
+from fdisyn.app.report import ReportContext, shade, subplots, table
 from fdisyn.evaluation.sampled_data_simulation import simulate_sampled_data
 from fdisyn.models.linear import LinearPlant
 from fdisyn.models.problem import Batch, Problem, Scenario
@@ -201,7 +201,7 @@ def _report(ctx: ReportContext) -> list[tuple[str, str]]:
         for fig_no, design in ((2, "direct"), (3, "indirect")):
             res = ex[design]["paper"]
             thr = float(v.built[design].gain_file.thresholds[0])
-            fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 4.8), sharex=True)
+            fig, (ax1, ax2) = subplots(2, 1, figsize=(9, 4.8), sharex=True)
             for k in range(res.r.shape[1]):
                 ax1.plot(b.t, res.r[:, k], lw=0.9, label=f"r{k}")
             shade(ax1, b.t, b.active)

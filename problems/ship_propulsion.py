@@ -36,7 +36,7 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
-from fdisyn.app.report import ReportContext, plt, shade, table, timeline
+from fdisyn.app.report import ReportContext, shade, subplots, table, timeline
 from fdisyn.models.nonlinear import NonlinearPlant
 from fdisyn.models.problem import Batch, Problem, Scenario
 from fdisyn.runtime.errors import ArgumentError
@@ -358,7 +358,7 @@ def _report(ctx: ReportContext) -> list[tuple[str, str]]:
         names = list(v.built["nafdf"].gain_file.step.statistic_names)
         col = {nm: res.J[:, i] for i, nm in enumerate(names)}
         t = b.t
-        fig, axes = plt.subplots(3, 1, figsize=(9, 7.5), sharex=True)
+        fig, axes = subplots(3, 1, figsize=(9, 7.5), sharex=True)
         ax = axes[0]
         for q, color in (("a", "tab:blue"), ("b", "tab:orange")):
             ax.plot(t, col[f"theta_hat_{q}"], color=color, lw=0.8, label=f"NF estimate of {q}")

@@ -36,7 +36,7 @@ from typing import Any
 
 import casadi as ca
 import numpy as np
-from fdisyn.app.report import ReportContext, fmt, plt, shade, table, timeline
+from fdisyn.app.report import ReportContext, fmt, shade, subplots, table, timeline
 from fdisyn.evaluation.simulate import Signal, simulate_linear
 from fdisyn.models.linear import LinearPlant
 from fdisyn.models.problem import Batch, Problem, Scenario
@@ -434,7 +434,7 @@ def _report(ctx: ReportContext) -> list[tuple[str, str]]:
         # fig. 1: plain vs optimal UIO residual, fault-free
         if "fault_free" in bt:
             t = bt["fault_free"].t
-            fig, ax = plt.subplots(figsize=(9, 3.2))
+            fig, ax = subplots(figsize=(9, 3.2))
             for d, color in (("uio_pole_placement", "tab:gray"), ("kalman_uio", "tab:blue")):
                 if d in ex:
                     ax.plot(t, ex[d]["fault_free"].r[:, 0], color=color, lw=0.6, label=f"{d}: r (omega_r_m1 component)")
@@ -457,7 +457,7 @@ def _report(ctx: ReportContext) -> list[tuple[str, str]]:
             b = bt[scen]
             res = ex["kalman_uio"][scen]
             gf = v.built["kalman_uio"].gain_file
-            fig, (ax, ax2) = plt.subplots(2, 1, figsize=(9, 4.6), sharex=True, gridspec_kw={"height_ratios": [3, 1]})
+            fig, (ax, ax2) = subplots(2, 1, figsize=(9, 4.6), sharex=True, gridspec_kw={"height_ratios": [3, 1]})
             timeline(ax, *_block_max(b.t, res.J), gf.step.statistic_names, threshold=float(gf.thresholds[0]))
             shade(ax, b.t, b.active)
             ax.set_ylabel("J")
@@ -485,7 +485,7 @@ def _report(ctx: ReportContext) -> list[tuple[str, str]]:
             b = bt[scen]
             res = ex["kalman_uio"][scen]
             gf = v.built["kalman_uio"].gain_file
-            fig, (ax, ax2) = plt.subplots(2, 1, figsize=(9, 4.6), sharex=True, gridspec_kw={"height_ratios": [3, 1]})
+            fig, (ax, ax2) = subplots(2, 1, figsize=(9, 4.6), sharex=True, gridspec_kw={"height_ratios": [3, 1]})
             timeline(ax, *_block_max(b.t, res.J), gf.step.statistic_names, threshold=float(gf.thresholds[0]))
             shade(ax, b.t, b.active)
             ax.set_ylabel("J")

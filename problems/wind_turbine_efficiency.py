@@ -42,7 +42,7 @@ from collections.abc import Sequence
 
 import casadi as ca
 import numpy as np
-from fdisyn.app.report import ReportContext, plt, shade, timeline
+from fdisyn.app.report import ReportContext, shade, subplots, timeline
 from fdisyn.models.nonlinear import NonlinearPlant
 from fdisyn.models.problem import Batch, Problem, Scenario
 from fdisyn.models.sampling import zoh
@@ -251,7 +251,7 @@ def _report(ctx: ReportContext) -> list[tuple[str, str]]:
     res, b = ex["eta_drop"], bt["eta_drop"]
     names = list(v.built["nafdf"].gain_file.step.statistic_names)
     col = {nm: res.J[:, i] for i, nm in enumerate(names)}
-    fig, axes = plt.subplots(2, 1, figsize=(9, 5.5), sharex=True)
+    fig, axes = subplots(2, 1, figsize=(9, 5.5), sharex=True)
     axes[0].plot(b.t, col["theta_hat_eta"], lw=0.8, label="NF estimate of η")
     axes[0].plot(b.t, b.extra["eta"][0], "k--", lw=1.0, label="true η")
     axes[0].set_ylim(0.85, 1.02)

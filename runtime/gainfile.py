@@ -52,6 +52,7 @@ from typing import Any, NoReturn
 
 import numpy as np
 from fdisyn.runtime.errors import FdisynError, GainFileError
+from fdisyn.runtime.layout import StateLayout
 from fdisyn.runtime.names import (
     SHORT_LABEL_MAX,
     check_diagnoser_name,
@@ -61,6 +62,7 @@ from fdisyn.runtime.names import (
     check_signal_names,
     shown,
 )
+from fdisyn.runtime.values import real_number
 
 __all__ = [
     "FORMAT",
@@ -365,7 +367,7 @@ class GainFile:
         return doc
 
 
-def linear_state_layout(generators: Sequence[Generator], n_statistics: int) -> dict[str, slice]:
+def linear_state_layout(generators: Sequence[Generator], n_statistics: int) -> StateLayout:
     """Where each part of a linear diagnoser's state vector lives.
 
     ``xi<g>``: generator ``g``'s state; ``counters``: one persistence counter
@@ -373,18 +375,9 @@ def linear_state_layout(generators: Sequence[Generator], n_statistics: int) -> d
     sample has initialised it at equilibrium); ``nonfinite``: the number of
     samples that held a non-finite input or output.
     """
-    out: dict[str, slice] = {}
-    k = 0
-    for g, gen in enumerate(generators):
-        out[f"xi{g}"] = slice(k, k + gen.n_state)
-        k += gen.n_state
-    out["counters"] = slice(k, k + n_statistics)
-    k += n_statistics
-    out["ready"] = slice(k, k + len(generators))
-    k += len(generators)
-    out["nonfinite"] = slice(k, k + 1)
-    out["total"] = slice(0, k + 1)
-    return out
+    blocks = [(f"xi{g}", gen.n_state, 1) for g, gen in enumerate(generators)]
+    blocks += [("counters", n_statistics, 1), ("ready", len(generators), 1), ("nonfinite", 1, 1)]
+    return StateLayout(tuple(blocks), scalars=frozenset({"nonfinite"}))
 
 
 # --------------------------------------------------------------------------- I/O
@@ -472,7 +465,7 @@ def gain_file_from_dict(doc: object, *, source: str = "gain file") -> GainFile:
 
     Besides the content (see the module docstring), the file must record a
     passed verification: ``certificate.passed`` is ``true``. This reader is
-    what ``fdisyn codegen``, ``fdisyn replay`` and :class:`Monitor` load
+    what ``fdisyn codegen``, ``fdisyn replay`` and :class:`~fdisyn.runtime.monitor.Monitor` load
     gain files with, so a design that failed its certificate is never
     compiled or run.
     """
@@ -575,17 +568,13 @@ def gain_file_from_dict(doc: object, *, source: str = "gain file") -> GainFile:
 
 
 def _check_holds(value: object, bound: object, relation: object) -> bool:
-    """``value <relation> bound`` with both finite numbers (booleans and strings are not numbers)."""
-    if isinstance(value, bool) or isinstance(bound, bool) or not isinstance(value, (int, float)) or not isinstance(bound, (int, float)):
-        return False
-    try:
-        if not (math.isfinite(value) and math.isfinite(bound)):
-            return False
-    except OverflowError:  # an integer beyond the double range
+    """``value <relation> bound`` with both finite numbers (:func:`~fdisyn.runtime.values.real_number`)."""
+    v, b = real_number(value), real_number(bound)
+    if v is None or b is None or not (math.isfinite(v) and math.isfinite(b)):
         return False
     if relation == "<=":
-        return value <= bound
-    return relation == ">=" and value >= bound
+        return v <= b
+    return relation == ">=" and v >= b
 
 
 def _check_certificate_checks(node: object, where: str, depth: int = 0) -> None:
@@ -644,13 +633,10 @@ class _Reader:
 
     def number(self, key: str) -> float:
         v = self._get(key)
-        try:
-            ok = not isinstance(v, bool) and isinstance(v, (int, float)) and math.isfinite(v)
-        except OverflowError:  # an integer beyond the double range
-            ok = False
-        if not ok:
+        x = real_number(v)
+        if x is None or not math.isfinite(x):
             raise GainFileError(f"{self.where}: field {key!r} must be a finite number, found {shown(v)}")
-        return float(v)  # type: ignore[arg-type]
+        return x
 
     def integer(self, key: str, *, minimum: int | None = None) -> int:
         v = self._get(key)
@@ -981,10 +967,10 @@ def _validate_linear(gf: GainFile) -> None:
             _fail(f"decision.signatures: fault {gf.faults[f]!r} shares its signature {list(row)} with another fault")
     st = gf.step
     lay = linear_state_layout(gf.generators, len(gf.evaluators))
-    if st.nr != nr or st.nj != len(gf.evaluators) or st.nstate != lay["total"].stop:
+    if st.nr != nr or st.nj != len(gf.evaluators) or st.nstate != lay.size:
         _fail(
             f"step sizes nr={st.nr}, nj={st.nj}, nstate={st.nstate} do not match the generators "
-            f"(nr={nr}, nj={len(gf.evaluators)}, nstate={lay['total'].stop})"
+            f"(nr={nr}, nj={len(gf.evaluators)}, nstate={lay.size})"
         )
     # the linear step starts from zero: no generator ready (each starts at the equilibrium of its first
     # valid sample), no persistence counted, no sample skipped; anything else is an edited file

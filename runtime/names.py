@@ -5,8 +5,8 @@ trace CSV that ``fdisyn simulate`` writes and ``replay`` reads, a key of a
 nonlinear plant's expressions and a C string literal (``<name>_input_names``);
 a fault name is a C string literal; the diagnoser's name prefixes every C
 symbol, macro and generated file name. So every name is checked where it
-enters — the plant-file reader, :class:`LinearPlant` and
-:class:`NonlinearPlant`, the gain-file reader — by the functions below, and
+enters — the plant-file reader, :class:`~fdisyn.models.linear.LinearPlant` and
+:class:`~fdisyn.models.nonlinear.NonlinearPlant`, the gain-file reader — by the functions below, and
 the C generator escapes every string it writes all the same.
 
 Grammar (``NAME`` below is ``[A-Za-z][A-Za-z0-9_]*``):
@@ -56,6 +56,7 @@ component faults of a linear plant are all columns of one trace CSV).
 from __future__ import annotations
 
 import re
+import reprlib
 from collections.abc import Mapping, Sequence
 
 from fdisyn.runtime.errors import ArgumentError, FdisynError
@@ -102,10 +103,32 @@ _LABEL = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.+|\-]*\Z")
 Error = type[FdisynError]
 
 
+_REPR = reprlib.Repr()
+_REPR.maxlevel = 3
+_REPR.maxtuple = _REPR.maxlist = _REPR.maxarray = _REPR.maxdict = _REPR.maxset = _REPR.maxfrozenset = _REPR.maxdeque = 8
+_REPR.maxstring = _REPR.maxlong = _REPR.maxother = 1 << 16
+_LINE_BREAKS = re.compile(r"\s*\n\s*")
+
+
 def shown(value: object, limit: int = 80) -> str:
-    """``repr(value)`` cut to about ``limit`` characters: error messages stay one short line."""
-    text = repr(value)
-    return text if len(text) <= limit else f"{text[:limit]}… ({len(text)} characters)"
+    """``repr(value)`` cut to about ``limit`` characters: every error message quotes a value this way.
+
+    A message stays one short line whatever a file or a caller holds: a string
+    is shown whole up to ``limit`` characters, then cut with its length; a
+    container is shown to a depth of 3 and 8 items per level (``reprlib``), so
+    a deeply nested or huge value costs no more than a short one (``repr`` of
+    a deeply nested list would recurse), then cut. Line breaks (NumPy's repr
+    of an array has them) become blanks. An integer too long for Python's
+    text conversion is shown by its size.
+    """
+    try:
+        text = _REPR.repr(value)
+    except ValueError:  # more digits than int → str converts (sys.get_int_max_str_digits)
+        text = f"<an integer of {value.bit_length()} bits>" if isinstance(value, int) else f"<a {type(value).__name__}>"
+    text = _LINE_BREAKS.sub(" ", text)  # NumPy's repr of an array breaks lines
+    if len(text) <= limit:
+        return text
+    return f"{text[:limit]}… ({len(text)} characters)" if isinstance(value, str) else f"{text[:limit]}…"
 
 
 def _string(name: object, what: str, error: Error) -> str:

@@ -43,7 +43,6 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, NoReturn
 
-import numpy as np
 from fdisyn import __version__
 from fdisyn.runtime.errors import ArgumentError, FdisynError, FileError, InternalError
 
@@ -212,15 +211,12 @@ def _cmd_replay(a: argparse.Namespace) -> None:
 
 
 def _cmd_simulate(a: argparse.Namespace) -> None:
-    from fdisyn.runtime.trace import Trace, write_trace
+    from fdisyn.runtime.trace import write_trace
 
     opts = _options(a.option)
     out = _output_file(a.out, "--out")
     prob = _problem(a.spec)
-    batch = prob.run(a.scenario, [a.seed], **opts)
-    extra = {k: np.asarray(v)[0] for k, v in batch.extra.items()}
-    extra["fault_active"] = batch.active.astype(float)
-    tr = Trace(t=batch.t, inputs=batch.inputs, outputs=batch.outputs, U=batch.U[0], Y=batch.Y[0], extra=extra)
+    tr = prob.run(a.scenario, [a.seed], **opts).trace(0)
     with _user_paths("a writable file with room for the trace", ("--out", out)):
         write_trace(tr, out)
     print(f"wrote {a.out}: {len(tr.t)} samples of scenario {a.scenario!r}, seed {a.seed}")

@@ -99,6 +99,7 @@ the transitions from the onset sample on.
 
 from __future__ import annotations
 
+import math
 import tomllib
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
@@ -119,8 +120,10 @@ from fdisyn.runtime.names import (
     check_distinct,
     check_label,
     check_signal_names,
+    shown,
 )
-from fdisyn.synthesis.registry import Method, all_methods, check_options, get_method, short_repr
+from fdisyn.runtime.values import real_number
+from fdisyn.synthesis.registry import Method, all_methods, check_options, get_method
 
 __all__ = ["load_spec", "problem_from_toml", "problem_from_document"]
 
@@ -164,7 +167,7 @@ allocator."""
 class _Section:
     def __init__(self, doc: Any, where: str, allowed: set[str]) -> None:
         if not isinstance(doc, Mapping):
-            raise SpecError(f"{where} must be a table (key = value pairs), got {short_repr(doc)}")
+            raise SpecError(f"{where} must be a table (key = value pairs), got {shown(doc)}")
         unknown = sorted(set(doc) - allowed)
         if unknown:
             raise SpecError(f"{where}: unknown key(s) {unknown}; allowed: {sorted(allowed)}")
@@ -221,25 +224,26 @@ class _Section:
         v = self.get(key, default, required=required)
         if v is None:
             return None
-        if isinstance(v, bool) or not isinstance(v, (int, float)):
-            raise SpecError(f"{self.where}.{key} must be a number, got {short_repr(v)}")
-        if not np.isfinite(v):
-            raise SpecError(f"{self.where}.{key} must be a finite number, got {v!r}")
-        return float(v)
+        x = real_number(v)
+        if x is None:
+            raise SpecError(f"{self.where}.{key} must be a number, got {shown(v)}")
+        if not math.isfinite(x):
+            raise SpecError(f"{self.where}.{key} must be a finite number, got {shown(v)}")
+        return x
 
     def vector(self, key: str, size: int) -> np.ndarray:
         """A list of ``size`` finite numbers (default: zeros)."""
         v = self.get(key, [0.0] * size)
         if not isinstance(v, list) or not all(_is_number(x) for x in v):
-            raise SpecError(f"{self.where}.{key} must be a list of {size} numbers, got {short_repr(v)}")
+            raise SpecError(f"{self.where}.{key} must be a list of {size} numbers, got {shown(v)}")
         try:
             a = np.asarray(v, dtype=float)
         except OverflowError:
-            raise SpecError(f"{self.where}.{key} must hold finite numbers, got {short_repr(v)}") from None
+            raise SpecError(f"{self.where}.{key} must hold finite numbers, got {shown(v)}") from None
         if a.shape != (size,):
             raise SpecError(f"{self.where}.{key} must have {size} entries, got {a.size}")
         if not np.all(np.isfinite(a)):
-            raise SpecError(f"{self.where}.{key} must hold finite numbers, got {short_repr(v)}")
+            raise SpecError(f"{self.where}.{key} must hold finite numbers, got {shown(v)}")
         return a
 
     def matrix(self, key: str, *, required: bool = False) -> np.ndarray | None:
@@ -251,23 +255,23 @@ class _Section:
         label = f"{self.where}.{self.aliases.get(key, key)}"
         # numbers only: NumPy would turn "1.5" and true into 1.5 and 1.0 without a word
         if not (_is_number(v) or (isinstance(v, list) and all(_is_number(x) or (isinstance(x, list) and all(map(_is_number, x))) for x in v))):
-            raise SpecError(f"{label} must be a matrix of numbers (a list of rows), got {short_repr(v)}")
+            raise SpecError(f"{label} must be a matrix of numbers (a list of rows), got {shown(v)}")
         try:
             a = np.asarray(v, dtype=float)
         except ValueError:  # rows of different lengths
-            raise SpecError(f"{label} must be a matrix of numbers (a list of rows of one length), got {short_repr(v)}") from None
+            raise SpecError(f"{label} must be a matrix of numbers (a list of rows of one length), got {shown(v)}") from None
         except OverflowError:  # an integer beyond the double range
-            raise SpecError(f"{label} must hold finite numbers, got {short_repr(v)}") from None
+            raise SpecError(f"{label} must hold finite numbers, got {shown(v)}") from None
         if a.ndim == 1:
             a = a.reshape(-1, 1) if key in ("B", "E", "Fx") else a.reshape(1, -1)
         if a.ndim != 2:
-            raise SpecError(f"{label} must be a matrix (a list of rows), got {short_repr(v)}")
+            raise SpecError(f"{label} must be a matrix (a list of rows), got {shown(v)}")
         return a
 
 
 def _is_number(x: Any) -> bool:
-    """An integer or a float as TOML writes them: a boolean or a string is no number, whatever NumPy makes of it."""
-    return isinstance(x, (int, float)) and not isinstance(x, bool)
+    """A number as :func:`~fdisyn.runtime.values.real_number` reads it: a boolean or a string is no number, whatever NumPy makes of it."""
+    return real_number(x) is not None
 
 
 def _signal(d: Any, where: str) -> Signal:
@@ -276,7 +280,7 @@ def _signal(d: Any, where: str) -> Signal:
     sec = _Section(d, where, {"kind", "offset", "amplitude", "period", "start"})
     kind = sec.get("kind", "constant")
     if kind not in Signal.KINDS:
-        raise SpecError(f"{where}.kind must be one of {list(Signal.KINDS)}, got {short_repr(kind)}")
+        raise SpecError(f"{where}.kind must be one of {list(Signal.KINDS)}, got {shown(kind)}")
     # every value is read as written: 0 is a value, not "use the default"
     return Signal(
         kind=kind,
@@ -328,7 +332,7 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
     mod.accept_letters(SAMPLED_DATA_LETTERS)
     time = mod.get("time", "continuous")
     if time not in ("continuous", "discrete"):
-        raise SpecError(f"{path} [model].time must be 'continuous', 'discrete' or 'nonlinear', got {short_repr(time)}")
+        raise SpecError(f"{path} [model].time must be 'continuous', 'discrete' or 'nonlinear', got {shown(time)}")
     ts = mod.number("Ts", required=True)
     if ts is None or ts <= 0:  # number() has refused NaN and ±inf
         raise SpecError(f"{path} [model].{mod.aliases.get('Ts', 'Ts')} must be a positive sample time in seconds, got {ts!r}")
@@ -401,7 +405,7 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
         if fname is not None and (
             not isinstance(fname, str) or (fname not in known if known is not None else not set(fname.split("|")) <= sources)
         ):
-            raise SpecError(f"{w}.fault {short_repr(fname)} is not a fault class; classes: {sorted(known or sources)}")
+            raise SpecError(f"{w}.fault {shown(fname)} is not a fault class; classes: {sorted(known or sources)}")
         cfs = []
         for j, f in enumerate(sc.entries("component_faults")):
             fs = _Section(f, f"{w}.component_faults[{j}]", {"fault", "value"})
@@ -414,9 +418,9 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
             fs = _Section(f, f"{w}.sensor_faults[{j}]", {"sensor", "kind", "value"})
             sensor, kind = fs.get("sensor", required=True), fs.get("kind", required=True)
             if sensor not in physical.outputs:
-                raise SpecError(f"{w}.sensor_faults[{j}].sensor {short_repr(sensor)} is not an output; outputs are {list(physical.outputs)}")
+                raise SpecError(f"{w}.sensor_faults[{j}].sensor {shown(sensor)} is not an output; outputs are {list(physical.outputs)}")
             if kind not in SENSOR_FAULT_KINDS:
-                raise SpecError(f"{w}.sensor_faults[{j}].kind must be one of {list(SENSOR_FAULT_KINDS)}, got {short_repr(kind)}")
+                raise SpecError(f"{w}.sensor_faults[{j}].kind must be one of {list(SENSOR_FAULT_KINDS)}, got {shown(kind)}")
             sfs.append(SensorFaultSpec(sensor, kind, float(fs.number("value", required=True))))  # type: ignore[arg-type]
         duration = sc.duration("duration", Ts=ts)
         onset, end = sc.number("onset"), sc.number("end")
@@ -482,7 +486,7 @@ def _design_section(top: _Section, path: Path, name: str, kinds: tuple[str, ...]
     method = des.get("method", methods[0].name if len(methods) == 1 else "kalman_uio")
     if not isinstance(method, str) or method not in [m.name for m in methods]:
         family = "nonlinear" if "nonlinear" in kinds else "linear"
-        raise SpecError(f"{path} [design].method {short_repr(method)}: a {family} plant is designed by {', '.join(repr(m.name) for m in methods)}")
+        raise SpecError(f"{path} [design].method {shown(method)}: a {family} plant is designed by {', '.join(repr(m.name) for m in methods)}")
     _diagnoser_name(name, method, path)
     return get_method(method), {k: v for k, v in des.doc.items() if k != "method"}
 
@@ -525,7 +529,8 @@ def _scenario_name(value: Any, scenarios: Mapping[str, Scenario], where: str) ->
 
 def _nonlinear_problem(path: Path, top: _Section, name: str) -> Problem:
     """A ``time = "nonlinear"`` plant file: the model of Zhou, Xi & Zhang 1991 (eq. (2.1)) and the NAFDF (format in the README)."""
-    from fdisyn.models.nonlinear import NonlinearPlant, covariance_matrix
+    from fdisyn.models.nonlinear import NonlinearPlant
+    from fdisyn.numerics.linalg import as_covariance
 
     sig = _Section(top.get("signals", {}), f"{path} [signals]", {"states", "inputs", "outputs", "parameters"})
     mod = _Section(top.get("model", required=True), f"{path} [model]", {"time", "Ts", "f", "h", "nominal", "constants", "Q", "R", *NONLINEAR_LETTERS})
@@ -540,14 +545,14 @@ def _nonlinear_problem(path: Path, top: _Section, name: str) -> Problem:
     noise = {}
     for key, size, definite in (("Q", len(names["states"]), False), ("R", len(names["outputs"]), True)):
         try:
-            noise[key] = covariance_matrix(mod.get(key, required=True), mod.aliases.get(key, key), size, definite=definite)
+            noise[key] = as_covariance(mod.get(key, required=True), mod.aliases.get(key, key), size, definite=definite)
         except (ShapeError, ArgumentError) as exc:
             raise SpecError(f"{path} [model].{exc}") from None
     for key in ("f", "h", "nominal"):
         if not isinstance(mod.get(key, required=True), Mapping):
             raise SpecError(f"{path} [model].{key} must be a table such as {{ x = \"...\" }}")
     if not isinstance(mod.get("constants", {}), Mapping):
-        raise SpecError(f"{path} [model].constants must be a table such as {{ g = 9.81 }}, got {short_repr(mod.get('constants'))}")
+        raise SpecError(f"{path} [model].constants must be a table such as {{ g = 9.81 }}, got {shown(mod.get('constants'))}")
     try:
         plant = NonlinearPlant.from_expressions(
             states=names["states"],

@@ -3,6 +3,11 @@
 ``write_report`` writes ``reports/<problem>/index.html`` with PNG figures next
 to it and the gain files under ``gains/``. Problems add their own sections
 (figures in the spirit of the paper) through ``Problem.report``.
+
+Figures are Matplotlib ``Figure`` objects made by :func:`subplots`, not by
+``pyplot``: they belong to no window, and saving one as PNG uses Matplotlib's
+Agg renderer whatever backend is selected, so importing this module or
+writing a report never changes the user's backend (and needs no display).
 """
 
 from __future__ import annotations
@@ -16,17 +21,14 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import numpy as np
 from fdisyn.codegen.library import CFLAGS
 from fdisyn.models.problem import Problem
-from fdisyn.runtime.gainfile import write_gain_file  # noqa: E402
+from fdisyn.runtime.gainfile import write_gain_file
 from fdisyn.synthesis.registry import recovery_samples
+from matplotlib.figure import Figure
 
-__all__ = ["ReportContext", "write_report", "table", "fmt"]
+__all__ = ["ReportContext", "write_report", "subplots", "table", "fmt"]
 
 _CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;max-width:1150px;margin:2em auto;padding:0 1em;color:#1b1b1b;line-height:1.45}
@@ -67,20 +69,28 @@ def table(header: Sequence[str], rows: Iterable[Sequence[Any]], *, left: int = 1
     return f"<table><thead><tr>{h}</tr></thead><tbody>{''.join(body)}</tbody></table>"
 
 
+def subplots(nrows: int = 1, ncols: int = 1, *, figsize: tuple[float, float], **kw: Any) -> tuple[Figure, Any]:
+    """A figure and its axes, as ``pyplot.subplots`` makes them, without ``pyplot`` (module docstring).
+
+    ``kw`` goes to ``Figure.subplots`` (``sharex``, ``gridspec_kw``, …).
+    """
+    fig = Figure(figsize=figsize)
+    return fig, fig.subplots(nrows, ncols, **kw)
+
+
 @dataclass
 class ReportContext:
-    """What a problem's report hook gets: the results and a figure helper."""
+    """What a problem's report hook gets: the results and :meth:`figure`, which saves a figure next to the page."""
 
     problem: Problem
     variants: Sequence[Any]
     directory: Path
     figures: list[str] = field(default_factory=list)
 
-    def figure(self, name: str, fig: plt.Figure, caption: str) -> str:
+    def figure(self, name: str, fig: Figure, caption: str) -> str:
         """Save ``fig`` as ``<name>.png`` next to the page; return its HTML."""
         path = self.directory / f"{name}.png"
         fig.savefig(path, dpi=110, bbox_inches="tight")
-        plt.close(fig)
         self.figures.append(path.name)
         return f'<figure><img src="{path.name}" alt="{html.escape(caption)}" style="max-width:100%"><figcaption>{html.escape(caption)}</figcaption></figure>'
 
@@ -308,7 +318,7 @@ def _run_figures(ctx: ReportContext) -> list[tuple[str, str]]:
             est = [(j, nm[len("theta_hat_") :]) for j, nm in enumerate(names) if nm.startswith("theta_hat_")]
             est = [(j, q) for j, q in est if f"true_{q}" in b.extra]
             rows = 2 + bool(est)
-            fig, axes = plt.subplots(rows, 1, figsize=(9, 2.2 * rows + 0.6), sharex=True)
+            fig, axes = subplots(rows, 1, figsize=(9, 2.2 * rows + 0.6), sharex=True)
             timeline(axes[0], b.t, res.J[:, fixed] / thr[fixed], [names[j] for j in fixed], threshold=1.0)
             axes[0].set_ylabel("J / threshold")
             shade(axes[0], b.t, b.active)

@@ -22,7 +22,7 @@ import numpy as np
 from fdisyn.runtime.errors import GainFileError
 from fdisyn.runtime.gainfile import GainFile, linear_state_layout
 
-__all__ = ["STEP_INPUTS", "STEP_OUTPUTS", "step_function", "linear_step_function", "finite"]
+__all__ = ["STEP_INPUTS", "STEP_OUTPUTS", "step_function", "linear_step_function", "finite", "all_finite"]
 
 STEP_INPUTS = ("state", "u", "y")
 STEP_OUTPUTS = ("state_next", "r", "J", "alarm", "isolated", "status")
@@ -38,8 +38,18 @@ def step_function(gf: GainFile) -> ca.Function:
 
 
 def finite(v: ca.SX) -> ca.SX:
-    """Elementwise 1 where ``v`` is finite (``|v| < ∞``; false for NaN and ±∞)."""
+    """Elementwise 1 where ``v`` is finite (``|v| < ∞``; false for NaN and ±∞).
+
+    The one finiteness test of every generated step (linear and NAFDF): written
+    with a comparison, which code generation keeps, where ``v != v`` may be
+    folded away.
+    """
     return ca.fabs(v) < ca.inf
+
+
+def all_finite(*exprs: ca.SX) -> ca.SX:
+    """1 if every entry of every expression is finite (:func:`finite`), else 0."""
+    return _all(finite(ca.vertcat(*[ca.vec(ca.SX(e)) for e in exprs])))
 
 
 def _all(flags: ca.SX) -> ca.SX:
@@ -82,7 +92,7 @@ def linear_step_function(gf: GainFile) -> ca.Function:
         evs = [j for j, ev in enumerate(gf.evaluators) if ev.generator == g]
         j_g = {j: ca.mtimes([r_g.T, _const(gf.evaluators[j].W), r_g]) for j in evs}
         # a finite but absurd value can overflow: the sample is then skipped like a non-finite one
-        results_ok = _all(finite(ca.vertcat(r_g, xi_next, *j_g.values())))
+        results_ok = all_finite(r_g, xi_next, *j_g.values())
         ok = ca.logic_and(inputs_ok, results_ok)
         overflow = ca.logic_or(overflow, ca.logic_and(inputs_ok, 1 - results_ok))
         nxt[sl.start : sl.stop] = ca.if_else(ok, xi_next, state[sl.start : sl.stop])

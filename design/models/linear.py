@@ -21,11 +21,11 @@ from typing import Any
 
 import numpy as np
 from fdisyn.models.sampling import check_sample_time, van_loan, zoh
-from fdisyn.numerics.linalg import as_matrix, as_square, as_symmetric, real_array
+from fdisyn.numerics.linalg import as_matrix, as_square, as_symmetric, frozen_array, real_array
 from fdisyn.runtime.errors import ArgumentError, ShapeError
 from fdisyn.runtime.names import check_distinct, check_signal_names
 
-__all__ = ["LinearPlant", "identifier_names", "frozen_array"]
+__all__ = ["LinearPlant", "identifier_names"]
 
 
 def identifier_names(given: Sequence[str] | None, what: str, *, count: int | None = None, prefix: str = "") -> tuple[str, ...]:
@@ -33,13 +33,6 @@ def identifier_names(given: Sequence[str] | None, what: str, *, count: int | Non
     if given is None:
         return tuple(f"{prefix}{i}" for i in range(count or 0))
     return check_signal_names(given, f"{what} names", count=count)
-
-
-def frozen_array(a: object) -> np.ndarray:
-    """A read-only float copy (designs are immutable)."""
-    out = np.array(a, dtype=float, copy=True)
-    out.setflags(write=False)
-    return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -235,13 +228,6 @@ class LinearPlant:
             R=frozen_array(self.R[np.ix_(ii, ii)]),
             outputs=tuple(self.outputs[i] for i in ii),
         )
-
-    def output_index(self, name: str) -> int:
-        """Index of the output called ``name`` (error lists the valid names)."""
-        try:
-            return self.outputs.index(name)
-        except ValueError:
-            raise ArgumentError(f"no output called {name!r}; outputs are {list(self.outputs)}") from None
 
     def matrices(self) -> dict[str, np.ndarray]:
         """The model matrices as a plain dict (for the gain file)."""

@@ -67,7 +67,6 @@ import io
 import keyword
 import math
 import re
-import reprlib
 import tokenize
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -75,11 +74,12 @@ from typing import Any
 
 import casadi as ca
 import numpy as np
-from fdisyn.models.linear import frozen_array, identifier_names
+from fdisyn.models.linear import identifier_names
 from fdisyn.models.sampling import check_sample_time
-from fdisyn.numerics.linalg import as_matrix, real_array
+from fdisyn.numerics.linalg import as_covariance, as_vector, frozen_array
 from fdisyn.runtime.errors import ArgumentError, NominalValueError, NonDifferentiableError, ShapeError
-from fdisyn.runtime.names import check_distinct
+from fdisyn.runtime.names import check_distinct, shown
+from fdisyn.runtime.values import real_number
 
 __all__ = [
     "MAX_EXPRESSION_CHARS",
@@ -89,10 +89,8 @@ __all__ = [
     "SMOOTH_FUNCTIONS",
     "SMOOTH_OPERATIONS",
     "NonlinearPlant",
-    "covariance_matrix",
     "function_from_program",
     "model_program",
-    "short_repr",
 ]
 
 MAX_EXPRESSION_CHARS = 10_000
@@ -233,31 +231,6 @@ def _distinct_names(states: tuple[str, ...], inputs: tuple[str, ...], outputs: t
     )
 
 
-def covariance_matrix(value: object, name: str, size: int, *, definite: bool) -> np.ndarray:
-    """A ``size × size`` covariance from a scalar (times ``I``), a vector (diagonal) or a matrix.
-
-    Raises :class:`ShapeError` naming ``name`` for a wrong shape and
-    :class:`ArgumentError` for non-numbers, asymmetry, or an eigenvalue below
-    zero (``definite``: not above).
-    """
-    arr = real_array(value, name)  # numbers only: "1e-2" or true are refused, not converted
-    if arr.ndim == 0:
-        arr = float(arr) * np.eye(size)
-    elif arr.ndim == 1 and arr.size == size:
-        arr = np.diag(arr)
-    mat = as_matrix(arr, name, rows=size, cols=size)
-    if not np.allclose(mat, mat.T, rtol=1e-12, atol=0.0):
-        raise ArgumentError(f"{name} must be symmetric; max |{name} − {name}ᵀ| = {np.max(np.abs(mat - mat.T)):.3g}")
-    mat = 0.5 * mat + 0.5 * mat.T  # halves first: 1e308 + 1e308 would overflow
-    ev = np.linalg.eigvalsh(mat) if size else np.zeros(0)
-    scale = max(1.0, float(np.max(np.abs(ev)))) if ev.size else 1.0
-    if definite and ev.size and ev[0] <= 0.0:
-        raise ArgumentError(f"{name} must be positive definite; smallest eigenvalue {ev[0]:.3g}")
-    if ev.size and ev[0] < -1e-12 * scale:
-        raise ArgumentError(f"{name} must be positive semidefinite (a covariance); smallest eigenvalue {ev[0]:.3g}")
-    return mat
-
-
 def _as_sx_function(fun: object, name: str, in_shapes: Sequence[int], out_size: int, in_names: Sequence[str], out_name: str) -> ca.Function:
     """Re-wrap a user Function as an SX Function with fdisyn's port names, checking shapes."""
     if not isinstance(fun, ca.Function):
@@ -280,7 +253,7 @@ def _as_sx_function(fun: object, name: str, in_shapes: Sequence[int], out_size: 
         out = fun.expand()(*args) if fun.is_a("MXFunction") else fun(*args)
     except RuntimeError as exc:
         first = next((ln.strip() for ln in str(exc).splitlines() if ln.strip()), type(exc).__name__)  # CasADi's text runs to many lines
-        raise ArgumentError(f"{name} cannot be evaluated on SX symbols (it must be expandable to SX): {short_repr(first, 200)}") from exc
+        raise ArgumentError(f"{name} cannot be evaluated on SX symbols (it must be expandable to SX): {shown(first, 200)}") from exc
     out = ca.densify(ca.reshape(ca.SX(out), out_size, 1))
     wrapped = ca.Function(name, sym, [out], list(in_names), [out_name])
     _check_model_function(wrapped, name)
@@ -380,29 +353,29 @@ def function_from_program(
 
     def index(v: object, limit: int, what: str) -> int:
         if isinstance(v, bool) or not isinstance(v, int) or not 0 <= v < limit:
-            raise ArgumentError(f"{name}: {what} must be an integer in 0..{limit - 1}; found {short_repr(v)}")
+            raise ArgumentError(f"{name}: {what} must be an integer in 0..{limit - 1}; found {shown(v)}")
         return v
 
     for i, op in enumerate(ops):
         if not isinstance(op, list) or not op or not isinstance(op[0], str):
-            raise ArgumentError(f"{name}.ops[{i}] must be a list starting with an operation name; found {short_repr(op)}")
+            raise ArgumentError(f"{name}.ops[{i}] must be a list starting with an operation name; found {shown(op)}")
         kind = op[0]
         if kind == "input":
             if len(op) != 3:
-                raise ArgumentError(f"{name}.ops[{i}]: 'input' takes a port and an entry; found {short_repr(op)}")
+                raise ArgumentError(f"{name}.ops[{i}]: 'input' takes a port and an entry; found {shown(op)}")
             port = index(op[1], len(in_sizes), f"ops[{i}] port")
             index(op[2], in_sizes[port], f"ops[{i}] entry of {in_names[port]}")
         elif kind == "const":
             if len(op) != 2 or isinstance(op[1], bool) or not isinstance(op[1], (int, float)) or not math.isfinite(op[1]):
-                raise ArgumentError(f"{name}.ops[{i}]: 'const' takes one finite number; found {short_repr(op)}")
+                raise ArgumentError(f"{name}.ops[{i}]: 'const' takes one finite number; found {shown(op)}")
         elif kind in SMOOTH_OPERATIONS:
             arity = 2 if kind in _BINARY_OPERATIONS else 1
             if len(op) != arity + 1:
-                raise ArgumentError(f"{name}.ops[{i}]: {kind!r} takes {arity} operand(s); found {short_repr(op)}")
+                raise ArgumentError(f"{name}.ops[{i}]: {kind!r} takes {arity} operand(s); found {shown(op)}")
             for v in op[1:]:
                 index(v, i, f"ops[{i}] operand (an earlier value)")
         else:
-            raise ArgumentError(f"{name}.ops[{i}]: unknown operation {short_repr(kind)}; expected 'input', 'const' or one of {sorted(SMOOTH_OPERATIONS)}")
+            raise ArgumentError(f"{name}.ops[{i}]: unknown operation {shown(kind)}; expected 'input', 'const' or one of {sorted(SMOOTH_OPERATIONS)}")
     for k, v in enumerate(out):
         index(v, len(ops), f"out[{k}]")
 
@@ -420,17 +393,6 @@ def function_from_program(
             values.append(ca.SX.unary(_UNARY_OPERATIONS[kind], values[op[1]]))
     result = ca.vertcat(*[values[v] for v in out]) if out else ca.SX(0, 1)
     return ca.Function(name, sym, [ca.densify(result)], list(in_names), [out_name])
-
-
-_REPR = reprlib.Repr()
-_REPR.maxlevel, _REPR.maxlist, _REPR.maxdict, _REPR.maxstring, _REPR.maxother = 2, 4, 4, 40, 40
-
-
-def short_repr(value: object, limit: int = 60) -> str:
-    """A bounded ``repr(value)``: error messages stay one short line whatever a file holds
-    (``reprlib`` also stops at a nesting depth, where ``repr`` of a deeply nested list would recurse)."""
-    text = _REPR.repr(value)
-    return text if len(text) <= limit else text[: limit - 1] + "…"
 
 
 def _operator_count(text: str) -> int:
@@ -471,7 +433,7 @@ class _ExpressionCompiler:
 
     def compile(self, text: str) -> ca.SX:
         if not isinstance(text, str) or not text.strip():
-            raise ArgumentError(f"{self.where}: expected a non-empty expression string; got {short_repr(text)}")
+            raise ArgumentError(f"{self.where}: expected a non-empty expression string; got {shown(text)}")
         self.text = text
         if len(text) > MAX_EXPRESSION_CHARS:
             raise ArgumentError(
@@ -488,22 +450,22 @@ class _ExpressionCompiler:
         try:
             tree = ast.parse(self.source, mode="eval")
         except SyntaxError as exc:
-            raise ArgumentError(f"{self.where}: cannot parse expression {short_repr(text)}: {exc.msg}") from None
+            raise ArgumentError(f"{self.where}: cannot parse expression {shown(text)}: {exc.msg}") from None
         except (RecursionError, MemoryError, ValueError) as exc:
             # ValueError: an integer literal beyond Python's digit limit; the others: nesting too deep
-            raise ArgumentError(f"{self.where}: cannot parse expression {short_repr(text)}: {type(exc).__name__}") from None
+            raise ArgumentError(f"{self.where}: cannot parse expression {shown(text)}: {type(exc).__name__}") from None
         return self._evaluate(tree.body)
 
     def _fail_nonsmooth(self, what: str) -> NonDifferentiableError:
         return NonDifferentiableError(
-            f"{self.where}: expression {short_repr(self.text)} uses {what}, which is not differentiable everywhere; "
+            f"{self.where}: expression {shown(self.text)} uses {what}, which is not differentiable everywhere; "
             f"expected only smooth operations ({', '.join(sorted(SMOOTH_FUNCTIONS))}, +, −, *, /, ^ or **), "
             "because every Jacobian comes from automatic differentiation"
         )
 
     def _segment(self, node: ast.AST) -> str:
         seg = ast.get_source_segment(self.source, node)
-        return short_repr(seg if seg is not None else self.text)
+        return shown(seg if seg is not None else self.text)
 
     def _evaluate(self, root: ast.AST) -> ca.SX:
         """Post-order walk with an explicit stack: check each node on the way down, combine on the way up."""
@@ -538,37 +500,37 @@ class _ExpressionCompiler:
             if isinstance(node.op, (ast.Mod, ast.FloorDiv)):
                 raise self._fail_nonsmooth("the operator '%' or '//'")
             if not isinstance(node.op, (ast.Add, ast.Sub, ast.Mult, ast.Div, ast.Pow)):
-                raise ArgumentError(f"{self.where}: operator {type(node.op).__name__} is not allowed in {short_repr(self.text)}")
+                raise ArgumentError(f"{self.where}: operator {type(node.op).__name__} is not allowed in {shown(self.text)}")
         elif isinstance(node, ast.UnaryOp):
             if not isinstance(node.op, (ast.USub, ast.UAdd)):
                 raise self._fail_nonsmooth(f"the operator {type(node.op).__name__}")
         elif isinstance(node, ast.Constant):
             if isinstance(node.value, bool) or not isinstance(node.value, (int, float)):
-                raise ArgumentError(f"{self.where}: constant {short_repr(node.value)} in {short_repr(self.text)} is not a real number")
+                raise ArgumentError(f"{self.where}: constant {shown(node.value)} in {shown(self.text)} is not a real number")
         elif isinstance(node, ast.Name):
             if node.id not in self.symbols and node.id not in self.constants:
                 allowed = sorted([*self.symbols, *self.constants])
-                raise ArgumentError(f"{self.where}: unknown name {node.id!r} in {short_repr(self.text)}; allowed names are {allowed}")
+                raise ArgumentError(f"{self.where}: unknown name {node.id!r} in {shown(self.text)}; allowed names are {allowed}")
         elif isinstance(node, ast.Call):
             if not isinstance(node.func, ast.Name) or node.keywords:
-                raise ArgumentError(f"{self.where}: only plain calls such as sin(x) are allowed in {short_repr(self.text)}")
+                raise ArgumentError(f"{self.where}: only plain calls such as sin(x) are allowed in {shown(self.text)}")
             fname = node.func.id
             if fname in _NONSMOOTH_NAMES:
                 raise self._fail_nonsmooth(f"the function {fname}()")
             if fname not in SMOOTH_FUNCTIONS:
                 raise ArgumentError(
-                    f"{self.where}: unknown function {fname!r} in {short_repr(self.text)}; allowed: {sorted(SMOOTH_FUNCTIONS)}"
+                    f"{self.where}: unknown function {fname!r} in {shown(self.text)}; allowed: {sorted(SMOOTH_FUNCTIONS)}"
                 )
             arity = _BINARY_FUNCTIONS.get(fname, 1)
             if len(node.args) != arity:
                 raise ArgumentError(
                     f"{self.where}: {fname}() takes {arity} argument{'s' if arity > 1 else ''}, "
-                    f"got {len(node.args)} in {short_repr(self.text)}"
+                    f"got {len(node.args)} in {shown(self.text)}"
                 )
         elif isinstance(node, (ast.Compare, ast.BoolOp, ast.IfExp)):
             raise self._fail_nonsmooth("a comparison or a conditional")
         else:
-            raise ArgumentError(f"{self.where}: {type(node).__name__} is not allowed in the expression {short_repr(self.text)}")
+            raise ArgumentError(f"{self.where}: {type(node).__name__} is not allowed in the expression {shown(self.text)}")
 
     def _combine(self, node: ast.AST, args: list[ca.SX]) -> ca.SX:
         if isinstance(node, ast.BinOp):
@@ -593,7 +555,7 @@ class _ExpressionCompiler:
                 value = math.inf
             if not math.isfinite(value):
                 raise ArgumentError(
-                    f"{self.where}: the number {self._segment(node)} in {short_repr(self.text)} is not a finite double; "
+                    f"{self.where}: the number {self._segment(node)} in {shown(self.text)} is not a finite double; "
                     "expected a finite number"
                 )
             return ca.SX(value)
@@ -607,7 +569,7 @@ class _ExpressionCompiler:
         # CasADi folds constant operands at once: a non-finite result is a NaN/inf constant in the model
         if out.is_constant() and not math.isfinite(float(out)):
             raise ArgumentError(
-                f"{self.where}: the constant subexpression {self._segment(node)} in {short_repr(self.text)} evaluates to "
+                f"{self.where}: the constant subexpression {self._segment(node)} in {shown(self.text)} evaluates to "
                 f"{float(out)!r}; expected a finite number"
             )
         return out
@@ -681,8 +643,8 @@ class NonlinearPlant:
         theta = _nominal_vector(par, nominal)
         f_sx = _as_sx_function(f, "f", (n, m, l), n, ("x", "u", "theta"), "x_next")
         h_sx = _as_sx_function(h, "h", (n, l), p, ("x", "theta"), "y")
-        q = covariance_matrix(Q, "Q", n, definite=False)
-        r = covariance_matrix(R, "R", p, definite=True)
+        q = as_covariance(Q, "Q", n)
+        r = as_covariance(R, "R", p, definite=True)
         return cls(
             f=f_sx,
             h=h_sx,
@@ -747,8 +709,8 @@ class NonlinearPlant:
             raise ArgumentError(f"constant names {clash} clash with signal or parameter names")
         for what, given, expected in (("f", f, st), ("h", h, out)):
             if not isinstance(given, Mapping):
-                raise ArgumentError(f"{what}: expected a table of expression strings by name; got {short_repr(given)}")
-            wrong = {k: short_repr(v) for k, v in given.items() if not isinstance(v, str)}
+                raise ArgumentError(f"{what}: expected a table of expression strings by name; got {shown(given)}")
+            wrong = {k: shown(v) for k, v in given.items() if not isinstance(v, str)}
             if wrong:
                 raise ArgumentError(f"{what}: expressions must be strings; got {wrong}")
             keys = set(given)
@@ -830,9 +792,9 @@ class NonlinearPlant:
         th = self.theta_nominal if theta is None else theta
         vals = self.derivatives().call(
             {
-                "x": _vector(x, "x", self.n),
-                "u": _vector(u, "u", self.m),
-                "theta": _vector(th, "theta", self.l),
+                "x": as_vector(x, "x", self.n),
+                "u": as_vector(u, "u", self.m),
+                "theta": as_vector(th, "theta", self.l),
             }
         )
         return {k: np.array(v, dtype=float) for k, v in vals.items()}
@@ -859,7 +821,7 @@ class NonlinearPlant:
             row = rows[fun][i]
             what = f"{fun}[{row!r}]" if "_" not in key else f"∂{fun}[{row!r}]/∂{cols[key.split('_', 1)[1]][j]}"
             exprs = (self.expressions or {}).get(fun)
-            text = f" (the expression {short_repr(exprs[row])})" if isinstance(exprs, Mapping) and isinstance(exprs.get(row), str) else ""
+            text = f" (the expression {shown(exprs[row])})" if isinstance(exprs, Mapping) and isinstance(exprs.get(row), str) else ""
             raise ArgumentError(
                 f"the model is not finite at {point}: {what} = {float(vals[key][i, j])!r}{text}; "
                 "expected finite values of f, h and their Jacobians there"
@@ -893,7 +855,7 @@ class NonlinearPlant:
             th = np.broadcast_to(th, (T, self.l))
         if th.shape != (T, self.l):
             raise ShapeError(f"theta has shape {th.shape}; expected ({self.l},) or ({T}, {self.l})")
-        x0v = _vector(x0, "x0", self.n)
+        x0v = as_vector(x0, "x0", self.n)
         v = _gaussian(rng, self.Q, T)
         e = _gaussian(rng, self.R, T)
         xs = ca.SX.sym("x", self.n)
@@ -918,28 +880,18 @@ def _constants(constants: object) -> dict[str, float]:
     if constants is None:
         return {}
     if not isinstance(constants, Mapping):
-        raise ArgumentError(f"constants must be a table of names and numbers; got {short_repr(constants)}")
+        raise ArgumentError(f"constants must be a table of names and numbers; got {shown(constants)}")
     out: dict[str, float] = {}
     for k, v in constants.items():
         if not isinstance(k, str) or not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", k):
-            raise ArgumentError(f"constant name {short_repr(k)} is not an identifier (letters, digits, underscore; no leading digit)")
-        if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
-            raise ArgumentError(f"constant {k!r} must be a number; got {short_repr(v)}")
-        try:
-            fv = float(v)
-        except OverflowError:
-            fv = math.inf
+            raise ArgumentError(f"constant name {shown(k)} is not an identifier (letters, digits, underscore; no leading digit)")
+        fv = real_number(v)
+        if fv is None:
+            raise ArgumentError(f"constant {k!r} must be a number; got {shown(v)}")
         if not math.isfinite(fv):
-            raise ArgumentError(f"constant {k!r} must be a finite number; got {short_repr(v)}")
+            raise ArgumentError(f"constant {k!r} must be a finite number; got {shown(v)}")
         out[k] = fv
     return out
-
-
-def _vector(value: object, name: str, size: int) -> np.ndarray:
-    v = np.asarray(value, dtype=float).reshape(-1)
-    if v.size != size:
-        raise ShapeError(f"{name} has {v.size} entries; expected {size}")
-    return v
 
 
 def _gaussian(rng: np.random.Generator, cov: np.ndarray, count: int) -> np.ndarray:
@@ -964,14 +916,10 @@ def _nominal_vector(parameters: Sequence[str], nominal: Mapping[str, float]) -> 
     vals = []
     for p in parameters:
         raw = nominal[p]
-        # float() would read the string "0.2" and true; an integer beyond the double range overflows
-        if isinstance(raw, (bool, np.bool_)) or not isinstance(raw, (int, float, np.integer, np.floating)):
-            raise NominalValueError(f"nominal value of parameter {p!r} must be a number; found {short_repr(raw)}")
-        try:
-            v = float(raw)
-        except OverflowError:
-            v = math.inf
-        if not np.isfinite(v):
+        v = real_number(raw)  # float() would read the string "0.2" and true
+        if v is None:
+            raise NominalValueError(f"nominal value of parameter {p!r} must be a number; found {shown(raw)}")
+        if not math.isfinite(v):
             raise NominalValueError(f"nominal value of parameter {p!r} must be finite; found {v!r}")
         vals.append(v)
     return np.array(vals)

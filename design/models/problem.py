@@ -19,7 +19,9 @@ from typing import Any
 import numpy as np
 from fdisyn.runtime.errors import ArgumentError, SpecError
 from fdisyn.runtime.gainfile import GainFile
-from fdisyn.synthesis.registry import check_option, short_repr
+from fdisyn.runtime.names import shown
+from fdisyn.runtime.trace import Trace
+from fdisyn.synthesis.registry import check_option
 
 __all__ = ["Scenario", "Batch", "Problem", "get_problem", "problem_names"]
 
@@ -55,7 +57,10 @@ class Batch:
     """Simulated runs of one scenario, stacked over seeds.
 
     ``U`` is ``runs × N × nu``, ``Y`` is ``runs × N × ny``; ``extra`` holds
-    per-run signals worth keeping (true unknown inputs, true states).
+    per-run signals worth keeping (true unknown inputs, true states), each
+    ``runs × N``. Run ``i`` is the :class:`~fdisyn.runtime.trace.Trace`
+    :meth:`trace` ``(i)``; the runs stay stacked here because the Monte Carlo
+    evaluation and the metrics work on all of them at once.
     """
 
     scenario: Scenario
@@ -70,6 +75,13 @@ class Batch:
     @property
     def active(self) -> np.ndarray:
         return self.scenario.active(self.t)
+
+    def trace(self, run: int = 0) -> Trace:
+        """Run ``run`` as the trace ``fdisyn simulate`` writes: inputs, outputs, the extra
+        signals and ``fault_active`` (1 where the scenario's fault is active)."""
+        extra = {k: np.asarray(v)[run] for k, v in self.extra.items()}
+        extra["fault_active"] = self.active.astype(float)
+        return Trace(t=self.t, inputs=self.inputs, outputs=self.outputs, U=self.U[run], Y=self.Y[run], extra=extra)
 
 
 DesignFn = Callable[..., GainFile]
@@ -125,7 +137,7 @@ class Problem:
         sc = self.scenario(scenario) if isinstance(scenario, str) else scenario
         bad = [s for s in seeds if isinstance(s, bool) or not isinstance(s, (int, np.integer)) or s < 0]
         if bad:
-            raise ArgumentError(f"seeds must be whole numbers ≥ 0; got {short_repr(bad)}")
+            raise ArgumentError(f"seeds must be whole numbers ≥ 0; got {shown(bad)}")
         return self.simulate(sc, tuple(int(s) for s in seeds), **self.check_options(options))
 
     def check_options(self, options: Mapping[str, Any]) -> dict[str, Any]:

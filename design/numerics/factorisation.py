@@ -8,10 +8,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from fdisyn.numerics.linalg import as_matrix, normal_rank, psd_factor, rank_tol, spectral_radius, unobservable_modes
+from fdisyn.numerics.linalg import as_matrix, as_square, normal_rank, psd_factor, rank_tol, spectral_radius, unobservable_modes
 from fdisyn.numerics.norms import DiscreteLTI
 from fdisyn.numerics.riccati import dare_pencil_eigenvalues, solve_filter_dare
-from fdisyn.runtime.errors import ExistenceError, ShapeError, SolverError
+from fdisyn.runtime.errors import ExistenceError, SolverError
 from fdisyn.synthesis.certificate import worst
 
 __all__ = ['CoInnerOuter', 'Dtars', 'INNER_TOL', 'KAPPA_FACTOR', 'KAPPA_MAX', 'co_inner_outer', 'solve_dtars']
@@ -159,10 +159,8 @@ def solve_dtars(*, A: object, B: object, C: object, D: object | None = None) -> 
     Raises :class:`ExistenceError` for an undetectable ``(A, C)``, unit-circle
     invariant zeros or uncontrollable unit-circle modes of ``G`` (each named).
     """
-    a = as_matrix(A, "A")
+    a = as_square(A, "A")
     n = a.shape[0]
-    if a.shape != (n, n):
-        raise ShapeError(f"A must be square; got shape {a.shape}")
     b = as_matrix(B, "B", rows=n)
     c = as_matrix(C, "C", cols=n)
     p = c.shape[0]

@@ -1,4 +1,5 @@
-"""LMI characterisations of discrete-time norms, and the diagnostic observer as an SDP.
+"""LMI characterisations of discrete-time norms (the LMI design of the diagnostic observer is
+:mod:`fdisyn.synthesis.lmi_observer`).
 
 All problems are solved by Clarabel (interior point); they are posed in cvxpy,
 except the H₋ index's KYP LMIs, assembled by hand (see below).
@@ -36,40 +37,6 @@ tolerances: see ``_NORM_LADDER``):
     InsufficientProgress (``solver_error``) on 36–53 of 100 random interior
     bands, which ones depending on the OpenBLAS kernel; the real two-multiplier
     SDP reaches "solved" on ~90 % and every kernel certifies all 100.
-
-Design (:func:`lmi_diagnostic_observer`): the observer ``x̂⁺ = A_D x̂ + B_D v +
-L(ψ − C x̂)``, ``r = V(ψ − C x̂)`` — Theorem 1's structure with ``s = n``,
-``T = I``, ``F = A_D − LC``, ``W = VC``, ``G = B_D``, ``D = 0`` (the paper's
-``E = B_uD``, ``Q = 0``) — with the error ``e = x − x̂`` driven by ``G_dJ`` and
-``G_fJ``.
-
-1. Observer gain, convex in ``(P, Z = P L)``: the H2-optimal one-step
-   predictor, ``min trace Σ`` subject to ``Σ ⪰ (A − LC) Σ (A − LC)ᵀ + E_J E_Jᵀ``,
-   written with ``P = Σ⁻¹`` as ``[[P, PA − ZC, PE_J], [·, P, 0], [·, 0, I]] ⪰ 0``.
-2. Post-filter ``Π = VᵀV``, convex for the fixed gain: a mixed problem,
-   ``min γ²`` subject to ``‖V G_ed‖∞ ≤ γ`` (bounded real lemma, linear in
-   ``(P, Π, γ²)``) and the fault side normalised, linear in ``Π``:
-   ``η = "-"``: ``‖V G_ef‖₋ ≥ 1`` by the (generalised) KYP lemma;
-   ``η = "2"``: ``trace(Π C Σ_f Cᵀ) ≥ 1`` (``Σ_f`` the fault Gramian);
-   ``η = "inf"``: ``wᴴ G_ef(ω*)ᴴ Π G_ef(ω*) w ≥ 1`` at the current peak
-   ``(ω*, w)``, iterated (each step convex, ``γ`` non-increasing).
-   ``J_η ≤ γ`` is the certified bound; the achieved ``J`` is re-evaluated by
-   the sweep.
-
-The joint problem in ``(L, Π)`` with the fault side is not convex (the fault
-multipliers multiply ``L``); the split is exact when ``G_dJ`` has full row
-normal rank: then the H2-optimal predictor's gain is the DTARS gain (the
-Kalman predictor minimises ``Σ`` in the PSD order), ``Π = (C X Cᵀ)⁻¹`` is the
-largest post-filter with ``‖V G_ed‖∞ ≤ 1`` (by the maximum modulus principle
-``‖V G_ed‖∞ ≥ σ_max(V N)`` for any gain), so every η reaches ``J*`` (within
-solver accuracy). Both SDPs are solved in balanced state coordinates, and
-Clarabel's "almost solved" is accepted for them (their optimum is degenerate:
-the frequency inequalities are tight at every frequency), because the design
-is re-evaluated by the sweep and its bound certified. When ``G_dJ`` has normal rank below
-``p`` (e.g. the ZOH model of a plant with fewer disturbances than outputs,
-which the paper's indirect design factorises), Theorem 1's bound is not a
-bound — ``G_do`` has no inverse and residuals can be (nearly) decoupled — and
-the SDP finds ``J`` far below the factorisation's value.
 """
 
 from __future__ import annotations
@@ -82,7 +49,8 @@ from collections.abc import Iterator, Sequence
 import clarabel
 import cvxpy as cp
 import numpy as np
-from fdisyn.numerics.norms import DiscreteLTI, check_band, gramian, hinf_norm, hminus_index
+from fdisyn.numerics.linalg import dlyap
+from fdisyn.numerics.norms import DiscreteLTI, check_band, hinf_norm, hminus_index
 from fdisyn.numerics.sdp import (
     _CLARABEL_TIGHT,
     _NORM_LADDER,
@@ -96,14 +64,14 @@ from fdisyn.numerics.sdp import (
     _sym,
     _val,
 )
-from fdisyn.runtime.errors import ArgumentError, CertificateError, SolverError
+from fdisyn.runtime.errors import CertificateError, SolverError
 from fdisyn.synthesis.certificate import Certificate, Check
 from scipy import sparse
 
-__all__ = ['HMINUS_TOL', 'h2_norm_lmi', 'hinf_bound_lmi', 'hinf_norm_lmi', 'hminus_index_lmi']
+__all__ = ['HMINUS_TOL', 'h2_norm_lmi', 'hinf_norm_lmi', 'hminus_index_lmi']
 
 
-def _kyp_lhs(a: np.ndarray, b: np.ndarray, band: tuple[float, float] | None, *, complex_ok: bool = True):
+def _kyp_lhs(a: np.ndarray, b: np.ndarray, band: tuple[float, float] | None):
     """``Nᴴ (Φ ⊗ P + Ψ ⊗ Q) N`` with ``N = [[A, B], [I, 0]]`` and the band's multiplier.
 
     Returns ``(expr, P, Q, constraints)``. Full circle: ``Q`` absent (plain
@@ -165,37 +133,6 @@ def hinf_norm_lmi(sys: DiscreteLTI) -> SdpResult:
         meaning={"infeasible": "no γ bounds the gain: A has an eigenvalue on or outside the unit circle"},
     )
     return SdpResult(s * math.sqrt(max(float(_val(t)), 0.0)), stats)
-
-
-def hinf_bound_lmi(sys: DiscreteLTI, *, gamma: float) -> SdpResult:
-    """Feasibility of the bounded real lemma for a given ``γ`` (raises when ``‖G‖∞ ≥ γ``).
-
-    Returns ``γ`` when some ``P ≻ 0`` certifies ``‖G‖∞ ≤ γ``; an infeasible LMI
-    raises :class:`SolverError` naming the status and what it means.
-    """
-    _require_stable(sys, "H∞ bound LMI")
-    if not gamma > 0:
-        raise ArgumentError(f"gamma must be positive; got {gamma!r}")
-    g = _balance(sys)
-    s = _scale(sys)
-    c, d = g.C / s, g.D / s
-    gs = float(gamma) / s
-    p = cp.Variable((g.n, g.n), symmetric=True)
-    m = g.n_in
-    lhs = cp.bmat(
-        [
-            [g.A.T @ p @ g.A - p + c.T @ c, g.A.T @ p @ g.B + c.T @ d],
-            [g.B.T @ p @ g.A + d.T @ c, g.B.T @ p @ g.B + d.T @ d - gs**2 * np.eye(m)],
-        ]
-    )
-    prob = cp.Problem(cp.Minimize(0), [p >> 0, _sym(lhs) << 0])
-    stats = _solve(
-        prob,
-        what=f"H∞ bound γ = {gamma:g} (bounded real lemma)",
-        settings=_NORM_LADDER,
-        meaning={"infeasible": f"‖G‖∞ ≥ γ = {gamma:g}; try a larger γ (or compute the norm with hinf_norm_lmi)"},
-    )
-    return SdpResult(float(gamma), stats)
 
 
 def h2_norm_lmi(sys: DiscreteLTI) -> SdpResult:
@@ -378,7 +315,7 @@ class _KypLmi:
         self.nb = len(self.basis)
         self.lifted = np.concatenate([self._lift(_PHI, self.basis)] + [self._lift(p, self.basis) for p in self.psis])
         # P₀ = Σ (Aᵀ)ᵏAᵏ solves AᵀP₀A − P₀ = −I: Nᵀ(Φ ⊗ P₀)N has state block −I (see certify).
-        self._shift = self._lift(_PHI, gramian(a.T, np.eye(n))[None])[0].real
+        self._shift = self._lift(_PHI, dlyap(a.T, np.eye(n), refine=False)[None])[0].real
 
     def _lift(self, mult: np.ndarray, h: np.ndarray) -> np.ndarray:
         """``Nᴴ(M ⊗ H)N = Σᵢⱼ Mᵢⱼ NᵢᵀHNⱼ`` for a stack of ``H`` (``N₁ = [A B]``, ``N₂ = [I 0]``)."""

@@ -12,8 +12,8 @@ from dataclasses import dataclass
 
 import cvxpy as cp
 import numpy as np
-from fdisyn.numerics.linalg import spectral_radius
-from fdisyn.numerics.norms import DiscreteLTI, gramian
+from fdisyn.numerics.linalg import dlyap, spectral_radius
+from fdisyn.numerics.norms import DiscreteLTI
 from fdisyn.runtime.errors import ExistenceError, InternalError, SolverError
 from fdisyn.synthesis.certificate import Certificate
 
@@ -71,7 +71,7 @@ class SdpResult:
     stats: SdpStats | None
     """``None`` when no SDP was needed (e.g. ``‖G‖₋ = 0`` for a wide system)."""
     route: str = "sdp"
-    """Which formulation produced ``value`` (:func:`hminus_index_lmi` names its routes)."""
+    """Which formulation produced ``value`` (:func:`~fdisyn.numerics.lmi_norms.hminus_index_lmi` names its routes)."""
     bracket: tuple[float, float] | None = None
     """``(proven lower bound, attained upper bound)`` when ``value`` was verified (H₋ index)."""
     certificate: Certificate | None = None
@@ -194,8 +194,8 @@ def _scale(sys: DiscreteLTI) -> float:
     """
     if sys.n == 0 or sys.n_in == 0 or sys.n_out == 0:
         return max(float(np.linalg.norm(sys.D, 2)) if sys.D.size else 0.0, 1.0)
-    wc = gramian(sys.A, sys.B @ sys.B.T)
-    wo = gramian(sys.A.T, sys.C.T @ sys.C)
+    wc = dlyap(sys.A, sys.B @ sys.B.T, refine=False)
+    wo = dlyap(sys.A.T, sys.C.T @ sys.C, refine=False)
     hank = math.sqrt(max(float(np.max(np.real(np.linalg.eigvals(wc @ wo)))), 0.0))
     s = hank + float(np.linalg.norm(sys.D, 2))
     return s if s > 0 else 1.0
@@ -236,8 +236,8 @@ def _balancing(
     Clarabel (measured: β² proven to 2e-9 of ‖G‖∞² unbalanced, 2e-12 balanced).
     """
     n = a.shape[0]
-    wc = gramian(a, b @ b.T)
-    wo = gramian(a.T, c.T @ c)
+    wc = dlyap(a, b @ b.T, refine=False)
+    wo = dlyap(a.T, c.T @ c, refine=False)
     try:
         lc = np.linalg.cholesky(wc + 1e-13 * np.linalg.norm(wc) * np.eye(n))
     except np.linalg.LinAlgError:

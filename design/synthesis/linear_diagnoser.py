@@ -36,9 +36,9 @@ from fdisyn.runtime.gainfile import (
     StepSpec,
     linear_state_layout,
 )
-from fdisyn.runtime.names import check_fault_name
+from fdisyn.runtime.names import check_fault_name, shown
 from fdisyn.synthesis.certificate import Certificate, Check
-from fdisyn.synthesis.registry import P_F, PERSISTENCE, REQUIRED, Method, Option, at, is_real, register, short_repr
+from fdisyn.synthesis.registry import P_F, PERSISTENCE, REQUIRED, Method, Option, at, is_real, register
 from fdisyn.synthesis.residual import dc_gain_y, internal_form
 
 __all__ = [
@@ -130,8 +130,8 @@ def linear_diagnoser(
         ny=plant.p,
         nr=nr,
         nj=len(evals),
-        nstate=lay["total"].stop,
-        init_state=np.zeros(lay["total"].stop),
+        nstate=lay.size,
+        init_state=np.zeros(lay.size),
         residual_names=tuple(_residual_names(gens, plant)),
         statistic_names=tuple(f"J_{gens[e.generator].name}" for e in evals),
     )
@@ -255,11 +255,11 @@ def _bank_checks(
 def _sensor_indices(group: Any, plant: LinearPlant, where: str, *, empty: bool = False) -> list[int]:
     """Indices of a list of distinct output names (a bank group, a fault class's sensors)."""
     if not isinstance(group, (list, tuple)) or (not group and not empty):
-        raise ArgumentError(f"{where} must be a {'' if empty else 'non-empty '}list of output names, got {short_repr(group)}")
+        raise ArgumentError(f"{where} must be a {'' if empty else 'non-empty '}list of output names, got {shown(group)}")
     idx: list[int] = []
     for j, o in enumerate(group):
         if not isinstance(o, str) or o not in plant.outputs:
-            raise ArgumentError(f"{where}[{j}]: no output {short_repr(o)}; outputs are {list(plant.outputs)}")
+            raise ArgumentError(f"{where}[{j}]: no output {shown(o)}; outputs are {list(plant.outputs)}")
         if plant.outputs.index(o) in idx:
             raise ArgumentError(f"{where} names output {o!r} twice")
         idx.append(plant.outputs.index(o))
@@ -275,7 +275,7 @@ def _bank(value: Any, where: str, plant: LinearPlant) -> dict[str, tuple[int, ..
         out: dict[str, tuple[int, ...]] = {}
         for gname, group in value.items():
             if not isinstance(gname, str) or not gname.isidentifier():
-                raise ArgumentError(f"{label}: generator name {short_repr(gname)} is not an identifier")
+                raise ArgumentError(f"{label}: generator name {shown(gname)} is not an identifier")
             out[gname] = tuple(_sensor_indices(group, plant, f"{label}.{gname}"))
         return out
     groups = [tuple(_sensor_indices(g, plant, f"{label}[{gi}]")) for gi, g in enumerate(value)]
@@ -291,7 +291,7 @@ def _faults(value: Any, where: str, plant: LinearPlant) -> list[FaultClass]:
         if isinstance(f, FaultClass):
             f = {"name": f.name, "sensors": list(f.sensors), "components": list(f.components)}
         if not isinstance(f, Mapping):
-            raise ArgumentError(f"{w} must be a table {{ name, sensors, components }}, got {short_repr(f)}")
+            raise ArgumentError(f"{w} must be a table {{ name, sensors, components }}, got {shown(f)}")
         unknown = sorted(set(f) - {"name", "sensors", "components"})
         if unknown:
             raise ArgumentError(f"{w}: unknown key(s) {unknown}; allowed: ['components', 'name', 'sensors']")
@@ -303,10 +303,10 @@ def _faults(value: Any, where: str, plant: LinearPlant) -> list[FaultClass]:
         sensors = tuple(plant.outputs[j] for j in _sensor_indices(f.get("sensors", []), plant, f"{w}.sensors", empty=True))
         components = f.get("components", [])
         if not isinstance(components, (list, tuple)):
-            raise ArgumentError(f"{w}.components must be a list of component-fault names, got {short_repr(components)}")
+            raise ArgumentError(f"{w}.components must be a list of component-fault names, got {shown(components)}")
         for j, c in enumerate(components):
             if not isinstance(c, str) or c not in plant.component_faults:
-                raise ArgumentError(f"{w}.components[{j}]: no component fault {short_repr(c)}; the plant has {list(plant.component_faults)}")
+                raise ArgumentError(f"{w}.components[{j}]: no component fault {shown(c)}; the plant has {list(plant.component_faults)}")
         if len(set(components)) != len(components):
             raise ArgumentError(f"{w}.components names a component fault twice: {list(components)}")
         if not sensors and not components:

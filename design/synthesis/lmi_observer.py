@@ -1,5 +1,40 @@
 """The diagnostic observer of Qiu, Wen & Jiang (Control Theory & Applications 27(8), 2010)
-designed by LMIs, for the H∞, H₂ and H₋ fault measures.
+designed by LMIs, for the H∞, H₂ and H₋ fault measures (the norm LMIs are
+:mod:`fdisyn.numerics.lmi_norms`).
+
+Design (:func:`lmi_diagnostic_observer`): the observer
+``x̂⁺ = A_D x̂ + B_D v + L(ψ − C x̂)``, ``r = V(ψ − C x̂)`` — Theorem 1's
+structure with ``s = n``, ``T = I``, ``F = A_D − LC``, ``W = VC``,
+``G = B_D``, ``D = 0`` (the paper's ``E = B_uD``, ``Q = 0``) — with the error
+``e = x − x̂`` driven by ``G_dJ`` and ``G_fJ``.
+
+1. Observer gain, convex in ``(P, Z = P L)``: the H2-optimal one-step
+   predictor, ``min trace Σ`` subject to ``Σ ⪰ (A − LC) Σ (A − LC)ᵀ + E_J E_Jᵀ``,
+   written with ``P = Σ⁻¹`` as ``[[P, PA − ZC, PE_J], [·, P, 0], [·, 0, I]] ⪰ 0``.
+2. Post-filter ``Π = VᵀV``, convex for the fixed gain: a mixed problem,
+   ``min γ²`` subject to ``‖V G_ed‖∞ ≤ γ`` (bounded real lemma, linear in
+   ``(P, Π, γ²)``) and the fault side normalised, linear in ``Π``:
+   ``η = "-"``: ``‖V G_ef‖₋ ≥ 1`` by the (generalised) KYP lemma;
+   ``η = "2"``: ``trace(Π C Σ_f Cᵀ) ≥ 1`` (``Σ_f`` the fault Gramian);
+   ``η = "inf"``: ``wᴴ G_ef(ω*)ᴴ Π G_ef(ω*) w ≥ 1`` at the current peak
+   ``(ω*, w)``, iterated (each step convex, ``γ`` non-increasing).
+   ``J_η ≤ γ`` is the certified bound; the achieved ``J`` is re-evaluated by
+   the sweep.
+
+The joint problem in ``(L, Π)`` with the fault side is not convex (the fault
+multipliers multiply ``L``); the split is exact when ``G_dJ`` has full row
+normal rank: then the H2-optimal predictor's gain is the DTARS gain (the
+Kalman predictor minimises ``Σ`` in the PSD order), ``Π = (C X Cᵀ)⁻¹`` is the
+largest post-filter with ``‖V G_ed‖∞ ≤ 1`` (by the maximum modulus principle
+``‖V G_ed‖∞ ≥ σ_max(V N)`` for any gain), so every η reaches ``J*`` (within
+solver accuracy). Both SDPs are solved in balanced state coordinates, and
+Clarabel's "almost solved" is accepted for them (their optimum is degenerate:
+the frequency inequalities are tight at every frequency), because the design
+is re-evaluated by the sweep and its bound certified. When ``G_dJ`` has normal rank below
+``p`` (e.g. the ZOH model of a plant with fewer disturbances than outputs,
+which the paper's indirect design factorises), Theorem 1's bound is not a
+bound — ``G_do`` has no inverse and residuals can be (nearly) decoupled — and
+the SDP finds ``J`` far below the factorisation's value.
 """
 
 from __future__ import annotations
@@ -13,9 +48,9 @@ import cvxpy as cp
 import numpy as np
 from fdisyn.models.sampled_data import SampledDataPlant, check_sampling
 from fdisyn.numerics.factorisation import co_inner_outer
-from fdisyn.numerics.linalg import normal_rank, psd_factor, spectral_radius
+from fdisyn.numerics.linalg import dlyap, normal_rank, psd_factor, spectral_radius
 from fdisyn.numerics.lmi_norms import _kyp_lhs
-from fdisyn.numerics.norms import DiscreteLTI, Eta, gramian, hinf_sweep, system_norm
+from fdisyn.numerics.norms import DiscreteLTI, Eta, hinf_sweep, system_norm
 from fdisyn.numerics.sdp import SDP_BOUND_TOL, SDP_BOUND_TOL_SINGULAR, SdpStats, _balancing, _psd_part, _scale, _solve, _sym, _val
 from fdisyn.runtime.errors import ArgumentError, ExistenceError, InternalError, SolverError
 from fdisyn.runtime.gainfile import Generator
@@ -130,7 +165,7 @@ def _postfilter(
         theta = cp.bmat([[-c.T @ pi @ c, np.zeros((n, mf))], [np.zeros((mf, n)), np.eye(mf)]])
         cons += extra + [_sym(lhs + theta) << 0]
     elif eta == "2":
-        sig_f = gramian(al, fxs @ fxs.T)
+        sig_f = dlyap(al, fxs @ fxs.T, refine=False)
         cons.append(cp.trace(pi @ (c @ sig_f @ c.T)) >= 1.0)
     elif eta == "inf":
         if peak is None:

@@ -26,6 +26,7 @@ from typing import Any
 
 from fdisyn.runtime.errors import ArgumentError, GainFileError
 from fdisyn.runtime.gainfile import LIMITS, GainFile
+from fdisyn.runtime.names import shown
 
 __all__ = [
     "REQUIRED",
@@ -45,7 +46,6 @@ __all__ = [
     "check_option",
     "design",
     "at",
-    "short_repr",
 ]
 
 METHOD_PACKAGES: list[str] = ["fdisyn.synthesis"]
@@ -68,11 +68,6 @@ PLANT_KINDS = {
 """What each ``Method.plant_kind`` designs for."""
 
 
-def short_repr(value: Any, limit: int = 60) -> str:
-    """``repr(value)`` cut to ``limit`` characters: error messages stay one readable line
-    whatever a user passed (``repr`` already escapes newlines)."""
-    text = repr(value)
-    return text if len(text) <= limit else text[: limit - 1] + "…"
 
 
 def at(where: str, key: str) -> str:
@@ -125,7 +120,7 @@ class Option:
         if value is None and self.default is None:
             return None
         if not self.accepts(value):
-            raise ArgumentError(f"{label} = {short_repr(value)}: expected {self.kind}")
+            raise ArgumentError(f"{label} = {shown(value)}: expected {self.kind}")
         if isinstance(self.default, float) and isinstance(value, int) and not isinstance(value, bool):
             value = float(value)
         if self.refine is not None:
@@ -230,7 +225,7 @@ def get_method(name: str) -> Method:
     """The method ``name``; an unknown one is an :class:`ArgumentError` listing the known ones."""
     _discover()
     if not isinstance(name, str) or name not in _METHODS:
-        raise ArgumentError(f"no design method {short_repr(name)}; methods: {sorted(_METHODS)}")
+        raise ArgumentError(f"no design method {shown(name)}; methods: {sorted(_METHODS)}")
     return _METHODS[name]
 
 

@@ -16,19 +16,21 @@ paper's ``E`` (the input gain ``G``) and ``Q`` (the input feedthrough ``D``)::
     λ(k+1) = F λ + G v + L ψ,   r(k) = −W λ − D v + V ψ
 
 — in fdisyn's canonical form ``Ar = F, Bu = G, By = L, Cr = −W, Du = −D,
-Dy = V``. What is here:
+Dy = V``. The paper's parts and where they live:
 
 * Lemma 1, the norm-invariant discretisation ``G_J = (A_D, B_J, C, 0)``,
   ``A_D = e^{A Ts}``, ``B_J B_Jᵀ = ∫₀^Ts e^{Aτ} B Bᵀ e^{Aᵀτ} dτ``
-  (:func:`norm_invariant_discretisation`), and the step-invariant
-  ``B_D = ∫₀^Ts e^{Aτ} dτ B`` (eq. (13), the paper's ``B_uD``);
-  :class:`SampledDataPlant` holds both.
+  (:func:`~fdisyn.models.sampled_data.norm_invariant_discretisation`), and the
+  step-invariant ``B_D = ∫₀^Ts e^{Aτ} dτ B`` (eq. (13), the paper's ``B_uD``);
+  :class:`~fdisyn.models.sampled_data.SampledDataPlant` holds both.
 * Exact sampling of continuous white noise for simulation
-  (:func:`sampled_disturbance`, :func:`simulate_sampled_data`).
+  (:func:`~fdisyn.evaluation.sampled_data_simulation.sampled_disturbance`,
+  :func:`~fdisyn.evaluation.sampled_data_simulation.simulate_sampled_data`).
 * Lemma 4 / eq. (20), the discrete-time algebraic Riccati system (DTARS) and the
-  co-inner–outer factorisation ``G = G_o G_i`` (:func:`solve_dtars`,
-  :func:`co_inner_outer`).
-* Theorem 1, the optimal diagnostic observer of any order ``s ≥ n``
+  co-inner–outer factorisation ``G = G_o G_i``
+  (:func:`~fdisyn.numerics.factorisation.solve_dtars`,
+  :func:`~fdisyn.numerics.factorisation.co_inner_outer`).
+* Theorem 1, here: the optimal diagnostic observer of any order ``s ≥ n``
   (:func:`optimal_diagnostic_observer`), ``design="direct"`` (the paper's
   method) or ``"indirect"`` (ZOH-discretise the plant first, the paper's
   comparison), with a :class:`~fdisyn.synthesis.certificate.Certificate`.

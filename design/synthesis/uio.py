@@ -668,11 +668,12 @@ def _poles(value: Any, where: str, plant: LinearPlant | None) -> list[float]:
     TOML has no complex numbers, so complex pairs cannot be written; a string or
     a nested list would otherwise reach NumPy's ``complex()`` and fail there.
     """
-    from fdisyn.synthesis.registry import at, short_repr
+    from fdisyn.runtime.names import shown
+    from fdisyn.synthesis.registry import at
 
     label, n = at(where, "poles"), "n" if plant is None else plant.n
     if not isinstance(value, (list, tuple)) or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in value):
-        raise ArgumentError(f"{label} must be a list of {n} real numbers inside (-1, 1), one per state; got {short_repr(value)}")
+        raise ArgumentError(f"{label} must be a list of {n} real numbers inside (-1, 1), one per state; got {shown(value)}")
     if plant is not None and len(value) != plant.n:
         raise ArgumentError(f"{label} must have {plant.n} poles (one per state), got {len(value)}")
     if not all(np.isfinite(x) and abs(x) < 1.0 for x in value):

@@ -1,11 +1,20 @@
-"""The small linear-algebra helpers added for the sampled-data design."""
+"""The linear-algebra functions: the validators, the Lyapunov solver, the sampled-data design's factor and rank tests."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
-from fdisyn.numerics.linalg import normal_rank, psd_factor, unobservable_modes
-from fdisyn.runtime.errors import ArgumentError
+from fdisyn.numerics.linalg import (
+    as_covariance,
+    as_vector,
+    dlyap,
+    frozen_array,
+    normal_rank,
+    psd_factor,
+    real_array,
+    unobservable_modes,
+)
+from fdisyn.runtime.errors import ArgumentError, ExistenceError, ShapeError
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -52,3 +61,49 @@ def test_unobservable_modes_by_region() -> None:
     assert unobservable_modes(a, c, region="unstable-continuous") == [2.0]
     assert sorted(z.real for z in unobservable_modes(a, c, region="all")) == [-0.7, 2.0]
     assert unobservable_modes(a, c, region="unstable-discrete") == [2.0]
+
+
+def test_covariances_from_a_number_a_diagonal_or_a_matrix() -> None:
+    np.testing.assert_array_equal(as_covariance(0.5, "Q", 2), 0.5 * np.eye(2))
+    np.testing.assert_array_equal(as_covariance([1.0, 2.0], "Q", 2), np.diag([1.0, 2.0]))
+    # symmetric to 1e-10 of the largest entry: symmetrised, halves first (no overflow at 1e308)
+    big = as_covariance([[1e308, 0.0], [1e-300, 1e308]], "Q", 2)
+    assert np.all(np.isfinite(big)) and big[0, 1] == big[1, 0]
+    assert as_covariance(0.0, "Q", 2).sum() == 0.0  # semidefinite is enough without definite
+    with pytest.raises(ShapeError, match="R must be positive definite; smallest eigenvalue 0"):
+        as_covariance(0.0, "R", 2, definite=True)
+    with pytest.raises(ShapeError, match="Q must be positive semidefinite"):
+        as_covariance(-1.0, "Q", 1)
+    with pytest.raises(ShapeError, match="Q must hold numbers only; found '1e-2'"):
+        as_covariance("1e-2", "Q", 1)
+    with pytest.raises(ShapeError, match=r"Q has shape \(2, 3\); expected \(2, 2\)"):
+        as_covariance(np.ones((2, 3)), "Q", 2)
+
+
+def test_vectors_and_read_only_copies() -> None:
+    np.testing.assert_array_equal(as_vector([[1.0], [2.0]], "x0", 2), [1.0, 2.0])
+    np.testing.assert_array_equal(as_vector(3.0, "x0", 2, fill=True), [3.0, 3.0])
+    with pytest.raises(ShapeError, match="x0 has 1 entries; expected 2"):
+        as_vector(3.0, "x0", 2)
+    with pytest.raises(ShapeError, match="x0 must hold numbers only; found True"):
+        as_vector([1.0, True], "x0", 2)
+    a = frozen_array([1, 2])
+    assert a.dtype == float and not a.flags.writeable
+    with pytest.raises(ShapeError, match="beyond the range of a double"):
+        real_array([10**400], "A")
+
+
+def test_lyapunov_solver_refines_to_round_off_and_refuses_unstable_a() -> None:
+    """A strongly non-normal stable A (‖A‖₂ ≈ 1e4 at ρ = 0.3): with the refinement step the residual
+    is at round-off of ‖X‖; without it, the doubling's sum alone."""
+    t = np.array([[1.0, 3e3], [0.0, 1.0]])
+    a = t @ np.diag([0.3, -0.2]) @ np.linalg.inv(t)
+    q = np.eye(2)
+    for refine in (True, False):
+        x = dlyap(a, q, refine=refine)
+        np.testing.assert_array_equal(x, x.T)
+        assert np.linalg.eigvalsh(x)[0] > 0.0
+    x = dlyap(a, q)
+    assert np.linalg.norm(a @ x @ a.T + q - x) <= 1e-14 * np.linalg.norm(x)
+    with pytest.raises(ExistenceError, match="spectral radius of A is 1.1"):
+        dlyap(np.array([[1.1]]), np.eye(1))

@@ -13,7 +13,7 @@ from fdisyn.app.bench import sdp_timings
 from fdisyn.models.sampled_data import SampledDataPlant
 from fdisyn.numerics import lmi_norms as lmi
 from fdisyn.numerics import sdp
-from fdisyn.numerics.lmi_norms import h2_norm_lmi, hinf_bound_lmi, hinf_norm_lmi, hminus_index_lmi
+from fdisyn.numerics.lmi_norms import h2_norm_lmi, hinf_norm_lmi, hminus_index_lmi
 from fdisyn.numerics.norms import DiscreteLTI, NormValue, h2_norm, hinf_norm, hminus_index, singular_values
 from fdisyn.runtime.errors import CertificateError, ExistenceError, SolverError
 from fdisyn.synthesis.lmi_observer import lmi_diagnostic_observer
@@ -202,14 +202,6 @@ def test_multipliers_proving_more_than_a_frequency_attains_are_a_certificate_err
         hminus_index_lmi(sys, band=(0.4, 1.9))
 
 
-def test_infeasible_bound_is_a_solver_error_naming_status_and_remedy() -> None:
-    sys = random_stable(np.random.default_rng(3), 3, 1, 1)
-    norm = hinf_norm(sys).value
-    assert hinf_bound_lmi(sys, gamma=1.01 * norm).stats.status == "optimal"
-    with pytest.raises(SolverError, match=r"SDP status infeasible .*‖G‖∞ ≥ γ = .*try a larger γ"):
-        hinf_bound_lmi(sys, gamma=0.5 * norm)
-
-
 def test_unstable_systems_are_refused_before_any_sdp() -> None:
     bad = DiscreteLTI.create(A=[[1.1]], B=[[1.0]], C=[[1.0]])
     for fn in (hinf_norm_lmi, h2_norm_lmi, hminus_index_lmi):
@@ -253,6 +245,14 @@ def test_every_solver_status_maps_to_a_solver_error(status: str | None, raises: 
 def test_inaccurate_is_accepted_only_when_asked() -> None:
     st_ = sdp._solve(_FakeProblem(cp.OPTIMAL_INACCURATE), what="toy", meaning={}, accept_inaccurate=True)
     assert st_.status == cp.OPTIMAL_INACCURATE
+
+
+def test_a_real_infeasible_sdp() -> None:
+    """Infeasibility is definitive: raised at once, through the whole settings ladder, with its meaning."""
+    x = cp.Variable((2, 2), symmetric=True)
+    prob = cp.Problem(cp.Minimize(0), [x >> np.eye(2), cp.trace(x) <= 1.0])
+    with pytest.raises(SolverError, match=r"SDP status infeasible .*: no X ⪰ I has trace ≤ 1"):
+        sdp._solve(prob, what="toy", meaning={"infeasible": "no X ⪰ I has trace ≤ 1"}, settings=sdp._NORM_LADDER)
 
 
 def test_a_real_unbounded_sdp() -> None:

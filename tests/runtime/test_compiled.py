@@ -262,7 +262,7 @@ def _no_input_toy() -> GainFile:
     lay = linear_state_layout([gen], 1)
     return GainFile(
         kind="linear", name="free", problem="free", design="toy", Ts=1.0, inputs=(), outputs=("a", "b"), faults=("a",),
-        step=StepSpec(nu=0, ny=2, nr=2, nj=1, nstate=lay["total"].stop, init_state=np.zeros(lay["total"].stop), residual_names=("g0.a", "g0.b"), statistic_names=("J_g0",)),
+        step=StepSpec(nu=0, ny=2, nr=2, nj=1, nstate=lay.size, init_state=np.zeros(lay.size), residual_names=("g0.a", "g0.b"), statistic_names=("J_g0",)),
         plant={"A": np.eye(1) * 0.5, "B": np.zeros((1, 0)), "C": np.ones((2, 1)), "D": np.zeros((2, 0)), "E": np.zeros((1, 0)), "Q": np.eye(1), "R": np.eye(2)},
         generators=(gen,), evaluators=(ev,), decision=Decision(kind="signature_table", signatures=np.array([[1]])), certificate={"passed": True},
     )

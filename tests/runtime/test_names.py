@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 from fdisyn.runtime.errors import ArgumentError, GainFileError, SpecError
 from fdisyn.runtime.names import (
@@ -14,6 +15,7 @@ from fdisyn.runtime.names import (
     check_label,
     check_signal_name,
     check_signal_names,
+    shown,
 )
 
 HOSTILE = 'x", 0}; __attribute__((constructor)) static void pwn(void){} static const char *y[] = {"'
@@ -63,6 +65,23 @@ def test_a_long_hostile_value_is_cut_in_the_message():
     with pytest.raises(ArgumentError) as err:
         check_signal_name("x;" * 5000, "output")
     assert len(str(err.value)) < 300 and "(10002 characters)" in str(err.value) and "\n" not in str(err.value)
+
+
+def test_every_value_is_quoted_on_one_short_line():
+    """Strings whole up to the limit, containers to a bounded depth and length, NumPy's line breaks folded,
+    and values whose repr would recurse or could not be converted quoted all the same."""
+    assert shown("abc") == "'abc'"
+    assert shown([0.5, "x"]) == "[0.5, 'x']"
+    deep: list = []
+    node = deep
+    for _ in range(5000):  # repr() of this list raises RecursionError
+        node.append([])
+        node = node[0]
+    assert shown(deep) == "[[[[...]]]]"
+    assert shown(list(range(10**6))) == "[0, 1, 2, 3, 4, 5, 6, 7, ...]"
+    assert shown(10**5000) == "<an integer of 16610 bits>"  # beyond Python's int → str digit limit
+    text = shown(np.arange(100.0).reshape(10, 10), limit=60)
+    assert "\n" not in text and len(text) == 61 and text.endswith("…")
 
 
 @pytest.mark.parametrize("name", ["f", "omega_r_m1+omega_g_m1", "a|b|c", "a+b|c"])

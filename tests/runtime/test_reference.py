@@ -34,7 +34,7 @@ def toy(persistence: int = 1) -> GainFile:
     lay = linear_state_layout(gens, 2)
     return GainFile(
         kind="linear", name="toy", problem="toy", design="toy", Ts=0.1, inputs=("u",), outputs=("y0", "y1"), faults=("y0", "y1", "both"),
-        step=StepSpec(nu=1, ny=2, nr=2, nj=2, nstate=lay["total"].stop, init_state=np.zeros(lay["total"].stop), residual_names=("r0", "r1"), statistic_names=("J0", "J1")),
+        step=StepSpec(nu=1, ny=2, nr=2, nj=2, nstate=lay.size, init_state=np.zeros(lay.size), residual_names=("r0", "r1"), statistic_names=("J0", "J1")),
         plant={"A": np.eye(1) * 0.5, "B": np.zeros((1, 1)), "C": np.ones((2, 1)), "D": np.zeros((2, 1)), "E": np.zeros((1, 0)), "Q": np.eye(1), "R": np.eye(2)},
         generators=tuple(gens), evaluators=tuple(evs),
         decision=Decision(kind="signature_table", signatures=np.array([[1, 0], [0, 1], [1, 1]]), persistence=persistence),

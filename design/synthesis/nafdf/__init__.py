@@ -13,7 +13,7 @@ from fdisyn.synthesis.nafdf.payload import (
     nafdf_payload,
     step_from_payload,
 )
-from fdisyn.synthesis.nafdf.settings import NafdfSettings, StateLayout
+from fdisyn.synthesis.nafdf.settings import NafdfSettings
 
 __all__ = [
     "NafdfDesign",

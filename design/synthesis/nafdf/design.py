@@ -145,8 +145,9 @@ fault names), ``status`` (0 processed, 1 skipped). All dense column vectors.
   alarm_resets, ekf_reparameterisations, ekf_divergence_resets,
   nf_divergence_resets``.
 
-Limits (checked before anything is built or generated, at design time and
-again on reading a gain file; each keeps one resource bounded, with room for
+Limits (constants of :mod:`fdisyn.synthesis.nafdf.settings`, checked before
+anything is built or generated, at design time and again on reading a gain
+file; each keeps one resource bounded, with room for
 the documented problems — ship: ``N = 10``, ``N2 = 50``, 3 086 operations;
 drive train: ``N = 50``, ``N2 = 200``, 11 202 operations):
 
@@ -169,7 +170,8 @@ drive train: ``N = 50``, ``N2 = 200``, 11 202 operations):
   ``gcc -O2 -fstack-usage``: ship 1.7 KiB, drive train 4.1 KiB, the ship
   with ``N = 1000`` 9.5 KiB — the state copy dominates.
 
-Gain files. :func:`nafdf_payload` stores the model as data, not code:
+Gain files (:mod:`fdisyn.synthesis.nafdf.payload`). :func:`nafdf_payload`
+stores the model as data, not code:
 ``f`` and ``h`` as lists of elementary operations
 (:func:`fdisyn.models.nonlinear.model_program`) that the reader validates
 entry by entry before it builds anything, never as CasADi serialised
@@ -192,11 +194,14 @@ from typing import Any, Literal
 import casadi as ca
 import numpy as np
 from fdisyn.evaluators.wssr import wssr_threshold_table
-from fdisyn.models.nonlinear import NonlinearPlant, short_repr
+from fdisyn.models.nonlinear import NonlinearPlant
+from fdisyn.numerics.linalg import frozen_array
 from fdisyn.runtime.errors import ArgumentError, ShapeError
 from fdisyn.runtime.gainfile import GainFile
+from fdisyn.runtime.layout import StateLayout
+from fdisyn.runtime.names import shown
 from fdisyn.synthesis.certificate import Certificate, Check, worst
-from fdisyn.synthesis.nafdf.settings import _IDENT, _MAX_NAME, NafdfSettings, StateLayout, _ro, _settings
+from fdisyn.synthesis.nafdf.settings import _IDENT, _MAX_NAME, NafdfSettings, _settings
 from fdisyn.synthesis.nafdf.step import _build_step, _check_step_size
 
 __all__ = ['NafdfDesign', 'nafdf', 'nafdf_extra_metrics']
@@ -325,7 +330,7 @@ def nafdf(
         u0=u0,
     )
     if not isinstance(name, str) or not _IDENT.fullmatch(name) or len(name) > _MAX_NAME:
-        raise ArgumentError(f"name must be an identifier of at most {_MAX_NAME} characters; got {short_repr(name)}")
+        raise ArgumentError(f"name must be an identifier of at most {_MAX_NAME} characters; got {shown(name)}")
     return _design(plant, settings, name=name)
 
 
@@ -364,7 +369,7 @@ def _design(plant: NonlinearPlant, settings: NafdfSettings, *, name: str, thresh
         name=name,
         plant=plant,
         settings=settings,
-        thresholds=_ro(thr),
+        thresholds=frozen_array(thr),
         step=step,
         layout=layout,
         certificate=Certificate.of(name, []),
@@ -378,12 +383,12 @@ def _design(plant: NonlinearPlant, settings: NafdfSettings, *, name: str, thresh
 def _check_model_finite(plant: NonlinearPlant, s: NafdfSettings) -> None:
     """The model and its Jacobians are finite where the filters start: ``(x0, u0)`` with the nominal
     ``θ`` (the EKF) and with ``θ̂(0)`` (the NF). Raises :class:`ArgumentError` naming the expression."""
-    where = f"x0 = {short_repr(s.x0.tolist())}, u0 = {short_repr(s.u0.tolist())}"
+    where = f"x0 = {shown(s.x0.tolist())}, u0 = {shown(s.u0.tolist())}"
     nominal = dict(zip(plant.parameters, plant.theta_nominal.tolist(), strict=True))
-    plant.check_finite(x=s.x0, u=s.u0, theta=plant.theta_nominal, point=f"the EKF's start ({where}, nominal θ = {short_repr(nominal)})")
+    plant.check_finite(x=s.x0, u=s.u0, theta=plant.theta_nominal, point=f"the EKF's start ({where}, nominal θ = {shown(nominal)})")
     if not np.array_equal(s.theta0, plant.theta_nominal):
         start = dict(zip(plant.parameters, s.theta0.tolist(), strict=True))
-        plant.check_finite(x=s.x0, u=s.u0, theta=s.theta0, point=f"the NF's start ({where}, theta0 = {short_repr(start)})")
+        plant.check_finite(x=s.x0, u=s.u0, theta=s.theta0, point=f"the NF's start ({where}, theta0 = {shown(start)})")
 
 
 def _init_state(plant: NonlinearPlant, s: NafdfSettings, layout: StateLayout) -> np.ndarray:

@@ -19,9 +19,10 @@ import numpy as np
 from fdisyn.models.nonlinear import NonlinearPlant
 from fdisyn.runtime.errors import ArgumentError
 from fdisyn.runtime.gainfile import GainFile
+from fdisyn.runtime.names import shown
 from fdisyn.synthesis.nafdf.design import nafdf, nafdf_extra_metrics
 from fdisyn.synthesis.nafdf.payload import nafdf_from_gain_file, nafdf_gain_file
-from fdisyn.synthesis.registry import P_F, WINDOW, Method, Option, at, register, short_repr
+from fdisyn.synthesis.registry import P_F, WINDOW, Method, Option, at, register
 
 __all__ = ["NAFDF_OPTIONS", "NAFDF"]
 
@@ -45,11 +46,11 @@ def _u0(value: Any, where: str, plant: NonlinearPlant | None) -> Any:
     """The nominal input: one finite number per input."""
     label, m = at(where, "u0"), "m" if plant is None else plant.m
     if not isinstance(value, (list, tuple, np.ndarray)) or not all(isinstance(x, (int, float, np.floating)) and not isinstance(x, bool) for x in value):
-        raise ArgumentError(f"{label} must be a list of {m} finite numbers (one per input), got {short_repr(value)}")
+        raise ArgumentError(f"{label} must be a list of {m} finite numbers (one per input), got {shown(value)}")
     if plant is not None and len(value) != plant.m:
         raise ArgumentError(f"{label} must have {plant.m} entries (one per input), got {len(value)}")
     if not np.all(np.isfinite(np.asarray(value, dtype=float))):
-        raise ArgumentError(f"{label} must hold finite numbers, got {short_repr(value)}")
+        raise ArgumentError(f"{label} must hold finite numbers, got {shown(value)}")
     return [float(x) for x in value]
 
 

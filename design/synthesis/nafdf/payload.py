@@ -12,13 +12,17 @@ from typing import Any
 import casadi as ca
 import numpy as np
 from fdisyn.evaluators.wssr import wssr_threshold_table
-from fdisyn.models.nonlinear import NonlinearPlant, covariance_matrix, function_from_program, model_program, short_repr
+from fdisyn.models.nonlinear import NonlinearPlant, function_from_program, model_program
 from fdisyn.models.sampling import check_sample_time
+from fdisyn.numerics.linalg import as_covariance
 from fdisyn.runtime.errors import FdisynError, GainFileError
 from fdisyn.runtime.gainfile import GainFile, StepSpec
+from fdisyn.runtime.layout import StateLayout
+from fdisyn.runtime.names import shown
+from fdisyn.runtime.values import real_number
 from fdisyn.synthesis.linear_diagnoser import provenance
 from fdisyn.synthesis.nafdf.design import NafdfDesign, _design, _init_state, _names_r_J
-from fdisyn.synthesis.nafdf.settings import _IDENT, _MAX_NAME, MAX_DIMENSION, NafdfSettings, StateLayout, _layout, _settings
+from fdisyn.synthesis.nafdf.settings import _IDENT, _MAX_NAME, MAX_DIMENSION, NafdfSettings, _layout, _settings
 
 __all__ = ['PAYLOAD_FORMAT', 'PAYLOAD_VERSION', 'nafdf_from_gain_file', 'nafdf_from_payload', 'nafdf_gain_file', 'nafdf_payload', 'step_from_payload']
 
@@ -112,11 +116,11 @@ class _Fields:
         missing = sorted(set(required) - set(doc))
         unknown = sorted(str(k) for k in set(doc) - set(required) - set(optional))
         if missing or unknown:
-            raise GainFileError(f"{where}: missing field(s) {missing}, unknown field(s) {short_repr(unknown)}")
+            raise GainFileError(f"{where}: missing field(s) {missing}, unknown field(s) {shown(unknown)}")
         self.doc, self.where = doc, where
 
     def fail(self, key: str, expected: str) -> GainFileError:
-        return GainFileError(f"{self.where}.{key} must be {expected}; found {short_repr(self.doc.get(key))}")
+        return GainFileError(f"{self.where}.{key} must be {expected}; found {shown(self.doc.get(key))}")
 
     def string(self, key: str) -> str:
         v = self.doc[key]
@@ -162,14 +166,11 @@ class _Fields:
 
 
 def _json_number(v: object, where: str) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float)):
-        raise GainFileError(f"{where} must hold numbers; found {short_repr(v)}")
-    try:
-        out = float(v)
-    except OverflowError:
-        out = math.inf
+    out = real_number(v)
+    if out is None:
+        raise GainFileError(f"{where} must hold numbers; found {shown(v)}")
     if not math.isfinite(out):
-        raise GainFileError(f"{where} must hold finite numbers; found {short_repr(v)}")
+        raise GainFileError(f"{where} must hold finite numbers; found {shown(v)}")
     return out
 
 
@@ -216,7 +217,7 @@ def _read_plant(doc: object, where: str) -> NonlinearPlant:
         "h": _wrap(f"{where}.h", function_from_program, f.doc["h"], name="h", in_names=("x", "theta"), in_sizes=(n, l), out_name="y", out_size=p),
     }
     for ours, key in _NOISE_KEYS.items():  # the plant checks them too; here a refusal names the payload's key
-        _wrap(where, covariance_matrix, mats[ours], key, len(mats[ours]), definite=ours == "R")
+        _wrap(where, as_covariance, mats[ours], key, len(mats[ours]), definite=ours == "R")
     common = dict(
         states=states, inputs=inputs, outputs=outputs, parameters=parameters, nominal=dict(zip(parameters, theta.tolist(), strict=True)),
         Q=mats["Q"], R=mats["R"], Ts=ts, units=dict(units),
@@ -237,10 +238,10 @@ def _read_payload(payload: object, where: str, *, gain_file: bool) -> _Payload:
     optional = frozenset() if gain_file else frozenset({"thresholds"})
     required = _PAYLOAD_FIELDS | ({"thresholds"} if gain_file else frozenset())
     if isinstance(payload, Mapping) and payload.get("format") != PAYLOAD_FORMAT:
-        raise GainFileError(f"{where}: payload format is {short_repr(payload.get('format'))}; expected {PAYLOAD_FORMAT!r}")
+        raise GainFileError(f"{where}: payload format is {shown(payload.get('format'))}; expected {PAYLOAD_FORMAT!r}")
     if isinstance(payload, Mapping) and payload.get("version") != PAYLOAD_VERSION:
         raise GainFileError(
-            f"{where}: payload version is {short_repr(payload.get('version'))}; this fdisyn reads version {PAYLOAD_VERSION} "
+            f"{where}: payload version is {shown(payload.get('version'))}; this fdisyn reads version {PAYLOAD_VERSION} "
             "(the model as validated operation lists, not CasADi serialised strings): design it again"
         )
     top = _Fields(payload, where, required=frozenset(required), optional=optional)
@@ -306,16 +307,16 @@ def _read_payload(payload: object, where: str, *, gain_file: bool) -> _Payload:
     r_names, J_names = _names_r_J(plant)
     for key, want in (("r_names", r_names), ("J_names", J_names), ("fault_names", plant.parameters)):
         if top.doc[key] != list(want):
-            raise GainFileError(f"{where}.{key} is {short_repr(top.doc[key])}; the plant implies {short_repr(list(want))}")
+            raise GainFileError(f"{where}.{key} is {shown(top.doc[key])}; the plant implies {shown(list(want))}")
     cert = top.doc["certificate"]
     if not isinstance(cert, Mapping) or cert.get("passed") is not True:
-        raise GainFileError(f"{where}.certificate did not pass (passed = {short_repr(cert.get('passed') if isinstance(cert, Mapping) else cert)}); a design that failed its verification is not built")
+        raise GainFileError(f"{where}.certificate did not pass (passed = {shown(cert.get('passed') if isinstance(cert, Mapping) else cert)}); a design that failed its verification is not built")
     fixed = None
     if "thresholds" in top.doc:
         fixed = _fixed_thresholds(J_names, plant, table, settings.W1)
         if top.doc["thresholds"] != fixed:
             raise GainFileError(
-                f"{where}.thresholds is {short_repr(top.doc['thresholds'])}; expected {len(J_names)} entries "
+                f"{where}.thresholds is {shown(top.doc['thresholds'])}; expected {len(J_names)} entries "
                 "(the full-window WSSR threshold on wssr, W1 on each d_θ, null elsewhere)"
             )
     return _Payload(name=name, plant=plant, settings=settings, thresholds=table, layout=layout, fixed_thresholds=fixed)
@@ -357,7 +358,7 @@ def nafdf_from_gain_file(gf: GainFile) -> NafdfDesign:
     where = "extensions.nafdf"
     if not isinstance(gf.certificate, Mapping) or gf.certificate.get("passed") is not True:
         passed = gf.certificate.get("passed") if isinstance(gf.certificate, Mapping) else None
-        raise GainFileError(f"certificate.passed is {short_repr(passed)}; a design that failed its verification is not built")
+        raise GainFileError(f"certificate.passed is {shown(passed)}; a design that failed its verification is not built")
     parsed = _read_payload(gf.extensions.get("nafdf"), where, gain_file=True)
     pl = parsed.plant
     r_names, J_names = _names_r_J(pl)
@@ -377,7 +378,7 @@ def nafdf_from_gain_file(gf: GainFile) -> NafdfDesign:
         ("step.statistic_names", st.statistic_names, J_names),
     ):
         if found != want:
-            raise GainFileError(f"{field_name} is {short_repr(found)}; {where} implies {short_repr(want)}")
+            raise GainFileError(f"{field_name} is {shown(found)}; {where} implies {shown(want)}")
     if not np.array_equal(st.init_state, init):
         k = int(np.argmax(st.init_state != init))
         raise GainFileError(

@@ -5,17 +5,18 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
-import casadi as ca
 import numpy as np
-from fdisyn.models.nonlinear import NonlinearPlant, short_repr
-from fdisyn.numerics.linalg import real_array
+from fdisyn.models.nonlinear import NonlinearPlant
+from fdisyn.numerics.linalg import as_covariance, as_vector, frozen_array, real_array
 from fdisyn.runtime.errors import ArgumentError, ShapeError
+from fdisyn.runtime.layout import StateLayout
+from fdisyn.runtime.names import shown
+from fdisyn.runtime.values import real_number
 
-__all__ = ['MAX_CLASSIFIER_WINDOW', 'MAX_COUNT', 'MAX_DIMENSION', 'MAX_STATE', 'MAX_STEP_INSTRUCTIONS', 'MAX_STEP_WORK', 'MAX_WINDOW', 'NafdfSettings', 'StateLayout']
+__all__ = ['MAX_CLASSIFIER_WINDOW', 'MAX_COUNT', 'MAX_DIMENSION', 'MAX_STATE', 'MAX_STEP_INSTRUCTIONS', 'MAX_STEP_WORK', 'MAX_WINDOW', 'NafdfSettings']
 
 # Resource limits (module docstring).
 MAX_DIMENSION = 30
@@ -99,52 +100,26 @@ class NafdfSettings:
         return out
 
 
-def _ro(a: np.ndarray) -> np.ndarray:
-    a = np.array(a, dtype=float, copy=True)
-    a.setflags(write=False)
-    return a
-
-
 def _float_array(value: object, name: str) -> np.ndarray:
     try:
         return real_array(value, name)  # numbers only: "100" or true are refused, not converted
     except (ShapeError, ArgumentError):
-        raise ArgumentError(f"{name} must be a number or an array of numbers; got {short_repr(value)}") from None
+        raise ArgumentError(f"{name} must be a number or an array of numbers; got {shown(value)}") from None
 
 
 def _vec(value: object, name: str, size: int) -> np.ndarray:
-    arr = _float_array(value, name)
-    if arr.ndim == 0:
-        arr = np.full(size, float(arr))
-    arr = arr.reshape(-1)
-    if arr.size != size:
-        raise ShapeError(f"{name} has {arr.size} entries; expected {size}")
-    return arr
+    return as_vector(_float_array(value, name), name, size, fill=True)
 
 
 def _finite_vec(value: object, name: str, size: int) -> np.ndarray:
     arr = _vec(value, name, size)
     if not np.all(np.isfinite(arr)):
-        raise ArgumentError(f"{name} must be finite; got {short_repr(arr.tolist())}")
+        raise ArgumentError(f"{name} must be finite; got {shown(arr.tolist())}")
     return arr
 
 
 def _spd(value: object, name: str, size: int) -> np.ndarray:
-    arr = _float_array(value, name)
-    if arr.ndim == 0:
-        arr = float(arr) * np.eye(size)
-    elif arr.ndim == 1 and arr.size == size:
-        arr = np.diag(arr)
-    if arr.shape != (size, size):
-        raise ShapeError(f"{name} has shape {arr.shape}; expected ({size}, {size})")
-    if not np.all(np.isfinite(arr)):
-        raise ArgumentError(f"{name} contains non-finite entries")
-    if not np.allclose(arr, arr.T, rtol=1e-12, atol=0.0):
-        raise ArgumentError(f"{name} must be symmetric")
-    ev = np.linalg.eigvalsh(arr)
-    if ev[0] <= 0.0:
-        raise ArgumentError(f"{name} must be positive definite; smallest eigenvalue {ev[0]:.3g}")
-    return 0.5 * arr + 0.5 * arr.T  # halves first: 1e308 + 1e308 would overflow
+    return as_covariance(_float_array(value, name), name, size, definite=True)
 
 
 def _positive_int(value: object, name: str, maximum: int = MAX_COUNT) -> int:
@@ -155,101 +130,30 @@ def _positive_int(value: object, name: str, maximum: int = MAX_COUNT) -> int:
     elif isinstance(value, (float, np.floating)) and math.isfinite(value) and float(value).is_integer():
         whole = int(value)
     if whole is None or whole < 1:
-        raise ArgumentError(f"{name} must be a positive integer; got {short_repr(value)}")
+        raise ArgumentError(f"{name} must be a positive integer; got {shown(value)}")
     if whole > maximum:
         raise ArgumentError(f"{name} is {whole}; at most {maximum} is allowed (see the limits in fdisyn.synthesis.nafdf.design)")
     return whole
 
 
 def _number(value: object, name: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise ArgumentError(f"{name} must be a number; got {short_repr(value)}")
-    try:
-        return float(value)
-    except OverflowError:
-        raise ArgumentError(f"{name} must be a finite number; got {short_repr(value)}") from None
+    """A real number (NaN and ±inf pass: each setting's range check refuses them with its own words)."""
+    v = real_number(value)
+    if v is None:
+        raise ArgumentError(f"{name} must be a number; got {shown(value)}")
+    if math.isinf(v) and isinstance(value, int):  # an integer beyond the double range
+        raise ArgumentError(f"{name} must be a finite number; got {shown(value)}")
+    return v
 
 
 def _unit_open(value: float, name: str) -> float:
     v = _number(value, name)
     if not 0.0 < v < 1.0:
-        raise ArgumentError(f"{name} must lie strictly between 0 and 1; got {short_repr(value)}")
+        raise ArgumentError(f"{name} must lie strictly between 0 and 1; got {shown(value)}")
     return v
 
 
 # --------------------------------------------------------------------------- state layout
-
-
-@dataclass(frozen=True)
-class StateLayout:
-    """Named blocks of the diagnoser state vector; matrices stored column-major (CasADi's order).
-
-    ``scalars`` names the blocks that are counters or flags (unpacked as ``float``);
-    every other block with one column unpacks as a 1-D array, even of length one.
-    """
-
-    entries: tuple[tuple[str, int, int], ...]
-    scalars: frozenset[str] = frozenset()
-    matrices: frozenset[str] = frozenset()
-    """Blocks that unpack as 2-D arrays whatever their size (covariances, sensitivities, windows)."""
-
-    @property
-    def size(self) -> int:
-        return sum(r * c for _, r, c in self.entries)
-
-    def offsets(self) -> dict[str, tuple[int, int, int]]:
-        out, k = {}, 0
-        for name, r, c in self.entries:
-            out[name] = (k, r, c)
-            k += r * c
-        return out
-
-    def unpack(self, vec: object) -> dict[str, np.ndarray | float]:
-        """Split a state vector: scalars as float, columns as 1-D arrays, matrices as 2-D arrays."""
-        v = np.asarray(vec, dtype=float).reshape(-1)
-        if v.size != self.size:
-            raise ShapeError(f"state has {v.size} entries; expected {self.size}")
-        out: dict[str, np.ndarray | float] = {}
-        for name, (k, r, c) in self.offsets().items():
-            block = v[k : k + r * c]
-            if name in self.scalars:
-                out[name] = float(block[0])
-            elif c == 1 and name not in self.matrices:
-                out[name] = block.copy()
-            else:
-                out[name] = block.reshape((r, c), order="F").copy()
-        return out
-
-    def pack(self, values: Mapping[str, object]) -> np.ndarray:
-        """Join named blocks into a state vector (every block required)."""
-        missing = [name for name, _, _ in self.entries if name not in values]
-        extra = sorted(set(values) - {name for name, _, _ in self.entries})
-        if missing or extra:
-            raise ArgumentError(f"state blocks: missing {missing}, unknown {extra}")
-        parts = []
-        for name, r, c in self.entries:
-            a = np.asarray(values[name], dtype=float)
-            if a.size != r * c:
-                raise ShapeError(f"state block {name!r} has {a.size} entries; expected {r}×{c}")
-            parts.append(a.reshape((r, c)).reshape(-1, order="F") if a.ndim == 2 else a.reshape(-1))
-        return np.concatenate(parts) if parts else np.zeros(0)
-
-    def split_sx(self, sx: ca.SX) -> dict[str, ca.SX]:
-        return {name: ca.reshape(sx[k : k + r * c], r, c) for name, (k, r, c) in self.offsets().items()}
-
-    def join_sx(self, blocks: Mapping[str, ca.SX]) -> ca.SX:
-        return ca.vertcat(*[ca.vec(ca.SX(blocks[name])) for name, _, _ in self.entries])
-
-    def component_names(self) -> list[str]:
-        out = []
-        for name, r, c in self.entries:
-            if name in self.scalars:
-                out.append(name)
-            elif c == 1 and name not in self.matrices:
-                out.extend(f"{name}[{i}]" for i in range(r))
-            else:
-                out.extend(f"{name}[{i},{j}]" for j in range(c) for i in range(r))
-        return out
 
 
 def _layout(n: int, l: int, window: int, n2: int) -> StateLayout:
@@ -329,7 +233,7 @@ def _check_sizes(plant: NonlinearPlant, window: int, classifier_window: int) -> 
 
 
 def _settings(plant: NonlinearPlant, **kw: Any) -> NafdfSettings:
-    """Validate the keywords of :func:`nafdf` (also applied to a gain file's stored settings).
+    """Validate the keywords of :func:`~fdisyn.synthesis.nafdf.design.nafdf` (also applied to a gain file's stored settings).
 
     Sizes first (windows, counters, dimensions, state size), then every
     vector and matrix: shapes, finiteness, definiteness, ranges, the box.
@@ -342,27 +246,27 @@ def _settings(plant: NonlinearPlant, **kw: Any) -> NafdfSettings:
     th_nom = np.asarray(plant.theta_nominal)
     rule = kw["threshold_rule"]
     if rule not in ("chi2", "beta0"):
-        raise ArgumentError(f"threshold_rule must be 'chi2' or 'beta0'; got {short_repr(rule)}")
+        raise ArgumentError(f"threshold_rule must be 'chi2' or 'beta0'; got {shown(rule)}")
     lo = np.full(l, -np.inf) if kw["theta_lower"] is None else _vec(kw["theta_lower"], "theta_lower", l)
     hi = np.full(l, np.inf) if kw["theta_upper"] is None else _vec(kw["theta_upper"], "theta_upper", l)
     if np.any(np.isnan(lo)) or np.any(np.isnan(hi)) or np.any(lo >= hi) or np.any(lo == np.inf) or np.any(hi == -np.inf):
-        raise ArgumentError(f"theta_lower must be below theta_upper for every parameter; got {short_repr(lo.tolist())} and {short_repr(hi.tolist())}")
+        raise ArgumentError(f"theta_lower must be below theta_upper for every parameter; got {shown(lo.tolist())} and {shown(hi.tolist())}")
     tol = (
         np.where(th_nom != 0.0, 0.05 * np.abs(th_nom), 0.05)
         if kw["convergence_tolerance"] is None
         else _vec(kw["convergence_tolerance"], "convergence_tolerance", l)
     )
     if np.any(~np.isfinite(tol)) or np.any(tol <= 0):
-        raise ArgumentError(f"convergence_tolerance must be positive and finite; got {short_repr(tol.tolist())}")
+        raise ArgumentError(f"convergence_tolerance must be positive and finite; got {shown(tol.tolist())}")
     th0 = th_nom.copy() if kw["theta0"] is None else _finite_vec(kw["theta0"], "theta0", l)
     beta0 = None if kw["beta0"] is None else _number(kw["beta0"], "beta0")
     if beta0 is not None and not (math.isfinite(beta0) and beta0 > 0):
-        raise ArgumentError(f"beta0 must be a positive finite number; got {short_repr(kw['beta0'])}")
+        raise ArgumentError(f"beta0 must be a positive finite number; got {shown(kw['beta0'])}")
     settings = NafdfSettings(
-        x0=_ro(_finite_vec(kw["x0"], "x0", n)),
-        P0=_ro(_spd(kw["P0"], "P0", n)),
-        theta0=_ro(th0),
-        R0=_ro(_spd(np.eye(l) if kw["R0"] is None else kw["R0"], "R0", l)),
+        x0=frozen_array(_finite_vec(kw["x0"], "x0", n)),
+        P0=frozen_array(_spd(kw["P0"], "P0", n)),
+        theta0=frozen_array(th0),
+        R0=frozen_array(_spd(np.eye(l) if kw["R0"] is None else kw["R0"], "R0", l)),
         window=window,
         threshold_rule=rule,
         false_alarm_probability=_unit_open(kw["false_alarm_probability"], "false_alarm_probability"),
@@ -370,23 +274,23 @@ def _settings(plant: NonlinearPlant, **kw: Any) -> NafdfSettings:
         forgetting_initial=_unit_interval(kw["forgetting_initial"], "forgetting_initial"),
         forgetting_rate=_unit_open(kw["forgetting_rate"], "forgetting_rate"),
         forgetting_final=_unit_interval(kw["forgetting_final"], "forgetting_final"),
-        theta_lower=_ro(lo),
-        theta_upper=_ro(hi),
+        theta_lower=frozen_array(lo),
+        theta_upper=frozen_array(hi),
         nominal_samples=_positive_int(kw["nominal_samples"], "nominal_samples"),
         classifier_window=n2,
         W1=_number(kw["W1"], "W1"),
         W2=_number(kw["W2"], "W2"),
         T1=_positive_int(kw["T1"], "T1"),
-        convergence_tolerance=_ro(tol),
+        convergence_tolerance=frozen_array(tol),
         convergence_level=_unit_open(kw["convergence_level"], "convergence_level"),
-        u0=_ro(np.zeros(m) if kw["u0"] is None else _finite_vec(kw["u0"], "u0", m)),
+        u0=frozen_array(np.zeros(m) if kw["u0"] is None else _finite_vec(kw["u0"], "u0", m)),
     )
     if not 0.0 <= settings.W1 < settings.W2 or not math.isfinite(settings.W2):
         raise ArgumentError(f"the classifier thresholds must satisfy 0 <= W1 < W2 < inf; got W1 = {kw['W1']}, W2 = {kw['W2']}")
     if np.any(settings.theta0 < lo) or np.any(settings.theta0 > hi):
         raise ArgumentError(
-            f"theta0 = {short_repr(settings.theta0.tolist())} lies outside the parameter box "
-            f"[{short_repr(lo.tolist())}, {short_repr(hi.tolist())}]"
+            f"theta0 = {shown(settings.theta0.tolist())} lies outside the parameter box "
+            f"[{shown(lo.tolist())}, {shown(hi.tolist())}]"
         )
     return settings
 
@@ -394,6 +298,6 @@ def _settings(plant: NonlinearPlant, **kw: Any) -> NafdfSettings:
 def _unit_interval(value: float, name: str) -> float:
     v = _number(value, name)
     if not 0.0 < v <= 1.0:
-        raise ArgumentError(f"{name} must lie in (0, 1]; got {short_repr(value)}")
+        raise ArgumentError(f"{name} must lie in (0, 1]; got {shown(value)}")
     return v
 

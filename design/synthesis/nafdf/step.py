@@ -8,9 +8,12 @@ import math
 import casadi as ca
 import numpy as np
 import scipy.stats
+from fdisyn.codegen.step import all_finite as _all_finite
+from fdisyn.codegen.step import finite
 from fdisyn.evaluators.wssr import _NEVER
 from fdisyn.models.nonlinear import NonlinearPlant
 from fdisyn.runtime.errors import ArgumentError
+from fdisyn.runtime.layout import StateLayout
 from fdisyn.synthesis.nafdf.settings import (
     _D_OVERFLOW,
     _PSD_SHIFT,
@@ -19,21 +22,10 @@ from fdisyn.synthesis.nafdf.settings import (
     MAX_STEP_INSTRUCTIONS,
     MAX_STEP_WORK,
     NafdfSettings,
-    StateLayout,
     _layout,
 )
 
 # --------------------------------------------------------------------------- SX helpers
-
-
-def _all_finite(*exprs: ca.SX) -> ca.SX:
-    """1 if every entry is finite, else 0 — as ``|v| < inf``, which code generation keeps."""
-    ok = ca.SX(1)
-    for e in exprs:
-        v = ca.vec(ca.SX(e))
-        for i in range(v.numel()):
-            ok = ca.logic_and(ok, ca.fabs(v[i]) < ca.inf)
-    return ok
 
 
 def _sym(a: ca.SX) -> ca.SX:
@@ -102,7 +94,7 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
     state = ca.SX.sym("state", lay.size)
     u = ca.SX.sym("u", m)
     y = ca.SX.sym("y", p)
-    old = lay.split_sx(state)
+    old = _split_sx(lay, state)
     new = dict(old)
 
     # ---- block 1: EKF on the model θ_e (eq. (2.3)) --------------------------------------
@@ -309,7 +301,7 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
         0.0,
     )
     ok_in = _all_finite(u, y)
-    state_next = _select(ok_in, lay.join_sx(new), lay.join_sx(held))
+    state_next = _select(ok_in, _join_sx(lay, new), _join_sx(lay, held))
     r_out = _select(ok_in, _sanitise(r_proc), ca.SX.zeros(2 * p, 1))
     J_out = _select(ok_in, _sanitise(J_proc), _sanitise(J_hold))
     alarm_out = _select(ok_in, alarm, 0.0)
@@ -340,7 +332,7 @@ def _sanitise(v: ca.SX) -> ca.SX:
     out = []
     for i in range(v.numel()):
         overflow = _select(v[i] > 0, _NEVER, _select(v[i] < 0, -_NEVER, 0.0))
-        out.append(_select(ca.fabs(v[i]) < ca.inf, v[i], overflow))
+        out.append(_select(finite(v[i]), v[i], overflow))
     return ca.vertcat(*out)
 
 
@@ -350,6 +342,16 @@ def _table_lookup(k: ca.SX, table: np.ndarray) -> ca.SX:
     for i, val in enumerate(table):
         out = out + _select(k == i + 1, float(val), 0.0)
     return out
+
+
+def _split_sx(layout: StateLayout, sx: ca.SX) -> dict[str, ca.SX]:
+    """The blocks of a symbolic state vector, each ``rows × cols`` (column-major, as :class:`StateLayout` stores them)."""
+    return {name: ca.reshape(sx[k : k + r * c], r, c) for name, (k, r, c) in layout.offsets().items()}
+
+
+def _join_sx(layout: StateLayout, blocks: dict[str, ca.SX]) -> ca.SX:
+    """A symbolic state vector from its named blocks (:func:`_split_sx` inverted)."""
+    return ca.vertcat(*[ca.vec(ca.SX(blocks[name])) for name, _, _ in layout.entries])
 
 
 def _check_step_size(step: ca.Function, layout: StateLayout) -> None:

@@ -1,0 +1,93 @@
+"""Where each part of a diagnoser's state lives: named blocks of the state vector.
+
+A diagnoser's state is one float64 vector, the ``state[nstate]`` of its step
+and of the generated C. A :class:`StateLayout` names its blocks in order,
+each ``rows × cols`` and stored column-major (CasADi's order), so that the
+runtime, the designs and the reports read the same entries by the same names:
+the linear layout is :func:`fdisyn.runtime.gainfile.linear_state_layout`, the
+NAFDF's is written into its gain file (``extensions.nafdf.state_layout``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+from fdisyn.runtime.errors import ShapeError
+
+__all__ = ["StateLayout"]
+
+
+@dataclass(frozen=True)
+class StateLayout:
+    """Named blocks of a state vector, ``(name, rows, cols)`` in order; matrices stored column-major.
+
+    ``scalars`` names the blocks that are counters or flags (unpacked as ``float``);
+    every other block with one column unpacks as a 1-D array, even of length one.
+    """
+
+    entries: tuple[tuple[str, int, int], ...]
+    scalars: frozenset[str] = frozenset()
+    matrices: frozenset[str] = frozenset()
+    """Blocks that unpack as 2-D arrays whatever their size (covariances, sensitivities, windows)."""
+
+    @property
+    def size(self) -> int:
+        """Entries of the whole state vector (``nstate``)."""
+        return sum(r * c for _, r, c in self.entries)
+
+    def offsets(self) -> dict[str, tuple[int, int, int]]:
+        """``name → (first entry, rows, cols)``."""
+        out, k = {}, 0
+        for name, r, c in self.entries:
+            out[name] = (k, r, c)
+            k += r * c
+        return out
+
+    def __getitem__(self, name: str) -> slice:
+        """The entries of block ``name`` in the state vector."""
+        k, r, c = self.offsets()[name]
+        return slice(k, k + r * c)
+
+    def unpack(self, vec: object) -> dict[str, np.ndarray | float]:
+        """Split a state vector: scalars as float, columns as 1-D arrays, matrices as 2-D arrays."""
+        v = np.asarray(vec, dtype=float).reshape(-1)
+        if v.size != self.size:
+            raise ShapeError(f"state has {v.size} entries; expected {self.size}")
+        out: dict[str, np.ndarray | float] = {}
+        for name, (k, r, c) in self.offsets().items():
+            block = v[k : k + r * c]
+            if name in self.scalars:
+                out[name] = float(block[0])
+            elif c == 1 and name not in self.matrices:
+                out[name] = block.copy()
+            else:
+                out[name] = block.reshape((r, c), order="F").copy()
+        return out
+
+    def pack(self, values: Mapping[str, object]) -> np.ndarray:
+        """Join named blocks into a state vector (every block required)."""
+        missing = [name for name, _, _ in self.entries if name not in values]
+        extra = sorted(set(values) - {name for name, _, _ in self.entries})
+        if missing or extra:
+            raise ShapeError(f"state blocks: missing {missing}, unknown {extra}")
+        parts = []
+        for name, r, c in self.entries:
+            a = np.asarray(values[name], dtype=float)
+            if a.size != r * c:
+                raise ShapeError(f"state block {name!r} has {a.size} entries; expected {r}×{c}")
+            parts.append(a.reshape((r, c)).reshape(-1, order="F") if a.ndim == 2 else a.reshape(-1))
+        return np.concatenate(parts) if parts else np.zeros(0)
+
+    def component_names(self) -> list[str]:
+        """One name per entry: ``block`` for a scalar, ``block[i]`` for a column, ``block[i,j]`` for a matrix."""
+        out = []
+        for name, r, c in self.entries:
+            if name in self.scalars:
+                out.append(name)
+            elif c == 1 and name not in self.matrices:
+                out.extend(f"{name}[{i}]" for i in range(r))
+            else:
+                out.extend(f"{name}[{i},{j}]" for j in range(c) for i in range(r))
+        return out
