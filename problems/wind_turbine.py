@@ -279,7 +279,7 @@ def _bank_design(
     method = get_method(design)
     unscaled = discrete_model(_parameters(parameters))
     bank = {f"uio_{OUTPUTS[i].removeprefix('omega_')}_{OUTPUTS[j].removeprefix('omega_')}": [OUTPUTS[i], OUTPUTS[j]] for i, j in BANK}
-    extra = {"poles": list(poles)} if "poles" in method.option_names else {}
+    extra: dict[str, Any] = {"poles": list(poles)} if "poles" in method.option_names else {}
     return design_with(
         plant,
         design,

@@ -139,7 +139,7 @@ def as_symmetric(value: object, name: str, n: int, *, psd: bool = False, definit
     if (psd or definite) and n:
         ev = np.linalg.eigvalsh(a)
         if definite and ev[0] <= 0.0:
-            raise ShapeError(f"{name} must be positive definite; smallest eigenvalue {ev[0]:.3g}")
+            raise ArgumentError(f"{name} must be positive definite; smallest eigenvalue {ev[0]:.3g}")
         if ev[0] < -1e-12 * max(1.0, float(np.max(np.abs(ev)))):
             raise ArgumentError(f"{name} must be positive semidefinite (a covariance); smallest eigenvalue {ev[0]:.3g}")
     return a

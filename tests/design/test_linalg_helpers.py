@@ -70,11 +70,11 @@ def test_covariances_from_a_number_a_diagonal_or_a_matrix() -> None:
     big = as_covariance([[1e308, 0.0], [1e-300, 1e308]], "Q", 2)
     assert np.all(np.isfinite(big)) and big[0, 1] == big[1, 0]
     assert as_covariance(0.0, "Q", 2).sum() == 0.0  # semidefinite is enough without definite
-    with pytest.raises(ShapeError, match="R must be positive definite; smallest eigenvalue 0"):
+    with pytest.raises(ArgumentError, match="R must be positive definite; smallest eigenvalue 0"):
         as_covariance(0.0, "R", 2, definite=True)
-    with pytest.raises(ShapeError, match="Q must be positive semidefinite"):
+    with pytest.raises(ArgumentError, match="Q must be positive semidefinite"):
         as_covariance(-1.0, "Q", 1)
-    with pytest.raises(ShapeError, match="Q must hold numbers only; found '1e-2'"):
+    with pytest.raises(ArgumentError, match="Q must hold numbers only; found '1e-2'"):
         as_covariance("1e-2", "Q", 1)
     with pytest.raises(ShapeError, match=r"Q has shape \(2, 3\); expected \(2, 2\)"):
         as_covariance(np.ones((2, 3)), "Q", 2)
@@ -85,11 +85,11 @@ def test_vectors_and_read_only_copies() -> None:
     np.testing.assert_array_equal(as_vector(3.0, "x0", 2, fill=True), [3.0, 3.0])
     with pytest.raises(ShapeError, match="x0 has 1 entries; expected 2"):
         as_vector(3.0, "x0", 2)
-    with pytest.raises(ShapeError, match="x0 must hold numbers only; found True"):
+    with pytest.raises(ArgumentError, match="x0 must hold numbers only; found True"):
         as_vector([1.0, True], "x0", 2)
     a = frozen_array([1, 2])
     assert a.dtype == float and not a.flags.writeable
-    with pytest.raises(ShapeError, match="beyond the range of a double"):
+    with pytest.raises(ArgumentError, match="beyond the range of a double"):
         real_array([10**400], "A")
 
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from fdisyn.problems import ship_propulsion as sp
-from fdisyn.runtime.errors import SpecError
+from fdisyn.runtime.errors import ArgumentError
 
 
 @pytest.fixture(scope="module")
@@ -33,7 +33,7 @@ def test_scenario_time_convention() -> None:
     assert x[702] == pytest.approx(0.1 * a * x[701] ** 2 + x[701] + 0.1 * b * run.U[0, 701, 0], rel=1e-14)  # same formula
     free = sp.fault_scenario("fault_free", length=100)
     assert free.fault is None and free.onset is None and free.duration == 100
-    with pytest.raises(SpecError, match="unknown parameters"):
+    with pytest.raises(ArgumentError, match="unknown parameters"):
         sp.fault_scenario("c_half", {"c": 0.5})
 
 
