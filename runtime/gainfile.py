@@ -585,7 +585,7 @@ def _check_certificate_checks(node: object, where: str, depth: int = 0) -> None:
     ``value`` no longer meets its ``bound``. So every object in the tree that
     holds ``passed`` must hold ``true``, and every check (an object with
     ``relation``) must have finite numbers ``value`` and ``bound`` that satisfy
-    it — the rule of ``fdisyn.synthesis.certificate.Check``. The writer nests a
+    it — the rule of ``fdisyn.numerics.certificate.Check``. The writer nests a
     few levels; a tree deeper than 64 is refused before it could exhaust
     Python's recursion limit.
     """

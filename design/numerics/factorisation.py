@@ -8,11 +8,11 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from fdisyn.numerics.certificate import worst
 from fdisyn.numerics.linalg import as_matrix, as_square, normal_rank, psd_factor, rank_tol, spectral_radius, unobservable_modes
 from fdisyn.numerics.norms import DiscreteLTI
 from fdisyn.numerics.riccati import dare_pencil_eigenvalues, solve_filter_dare
 from fdisyn.runtime.errors import ExistenceError, SolverError
-from fdisyn.synthesis.certificate import worst
 
 __all__ = ['CoInnerOuter', 'Dtars', 'INNER_TOL', 'KAPPA_FACTOR', 'KAPPA_MAX', 'co_inner_outer', 'solve_dtars']
 KAPPA_FACTOR = 2e-13

@@ -49,6 +49,7 @@ from collections.abc import Iterator, Sequence
 import clarabel
 import cvxpy as cp
 import numpy as np
+from fdisyn.numerics.certificate import Certificate, Check
 from fdisyn.numerics.linalg import dlyap
 from fdisyn.numerics.norms import DiscreteLTI, check_band, hinf_norm, hminus_index
 from fdisyn.numerics.sdp import (
@@ -65,7 +66,6 @@ from fdisyn.numerics.sdp import (
     _val,
 )
 from fdisyn.runtime.errors import CertificateError, SolverError
-from fdisyn.synthesis.certificate import Certificate, Check
 from scipy import sparse
 
 __all__ = ['HMINUS_TOL', 'h2_norm_lmi', 'hinf_norm_lmi', 'hminus_index_lmi']

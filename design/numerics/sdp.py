@@ -12,10 +12,10 @@ from dataclasses import dataclass
 
 import cvxpy as cp
 import numpy as np
+from fdisyn.numerics.certificate import Certificate
 from fdisyn.numerics.linalg import dlyap, spectral_radius
 from fdisyn.numerics.norms import DiscreteLTI
 from fdisyn.runtime.errors import ExistenceError, InternalError, SolverError
-from fdisyn.synthesis.certificate import Certificate
 
 __all__ = ['SDP_BOUND_TOL', 'SDP_BOUND_TOL_SINGULAR', 'SdpResult', 'SdpStats']
 

@@ -26,6 +26,7 @@ import numpy as np
 from fdisyn.codegen.step import linear_step_function
 from fdisyn.evaluators.chi2 import chi2_evaluator
 from fdisyn.models.linear import LinearPlant
+from fdisyn.numerics.certificate import Certificate, Check
 from fdisyn.numerics.linalg import transfer_size
 from fdisyn.runtime.errors import ArgumentError, FdisynError, ShapeError
 from fdisyn.runtime.gainfile import (
@@ -37,7 +38,6 @@ from fdisyn.runtime.gainfile import (
     linear_state_layout,
 )
 from fdisyn.runtime.names import check_fault_name, shown
-from fdisyn.synthesis.certificate import Certificate, Check
 from fdisyn.synthesis.registry import P_F, PERSISTENCE, REQUIRED, Method, Option, at, is_real, register
 from fdisyn.synthesis.residual import dc_gain_y, internal_form
 

@@ -47,6 +47,7 @@ from typing import Literal
 import cvxpy as cp
 import numpy as np
 from fdisyn.models.sampled_data import SampledDataPlant, check_sampling
+from fdisyn.numerics.certificate import Certificate, Check
 from fdisyn.numerics.factorisation import co_inner_outer
 from fdisyn.numerics.linalg import dlyap, normal_rank, psd_factor, spectral_radius
 from fdisyn.numerics.lmi_norms import _kyp_lhs
@@ -54,7 +55,6 @@ from fdisyn.numerics.norms import DiscreteLTI, Eta, hinf_sweep, system_norm
 from fdisyn.numerics.sdp import SDP_BOUND_TOL, SDP_BOUND_TOL_SINGULAR, SdpStats, _balancing, _psd_part, _scale, _solve, _sym, _val
 from fdisyn.runtime.errors import ArgumentError, ExistenceError, InternalError, SolverError
 from fdisyn.runtime.gainfile import Generator
-from fdisyn.synthesis.certificate import Certificate, Check
 from fdisyn.synthesis.sampled_data_observer import (
     ETAS,
     _check_disturbance,

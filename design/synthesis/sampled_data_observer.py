@@ -33,7 +33,7 @@ Dy = V``. The paper's parts and where they live:
 * Theorem 1, here: the optimal diagnostic observer of any order ``s ≥ n``
   (:func:`optimal_diagnostic_observer`), ``design="direct"`` (the paper's
   method) or ``"indirect"`` (ZOH-discretise the plant first, the paper's
-  comparison), with a :class:`~fdisyn.synthesis.certificate.Certificate`.
+  comparison), with a :class:`~fdisyn.numerics.certificate.Certificate`.
 
 Interpretations of the paper:
 
@@ -66,12 +66,12 @@ from typing import Any, Literal
 import numpy as np
 import scipy.linalg as sla
 from fdisyn.models.sampled_data import SampledDataPlant, check_sampling
+from fdisyn.numerics.certificate import Certificate, Check, worst
 from fdisyn.numerics.factorisation import INNER_TOL, KAPPA_FACTOR, KAPPA_MAX, CoInnerOuter, co_inner_outer
 from fdisyn.numerics.linalg import as_matrix, spectral_radius
 from fdisyn.numerics.norms import DiscreteLTI, Eta, hinf_norm, hminus_index, series, system_norm
 from fdisyn.runtime.errors import ArgumentError, ExistenceError, ShapeError
 from fdisyn.runtime.gainfile import Generator
-from fdisyn.synthesis.certificate import Certificate, Check, worst
 from fdisyn.synthesis.residual import internal_form
 
 __all__ = ['DECOUPLING_TOL', 'DiagnosticObserver', 'ETAS', 'LUENBERGER_TOL', 'OPTIMUM_TOL', 'RESIDUAL_TOL', 'STABILITY_MARGIN', 'canonical_generator', 'error_performance', 'optimal_diagnostic_observer', 'performance', 'residual_dynamics']

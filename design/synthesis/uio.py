@@ -51,11 +51,11 @@ import casadi as ca
 import numpy as np
 import scipy.signal
 from fdisyn.models.linear import LinearPlant
+from fdisyn.numerics.certificate import Certificate, Check
 from fdisyn.numerics.linalg import dlyap, rank, rel_diff, spectral_radius, unobservable_modes
 from fdisyn.numerics.riccati import solve_filter_dare
 from fdisyn.runtime.errors import ArgumentError, CertificateError, ExistenceError, ShapeError, SolverError
 from fdisyn.runtime.gainfile import Generator
-from fdisyn.synthesis.certificate import Certificate, Check
 from fdisyn.synthesis.residual import internal_form
 
 __all__ = [

@@ -7,9 +7,9 @@ import math
 
 import numpy as np
 import pytest
+from fdisyn.numerics.certificate import Certificate, Check, worst
 from fdisyn.numerics.factorisation import co_inner_outer
 from fdisyn.runtime.errors import CertificateError
-from fdisyn.synthesis.certificate import Certificate, Check, worst
 
 NONFINITE = [math.nan, math.inf, -math.inf]
 

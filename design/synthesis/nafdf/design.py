@@ -195,12 +195,12 @@ import casadi as ca
 import numpy as np
 from fdisyn.evaluators.wssr import wssr_threshold_table
 from fdisyn.models.nonlinear import NonlinearPlant
+from fdisyn.numerics.certificate import Certificate, Check, worst
 from fdisyn.numerics.linalg import frozen_array
 from fdisyn.runtime.errors import ArgumentError, ShapeError
 from fdisyn.runtime.gainfile import GainFile
 from fdisyn.runtime.layout import StateLayout
 from fdisyn.runtime.names import shown
-from fdisyn.synthesis.certificate import Certificate, Check, worst
 from fdisyn.synthesis.nafdf.settings import _IDENT, _MAX_NAME, NafdfSettings, _settings
 from fdisyn.synthesis.nafdf.step import _build_step, _check_step_size
 
@@ -431,7 +431,7 @@ def _init_state(plant: NonlinearPlant, s: NafdfSettings, layout: StateLayout) ->
 def _certify(design: NafdfDesign) -> Certificate:
     """AD against central differences, a first step that neither diverges nor skips, positive thresholds.
 
-    Every aggregate goes through :func:`~fdisyn.synthesis.certificate.worst`, so a
+    Every aggregate goes through :func:`~fdisyn.numerics.certificate.worst`, so a
     NaN anywhere in the comparison makes the check fail instead of vanishing
     inside ``max``.
     """
