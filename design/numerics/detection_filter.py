@@ -50,6 +50,7 @@ __all__ = [
     "check_output_separability",
     "beard_structure",
     "beard_gain",
+    "fault_groups",
 ]
 
 
@@ -315,18 +316,29 @@ class _Geometry:
     tol: float
 
 
+def fault_groups(f: object, n: int) -> list[np.ndarray]:
+    """The faults of ``F``: a matrix (one fault per column) or a list of ``n × c`` matrices (a fault per matrix, e.g.
+    a sensor fault's two directions); every column scaled to unit length."""
+    if isinstance(f, (list, tuple)) and f and all(np.ndim(np.asarray(g, dtype=object)) == 2 for g in f):
+        groups = [_unit_columns(as_matrix(g, f"F[{i}]", rows=n), f"F[{i}]") for i, g in enumerate(f)]
+    else:
+        fm = _unit_columns(as_matrix(f, "F", rows=n), "F")
+        groups = [fm[:, i : i + 1] for i in range(fm.shape[1])]
+    if not groups or any(g.shape[1] == 0 for g in groups):
+        raise ArgumentError("F has no fault directions; expected one fault direction per column (or a list of matrices)")
+    return groups
+
+
 def _geometry(a: object, c: object, f: object, tol: float | None) -> _Geometry:
     am, cm = _pair(a, c)
     n = am.shape[0]
-    fm = _unit_columns(as_matrix(f, "F", rows=n), "F")
-    if fm.shape[1] == 0:
-        raise ArgumentError("F has no columns; expected one fault direction per column")
+    groups = fault_groups(f, n)
     tl = _default_tol(n) if tol is None else tol
-    check_faults_observable(am, cm, fm, tol=tl)
+    check_faults_observable(am, cm, np.hstack(groups), tol=tl)
     as_, cs, na, nc = _scaled(am, cm)
     spaces = []
-    for i in range(fm.shape[1]):
-        t = _min_unobservability(as_, cs, _min_conditioned_invariant(as_, cs, fm[:, i : i + 1], tl), tl)
+    for g in groups:
+        t = _min_unobservability(as_, cs, _min_conditioned_invariant(as_, cs, g, tl), tl)
         spaces.append(DetectionSpace(t, t.shape[1]))
     check_output_separability(cs, spaces, tol=tl)
 
