@@ -177,7 +177,7 @@ def optimise_eigenstructure(
                 cv = ca.mtimes(ca.DM(C @ t_b), a)
                 gram = ca.mtimes(mmat.T, mmat)
                 power = ca.mtimes(gram, gram)
-                power = ca.mtimes(power, power)  # (MᵀM)⁴: tr of it is the Schatten-8 norm of M to the 8th
+                power = ca.mtimes(power, power)  # (MᵀM)⁴: its trace is ‖M‖₈⁸, so t bounds b² (Schatten-8)
                 add(ca.trace(power) - t**4 * ca.sumsqr(cv) ** 4, -ca.inf, 0.0)
         start += counts[b]
     for i in range(n):
@@ -239,7 +239,7 @@ def optimise_eigenstructure(
     return EigenstructureResult(
         L=gain,
         eigenvalues=tuple(lams),
-        objective=float(best[0]),
+        objective=float(np.sqrt(best[0])),
         noise_ratio=ratio,
         starts=tried,
         iterations=int(best[2].get("iter_count", -1)),
