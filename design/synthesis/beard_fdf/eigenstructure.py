@@ -7,7 +7,7 @@ the admissible gains form an affine set ``L = L₀ + Σ θ_i N_i`` (:func:`admis
 
 The NLP (CasADi, derivatives by AD, IPOPT) minimises ``t`` over ``θ``, the eigenvalues and the eigenvectors:
 
-* ``b_m ≤ t`` for every eigenvector ``v_m = T_j a_m`` of every detection space, with ``b_m`` the implicit bound
+* ``b_m² ≤ t`` for every eigenvector ``v_m = T_j a_m`` of every detection space, with ``b_m`` the implicit bound
   per unit model error of :mod:`fdisyn.numerics.robust_cones` — its spectral norm replaced by the Schatten-8
   norm ``(tr (MᵀM)⁴)^(1/8)`` (smooth, an upper bound, and within ``rank^(1/8)`` of it: the optimum bounds the
   certified value from above) — written without an eigen-decomposition: ``G_j a_m = λ_m a_m`` and
