@@ -473,3 +473,22 @@ def test_the_registry_builds_the_step_and_the_recovery_window() -> None:
     # the window, then ‖G^j‖ ≤ 1e-3: independent truth by brute force over the powers of G
     settle = next(j for j in range(1000) if np.linalg.norm(np.linalg.matrix_power(flt.G, j), 2) <= 1e-3)
     assert recovery_samples(gf) == flt.window + settle
+
+
+def test_compiled_c_without_inputs_on_crafted_residuals(tmp_path) -> None:  # noqa: ANN001 - a path
+    """No input (``nu = 0``), a zero window mean (every angle π/2, no NaN from atan2(0, 0) or asin), a skipped
+    sample and an overflow: the C agrees with the reference exactly where it decides and to round-off elsewhere."""
+    flt = identity_filter(Y_th=[0.1, 0.1], window=2, h=0.5, explicit_level=0.1, persistence=1)
+    gf = gain_file(flt, name="beard_crafted")
+    write_gain_file(gf, tmp_path / "gains.json")
+    cd = CompiledDiagnoser(codegen(tmp_path).library, gf)
+    Y = np.array([[1.0, 0.0], [-1.0, 0.0], [1.0, 0.0], [np.inf, 0.0], [1.0, 0.05], [1.0, 0.05], [1e300, 1e300], [0.0, 2.0], [0.0, 2.0]])
+    U = np.zeros((Y.shape[0], 0))
+    got, ref = cd.run(U, Y), beard_reference_run(flt, U, Y)
+    for key in ("alarm", "isolated", "status"):
+        np.testing.assert_array_equal(getattr(got, key), getattr(ref, key), err_msg=key)
+    np.testing.assert_allclose(got.J, ref.J, rtol=1e-14, atol=0)
+    np.testing.assert_allclose(got.r, ref.r, rtol=1e-14, atol=0)
+    np.testing.assert_array_equal(got.state, ref.state)
+    assert got.J[1, 2] == got.J[2, 3] == HALF and ref.status.tolist() == [0, 0, 0, 1, 0, 0, 1, 0, 0]
+    assert ref.isolated.tolist() == [-1, -1, -1, -1, 0, 0, -1, -1, 1]
