@@ -296,11 +296,12 @@ def beard_from_gain_file(gf: GainFile) -> BeardFilter:
     if missing or unknown:
         raise GainFileError(f"{where}: missing field(s) {missing}, unknown field(s) {shown(unknown)}")
     rd = _Reader(doc, where)
-    if doc["format"] != PAYLOAD_FORMAT or isinstance(doc["format"], bool):
+    if type(doc["format"]) is not int or doc["format"] != PAYLOAD_FORMAT:
         raise rd.fail("format", f"{PAYLOAD_FORMAT} (this fdisyn reads payload format {PAYLOAD_FORMAT})")
     m, p, k = len(gf.inputs), len(gf.outputs), len(gf.faults)
-    if k < 1:
-        raise GainFileError(f"faults is {shown(list(gf.faults))}; a {KIND} diagnoser isolates at least one fault")
+    if k < 1 or p < 1:
+        what, found = ("faults", gf.faults) if k < 1 else ("outputs", gf.outputs)
+        raise GainFileError(f"{what} is {shown(list(found))}; a {KIND} diagnoser needs at least one fault and one output")
 
     # sizes first: nothing costly runs on a file beyond the limits
     a_doc = doc["A"]
