@@ -300,8 +300,8 @@ def beard_from_gain_file(gf: GainFile) -> BeardFilter:
         raise rd.fail("format", f"{PAYLOAD_FORMAT} (this fdisyn reads payload format {PAYLOAD_FORMAT})")
     m, p, k = len(gf.inputs), len(gf.outputs), len(gf.faults)
     if k < 1 or p < 1:
-        what, found = ("faults", gf.faults) if k < 1 else ("outputs", gf.outputs)
-        raise GainFileError(f"{what} is {shown(list(found))}; a {KIND} diagnoser needs at least one fault and one output")
+        what, names = ("faults", gf.faults) if k < 1 else ("outputs", gf.outputs)
+        raise GainFileError(f"{what} is {shown(list(names))}; a {KIND} diagnoser needs at least one fault and one output")
 
     # sizes first: nothing costly runs on a file beyond the limits
     a_doc = doc["A"]
