@@ -23,7 +23,6 @@ from typing import Any
 
 import numpy as np
 
-from fdisyn.evaluators.window import beard_residual_autocovariance, window_mean_level, window_rms_threshold
 from fdisyn.models.linear import LinearPlant
 from fdisyn.numerics.certificate import Certificate, Check
 from fdisyn.numerics.detection_filter import beard_gain, beard_structure
@@ -106,8 +105,8 @@ def _levels_from_records(flt: BeardFilter, records: Sequence[tuple[np.ndarray, n
             raise ArgumentError(f"{at(where, 'fault_free')}[{i}]: U must be N × {flt.m} and Y N × {flt.p}; got {u.shape}, {y.shape}")
         out = beard_reference_run(flt, u, y)
         full = np.arange(flt.window - 1, u.shape[0])  # the statistics are defined once the window is full
-        s_all.append(np.asarray(out["J"])[full, 0])
-        m_all.append(np.asarray(out["J"])[full, 1] * flt.explicit_level)
+        s_all.append(out.J[full, 0])
+        m_all.append(out.J[full, 1] * flt.explicit_level)
     s, m = np.concatenate(s_all), np.concatenate(m_all)
     if s.size < 10.0 / P_f:
         raise ArgumentError(
@@ -221,6 +220,8 @@ def design_beard_fdf(
             h_est, e_est = _levels_from_records(provisional, fault_free, P_f, where)
             source = f"fault-free records ({len(fault_free)})"
         else:
+            from fdisyn.evaluators.window import beard_residual_autocovariance, window_mean_level, window_rms_threshold
+
             q, r = np.asarray(pd.Q), np.asarray(pd.R)
             if not (np.trace(q) > 0 or np.trace(r) > 0):
                 raise ArgumentError(f"{where}: h and explicit_level need fault_free records or the noise covariances Q, R")
@@ -250,7 +251,7 @@ def design_beard_fdf(
     sv = np.linalg.svd(np.hstack(axes), compute_uv=False)
     checks.append(Check("output separability: smallest singular value of [C T_1 … C T_k] (orthonormal bases)", float(sv[-1]),
                         1e-8, ">=", "independent residual subspaces"))
-    if sigma > 0 and draws > 0:
+    if sigma > 0 and draws > 0 and np.any(informative):
         checks.append(Check("largest sampled residual-direction angle / Y_th", excess, 1.0, "<=",
                             f"{draws} random model errors of norm sigma and the first-order worst cases, exact eigen-directions"))
     cones = cone_geometry(axes, y_th)

@@ -13,13 +13,13 @@ from typing import Any
 
 import numpy as np
 from fdisyn.runtime.gainfile import GainFile
+from fdisyn.synthesis.beard_fdf.options import BEARD_OPTIONS
 from fdisyn.synthesis.beard_fdf.payload import beard_from_gain_file
 from fdisyn.synthesis.beard_fdf.step import beard_step_function
-from fdisyn.synthesis.registry import Method, Option, register
+from fdisyn.synthesis.registry import Method, register
 
 __all__ = ["BEARD_OPTIONS", "BEARD_FDF", "beard_recovery_samples"]
 
-BEARD_OPTIONS: tuple[Option, ...] = ()
 
 SETTLED = 1e-3
 """The error dynamics have settled when ``‖G^j‖₂ ≤ SETTLED`` (the start's error reduced a thousandfold)."""
