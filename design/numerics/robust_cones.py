@@ -48,7 +48,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg as sla
-
 from fdisyn.numerics.linalg import as_matrix, as_square
 from fdisyn.runtime.errors import ArgumentError, ShapeError
 

@@ -6,9 +6,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.linalg as sla
-from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
-
 from fdisyn.models.sampling import zoh
 from fdisyn.numerics.detection_filter import beard_gain, beard_structure
 from fdisyn.numerics.robust_cones import (
@@ -20,6 +17,8 @@ from fdisyn.numerics.robust_cones import (
     subspace_angle,
 )
 from fdisyn.synthesis.beard_fdf.eigenstructure import admissible_gains, optimise_eigenstructure, residual_covariance_trace
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 JS, JP, K, B_ = 5.0, 1.0, 0.15, 0.05
 A_SAT = np.array([[0, 0, 1, 0], [0, 0, 0, 1], [-K / JS, K / JS, -B_ / JS, B_ / JS], [K / JP, -K / JP, B_ / JP, -B_ / JP]])

@@ -22,7 +22,6 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
-
 from fdisyn.models.linear import LinearPlant
 from fdisyn.numerics.certificate import Certificate, Check
 from fdisyn.numerics.detection_filter import beard_gain, beard_structure

@@ -33,7 +33,6 @@ from typing import Any
 
 import casadi as ca
 import numpy as np
-
 from fdisyn.numerics.detection_filter import BeardStructure, beard_gain
 from fdisyn.numerics.robust_cones import implicit_thresholds, output_subspaces
 from fdisyn.runtime.errors import ArgumentError, SolverError
@@ -208,7 +207,7 @@ def optimise_eigenstructure(
         th0 = np.linalg.lstsq(basis_mat, (lg - l0).reshape(-1, order="F"), rcond=None)[0] if basis else np.zeros(0)
         g0 = A - lg @ C
         lam0, vec0 = [], []
-        for b, basis_b in enumerate(blocks):
+        for basis_b in blocks:
             w, v = np.linalg.eig(basis_b.T @ g0 @ basis_b)
             order = np.argsort(w.real)
             lam0.extend(w.real[order])
