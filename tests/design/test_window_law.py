@@ -107,6 +107,14 @@ def test_weights_in_pairs_against_the_hypoexponential_law(pairs, P_f):
     assert abs(quadratic_form_sf(exact, np.repeat(lam, 2)) - P_f) < 1e-13
 
 
+def test_a_dominating_pair_near_the_median():
+    """One pair of weight 1 and four pairs below 1e-3 at ``P_f = 0.5``: accepting Imhof evaluations at a QUADPACK
+    error estimate of 1e-3 of ``P_f`` (instead of 1e-5) let the quantile be 6e-5 off here."""
+    lam = np.array([1.0, 9.53501204e-04, 8.32634690e-04, 1.24966454e-04, 8.82903554e-05])
+    exact = scipy.optimize.brentq(lambda x: hypoexponential_sf(x, lam) - 0.5, 1e-3, 50.0, xtol=1e-300, rtol=1e-14)
+    assert rel(quadratic_form_quantile(np.repeat(lam, 2), 0.5), exact) < QUANTILE_RTOL
+
+
 def two_weight_sf(x: float, small: float) -> float:
     """``P(Z_1² + small Z_2² > x) = E[P(Z_1² > x − small Z_2²)]``, integrated over ``Z_2 ≥ 0`` (twice)."""
 
