@@ -156,6 +156,9 @@ class Method:
     ``(plant, outputs_used, name, **options) -> (Generator, Σ_r, Certificate)``."""
     check: Callable[[Any, Mapping[str, Any], str], None] | None = None
     """Conditions across options or on the plant, checked before designing: ``(plant, options, where)``."""
+    samples_itself: bool = False
+    """A ``linear`` method whose design samples a continuous plant itself, at the option ``Ts`` (its model error is
+    on the continuous ``A``): a plant file hands it the continuous plant and ``[model].Ts``, not the sampled plant."""
     option_names: tuple[str, ...] = field(init=False)
 
     def __post_init__(self) -> None:
