@@ -145,14 +145,19 @@ def test_optimised_eigenstructure_beats_the_spread_assignments():
     rr = np.diag([1e-8, 1e-8, 1e-9, 1e-9])
     lp = beard_gain(ad, np.eye(4), bd, [[r], [r], [r, r]]).L
     plain = residual_covariance_trace(ad - lp, lp, np.eye(4), q, rr)
-    res = optimise_eigenstructure(ad, np.eye(4), bd, st_, radius=r, Q=q, R=rr, noise_gain=2.0, separation=0.02, plain_trace=plain)
+    groups = [bd[:, :1], bd[:, 1:]]
+    gains = [float(np.linalg.norm(np.linalg.solve(np.eye(4) - ad + lp, f))) for f in groups]
+    res = optimise_eigenstructure(ad, np.eye(4), groups, st_, radius=r, Q=q, R=rr, noise_gain=2.0, separation=0.02,
+                                  plain_trace=plain, plain_fault_gains=gains)
     g = ad - res.L
     eig = np.sort(np.linalg.eigvals(g).real)
     assert np.all(np.abs(np.linalg.eigvals(g).imag) < 1e-12)
     # IPOPT meets its constraints to its tolerance (1e-8 on the squared separation: 2.5e-7 on the separation)
     assert eig[0] >= -1e-7 and eig[-1] <= r + 1e-7 and np.min(np.diff(eig)) >= 0.02 - 1e-6
     best = np.max(implicit_thresholds(g, np.eye(4), spaces, 1.0).coefficient)
-    for lists in ([[0.2], [0.6], [0.9, 0.93]], [[0.5], [0.7], [0.9, 0.95]], [[0.0], [r], [0.3, 0.6]]):
+    for f, gp in zip(groups, gains, strict=True):  # the fault gain: at least half the plain filter's
+        assert np.linalg.norm(np.linalg.solve(np.eye(4) - g, f)) >= gp / 2.0 * (1 - 1e-6)
+    for lists in ([[0.92], [0.95], [0.3, 0.6]], [[0.95], [0.91], [0.2, 0.5]], [[0.93], [0.93 - 0.02], [0.0, 0.4]]):
         other = np.max(implicit_thresholds(ad - beard_gain(ad, np.eye(4), bd, lists).L, np.eye(4), spaces, 1.0).coefficient)
         assert best <= other * (1 + 1e-6)
     assert res.noise_ratio <= 2.0 + 1e-6

@@ -195,12 +195,16 @@ def design_beard_fdf(
         plain_trace = residual_covariance_trace(ad - plain_l @ c, plain_l, c, np.asarray(pd.Q), np.asarray(pd.R))
         if not plain_trace > 0:
             raise ArgumentError(f"{where}: the optimised eigenstructure bounds the residual noise by that of the plain one; give Q or R")
+        plain_gains = [float(np.linalg.norm(c @ np.linalg.solve(np.eye(ad.shape[0]) - ad + plain_l @ c, f))) for f in groups]
         res = optimise_eigenstructure(
-            ad, c, np.hstack(groups), st, radius=radius, Q=np.asarray(pd.Q), R=np.asarray(pd.R),
-            noise_gain=noise_gain, separation=separation, plain_trace=plain_trace,
+            ad, c, groups, st, radius=radius, Q=np.asarray(pd.Q), R=np.asarray(pd.R),
+            noise_gain=noise_gain, separation=separation, plain_trace=plain_trace, plain_fault_gains=plain_gains,
         )
         gain, kind = res.L, "optimised"
         assigned = np.concatenate(res.eigenvalues).astype(complex)
+        info["fault_gain_ratio"] = [
+            float(np.linalg.norm(c @ np.linalg.solve(np.eye(ad.shape[0]) - ad + res.L @ c, f))) / gp for f, gp in zip(groups, plain_gains, strict=True)
+        ]
         info["nlp"] = {"objective": res.objective, "noise_ratio": res.noise_ratio, "starts": res.starts,
                        "iterations": res.iterations, "return_status": res.return_status}
     else:

@@ -17,7 +17,11 @@ The NLP (CasADi, derivatives by AD, IPOPT) minimises ``t`` over ``θ``, the eige
   cone degenerates to a half-space. The eigenvalues are those of the blocks ``G_j = T_jᵀ G T_j`` and of the
   quotient ``G_s = Q_sᵀ G Q_s`` on the complement ``Q_s`` of ``Σ T_j`` (``G`` is block triangular there);
 * the noise gain: ``tr Σ_ε ≤ γ² tr Σ_ε,plain``, ``Σ_ε = C P Cᵀ + R``, ``P = G P Gᵀ + Q + L R Lᵀ`` — the residual
-  of the optimised filter is at most ``γ`` times as loud (RMS) as that of the plain one (every eigenvalue at ``r``).
+  of the optimised filter is at most ``γ`` times as loud (RMS) as that of the plain one (every eigenvalue at ``r``);
+* the fault gain: ``‖C (I − G)⁻¹ F_j‖_F ≥ ‖C (I − G_plain)⁻¹ F_j‖_F / γ`` — the steady residual of a constant
+  fault is at least ``1/γ`` of the plain filter's. Without it the optimum puts a fault's eigenvalue at 0: the
+  narrowest cone, and the weakest residual (a deadbeat mode passes a constant fault with gain 1, the plain one
+  with ``1/(1 − r)``).
 
 The objective is independent of ``σ`` (``Y_th = σ_d · b``): the optimal eigenstructure is the same for every
 model-error bound. IPOPT starts from several assignments spread over ``[0, r]``; the best point is kept and
@@ -115,7 +119,7 @@ def _spread_starts(counts: Sequence[int], radius: float, separation: float, limi
 def optimise_eigenstructure(
     A: np.ndarray,
     C: np.ndarray,
-    F: np.ndarray,
+    F: Sequence[np.ndarray],
     structure: BeardStructure,
     *,
     radius: float,
@@ -124,8 +128,11 @@ def optimise_eigenstructure(
     noise_gain: float,
     separation: float,
     plain_trace: float,
+    plain_fault_gains: Sequence[float],
 ) -> EigenstructureResult:
-    """The NLP of the module docstring on the discrete ``(A, C)`` with fault directions ``F`` (columns)."""
+    """The NLP of the module docstring on the discrete ``(A, C)`` with the fault groups ``F`` (one matrix per fault).
+
+    ``plain_fault_gains``: ``‖C (I − G_plain)⁻¹ F_j‖_F`` of the plain filter, per fault."""
     n, p = A.shape[0], C.shape[0]
     if structure.unobservable.size:
         raise ArgumentError(
@@ -187,6 +194,9 @@ def optimise_eigenstructure(
     pv = ca.solve(big, ca.vec(ca.DM(Q) + ca.mtimes([lsym, ca.DM(R), lsym.T])))
     pm = ca.reshape(pv, n, n)
     add(ca.trace(ca.mtimes([ca.DM(C), pm, ca.DM(C.T)])) + float(np.trace(R)), -ca.inf, noise_gain**2 * plain_trace)
+    for fj, gain_j in zip(F, plain_fault_gains, strict=True):
+        steady = ca.mtimes(ca.DM(C), ca.solve(ca.DM.eye(n) - g, ca.DM(fj)))
+        add(ca.sumsqr(steady), (gain_j / noise_gain) ** 2, ca.inf)
 
     x = ca.vertcat(theta, lam, *[ca.vec(v) for v in vecs], t)
     nx = int(x.numel())
