@@ -367,12 +367,13 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
     white = method.plant_kind == "continuous"
     if white and time != "continuous":
         raise SpecError(f"{path} [design].method {method.name!r} designs for a continuous plant sampled at Ts: set [model].time = \"continuous\"")
-    if white:  # the sampled-data methods sample the continuous plant themselves, every Ts
+    if white or (method.samples_itself and time == "continuous"):
+        # the sampled-data methods, and those whose model error is on the continuous A, sample the plant themselves, every Ts
         design_plant = plant.scaled(scale) if scale is not None else plant
         options = {**options, "Ts": ts}
     checked = _checked(method, options, design_plant, path)
     record = {"spec": str(path), "method": method.name, **{k: v for k, v in options.items() if k not in ("bank", "faults", "Ts")}}
-    listed = checked["faults"]
+    listed = checked.get("faults")  # the fault classes of a bank; a method without them names its faults itself
 
     def design_fn(**_: Any) -> GainFile:
         with _spec_errors():

@@ -156,6 +156,9 @@ class Method:
     ``(plant, outputs_used, name, **options) -> (Generator, Σ_r, Certificate)``."""
     check: Callable[[Any, Mapping[str, Any], str], None] | None = None
     """Conditions across options or on the plant, checked before designing: ``(plant, options, where)``."""
+    samples_itself: bool = False
+    """A ``linear`` method whose design samples a continuous plant itself, at the option ``Ts`` (its model error is
+    on the continuous ``A``): a plant file hands it the continuous plant and ``[model].Ts``, not the sampled plant."""
     option_names: tuple[str, ...] = field(init=False)
 
     def __post_init__(self) -> None:
@@ -284,7 +287,8 @@ def check_options(method: Method, options: Mapping[str, Any], *, plant: Any = No
     if unknown:
         owners = [m.name for m in all_methods() if unknown[0] in m.option_names]
         if owners and len(unknown) == 1:
-            raise ArgumentError(f"{at(where, unknown[0])} is read only by method {owners[0]!r}, not by {method.name!r}: remove it")
+            readers = f"only by method {owners[0]!r}" if len(owners) == 1 else f"by methods {', '.join(map(repr, owners))}"
+            raise ArgumentError(f"{at(where, unknown[0])} is read {readers}, not by {method.name!r}: remove it")
         raise ArgumentError(f"{where}: unknown option(s) {sorted(unknown)}; allowed: {sorted(method.option_names)}")
     out: dict[str, Any] = {}
     for o in method.options:

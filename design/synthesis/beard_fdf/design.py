@@ -155,10 +155,19 @@ def design_beard_fdf(
     ts = float(pd.Ts)  # type: ignore[arg-type]
     groups, fault_names = fault_directions(pd, sensor_faults)
     ad, c = np.asarray(pd.A), np.asarray(pd.C)
-    st = beard_structure(ad, c, groups)
+    numbered = ", ".join(f"{i + 1} = {n!r}" for i, n in enumerate(fault_names))
+    try:
+        st = beard_structure(ad, c, groups)
+    except ExistenceError as exc:  # the geometry numbers the faults: name them
+        raise ExistenceError(f"{where}: {exc} (faults {numbered})") from None
     spaces = [s.basis for s in st.spaces]
     axes = output_subspaces(c, spaces)
     k = len(spaces)
+    if eigenvalues is not None and [len(e) for e in eigenvalues] != list(st.free_counts):
+        raise ArgumentError(
+            f"{at(where, 'eigenvalues')}: expected {k + 1} lists of lengths {list(st.free_counts)} (the detection spaces of "
+            f"{', '.join(map(repr, fault_names))}, then the rest); got {len(eigenvalues)} of lengths {[len(e) for e in eigenvalues]}"
+        )
 
     # the gain
     if eigenvalues is None and decay_rate is None:
@@ -167,7 +176,10 @@ def design_beard_fdf(
     plain_l = None
     if radius is not None:
         plain_ev = [[radius] * n for n in st.free_counts]
-        plain_l = beard_gain(ad, c, groups, plain_ev).L
+        try:
+            plain_l = beard_gain(ad, c, groups, plain_ev).L
+        except ExistenceError as exc:
+            raise ExistenceError(f"{where}: {exc} (faults {numbered})") from None
     info: dict[str, Any] = {}
     if eigenvalues is not None:
         ev = [list(np.exp(np.asarray(e, dtype=complex) * ts)) if ts_c is not None else list(e) for e in eigenvalues]

@@ -65,5 +65,6 @@ BEARD_FDF = register(
         diagnoser_kind="beard_fdf",
         step_builder=beard_step_function,
         recovery_samples=beard_recovery_samples,
+        samples_itself=True,
     )
 )
