@@ -109,7 +109,7 @@ def test_the_textbook_file_designs_plain(tmp_path: Path) -> None:
     info = _info(gf)
     assert info["eigenstructure"] == "plain" and gf.certificate["passed"]
     # every eigenvalue at the decay bound: the blocks share it, so the cones are half-spaces (detection, no isolation)
-    np.testing.assert_allclose(np.hypot(*np.asarray(info["eigenvalues_z"]).T), np.exp(-0.5 * TS), atol=1e-6)
+    np.testing.assert_allclose(np.hypot(*np.asarray(info["eigenvalues_z"]).T), np.exp(-DOC["design"]["decay_rate"] * TS), atol=1e-6)
     assert gf.extensions["beard_fdf"]["Y_th"] == [np.pi / 2, np.pi / 2]
 
 
@@ -164,7 +164,7 @@ def test_the_residual_of_each_fault_stays_in_its_subspace(optimised: GainFile) -
     pd = _continuous_plant().discretise(TS)
     ad, bd, c, fd = (np.asarray(v) for v in (pd.A, pd.B, pd.C, pd.Fx))
     rng = np.random.default_rng(3)
-    steps, onset, settled = 900, 100, 700  # ‖G^600‖ ≈ 0.951^600 < 1e-12: the start's error is gone
+    steps, onset, settled = 900, 100, 700  # ‖G^600‖ ≈ 0.819^600: the start's error is gone
     for i in range(2):
         u = 0.01 * rng.standard_normal((steps, 1))
         mu = np.zeros(steps)
@@ -270,3 +270,13 @@ def test_a_sensor_fault_is_isolated_by_name(tmp_path: Path) -> None:
     # the filter absorbs a constant offset once its error settles: the fault shows (and is isolated) in between
     after = out.isolated[200:]
     assert np.sum(after == gf.faults.index("y_pos")) >= 10 and set(after[after >= 0].tolist()) == {gf.faults.index("y_pos")}
+
+
+def test_without_h_and_explicit_level_the_thresholds_come_from_the_law(tmp_path: Path, optimised: GainFile) -> None:
+    gf = load_spec(_file(tmp_path, design={"h": None, "explicit_level": None})).design()
+    info, ext = _info(gf), gf.extensions["beard_fdf"]
+    assert info["levels_from"] == "the law of the residual under the design noise (Q, R)"
+    # the file's values are the quantiles over fault-free runs, which the law under the same noise should be near
+    given = optimised.extensions["beard_fdf"]
+    assert 0.5 < ext["h"] / given["h"] < 2 and 0.5 < ext["explicit_level"] / given["explicit_level"] < 2
+    assert ext["thresholds"][:2] == [ext["h"], 1.0]
