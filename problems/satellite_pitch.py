@@ -588,36 +588,36 @@ def _report(ctx: Any) -> list[tuple[str, str]]:
         "residual_plane", fig, f"Window-mean residual of run 0 ({d} filter) projected on the plane of the two fault directions: "
         "grey before the fault, coloured under it; dashed: the cones at ρ = 3 (X_th = 19.5°) around each fault direction.")))
     # 4. the fault-size sweep through the compiled C
-    sweep_rows = []
+    sweep_rows: list[list[str]] = []
     for kappa in SWEEP_KAPPAS:
         for f in faults:
-            sc = fault_scenario(f, kappa, name=f"{f}_loss_k{kappa:g}")
-            batch = PROBLEM.run(sc, range(SWEEP_RUNS), **v.options)
-            row = [f, f"{kappa:g}"]
+            sweep_sc = fault_scenario(f, kappa, name=f"{f}_loss_k{kappa:g}")
+            batch = PROBLEM.run(sweep_sc, range(SWEEP_RUNS), **v.options)
+            sweep_row: list[str] = [f, f"{kappa:g}"]
             for bb in v.built.values():
                 outs = [bb.diagnoser.run(batch.U[i], batch.Y[i]) for i in range(SWEEP_RUNS)]
                 met = scenario_metrics(
-                    scenario=sc.name, fault=f, fault_index=faults.index(f), active=batch.active,
+                    scenario=sweep_sc.name, fault=f, fault_index=faults.index(f), active=batch.active,
                     alarm=np.stack([o.alarm for o in outs]), isolated=np.stack([o.isolated for o in outs]),
                     J=np.stack([o.J for o in outs]), thresholds=list(bb.gain_file.thresholds), P_f=[], Ts=TS,
                     recovery=0,
                 )
-                row += [f"{met.missed_detection_rate:.2f}", "—" if met.detection_delay_mean_s is None else f"{met.detection_delay_mean_s:.1f}",
+                sweep_row += [f"{met.missed_detection_rate:.2f}", "—" if met.detection_delay_mean_s is None else f"{met.detection_delay_mean_s:.1f}",
                         f"{met.isolation_accuracy:.2f}"]
-            sweep_rows.append(row)
-    head = ["fault", "κ"] + [f"{dd}: {q}" for dd in v.built for q in ("missed", "delay (s)", "isolated")]
+            sweep_rows.append(sweep_row)
+    sweep_head = ["fault", "κ"] + [f"{dd}: {q}" for dd in v.built for q in ("missed", "delay (s)", "isolated")]
     sections.append(("Monte Carlo over fault sizes", f"<p>{SWEEP_RUNS} runs per torque loss κ through the generated C "
                      "(seeds 0…; the same truth as the scenarios). 'isolated': the fraction of runs whose most frequent "
-                     "isolation while the fault acts names it.</p>" + table(head, sweep_rows, left=2)))
+                     "isolation while the fault acts names it.</p>" + table(sweep_head, sweep_rows, left=2)))
     # 5. the model-error sweep
     flt = flts.get("optimised", next(iter(flts.values())))
     plant = design_model()
     spaces = [np.linalg.qr(_ax_preimage(flt, j))[0] for j in range(len(faults))]
-    ys = []
+    y_list = []
     for sg in SWEEP_SIGMAS:
         bd = implicit_thresholds(flt.G, flt.C, spaces, sampled_model_error(plant.A, TS, sg))
-        ys.append(np.degrees(bd.Y))
-    ys = np.asarray(ys)
+        y_list.append(np.degrees(bd.Y))
+    ys = np.asarray(y_list)
     theta = float(infos.get("optimised", next(iter(infos.values())))["cones"]["axis_angles_deg"][0][1])
     fig, ax = subplots(1, 1, figsize=(8, 4))
     ax = ax if not isinstance(ax, np.ndarray) else ax.flat[0]

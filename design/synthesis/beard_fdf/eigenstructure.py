@@ -202,7 +202,7 @@ def optimise_eigenstructure(
     nx = int(x.numel())
     lbx = np.concatenate([np.full(len(basis), -np.inf), np.zeros(n), np.full(nx - len(basis) - n - 1, -np.inf), [0.0]])
     ubx = np.concatenate([np.full(len(basis), np.inf), np.full(n, radius), np.full(nx - len(basis) - n, np.inf)])
-    opts = {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes", "ipopt.tol": 1e-10, "ipopt.max_iter": 1000}
+    opts: dict[str, Any] = {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes", "ipopt.tol": 1e-10, "ipopt.max_iter": 1000}
     solver = ca.nlpsol("beard_eigenstructure", "ipopt", {"x": x, "f": t, "g": ca.vertcat(*cons)}, opts)
 
     basis_mat = np.stack([b.reshape(-1, order="F") for b in basis], axis=1) if basis else np.zeros((n * p, 0))
@@ -216,7 +216,8 @@ def optimise_eigenstructure(
         tried += 1
         th0 = np.linalg.lstsq(basis_mat, (lg - l0).reshape(-1, order="F"), rcond=None)[0] if basis else np.zeros(0)
         g0 = A - lg @ C
-        lam0, vec0 = [], []
+        lam0: list[float] = []
+        vec0: list[np.ndarray] = []
         for basis_b in blocks:
             w, v = np.linalg.eig(basis_b.T @ g0 @ basis_b)
             order = np.argsort(w.real)
