@@ -303,7 +303,7 @@ def _bank_design(
 
 
 _SUPPLIED = {"P_f", "persistence", "bank", "faults", "poles"}
-"""Options this problem gives a method: a linear method that needs no other can design the bank."""
+"""Options this problem gives a method: a linear method that takes a bank and needs no other option can design it."""
 
 
 def _designs() -> dict[str, Callable[..., GainFile]]:
@@ -314,7 +314,11 @@ def _designs() -> dict[str, Callable[..., GainFile]]:
         build.__doc__ = f"The {name} bank for the wind-turbine drive train."
         return build
 
-    usable = [m for m in all_methods() if m.plant_kind == "linear" and {o.name for o in m.options if o.required} <= _SUPPLIED]
+    usable = [
+        m
+        for m in all_methods()
+        if m.plant_kind == "linear" and {"bank", "faults"} <= set(m.option_names) and {o.name for o in m.options if o.required} <= _SUPPLIED
+    ]
     return {m.name: make(m.name) for m in usable}
 
 

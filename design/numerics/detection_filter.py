@@ -36,7 +36,7 @@ from typing import NamedTuple
 import numpy as np
 import scipy.linalg as sla
 import scipy.signal
-from fdisyn.numerics.linalg import as_matrix, as_square
+from fdisyn.numerics.linalg import as_matrix, as_square, orth_basis, orth_complement
 from fdisyn.runtime.errors import ArgumentError, CertificateError, ExistenceError, ShapeError
 
 __all__ = [
@@ -101,15 +101,6 @@ def _default_tol(n: int) -> float:
     return 1e3 * max(n, 1) * np.finfo(float).eps
 
 
-def _orth(m: np.ndarray, tol: float) -> np.ndarray:
-    """Orthonormal basis of the column space of ``m`` (columns of order one): singular values above ``tol``."""
-    n = m.shape[0]
-    if m.shape[1] == 0:
-        return np.zeros((n, 0))
-    u, s, _ = np.linalg.svd(m, full_matrices=False)
-    return u[:, : int(np.sum(s > tol))]
-
-
 def _null(m: np.ndarray, tol: float) -> np.ndarray:
     """Orthonormal basis of the kernel of ``m`` (rows of order one): right singular vectors with σ ≤ ``tol``."""
     n = m.shape[1]
@@ -119,21 +110,12 @@ def _null(m: np.ndarray, tol: float) -> np.ndarray:
     return vh[int(np.sum(s > tol)) :].T.conj()
 
 
-def _complement(v: np.ndarray) -> np.ndarray:
-    """Orthonormal basis of the orthogonal complement of the span of the orthonormal columns ``v``."""
-    n, d = v.shape
-    if d == 0:
-        return np.eye(n)
-    q, _ = np.linalg.qr(v, mode="complete")
-    return q[:, d:]
-
-
 def _min_conditioned_invariant(a: np.ndarray, c: np.ndarray, f: np.ndarray, tol: float) -> np.ndarray:
     """``W*``: ``W_0 = span f``, ``W_{j+1} = span f + A (W_j ∩ ker C)`` to its fixed point (scaled data)."""
-    w = _orth(f, tol)
+    w = orth_basis(f, tol)
     for _ in range(a.shape[0] + 1):
         inter = w @ _null(c @ w, tol)  # W_j ∩ ker C
-        nxt = _orth(np.hstack([f, a @ inter]), tol)
+        nxt = orth_basis(np.hstack([f, a @ inter]), tol)
         if nxt.shape[1] == w.shape[1]:
             return nxt
         w = nxt
@@ -149,7 +131,7 @@ def _min_unobservability(a: np.ndarray, c: np.ndarray, w: np.ndarray, tol: float
     t = np.eye(n)
     for _ in range(n + 1):
         pre = _null(np.vstack([c, a - t @ (t.T @ a)]), tol)
-        nxt = _orth(np.hstack([w, pre]), tol)
+        nxt = orth_basis(np.hstack([w, pre]), tol)
         if nxt.shape[1] == t.shape[1]:
             return nxt
         t = nxt
@@ -279,11 +261,11 @@ def check_output_separability(c: object, spaces: Sequence[DetectionSpace | np.nd
             raise ShapeError(f"detection space {i + 1} has shape {b.shape}; expected ({cm.shape[1]}, any)")
     tl = _default_tol(cm.shape[1]) if tol is None else tol
     cs = cm / max(float(np.linalg.norm(cm, 2)) if cm.size else 0.0, np.finfo(float).tiny)
-    images = [_orth(cs @ _orth(b, tl), tl) for b in bases]
+    images = [orth_basis(cs @ orth_basis(b, tl), tl) for b in bases]
     for i in range(1, len(images)):
-        if _orth(np.hstack(images[: i + 1]), tl).shape[1] == sum(m.shape[1] for m in images[: i + 1]):
+        if orth_basis(np.hstack(images[: i + 1]), tl).shape[1] == sum(m.shape[1] for m in images[: i + 1]):
             continue
-        partners = [j + 1 for j in range(i) if _orth(np.hstack([images[j], images[i]]), tl).shape[1]
+        partners = [j + 1 for j in range(i) if orth_basis(np.hstack([images[j], images[i]]), tl).shape[1]
                     < images[j].shape[1] + images[i].shape[1]]
         others = partners or list(range(1, i + 1))
         raise ExistenceError(
@@ -344,10 +326,10 @@ def _geometry(a: object, c: object, f: object, tol: float | None) -> _Geometry:
 
     # X̄ = N^⊥: N is invariant under every A − L C and lies in ker C; on X̄ the pair (C̄, Ā) is observable
     nb = _min_unobservability(as_, cs, np.zeros((n, 0)), tl)
-    q = _complement(nb)
+    q = orth_complement(nb)
     abar, cbar = q.T @ as_ @ q, cs @ q
-    vbars = [_orth(q.T @ s.basis, tl) for s in spaces]  # T̄_i = Qᵀ T_i (T_i = N ⊕ (T_i ∩ N^⊥))
-    tsum = _orth(np.hstack(vbars), tl) if vbars else np.zeros((q.shape[1], 0))
+    vbars = [orth_basis(q.T @ s.basis, tl) for s in spaces]  # T̄_i = Qᵀ T_i (T_i = N ⊕ (T_i ∩ N^⊥))
+    tsum = orth_basis(np.hstack(vbars), tl) if vbars else np.zeros((q.shape[1], 0))
     if tsum.shape[1] != sum(v.shape[1] for v in vbars):
         # output separability and observability of (C̄, Ā) make the sum direct: T̄_i ∩ Σ_{j≠i} T̄_j is
         # (A − L C)-invariant and inside ker C, hence 0
@@ -355,9 +337,9 @@ def _geometry(a: object, c: object, f: object, tol: float | None) -> _Geometry:
             f"the detection spaces of faults {_faults(range(1, len(vbars) + 1))} are not independent modulo the "
             "unobservable subspace of (C, A) (rank decisions at the tolerance: try a larger tol)"
         )
-    vc = _complement(tsum)
-    outs = [_orth(cbar @ v, tl) for v in vbars]
-    uc = _complement(_orth(np.hstack(outs), tl)) if outs else np.eye(cbar.shape[0])
+    vc = orth_complement(tsum)
+    outs = [orth_basis(cbar @ v, tl) for v in vbars]
+    uc = orth_complement(orth_basis(np.hstack(outs), tl)) if outs else np.eye(cbar.shape[0])
 
     # a common friend: (I − P_i)(Ā − L̄ C̄) V̄_i = 0 for every i — linear in L̄, solvable by output separability
     nbar, p = abar.shape[0], cbar.shape[0]
@@ -505,7 +487,7 @@ def _place_observable_part(x: np.ndarray, cx: np.ndarray, nu: np.ndarray, want: 
     """``M`` with ``σ(X − M C_x) = want ∪ σ(X|nu)``, ``nu`` the unobservable subspace of ``(C_x, X)`` (kept fixed)."""
     if want.size == 0:
         return np.zeros((x.shape[0], cx.shape[0]))
-    ob = _complement(nu)  # nu is X-invariant: X in the basis [ob, nu] is block lower triangular
+    ob = orth_complement(nu)  # nu is X-invariant: X in the basis [ob, nu] is block lower triangular
     xo, co = ob.T @ x @ ob, cx @ ob
     # compress the outputs to full row rank (place_poles wants an input matrix of full column rank)
     uu, ss, vh = np.linalg.svd(co, full_matrices=False)

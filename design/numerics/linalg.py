@@ -244,6 +244,23 @@ def _lyapunov_sum(a: np.ndarray, q: np.ndarray) -> np.ndarray:
     raise ExistenceError(f"the Lyapunov sum did not converge: spectral radius of A is {spectral_radius(a):.12g}")
 
 
+def orth_basis(m: np.ndarray, tol: float) -> np.ndarray:
+    """Orthonormal basis of the column space of ``m`` (columns of order one): singular values above ``tol``."""
+    if m.shape[1] == 0:
+        return np.zeros((m.shape[0], 0))
+    u, s, _ = np.linalg.svd(m, full_matrices=False)
+    return u[:, : int(np.sum(s > tol))]
+
+
+def orth_complement(v: np.ndarray) -> np.ndarray:
+    """Orthonormal basis of the orthogonal complement of the span of the orthonormal columns ``v``."""
+    n, d = v.shape
+    if d == 0:
+        return np.eye(n)
+    q, _ = np.linalg.qr(v, mode="complete")
+    return q[:, d:]
+
+
 def spectral_radius(a: np.ndarray) -> float:
     """Largest eigenvalue modulus of a square matrix (0 for an empty one)."""
     if a.size == 0:

@@ -268,7 +268,8 @@ def design_beard_fdf(
                         1e-8, ">=", "independent residual subspaces"))
     if sigma > 0 and draws > 0 and np.any(informative):
         checks.append(Check("largest sampled residual-direction angle / Y_th", excess, 1.0, "<=",
-                            f"{draws} random model errors of norm sigma and the first-order worst cases, exact eigen-directions"))
+                            f"{draws} random model errors of norm sigma and the first-order worst cases, exact eigen-directions "
+                            "(Y_th bounds the whole continued invariant subspace: Stewart's theorem)"))
     cones = cone_geometry(axes, y_th)
     info.update({
         "eigenstructure": kind,
@@ -276,10 +277,12 @@ def design_beard_fdf(
         "detection_space_dims": [s.dim for s in st.spaces],
         "sigma": float(sigma), "sigma_d": sigma_d,
         "Y_th_deg": np.degrees(y_th).tolist(),
+        "Y_first_order_deg": np.degrees(bound.first_order).tolist(),
         "Y_per_unit_sigma_d": [None if not np.isfinite(v) else float(v) for v in bound.coefficient],
-        "stewart_eta": [None if not np.isfinite(v) else float(v) for v in bound.eta],
+        "stewart_kappa": [None if not np.isfinite(v) else float(v) for v in bound.eta],
         "separation": [None if not np.isfinite(v) else float(v) for v in bound.separation],
         "sampled_angle_deg": np.degrees(worst_angle).tolist(),
+        "sampled_over_first_order": [float(worst_angle[j] / bound.first_order[j]) if 0 < bound.first_order[j] < HALF_PI else None for j in range(k)],
         "bound_tightness": tightness,
         "levels_from": source,
         "cones": cones,

@@ -7,11 +7,14 @@ the admissible gains form an affine set ``L = L₀ + Σ θ_i N_i`` (:func:`admis
 
 The NLP (CasADi, derivatives by AD, IPOPT) minimises ``t`` over ``θ``, the eigenvalues and the eigenvectors:
 
-* ``b_m² ≤ t`` for every eigenvector ``v_m = T_j a_m`` of every detection space, with ``b_m`` the implicit bound
-  per unit model error of :mod:`fdisyn.numerics.robust_cones` — its spectral norm replaced by the Schatten-8
-  norm ``(tr (MᵀM)⁴)^(1/8)`` (smooth, an upper bound, and within ``rank^(1/8)`` of it: the optimum bounds the
-  certified value from above) — written without an eigen-decomposition: ``G_j a_m = λ_m a_m`` and
-  ``‖a_m‖ = 1`` are constraints, and the reduced resolvent ``(λ_m I − G_c)⁻¹`` a linear solve;
+* ``c_j² ≤ t`` for every detection space, with ``c_j = √min(d, n−d) ‖(I ⊗ Π_j C Q_c) 𝒯_j⁻¹‖₂ / min_m ‖C T_j a_m‖`` the
+  guaranteed cone half-angle per unit model error as ``σ → 0`` (:attr:`fdisyn.numerics.robust_cones.ImplicitBound.coefficient`;
+  for a one-dimensional ``T_j`` the paper's first-order bound) — its spectral norm replaced by the Schatten-8
+  norm ``(tr (XᵀX)⁴)^(1/8)`` (smooth, an upper bound, and within ``rank^(1/8)`` of it: the optimum bounds the
+  certified value from above). ``T_j`` is fixed, so the Sylvester operator ``𝒯_j : P ↦ G_c P − P G_T`` is affine in
+  ``θ`` and ``𝒯_j⁻¹`` a linear solve;
+* the eigenvalues, through ``G_b a_m = λ_m a_m`` and ``‖a_m‖ = 1`` on every block ``b`` (constraints: no
+  eigen-decomposition);
 * every eigenvalue of ``G = A − L C`` real in ``[0, r]`` (the decay-rate bound ``r``; non-negative: no mode that
   alternates sign from sample to sample) and every two at least ``δ`` apart, so ``G`` is diagonalisable and no
   cone degenerates to a half-space. The eigenvalues are those of the blocks ``G_j = T_jᵀ G T_j`` and of the
@@ -38,20 +41,11 @@ from typing import Any
 import casadi as ca
 import numpy as np
 from fdisyn.numerics.detection_filter import BeardStructure, beard_gain
+from fdisyn.numerics.linalg import orth_basis, orth_complement
 from fdisyn.numerics.robust_cones import implicit_thresholds, output_subspaces
 from fdisyn.runtime.errors import ArgumentError, SolverError
 
 __all__ = ["admissible_gains", "residual_covariance_trace", "EigenstructureResult", "optimise_eigenstructure"]
-
-
-def _orth(m: np.ndarray, tol: float = 1e-10) -> np.ndarray:
-    u, s, _ = np.linalg.svd(m, full_matrices=False)
-    return u[:, : int(np.sum(s > tol * max(float(s[0]) if s.size else 0.0, 1e-300)))]
-
-
-def _complement(t: np.ndarray) -> np.ndarray:
-    q, _ = np.linalg.qr(t, mode="complete")
-    return q[:, t.shape[1] :]
 
 
 def admissible_gains(A: np.ndarray, C: np.ndarray, spaces: Sequence[np.ndarray]) -> tuple[np.ndarray, list[np.ndarray]]:
@@ -151,7 +145,7 @@ def optimise_eigenstructure(
     theta = ca.SX.sym("theta", len(basis))
     lsym = ca.DM(l0) + sum((theta[i] * ca.DM(b) for i, b in enumerate(basis)), ca.SX.zeros(n, p))
     g = ca.DM(A) - ca.mtimes(lsym, ca.DM(C))
-    qs = _complement(_orth(np.hstack(spaces)))
+    qs = orth_complement(orth_basis(np.hstack(spaces), 1e-10))
     blocks = [*spaces, qs]
     counts = [b.shape[1] for b in blocks]
     lam = ca.SX.sym("lam", n)
@@ -173,18 +167,19 @@ def optimise_eigenstructure(
             li = lam[start + i]
             add(ca.mtimes(gb, a) - li * a, 0.0, 0.0)
             add(ca.sumsqr(a), 1.0, 1.0)
-            if b < k:
-                t_b = basis_b
-                qc = _complement(t_b)
-                gc = ca.mtimes([ca.DM(qc.T), g, ca.DM(qc)])
-                proj = np.eye(p) - axes[b] @ axes[b].T
-                res = ca.solve(li * ca.DM.eye(qc.shape[1]) - gc, ca.DM(qc.T))
-                mmat = ca.mtimes([ca.DM(proj @ C @ qc), res])
-                cv = ca.mtimes(ca.DM(C @ t_b), a)
-                gram = ca.mtimes(mmat.T, mmat)
-                power = ca.mtimes(gram, gram)
-                power = ca.mtimes(power, power)  # (MᵀM)⁴: its trace is ‖M‖₈⁸, so t bounds b² (Schatten-8)
-                add(ca.trace(power) - t**4 * ca.sumsqr(cv) ** 4, -ca.inf, 0.0)
+        if b < k:  # the first-order coefficient of the guaranteed cone of fault b
+            qc = orth_complement(basis_b)
+            d_b, m_b = counts[b], qc.shape[1]
+            gc = ca.mtimes([ca.DM(qc.T), g, ca.DM(qc)])
+            sylvester = ca.kron(ca.DM.eye(d_b), gc) - ca.kron(gb.T, ca.DM.eye(m_b))
+            across = (np.eye(p) - axes[b] @ axes[b].T) @ C @ qc
+            op = ca.solve(sylvester.T, ca.DM(np.kron(np.eye(d_b), across)).T).T
+            gram = ca.mtimes(op.T, op)
+            power = ca.mtimes(gram, gram)
+            power = ca.mtimes(power, power)  # (XᵀX)⁴: its trace is ‖X‖₈⁸; t bounds the coefficient² (Schatten-8)
+            for i in range(counts[b]):  # the denominator: the smallest image ‖C T a_m‖ of the block's eigenvectors
+                image2 = ca.sumsqr(ca.mtimes(ca.DM(C @ basis_b), vecs[b][:, i]))
+                add(ca.trace(power) ** 0.25 * float(min(d_b, m_b)) - t * image2, -ca.inf, 0.0)
         start += counts[b]
     for i in range(n):
         for j in range(i + 1, n):
@@ -225,7 +220,7 @@ def optimise_eigenstructure(
             v = np.real(v[:, order])
             vec0.append(v / np.linalg.norm(v, axis=0))
         b0 = implicit_thresholds(g0, C, spaces, 1.0).coefficient
-        x0 = np.concatenate([th0, lam0, *[v.reshape(-1, order="F") for v in vec0], [float(np.max(b0)) ** 2 * 4.0 + 1e-12]])
+        x0 = np.concatenate([th0, lam0, *[v.reshape(-1, order="F") for v in vec0], [float(np.max(b0)) ** 2 * 2.0 + 1e-12]])
         sol = solver(x0=x0, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
         stats = solver.stats()
         if not stats.get("success", False) and stats.get("return_status") not in {"Solved_To_Acceptable_Level"}:
