@@ -3,9 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
-import scipy.linalg as sla
 from fdisyn.models.linear import LinearPlant
-from fdisyn.models.sampled_data import SampledDataPlant
 from fdisyn.numerics.norms import DiscreteLTI
 
 
@@ -87,38 +85,3 @@ def coupling_markov(plant: dict, gen: object, count: int | None = None) -> tuple
     return out[0], out[1]
 
 
-def random_sampled_data_plant(
-    *, n: int, p: int, rng: np.random.Generator, q: int = 1, Ts: float = 0.5, stable: bool = True
-) -> SampledDataPlant:
-    """A random continuous plant with ``n`` states, ``p`` outputs, 1 input, ``q`` disturbances, 1 fault.
-
-    With ``q = 1`` the lifted disturbance barely excites some directions within
-    a sample and κ = cond(C X Cᵀ) can pass 1e10 already at ``n = p = 3``;
-    ``q = n`` keeps it moderate (≤ ~1e6 at n = 16 in the timing runs).
-
-    Eigenvalues ``−U(0.3, 2)`` or ``−U(0.3, 2) ± j·U(0.1, 1.5)`` in a random
-    basis of condition ≤ 4; with ``|Im λ| < 1.5`` and ``Ts = 0.5`` the sampling is
-    never pathological (that needs ``Ts·|Im(λ_i − λ_j)| = 2πk``).
-    ``stable=False`` makes the first mode unstable (real part ``+U(0.06, 0.4)``).
-    """
-    blocks, k = [], 0
-    while k < n:
-        s = rng.uniform(0.3, 2.0) * (1 if stable or k else -0.2)
-        if n - k >= 2 and rng.random() < 0.5:
-            w = rng.uniform(0.1, 1.5)
-            blocks.append(np.array([[-s, w], [-w, -s]]))
-            k += 2
-        else:
-            blocks.append(np.array([[-s]]))
-            k += 1
-    qm, _ = np.linalg.qr(rng.standard_normal((n, n)))
-    t = qm @ np.diag(rng.uniform(0.5, 2.0, n))
-    a = t @ sla.block_diag(*blocks) @ np.linalg.inv(t)
-    return SampledDataPlant.create(
-        A=a,
-        B=rng.standard_normal((n, 1)),
-        E=rng.standard_normal((n, q)),
-        Fx=rng.standard_normal((n, 1)),
-        C=rng.standard_normal((p, n)),
-        Ts=Ts,
-    )

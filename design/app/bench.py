@@ -174,7 +174,7 @@ class TimingRow:
 def sdp_timings(*, sizes: Sequence[int] = (2, 4, 8, 16), seed: int = 0) -> list[TimingRow]:
     """Measure SDP solve times for the norm LMIs and the design, per state dimension.
 
-    For each ``n``: a seeded random stable plant (:func:`_workload_plant`) with ``p = n`` outputs and ``q = n``
+    For each ``n``: a seeded random stable plant (:func:`random_sampled_data_plant`) with ``p = n`` outputs and ``q = n``
     disturbances (so that κ stays moderate at n = 16), the H∞/H2/H₋ LMIs of
     ``G_dJ`` and the full design (:func:`lmi_diagnostic_observer`,
     ``η = "inf"``: the observer-gain SDP plus the peak-following post-filter
@@ -185,7 +185,7 @@ def sdp_timings(*, sizes: Sequence[int] = (2, 4, 8, 16), seed: int = 0) -> list[
     rng = np.random.default_rng(seed)
     rows = []
     for n in sizes:
-        pl = _workload_plant(int(n), rng)
+        pl = random_sampled_data_plant(n=int(n), p=int(n), q=int(n), rng=rng)
         gd = pl.G_d()
         t0 = time.perf_counter()
         hi = hinf_norm_lmi(gd)
@@ -210,14 +210,23 @@ def sdp_timings(*, sizes: Sequence[int] = (2, 4, 8, 16), seed: int = 0) -> list[
     return rows
 
 
-def _workload_plant(n: int, rng: np.random.Generator) -> SampledDataPlant:
-    """The SDP timing workload: a seeded random stable continuous plant with ``n`` states,
-    ``p = q = n`` outputs and disturbances (κ = cond(C X Cᵀ) stays ≤ ~1e6 at n = 16), one input
-    and one fault, sampled at ``Ts = 0.5`` s; modes ``−U(0.3, 2) ± j·U(0.1, 1.5)`` in a basis of
-    condition ≤ 4 (never a pathological sampling)."""
+def random_sampled_data_plant(
+    *, n: int, p: int, rng: np.random.Generator, q: int = 1, Ts: float = 0.5, stable: bool = True
+) -> SampledDataPlant:
+    """A random continuous plant with ``n`` states, ``p`` outputs, 1 input, ``q`` disturbances, 1 fault.
+
+    With ``q = 1`` the lifted disturbance barely excites some directions within
+    a sample and κ = cond(C X Cᵀ) can pass 1e10 already at ``n = p = 3``;
+    ``q = n`` keeps it moderate (≤ ~1e6 at n = 16 in the timing runs).
+
+    Eigenvalues ``−U(0.3, 2)`` or ``−U(0.3, 2) ± j·U(0.1, 1.5)`` in a random
+    basis of condition ≤ 4; with ``|Im λ| < 1.5`` and ``Ts = 0.5`` the sampling is
+    never pathological (that needs ``Ts·|Im(λ_i − λ_j)| = 2πk``).
+    ``stable=False`` makes the first mode unstable (real part ``+U(0.06, 0.4)``).
+    """
     blocks, k = [], 0
     while k < n:
-        s = rng.uniform(0.3, 2.0)
+        s = rng.uniform(0.3, 2.0) * (1 if stable or k else -0.2)
         if n - k >= 2 and rng.random() < 0.5:
             w = rng.uniform(0.1, 1.5)
             blocks.append(np.array([[-s, w], [-w, -s]]))
@@ -231,8 +240,8 @@ def _workload_plant(n: int, rng: np.random.Generator) -> SampledDataPlant:
     return SampledDataPlant.create(
         A=a,
         B=rng.standard_normal((n, 1)),
-        E=rng.standard_normal((n, n)),
+        E=rng.standard_normal((n, q)),
         Fx=rng.standard_normal((n, 1)),
-        C=rng.standard_normal((n, n)),
-        Ts=0.5,
+        C=rng.standard_normal((p, n)),
+        Ts=Ts,
     )

@@ -9,7 +9,7 @@ import control
 import cvxpy as cp
 import numpy as np
 import pytest
-from fdisyn.app.bench import sdp_timings
+from fdisyn.app.bench import random_sampled_data_plant, sdp_timings
 from fdisyn.models.sampled_data import SampledDataPlant
 from fdisyn.numerics import lmi_norms as lmi
 from fdisyn.numerics import sdp
@@ -22,7 +22,7 @@ from fdisyn.synthesis.sampled_data_observer import ETAS, optimal_diagnostic_obse
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from tests.helpers import random_sampled_data_plant, random_stable
+from tests.helpers import random_stable
 
 # LMI norms must agree with the independent evaluation (sweep, slycot) to
 # 1e-6 relative (Clarabel at 1e-11, falling back to 1e-9, on problems scaled

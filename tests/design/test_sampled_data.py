@@ -11,6 +11,7 @@ import pytest
 import scipy.integrate as sint
 import scipy.linalg as sla
 import scipy.optimize
+from fdisyn.app.bench import random_sampled_data_plant
 from fdisyn.evaluation.sampled_data_simulation import sampled_disturbance, simulate_sampled_data
 from fdisyn.models.linear import LinearPlant
 from fdisyn.models.sampled_data import SampledDataPlant, check_sampling, norm_invariant_discretisation
@@ -24,8 +25,6 @@ from fdisyn.synthesis.residual import internal_form
 from fdisyn.synthesis.sampled_data_observer import ETAS, _extra_block, optimal_diagnostic_observer, performance, residual_dynamics
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from tests.helpers import random_sampled_data_plant
 
 # Grid of frequencies (rad/sample) for transfer-function identities.
 W_TEST = np.array([0.0, 0.3, 1.1, 2.0, math.pi])
