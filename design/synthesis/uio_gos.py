@@ -1,0 +1,376 @@
+"""Generalised UIO banks for linearly dependent outputs (Long & Wang, Aeroengine 43(5), 2017).
+
+Long & Wang, "A promoted design approach for unknown input observer",
+Aeroengine 43(5), 2017, pp. 7–13; section and equation numbers below are
+theirs. Three parts, each usable alone:
+
+* **Grouping** (:func:`output_groups`, section 2, case 2). When ``rank C = r < p``
+  the outputs are split into groups of linearly independent rows that
+  together cover every sensor to diagnose. The search is exhaustive over the
+  bases of the row matroid of ``C`` (subsets of ``r`` independent rows): the
+  fewest groups that cover the sensors, ties broken by conditioning — the
+  largest condition number of a group completed by its virtual outputs,
+  smallest first. Every solution of the optimal size is returned, ranked, so
+  a hand-made grouping can be checked against them.
+* **Virtual outputs** (:func:`virtual_outputs`, section 2, case 1). States of
+  the on-board model appended to a group until its rows span ``Rⁿ``: the
+  ``n − r`` unit rows that minimise the condition number of the completed,
+  row-normalised ``n × n`` matrix (exhaustive below 20 000 candidate sets,
+  greedy above). They serve only to observe the unknown input.
+* **The unknown-input direction from data** (:func:`estimate_unknown_input`,
+  eq. (4)). ``d₁ = E d`` is taken as slowly varying and observed with the
+  augmented model ``[ẋ; ḋ₁] = [[A, I], [0, 0]] [x; d₁] + [B; 0] u``, which
+  needs ``n`` independent outputs: a group and its virtual outputs. The
+  estimates over fault-free training data are stacked (states scaled by
+  their magnitudes on the nominal model), and ``E`` is their dominant singular
+  directions, the rank read from the largest gap ``σ_k / σ_{k+1}`` (Chen &
+  Patton, *Robust Model-Based Fault Diagnosis for Dynamic Systems*, 1999,
+  ch. 4: the optimal low-rank approximation of the mismatch).
+* **The bank** (:func:`gos_diagnoser`, eqs. (5)–(6)): per group, one
+  minimum-variance UIO (:func:`fdisyn.synthesis.uio.kalman_uio`) per sensor,
+  fed every output of its group but that sensor (the generalised observer
+  scheme, Frank, Automatica 26(3), 1990). A sensor fault then raises every
+  statistic of the groups that hold the sensor except the one that excludes
+  it: the signature table of the linear diagnoser isolates it.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import scipy.linalg
+from fdisyn.models.linear import LinearPlant
+from fdisyn.numerics.certificate import Certificate, Check
+from fdisyn.numerics.linalg import rank
+from fdisyn.runtime.errors import ArgumentError, ExistenceError, FdisynError, ShapeError
+from fdisyn.runtime.gainfile import GainFile
+from fdisyn.synthesis.linear_diagnoser import FaultClass, default_fault_classes, linear_diagnoser
+from fdisyn.synthesis.residual import internal_form
+from fdisyn.synthesis.uio import kalman_uio
+
+__all__ = [
+    "Grouping",
+    "UnknownInputEstimate",
+    "output_groups",
+    "virtual_outputs",
+    "completed_condition",
+    "estimate_unknown_input",
+    "gos_bank",
+    "gos_diagnoser",
+    "uio_name",
+]
+
+EXHAUSTIVE_LIMIT = 20_000
+"""Largest number of candidate sets (bases of ``C``'s rows, or virtual-output sets) searched exhaustively."""
+RANK_GAP_MIN = 10.0
+"""Smallest ``σ_q / σ_{q+1}`` accepted as a rank gap of the stacked unknown-input estimates: a factor of ten
+separates the directions the mismatch drives from the estimation noise floor (measured on the turbofan: the
+noise directions are within a factor of 2 of one another)."""
+
+
+@dataclass(frozen=True)
+class Grouping:
+    """Groups of linearly independent outputs (indices into the plant's outputs) and their virtual outputs."""
+
+    groups: tuple[tuple[int, ...], ...]
+    virtual: tuple[tuple[int, ...], ...]
+    """Per group, the state indices appended as virtual outputs (``n − rank`` of them)."""
+    condition: float
+    """The largest condition number of a group completed by its virtual outputs (row-normalised)."""
+
+
+def _normalised(rows: np.ndarray) -> np.ndarray:
+    norms = np.linalg.norm(rows, axis=1)
+    return rows / np.where(norms > 0, norms, 1.0)[:, None]
+
+
+def completed_condition(C: np.ndarray, group: Sequence[int], states: Sequence[int]) -> float:
+    """Condition number of ``[C_group; I_states]`` with unit-norm rows (``inf`` when singular or not square)."""
+    c = np.asarray(C, dtype=float)
+    n = c.shape[1]
+    m = np.vstack([c[list(group)], np.eye(n)[list(states)]])
+    if m.shape[0] != n:
+        return math.inf
+    s = np.linalg.svd(_normalised(m), compute_uv=False)
+    return float(s[0] / s[-1]) if s[-1] > 1e-12 * s[0] else math.inf
+
+
+def virtual_outputs(C: np.ndarray, group: Sequence[int], *, state_names: Sequence[str] | None = None) -> tuple[int, ...]:
+    """The ``n − rank`` states that complete ``group``'s rows of ``C`` to a basis of ``Rⁿ``, best conditioned.
+
+    Raises :class:`ExistenceError` when the group's rows are dependent.
+    """
+    c = np.asarray(C, dtype=float)
+    n = c.shape[1]
+    g = list(group)
+    r = rank(c[g])
+    if r != len(g):
+        raise ExistenceError(f"the outputs {g} are linearly dependent (rank {r} < {len(g)}): a group must hold independent rows of C")
+    need = n - r
+    if math.comb(n, need) <= EXHAUSTIVE_LIMIT:
+        best = min(itertools.combinations(range(n), need), key=lambda s: completed_condition(c, g, s))
+    else:  # greedy: add the state that keeps the completed rows best conditioned
+        chosen: list[int] = []
+        for _ in range(need):
+            def score(j: int) -> float:
+                m = _normalised(np.vstack([c[g], np.eye(n)[[*chosen, j]]]))
+                s = np.linalg.svd(m, compute_uv=False)
+                return -float(s[-1])
+            chosen.append(min((j for j in range(n) if j not in chosen), key=score))
+        best = tuple(sorted(chosen))
+    if not math.isfinite(completed_condition(c, g, best)):
+        raise ExistenceError(f"no {need} states complete the outputs {g} to rank {n}")
+    return tuple(best)
+
+
+def output_groups(
+    C: np.ndarray, sensors: Sequence[int] | None = None, *, outputs: Sequence[str] | None = None
+) -> list[Grouping]:
+    """Every grouping of fewest groups that covers ``sensors``, best conditioned first.
+
+    A group is a basis of the row space of ``C`` (``rank C`` independent
+    rows: the largest independent set, so each UIO keeps as many outputs as
+    possible). Objective: (1) the number of groups, (2) the largest condition
+    number of a group completed by its virtual outputs (:func:`virtual_outputs`).
+    Raises :class:`ExistenceError` naming a sensor no independent group can hold
+    (a zero row of ``C``).
+    """
+    c = np.asarray(C, dtype=float)
+    p = c.shape[0]
+    names = list(outputs) if outputs is not None else [f"y{i}" for i in range(p)]
+    want = list(range(p)) if sensors is None else list(sensors)
+    r = rank(c)
+    zero = [names[i] for i in want if not np.any(c[i])]
+    if zero:
+        raise ExistenceError(f"sensor(s) {zero} have a zero row of C: no group of independent outputs can hold them")
+    if math.comb(p, r) > EXHAUSTIVE_LIMIT:
+        raise ArgumentError(
+            f"{p} outputs of rank {r} give {math.comb(p, r)} candidate groups (more than {EXHAUSTIVE_LIMIT}); give the groups explicitly"
+        )
+    bases = [b for b in itertools.combinations(range(p), r) if rank(c[list(b)]) == r]
+    virtual = {b: virtual_outputs(c, b) for b in bases}
+    cond = {b: completed_condition(c, b, virtual[b]) for b in bases}
+    for k in range(1, len(bases) + 1):
+        found = [
+            Grouping(groups=combo, virtual=tuple(virtual[b] for b in combo), condition=max(cond[b] for b in combo))
+            for combo in itertools.combinations(bases, k)
+            if set(want) <= set().union(*map(set, combo))
+        ]
+        if found:
+            return sorted(found, key=lambda gr: gr.condition)
+    missing = [names[i] for i in want if not any(i in b for b in bases)]
+    raise ExistenceError(f"no group of linearly independent outputs covers the sensor(s) {missing}")
+
+
+# --------------------------------------------------------------------------- the unknown-input direction
+
+
+@dataclass(frozen=True, eq=False)
+class UnknownInputEstimate:
+    """``E`` from fault-free data: dominant directions of the observed mismatch ``d̂₁``."""
+
+    E: np.ndarray
+    """``n × q``: the columns ``S u_i`` (``u_i`` the left singular vectors of the scaled estimates)."""
+    singular_values: np.ndarray
+    """Of the scaled, stacked ``d̂₁`` (divided by ``√N``: RMS units)."""
+    rank: int
+    gap: float
+    """``σ_q / σ_{q+1}``."""
+    scale: np.ndarray
+    """The state scaling ``S`` (RMS of each state on the nominal model over the training input)."""
+    d_hat: np.ndarray
+    """``N × n``: the estimates ``d̂₁(k)`` (physical units)."""
+    group: tuple[int, ...]
+    virtual: tuple[int, ...]
+
+
+def estimate_unknown_input(
+    plant: LinearPlant,
+    Ts: float,
+    U: np.ndarray,
+    Y: np.ndarray,
+    X_virtual: np.ndarray,
+    *,
+    group: Sequence[int],
+    virtual: Sequence[int],
+    d_rate: float = 1.0,
+    virtual_noise: float = 1e-3,
+    burn_in: float = 2.0,
+    rank_gap: float = RANK_GAP_MIN,
+    rank_max: int | None = None,
+) -> UnknownInputEstimate:
+    """Observe ``d₁`` with the augmented model of Long & Wang 2017, eq. (4), and take ``E`` from its SVD.
+
+    ``plant`` is the continuous design model (its ``R``: the sensor noise);
+    ``U`` (``N × m``), ``Y`` (``N × p``) fault-free training samples and
+    ``X_virtual`` (``N × len(virtual)``) the virtual outputs (states of the
+    on-board model). Sampled exactly (``d₁`` held over a sample), the
+    augmented model is observed by a steady-state Kalman filter with ``d₁`` a
+    random walk whose increments have standard deviation ``d_rate · S · √Ts``
+    per sample (``S`` the state scale) and virtual outputs read with noise
+    ``virtual_noise · S``. The rank is the ``q`` of the largest gap
+    ``σ_q / σ_{q+1} ≥ rank_gap`` (``q ≤ rank_max``); no such gap is an
+    :class:`ExistenceError` naming the singular values.
+    """
+    if plant.is_discrete:
+        raise ArgumentError("estimate_unknown_input needs the continuous design model (d₁ enters ẋ, Long & Wang 2017, eq. (4))")
+    n, m = plant.n, plant.m
+    u = np.asarray(U, dtype=float)
+    y = np.asarray(Y, dtype=float)
+    xv = np.asarray(X_virtual, dtype=float)
+    g, v = list(group), list(virtual)
+    if u.ndim != 2 or u.shape[1] != m or y.shape != (u.shape[0], plant.p) or xv.shape != (u.shape[0], len(v)):
+        raise ShapeError(f"training data: U N×{m}, Y N×{plant.p}, X_virtual N×{len(v)} with one N; got {u.shape}, {y.shape}, {xv.shape}")
+    if not (np.all(np.isfinite(u)) and np.all(np.isfinite(y)) and np.all(np.isfinite(xv))):
+        raise ArgumentError("training data hold NaN or inf; give fault-free, complete samples")
+    a, b = np.asarray(plant.A), np.asarray(plant.B)
+    # exact sampling of [x; d₁; u] with u and d₁ held over the sample
+    big = np.zeros((2 * n + m, 2 * n + m))
+    big[:n, :n], big[:n, n : 2 * n], big[:n, 2 * n :] = a, np.eye(n), b
+    ed = scipy.linalg.expm(big * Ts)
+    phi, gam, gb = ed[:n, :n], ed[:n, n : 2 * n], ed[:n, 2 * n :]
+    # state scale: RMS of the nominal model's response to the training input
+    xn = np.zeros(n)
+    traj = np.empty((u.shape[0], n))
+    for k in range(u.shape[0]):
+        traj[k] = xn
+        xn = phi @ xn + gb @ u[k]
+    scale = np.sqrt(np.mean(traj**2, axis=0))
+    scale = np.where(scale > 1e-12 * max(float(scale.max()), 1e-300), scale, max(float(scale.max()), 1.0))
+    az = np.block([[phi, gam], [np.zeros((n, n)), np.eye(n)]])
+    bz = np.vstack([gb, np.zeros((n, m))])
+    cg, dg = np.asarray(plant.C)[g], np.asarray(plant.D)[g]
+    cz = np.vstack([np.hstack([cg, np.zeros((len(g), n))]), np.hstack([np.eye(n)[v], np.zeros((len(v), n))])])
+    rz = scipy.linalg.block_diag(np.asarray(plant.R)[np.ix_(g, g)], np.diag((virtual_noise * scale[v]) ** 2))
+    qz = scipy.linalg.block_diag(np.zeros((n, n)), np.diag((d_rate * scale) ** 2 * Ts))
+    if rank(cz) < n:
+        raise ExistenceError(f"the outputs {g} and virtual states {v} have rank {rank(cz)} < n = {n}: d₁ is not observable")
+    try:
+        p = scipy.linalg.solve_discrete_are(az.T, cz.T, qz + 1e-12 * np.eye(2 * n) * float(np.max(np.diag(qz))), rz)
+    except (np.linalg.LinAlgError, ValueError) as exc:
+        raise ExistenceError(f"the augmented observer of d₁ has no stabilising Kalman gain: {exc}") from exc
+    kgain = p @ cz.T @ np.linalg.inv(cz @ p @ cz.T + rz)  # filter (measurement-update) gain
+    z = np.zeros(2 * n)
+    meas = np.hstack([y[:, g] - u @ dg.T, xv])
+    dh = np.empty((u.shape[0], n))
+    for k in range(u.shape[0]):
+        z = z + kgain @ (meas[k] - cz @ z)
+        dh[k] = z[n:]
+        z = az @ z + bz @ u[k]
+    keep = int(round(burn_in / Ts))
+    stack = (dh[keep:] / scale).T / math.sqrt(max(dh.shape[0] - keep, 1))
+    uu, s, _ = np.linalg.svd(stack, full_matrices=False)
+    ratios = s[:-1] / np.maximum(s[1:], np.finfo(float).tiny)
+    top = len(ratios) if rank_max is None else min(rank_max, len(ratios))
+    if top < 1:
+        raise ArgumentError(f"rank_max must be ≥ 1; got {rank_max}")
+    qi = int(np.argmax(ratios[:top]))
+    if ratios[qi] < rank_gap:
+        raise ExistenceError(
+            f"the unknown-input estimate has no clear rank gap: largest σ_k/σ_(k+1) = {ratios[qi]:.3g} (k = {qi + 1}) < {rank_gap:g}; "
+            f"singular values {np.array2string(s, precision=3)}; give E explicitly or train on richer data"
+        )
+    q = qi + 1
+    return UnknownInputEstimate(
+        E=scale[:, None] * uu[:, :q],
+        singular_values=s,
+        rank=q,
+        gap=float(ratios[qi]),
+        scale=scale,
+        d_hat=dh,
+        group=tuple(g),
+        virtual=tuple(v),
+    )
+
+
+# --------------------------------------------------------------------------- the bank
+
+
+def uio_name(group_index: int, excluded: str) -> str:
+    """``g<k>_no_<sensor>``: the UIO of group ``k`` that does not read ``sensor``."""
+    return f"g{group_index + 1}_no_{excluded}"
+
+
+def gos_bank(
+    plant: LinearPlant, groups: Sequence[Sequence[int]], *, sensors: Sequence[int] | None = None
+) -> tuple[list[Any], list[np.ndarray], list[Certificate]]:
+    """Per group, one minimum-variance UIO per diagnosed sensor, fed the group's other outputs.
+
+    ``plant`` is the discrete design model with its unknown-input matrix
+    ``E``. Each UIO's existence (``rank(Cⁱ E) = rank(E)``, ``(Cⁱ, A1)``
+    detectable) is checked by :func:`~fdisyn.synthesis.uio.uio_structure`;
+    a failure names the group and the excluded sensor. Returns the generators
+    (on the full output vector), their residual covariances and certificates.
+    """
+    want = set(range(plant.p) if sensors is None else sensors)
+    gens, sigmas, certs = [], [], []
+    for gi, group in enumerate(groups):
+        for s in group:
+            if s not in want:
+                continue
+            used = [j for j in group if j != s]
+            name = uio_name(gi, plant.outputs[s])
+            try:
+                d = kalman_uio(plant.select_outputs(used))
+            except FdisynError as exc:
+                raise type(exc)(f"group {gi + 1} {[plant.outputs[j] for j in group]}, the UIO without {plant.outputs[s]}: {exc}") from exc
+            decoupling = internal_form(d.generator(name, used, plant.p), plant).coupling("d")
+            cert = Certificate.of(
+                name,
+                [
+                    *d.certificate.checks,
+                    Check(
+                        "internal form: largest normalised Markov parameter d → r",
+                        decoupling,
+                        1e-9,
+                        "<=",
+                        "the residual of a UIO does not see d: Tᵢ E = 0 makes every Markov parameter vanish to round-off",
+                    ),
+                ],
+                d.certificate.info,
+            ).require()
+            gens.append(d.generator(name, used, plant.p))
+            sigmas.append(d.Sigma_r)
+            certs.append(cert)
+    return gens, sigmas, certs
+
+
+def gos_diagnoser(
+    plant: LinearPlant,
+    groups: Sequence[Sequence[int]],
+    *,
+    name: str,
+    problem: str,
+    design: str,
+    P_f: float,
+    persistence: int = 1,
+    sensors: Sequence[int] | None = None,
+    faults: Sequence[FaultClass] | None = None,
+    options: Mapping[str, object] | None = None,
+) -> GainFile:
+    """The gain file of the generalised observer scheme: :func:`gos_bank` with the linear diagnoser's statistics.
+
+    Faults default to one class per diagnosed sensor, named after it.
+    """
+    gens, sigmas, certs = gos_bank(plant, groups, sensors=sensors)
+    if faults is None:
+        diag = set(range(plant.p) if sensors is None else sensors)
+        faults = [f for f in default_fault_classes(plant, gens) if all(plant.outputs.index(s) in diag for s in f.sensors) and not f.components]
+    return linear_diagnoser(
+        name=name,
+        problem=problem,
+        design=design,
+        plant=plant,
+        generators=gens,
+        sigma_r=sigmas,
+        P_f=P_f,
+        faults=faults,
+        certificates=certs,
+        persistence=persistence,
+        options=options,
+    )
