@@ -31,9 +31,9 @@ from fdisyn.numerics.certificate import Certificate, Check
 from fdisyn.numerics.linalg import transfer_size
 from fdisyn.runtime.errors import ArgumentError, FdisynError, ShapeError
 from fdisyn.runtime.gainfile import (
+    MAX_WSSR_WINDOW,
     Decision,
     Evaluator,
-    MAX_WSSR_WINDOW,
     GainFile,
     Generator,
     StepSpec,
@@ -134,7 +134,7 @@ def linear_diagnoser(
     if evaluator == "wssr":
         evals = [
             wssr_evaluator(i, s, residual_autocovariances(g, plant, int(window) - 1), P_f, window)
-            for i, (g, s) in enumerate(zip(gens, sigma_r))
+            for i, (g, s) in enumerate(zip(gens, sigma_r, strict=True))
         ]
     else:
         evals = [chi2_evaluator(i, s, P_f) for i, s in enumerate(sigma_r)]
@@ -364,7 +364,7 @@ TS = Option(
 EVALUATOR = Option(
     "evaluator",
     "chi2",
-    "the statistic of each generator: 'chi2' (r'Wr per sample) or 'wssr' (its sum over the last window samples)",
+    "the statistic of each generator: 'chi2', q = rᵀ W r per sample, or 'wssr', the sum of q over the last window valid samples",
     "'chi2' or 'wssr'",
     lambda v: v in ("chi2", "wssr"),
 )
@@ -481,7 +481,7 @@ def linear_method(
     def checks(plant: Any, opts: Mapping[str, Any], where: str) -> None:
         if opts.get("evaluator", "chi2") == "chi2" and opts.get("window", 1) != 1:
             raise ArgumentError(
-                f"{at(where, 'window')} = {shown(opts['window'])} needs {at(where, 'evaluator')} = 'wssr' "
+                f"{at(where, 'window')} = {shown(opts['window'])} needs evaluator = 'wssr' "
                 "(the χ² evaluator 'chi2' uses one sample)"
             )
         if not sampled_data:

@@ -51,7 +51,7 @@ def _window_covariance(R: np.ndarray, n: int) -> np.ndarray:
 def test_the_innovation_of_the_minimum_variance_uio_gives_chi2_of_n_dof(window):
     plant = random_plant(1)
     gf = design(plant, "kalman_uio", P_f=1e-3, evaluator="wssr", window=window)
-    for ev, gen in zip(gf.evaluators, gf.generators):
+    for ev, gen in zip(gf.evaluators, gf.generators, strict=True):
         R = residual_autocovariances(gen, plant, max(window - 1, 3))
         np.testing.assert_allclose(R[0], ev.Sigma_r, rtol=1e-9, atol=1e-12 * np.abs(ev.Sigma_r).max())
         assert np.abs(R[1:]).max() <= 1e-8 * np.abs(R[0]).max()  # white: an innovation
@@ -207,7 +207,7 @@ def test_bad_evaluator_values_are_refused_with_one_line(index, edit, message):
 
 def test_the_options_refuse_a_window_without_wssr():
     plant = random_plant(1)
-    with pytest.raises(ArgumentError, match=r"option window = 5 needs .*option evaluator = 'wssr'"):
+    with pytest.raises(ArgumentError, match=r"option window = 5 needs evaluator = 'wssr'"):
         design(plant, "kalman_uio", window=5)
     with pytest.raises(ArgumentError, match=r"option evaluator = 'cusum': expected 'chi2' or 'wssr'"):
         design(plant, "kalman_uio", evaluator="cusum")
