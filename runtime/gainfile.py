@@ -12,8 +12,10 @@ discrete model the design used, in its state coordinates}, ``generators`` (the
 canonical form ``ξ⁺ = Ar ξ + Bu u + By y``, ``r = Cr ξ + Du u + Dy y`` on the
 full ``u``, ``y``, plus the equilibrium maps ``Xu = (I − Ar)⁻¹ Bu``,
 ``Xy = (I − Ar)⁻¹ By`` used to start the generator at the first valid
-sample), ``evaluators`` (χ² statistics ``J = rᵀ W r``, ``W = Σ_r⁺``) and
-``decision`` (a fault signature table over the statistics).
+sample), ``evaluators`` (``kind = "chi2"``: the statistic ``J = rᵀ W r``,
+``W = Σ_r⁺``; ``kind = "wssr"``: its windowed sum over the last ``window``
+valid samples, see :class:`Evaluator`) and ``decision`` (a fault signature
+table over the statistics).
 
 Matrices are nested lists of floats written with full round-trip precision
 (Python's ``repr``); non-finite numbers are refused on writing and reading.
@@ -26,9 +28,11 @@ field, what was expected and what was found:
   residual and statistic names are labels);
 * ``certificate.passed`` must be ``true``: a design that failed its
   verification is neither compiled nor run;
-* a χ² evaluator's ``W`` must be symmetric positive semidefinite with rank
-  ``dof`` and the pseudo-inverse of ``Sigma_r`` on its range
-  (``W Σ_r W = W``), its threshold positive;
+* an evaluator's ``W`` (χ² and WSSR alike) must be symmetric positive
+  semidefinite with rank ``dof`` and the pseudo-inverse of ``Sigma_r`` on its
+  range (``W Σ_r W = W``), its threshold positive; ``window`` is 1 for a χ²
+  evaluator and a whole number in 1..:data:`MAX_WSSR_WINDOW` (required) for a
+  WSSR one;
 * sizes stay within :data:`LIMITS`, checked before any costly step (the
   generated C grows with the number of coefficients; gcc's time and memory
   with it).
@@ -80,11 +84,18 @@ __all__ = [
     "step_coefficients",
     "gain_file_sha256",
     "read_regular_file",
+    "EVALUATOR_KINDS",
+    "MAX_WSSR_WINDOW",
 ]
 
 FORMAT = "fdisyn.gains/1"
 _FORMAT_FAMILY = "fdisyn.gains/"
 _MATRIX_KEYS = ("Ar", "Bu", "By", "Cr", "Du", "Dy", "Xu", "Xy")
+EVALUATOR_KINDS = ("chi2", "wssr")
+"""The statistics a linear diagnoser evaluates (:class:`Evaluator`)."""
+MAX_WSSR_WINDOW = 100_000
+"""Largest WSSR window accepted in a gain file. The window's ``q`` values are part of the state, so
+``nstate`` ≤ :data:`LIMITS` ``["nstate"]`` bounds the windows of a compiled diagnoser further."""
 
 LIMITS: Mapping[str, int] = {
     # every kind
@@ -229,7 +240,15 @@ class Generator:
 
 @dataclass(frozen=True, eq=False)
 class Evaluator:
-    """χ² statistic ``J = rᵀ W r`` of one generator, alarm when ``J > threshold``."""
+    """A statistic of one generator's residual ``r``, alarm when ``J > threshold``.
+
+    ``kind = "chi2"``: ``J(k) = q(k) = r(k)ᵀ W r(k)`` (Hu, Sun, Jiang, He & Zhang, Acta Automatica Sinica
+    39(8), 2013, eq. (18)). ``kind = "wssr"``: the windowed weighted sum of squared residuals of Long & Wang
+    (Aeroengine 43(5), 2017, section 2), ``J(k) = Σ_{l<N} q(k − l)`` over the last ``N = window`` samples the
+    generator evaluated (a sample it skips — a non-finite input, an overflow — does not enter); until ``N``
+    such samples have been seen, ``J`` sums those there are and is compared with the same full-window
+    threshold (conservative at start-up). ``window = 1`` is the χ² statistic.
+    """
 
     kind: str
     generator: int
@@ -238,6 +257,7 @@ class Evaluator:
     threshold: float
     Sigma_r: np.ndarray
     W: np.ndarray
+    window: int = 1
 
 
 @dataclass(frozen=True, eq=False)
@@ -301,7 +321,7 @@ class GainFile:
     def thresholds(self) -> np.ndarray:
         """One alarm threshold per statistic; ``inf`` where a statistic has no fixed one.
 
-        Linear kind: the evaluators' χ² thresholds. Other kinds list theirs in
+        Linear kind: the evaluators' thresholds (χ² or WSSR). Other kinds list theirs in
         ``extensions[kind]["thresholds"]`` (``null`` for none).
         """
         if self.kind == "linear":
@@ -352,6 +372,8 @@ class GainFile:
                     "threshold": float(e.threshold),
                     "Sigma_r": to_jsonable(e.Sigma_r),
                     "W": to_jsonable(e.W),
+                    # a χ² evaluator's window is 1 and not written: its files stay as they were
+                    **({"window": int(e.window)} if e.kind != "chi2" else {}),
                 }
                 for e in self.evaluators
             ]
@@ -367,16 +389,23 @@ class GainFile:
         return doc
 
 
-def linear_state_layout(generators: Sequence[Generator], n_statistics: int) -> StateLayout:
+def linear_state_layout(generators: Sequence[Generator], evaluators: Sequence[Evaluator]) -> StateLayout:
     """Where each part of a linear diagnoser's state vector lives.
 
     ``xi<g>``: generator ``g``'s state; ``counters``: one persistence counter
     per statistic; ``ready``: one flag per generator (0 until its first valid
     sample has initialised it at equilibrium); ``nonfinite``: the number of
-    samples that held a non-finite input or output.
+    samples that held a non-finite input or output; ``window<j>``: for each
+    WSSR statistic ``j``, the ``q`` of its generator's last ``window`` valid
+    samples, newest first (a shift register: each valid sample shifts it by
+    one and writes ``q`` at the top; zeros not yet overwritten are the samples
+    not seen yet, so ``J`` — the sum of the register — needs no fill count,
+    and the step has no index arithmetic, which the symbolic step would spell
+    out as one comparison per entry anyway).
     """
     blocks = [(f"xi{g}", gen.n_state, 1) for g, gen in enumerate(generators)]
-    blocks += [("counters", n_statistics, 1), ("ready", len(generators), 1), ("nonfinite", 1, 1)]
+    blocks += [("counters", len(evaluators), 1), ("ready", len(generators), 1), ("nonfinite", 1, 1)]
+    blocks += [(f"window{j}", int(e.window), 1) for j, e in enumerate(evaluators) if e.kind == "wssr"]
     return StateLayout(tuple(blocks), scalars=frozenset({"nonfinite"}))
 
 
@@ -531,15 +560,19 @@ def gain_file_from_dict(doc: object, *, source: str = "gain file") -> GainFile:
         evs = []
         for i, ed in enumerate(r.array("evaluators")):
             er = _Reader(ed, f"{source}: evaluators[{i}]")
+            ev_kind = er.string("kind")
+            # a χ² evaluator's window is 1 when not written (the files of earlier versions); a WSSR one needs it
+            window = er.integer("window") if ev_kind == "wssr" or "window" in er.doc else 1
             evs.append(
                 Evaluator(
-                    kind=er.string("kind"),
+                    kind=ev_kind,
                     generator=er.integer("generator", minimum=0),
                     P_f=er.number("P_f"),
                     dof=er.integer("dof", minimum=0),
                     threshold=er.number("threshold"),
                     Sigma_r=er.matrix("Sigma_r"),
                     W=er.matrix("W"),
+                    window=window,
                 )
             )
         kwargs["evaluators"] = tuple(evs)
@@ -937,8 +970,12 @@ def _validate_linear(gf: GainFile) -> None:
         _fail("a linear diagnoser needs at least one evaluator")
     for j, e in enumerate(gf.evaluators):
         w = f"evaluators[{j}]"
-        if e.kind != "chi2":
-            _fail(f"{w}.kind {e.kind!r} is not supported (supported: 'chi2')")
+        if e.kind not in EVALUATOR_KINDS:
+            _fail(f"{w}.kind {e.kind!r} is not supported (supported: {', '.join(map(repr, EVALUATOR_KINDS))})")
+        if e.kind == "chi2" and not (type(e.window) is int and e.window == 1):
+            _fail(f"{w}.window must be 1 for a 'chi2' evaluator (one sample), found {shown(e.window)}; use kind 'wssr' for a window")
+        if e.kind == "wssr" and not (type(e.window) is int and 1 <= e.window <= MAX_WSSR_WINDOW):
+            _fail(f"{w}.window must be a whole number of samples in 1..{MAX_WSSR_WINDOW}, found {shown(e.window)}")
         if not 0 <= e.generator < len(gf.generators):
             _fail(f"{w}.generator {e.generator} is not a generator index (0..{len(gf.generators) - 1})")
         ng = gf.generators[e.generator].n_residual
@@ -966,7 +1003,7 @@ def _validate_linear(gf: GainFile) -> None:
         if rows.count(row) > 1:
             _fail(f"decision.signatures: fault {gf.faults[f]!r} shares its signature {list(row)} with another fault")
     st = gf.step
-    lay = linear_state_layout(gf.generators, len(gf.evaluators))
+    lay = linear_state_layout(gf.generators, gf.evaluators)
     if st.nr != nr or st.nj != len(gf.evaluators) or st.nstate != lay.size:
         _fail(
             f"step sizes nr={st.nr}, nj={st.nj}, nstate={st.nstate} do not match the generators "

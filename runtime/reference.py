@@ -14,7 +14,11 @@ against it in the tests). Per sample ``k``, for each generator ``g``:
    steady state produces no start-up transient).
 3. ``r = Cr ξ + Du u + Dy y``;  ``ξ⁺ = Ar ξ + Bu u + By y``.
 
-Then each statistic ``J_j = r_gᵀ W_j r_g``; its persistence counter counts
+Then each statistic of ``g`` weighs ``q_j = r_gᵀ W_j r_g``: a χ² statistic is
+``J_j = q_j``; a WSSR one (window ``N``) shifts ``q_j`` into its window —
+the last ``N`` samples ``g`` did not skip, newest first, zeros for those not
+seen yet — and ``J_j`` is the window's sum, added newest first (the order of
+the generated C). A statistic's persistence counter counts
 consecutive samples with ``J_j > threshold_j`` (reset by a sample below); its
 flag is set when the counter reaches ``persistence``. ``alarm`` is any flag;
 ``isolated`` the fault whose signature equals the flag pattern, else −1.
@@ -143,7 +147,7 @@ class LinearReference:
         if gf.kind != "linear":
             raise ArgumentError(f"the NumPy reference implements linear diagnosers; this gain file is of kind {gf.kind!r}")
         self.gf = gf
-        self.layout = linear_state_layout(gf.generators, len(gf.evaluators))
+        self.layout = linear_state_layout(gf.generators, gf.evaluators)
         self.thresholds = gf.thresholds
         assert gf.decision is not None
         self.signatures = np.asarray(gf.decision.signatures, dtype=int)
@@ -179,6 +183,11 @@ class LinearReference:
                 rg = gen.Cr @ xi + gen.Du @ us + gen.Dy @ ys
                 xi_next = gen.Ar @ xi + gen.Bu @ us + gen.By @ ys
                 jg = {j: float(rg @ ev.W @ rg) for j, ev in enumerate(gf.evaluators) if ev.generator == g}
+                windows = {}
+                for j in jg:
+                    if gf.evaluators[j].kind == "wssr":
+                        windows[j] = np.concatenate([[jg[j]], state[lay[f"window{j}"]][:-1]])
+                        jg[j] = float(np.add.accumulate(windows[j])[-1])  # in order, newest first
             # a finite but absurd value can overflow: the sample is then skipped like a non-finite one
             if not (np.all(np.isfinite(rg)) and np.all(np.isfinite(xi_next)) and np.all(np.isfinite(list(jg.values())))):
                 overflow = True
@@ -187,6 +196,8 @@ class LinearReference:
             ready[g] = 1.0
             r[self.r_slices[g]] = rg
             state[sl] = xi_next
+            for j, window in windows.items():
+                state[lay[f"window{j}"]] = window
             for j, value in jg.items():
                 jv[j] = value
                 counters[j] = counters[j] + 1.0 if value > self.thresholds[j] else 0.0

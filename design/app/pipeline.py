@@ -77,13 +77,15 @@ def _rounding_scale(gf: GainFile, states: np.ndarray, res: RunResult, U: np.ndar
     A linear generator computes ``r = Cr ξ + Du u + Dy y``, whose rounding
     error is bounded by a few ulps of ``s_r = |Cr||ξ| + |Du||u| + |Dy||y|``;
     ``J = rᵀ W r`` then errs by up to ``s_J = |r|ᵀ|W|(|r| + 2 s_r)`` times
-    the same factor. A residual that is a small difference of large terms
-    (an integrating state, a large operating point) is compared against its
-    terms, not against itself. Other kinds: ``|r|`` and ``|J|``.
+    the same factor; a WSSR statistic sums that scale over its window (the
+    last ``window`` samples its generator evaluated). A residual that is a
+    small difference of large terms (an integrating state, a large operating
+    point) is compared against its terms, not against itself. Other kinds:
+    ``|r|`` and ``|J|``.
     """
     if gf.kind != "linear":
         return np.abs(res.r), np.abs(res.J)
-    lay = linear_state_layout(gf.generators, len(gf.evaluators))
+    lay = linear_state_layout(gf.generators, gf.evaluators)
     before = np.column_stack([gf.step.init_state, states[:, :-1]])  # the state each sample starts from
     us, ys = np.nan_to_num(U, nan=0.0, posinf=0.0, neginf=0.0), np.nan_to_num(Y, nan=0.0, posinf=0.0, neginf=0.0)
     s_r = np.zeros_like(res.r)
@@ -99,6 +101,11 @@ def _rounding_scale(gf: GainFile, states: np.ndarray, res: RunResult, U: np.ndar
         for j, ev in enumerate(gf.evaluators):
             if ev.generator == g:
                 s_j[:, j] = np.einsum("ki,ij,kj->k", r_abs, np.abs(ev.W), r_abs + 2.0 * block)
+                if ev.kind == "wssr":
+                    valid = np.all(np.isfinite(U), axis=1) & np.all(np.isfinite(Y[:, list(gen.outputs_used)]), axis=1)
+                    summed = np.convolve(s_j[valid, j], np.ones(ev.window))[: int(np.sum(valid))]
+                    s_j[:, j] = 0.0
+                    s_j[valid, j] = summed
         k += gen.n_residual
     return s_r, s_j
 

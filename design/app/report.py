@@ -180,7 +180,8 @@ def _designs_section(variant: Any) -> str:
             sensors = sorted({s for row in mdb.values() for s in row})
             out.append(
                 '<p class="small">Smallest constant sensor bias that crosses the threshold on its own at steady state '
-                "(<code>sqrt(J_th / gᵀWg)</code>, sensor units; — : sensor not used).</p>"
+                + ("(<code>sqrt(J_th / gᵀWg)</code>" if all(e.window == 1 for e in gf.evaluators) else "(<code>sqrt(J_th / (N gᵀWg))</code>, N the WSSR window")
+                + ", sensor units; — : sensor not used).</p>"
             )
             out.append(table(["generator", *sensors], [[g, *(row.get(s) for s in sensors)] for g, row in mdb.items()]))
     return "".join(out)

@@ -67,7 +67,7 @@ def _const(a: np.ndarray) -> ca.DM:
 def linear_step_function(gf: GainFile) -> ca.Function:
     """Symbolic step of a ``kind = "linear"`` gain file (semantics of the reference)."""
     st = gf.step
-    lay = linear_state_layout(gf.generators, len(gf.evaluators))
+    lay = linear_state_layout(gf.generators, gf.evaluators)
     state = ca.SX.sym("state", st.nstate)
     u = ca.SX.sym("u", st.nu)
     y = ca.SX.sym("y", st.ny)
@@ -91,6 +91,15 @@ def linear_step_function(gf: GainFile) -> ca.Function:
         xi_next = ca.mtimes(_const(gen.Ar), xi) + ca.mtimes(_const(gen.Bu), us) + ca.mtimes(_const(gen.By), ys)
         evs = [j for j, ev in enumerate(gf.evaluators) if ev.generator == g]
         j_g = {j: ca.mtimes([r_g.T, _const(gf.evaluators[j].W), r_g]) for j in evs}
+        windows = {}
+        for j in evs:
+            if gf.evaluators[j].kind == "wssr":  # shift q in, sum newest first (the reference's order)
+                ws = lay[f"window{j}"]
+                windows[j] = ca.vertcat(j_g[j], state[ws.start : ws.stop - 1])
+                total = windows[j][0]
+                for i in range(1, windows[j].numel()):
+                    total = total + windows[j][i]
+                j_g[j] = total
         # a finite but absurd value can overflow: the sample is then skipped like a non-finite one
         results_ok = all_finite(r_g, xi_next, *j_g.values())
         ok = ca.logic_and(inputs_ok, results_ok)
@@ -99,6 +108,9 @@ def linear_step_function(gf: GainFile) -> ca.Function:
         # after an overflow the generator restarts at its next valid sample
         nxt[lay["ready"].start + g] = ca.if_else(ok, 1, ca.if_else(inputs_ok, 0, ready))
         r_parts.append(ca.if_else(ok, r_g, 0))
+        for j, window in windows.items():
+            ws = lay[f"window{j}"]
+            nxt[ws.start : ws.stop] = ca.if_else(ok, window, state[ws.start : ws.stop])
         for j in evs:
             jj = ca.if_else(ok, j_g[j], 0)
             c = state[lay["counters"].start + j]

@@ -38,6 +38,7 @@ __all__ = [
     "beard_residual_autocovariance",
     "quadratic_form_sf",
     "quadratic_form_quantile",
+    "window_energy_quantile",
     "window_rms_threshold",
     "window_mean_level",
     "QUANTILE_RTOL",
@@ -244,16 +245,18 @@ def quadratic_form_quantile(eigenvalues: object, P_f: object) -> float:
     return top * x
 
 
-def window_rms_threshold(R_list: object, window: object, P_f: object) -> float:
-    """``h``: the ``1 − P_f`` quantile of the window RMS ``s = sqrt((1/N) Σ_{j<N} ‖ε(k−j)‖²)`` at stationarity.
+def window_energy_quantile(R_list: object, window: object, P_f: object) -> float:
+    """The ``1 − P_f`` quantile of the window energy ``Σ_{j<N} ‖ε(k−j)‖²`` at stationarity.
 
     ``R_list`` holds ``R(0), R(1), …`` (``R(τ) = E[ε(k+τ) ε(k)ᵀ]``, ``p × p``; at least ``N = window`` of
     them, e.g. :func:`residual_autocovariance` with ``lags ≥ N − 1``). The stacked window
     ``E = [ε(k); ε(k−1); …; ε(k−N+1)]`` has the block-Toeplitz covariance ``Σ_E`` with blocks
-    ``E[ε(k−i) ε(k−j)ᵀ] = R(j − i)`` (``R(−τ) = R(τ)ᵀ``), so ``N s² = ‖E‖² = Σ μ_l χ²_1`` over the ``N p``
+    ``E[ε(k−i) ε(k−j)ᵀ] = R(j − i)`` (``R(−τ) = R(τ)ᵀ``), so ``‖E‖² = Σ μ_l χ²_1`` over the ``N p``
     eigenvalues ``μ_l`` of ``Σ_E`` (``scipy.linalg.eigvalsh``: 0.5 s at ``N p = 2000`` on an idle core, the
-    quantile about as long again; at most :data:`MAX_WINDOW_SIZE`), and ``h = sqrt(x / N)`` with ``x``
-    :func:`quadratic_form_quantile`. Raises :class:`ExistenceError` when the residual has zero covariance (``s ≡ 0``: no threshold).
+    quantile about as long again; at most :data:`MAX_WINDOW_SIZE`), and the quantile is
+    :func:`quadratic_form_quantile`'s. A weighted sum ``Σ ε(k−j)ᵀ W ε(k−j)`` is the energy of ``T ε`` for any
+    ``T`` with ``Tᵀ T = W`` (autocovariance ``T R(τ) Tᵀ``). Raises :class:`ExistenceError` when the residual
+    has zero covariance (the energy is ≡ 0: no threshold).
     """
     r, n = _autocovariances(R_list, window)
     p = r.shape[1]
@@ -262,7 +265,17 @@ def window_rms_threshold(R_list: object, window: object, P_f: object) -> float:
     idx = np.arange(n)[None, :] - np.arange(n)[:, None] + n - 1
     cov = np.transpose(both[idx], (0, 2, 1, 3)).reshape(n * p, n * p)
     mu = _covariance_eigenvalues(0.5 * (cov + cov.T), "the window covariance of R_list")
-    return math.sqrt(quadratic_form_quantile(mu, P_f) / n)
+    return quadratic_form_quantile(mu, P_f)
+
+
+def window_rms_threshold(R_list: object, window: object, P_f: object) -> float:
+    """``h``: the ``1 − P_f`` quantile of the window RMS ``s = sqrt((1/N) Σ_{j<N} ‖ε(k−j)‖²)`` at stationarity.
+
+    ``N s²`` is the window energy, so ``h = sqrt(x / N)`` with ``x`` :func:`window_energy_quantile` (``R_list``
+    and the errors as there).
+    """
+    x = window_energy_quantile(R_list, window, P_f)
+    return math.sqrt(x / _whole(window, "window", 1))
 
 
 def window_mean_level(R_list: object, window: object, P_f: object) -> float:

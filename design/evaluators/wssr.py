@@ -1,16 +1,26 @@
-"""The WSSR threshold table of the NAFDF's fast detection (Zhou, Xi & Zhang, c. 1991, eq. (2.4)).
+"""Windowed weighted sums of squared residuals (WSSR) and their thresholds.
+
+* The threshold table of the NAFDF's fast detection (Zhou, Xi & Zhang, c. 1991, eq. (2.4)):
+  :func:`wssr_threshold_table`.
+* The WSSR evaluator of a linear residual generator (Long & Wang, Aeroengine 43(5), 2017, section 2):
+  :func:`wssr_evaluator`, threshold from the residual's autocovariance over the window.
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import Literal
 
 import numpy as np
 import scipy.stats
-from fdisyn.runtime.errors import ArgumentError
+from fdisyn.evaluators.chi2 import chi2_evaluator
+from fdisyn.evaluators.window import window_energy_quantile
+from fdisyn.runtime.errors import ArgumentError, ShapeError
+from fdisyn.runtime.gainfile import MAX_WSSR_WINDOW, Evaluator
+from fdisyn.runtime.names import shown
 
-__all__ = ['wssr_threshold_table']
+__all__ = ['wssr_threshold_table', 'wssr_evaluator']
 
 # The largest finite double: a threshold that can never be exceeded (JSON has no inf).
 _NEVER = float(np.finfo(float).max)
@@ -34,3 +44,34 @@ def wssr_threshold_table(
         return np.where(ks == window, float(beta0), _NEVER)
     raise ArgumentError(f"threshold_rule must be 'chi2' or 'beta0'; got {rule!r}")
 
+
+def wssr_evaluator(generator: int, sigma_r: np.ndarray, R_list: np.ndarray, P_f: float, window: int) -> Evaluator:
+    """WSSR evaluator ``J(k) = Σ_{l<N} r(k−l)ᵀ W r(k−l)`` over ``N = window`` samples (Long & Wang, Aeroengine
+    43(5), 2017, section 2), the runtime's ``kind = "wssr"`` (:class:`~fdisyn.runtime.gainfile.Evaluator`).
+
+    ``W`` and ``dof`` are the χ² evaluator's (:func:`~fdisyn.evaluators.chi2.chi2_evaluator` on ``sigma_r``).
+    The threshold is the exact ``1 − P_f`` quantile of ``J`` under no fault with Gaussian noise: with
+    ``T = Λ^{−1/2} Vᵀ`` on the ``dof`` kept directions (``Tᵀ T = W``), ``J`` is the energy of the window of
+    ``T r``, whose autocovariance is ``T R(τ) Tᵀ``, so ``J ~ Σ λ_i χ²_1`` with ``λ`` the eigenvalues of
+    ``(I_N ⊗ T) Σ_window (I_N ⊗ T)ᵀ`` — those of ``(I_N ⊗ W^{1/2}) Σ_window (I_N ⊗ W^{1/2})`` without its
+    zeros — (:func:`~fdisyn.evaluators.window.window_energy_quantile`). ``R_list`` holds ``R(0) … R(N−1)``
+    of the residual, ``R(τ) = E[r(k+τ) r(k)ᵀ]`` (:func:`fdisyn.synthesis.residual.residual_autocovariances`).
+    A white residual (the innovation of a minimum-variance UIO) gives ``χ²_{1−P_f}(N·dof)``; ``N = 1`` is
+    the χ² evaluator's threshold up to the quantile's accuracy. The threshold is that of a full window: at
+    start-up, with fewer than ``N`` samples in it, ``J`` sums fewer terms and alarms less (conservative).
+    """
+    n = _window(window)
+    chi2 = chi2_evaluator(generator, sigma_r, P_f)
+    lam, vec = np.linalg.eigh(chi2.W)
+    t = np.sqrt(lam[-chi2.dof :])[:, None] * vec[:, -chi2.dof :].T
+    r = np.asarray(R_list, dtype=float)
+    if r.ndim != 3 or r.shape[0] < n or r.shape[1:] != chi2.W.shape:
+        raise ShapeError(f"R_list must hold R(0)…R({n - 1}), each {chi2.W.shape}; got shape {r.shape}")
+    rz = np.einsum("ai,tij,bj->tab", t, r[:n], t)
+    return replace(chi2, kind="wssr", window=n, threshold=window_energy_quantile(rz, n, P_f))
+
+
+def _window(value: object) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 1 <= int(value) <= MAX_WSSR_WINDOW:
+        raise ArgumentError(f"window must be a whole number of samples in 1..{MAX_WSSR_WINDOW}; got {shown(value)}")
+    return int(value)

@@ -1,4 +1,4 @@
-"""Assemble a linear diagnoser: generators + χ² evaluators + signature decision.
+"""Assemble a linear diagnoser: generators + evaluators (χ² or WSSR) + signature decision.
 
 The result is a :class:`~fdisyn.runtime.gainfile.GainFile`, the unit that is
 written to disk and to C. Signatures are derived, not typed in: a sensor fault
@@ -7,7 +7,7 @@ is expected to raise statistic ``j`` when its sensor is among the outputs of
 sensitive to it (a nonzero steady-state gain from the sensor to the residual).
 
 The linear design methods share the bank around their generators: the options
-``P_f``, ``persistence``, ``bank``, ``faults`` (and ``Ts`` to sample a
+``P_f``, ``persistence``, ``evaluator``, ``window``, ``bank``, ``faults`` (and ``Ts`` to sample a
 continuous plant) are defined here once, and :func:`linear_method` registers a
 method from the design of one generator.
 """
@@ -25,11 +25,13 @@ from typing import Any
 import numpy as np
 from fdisyn.codegen.step import linear_step_function
 from fdisyn.evaluators.chi2 import chi2_evaluator
+from fdisyn.evaluators.wssr import wssr_evaluator
 from fdisyn.models.linear import LinearPlant
 from fdisyn.numerics.certificate import Certificate, Check
 from fdisyn.numerics.linalg import transfer_size
 from fdisyn.runtime.errors import ArgumentError, FdisynError, ShapeError
 from fdisyn.runtime.gainfile import (
+    MAX_WSSR_WINDOW,
     Decision,
     Evaluator,
     GainFile,
@@ -38,8 +40,8 @@ from fdisyn.runtime.gainfile import (
     linear_state_layout,
 )
 from fdisyn.runtime.names import check_fault_name, shown
-from fdisyn.synthesis.registry import P_F, PERSISTENCE, REQUIRED, Method, Option, at, is_real, register
-from fdisyn.synthesis.residual import dc_gain_y, internal_form
+from fdisyn.synthesis.registry import P_F, PERSISTENCE, REQUIRED, WINDOW, Method, Option, at, is_count, is_real, register
+from fdisyn.synthesis.residual import dc_gain_y, internal_form, residual_autocovariances
 
 __all__ = [
     'BANK_OPTIONS',
@@ -104,13 +106,19 @@ def linear_diagnoser(
     faults: Sequence[FaultClass],
     certificates: Sequence[Certificate],
     persistence: int = 1,
+    evaluator: str = "chi2",
+    window: int = 1,
     options: Mapping[str, object] | None = None,
 ) -> GainFile:
     """Build and check the gain file of a bank of linear residual generators.
 
     ``sigma_r[i]`` is generator ``i``'s steady-state residual covariance (from
-    its design); each gets one χ² evaluator. ``faults`` name the fault classes
-    to isolate; their signatures must be nonzero and distinct.
+    its design); each gets one evaluator: ``evaluator = "chi2"``, the χ²
+    statistic (Hu et al. 2013, Acta Automatica Sinica 39(8), eqs. (18)–(19);
+    ``window`` must be 1), or ``"wssr"``, its sum over ``window`` samples
+    (Long & Wang, Aeroengine 43(5), 2017, section 2) with the threshold from
+    the residual's autocovariance on ``plant``. ``faults`` name the fault
+    classes to isolate; their signatures must be nonzero and distinct.
     """
     if not plant.is_discrete:
         raise ArgumentError("linear_diagnoser needs the discrete plant the generators were designed on")
@@ -118,13 +126,23 @@ def linear_diagnoser(
         raise ShapeError(f"{len(generators)} generators need as many residual covariances and certificates")
     if int(persistence) < 1:
         raise ArgumentError(f"persistence must be a positive number of samples; got {persistence!r}")
+    if evaluator not in ("chi2", "wssr"):
+        raise ArgumentError(f"evaluator must be 'chi2' or 'wssr'; got {shown(evaluator)}")
+    if evaluator == "chi2" and window != 1:
+        raise ArgumentError(f"window = {shown(window)} needs evaluator = 'wssr'; the χ² evaluator ('chi2') uses one sample")
     gens = list(generators)
-    evals = [chi2_evaluator(i, s, P_f) for i, s in enumerate(sigma_r)]
+    if evaluator == "wssr":
+        evals = [
+            wssr_evaluator(i, s, residual_autocovariances(g, plant, int(window) - 1), P_f, window)
+            for i, (g, s) in enumerate(zip(gens, sigma_r, strict=True))
+        ]
+    else:
+        evals = [chi2_evaluator(i, s, P_f) for i, s in enumerate(sigma_r)]
     sig = np.array([[_expected(fault, gens[ev.generator], plant) for ev in evals] for fault in faults], dtype=int)
     checks, sensitivity = _bank_checks(generators, evals, plant)
     bank_cert = Certificate.of(f"{problem}/{design} bank", checks, {"min_detectable_bias": sensitivity}).require()
     nr = sum(g.n_residual for g in gens)
-    lay = linear_state_layout(gens, len(evals))
+    lay = linear_state_layout(gens, evals)
     step = StepSpec(
         nu=plant.m,
         ny=plant.p,
@@ -218,8 +236,8 @@ def _bank_checks(
     Check: the transfer from an additive fault on sensor ``s`` to the residual
     (``Ar, By[:, s], Cr, Dy[:, s]``) is not identically zero (normalised Markov
     parameters above round-off). Information: the smallest constant bias that
-    crosses the threshold on its own at steady state, ``b_min = sqrt(J_th / gᵀ W g)``
-    with ``g`` the DC gain column (∞ when a bias is invisible at steady state,
+    crosses the threshold on its own at steady state, ``b_min = sqrt(J_th / (N gᵀ W g))``
+    with ``g`` the DC gain column and ``N`` the window (1 for χ²) (∞ when a bias is invisible at steady state,
     e.g. on a sensor of an integrating state: only its onset transient shows;
     reported as ``None``).
     """
@@ -234,7 +252,7 @@ def _bank_checks(
             energy = float(g @ ev.W @ g)
             scale = float(np.linalg.norm(gen.Dy[:, j]) + np.linalg.norm(gen.Cr) * np.linalg.norm(gen.By[:, j]))
             visible = energy > 1e-20 * scale**2 * np.linalg.norm(ev.W, 2)  # a DC gain cancelled to round-off
-            row[plant.outputs[j]] = float(np.sqrt(ev.threshold / energy)) if visible else None
+            row[plant.outputs[j]] = float(np.sqrt(ev.threshold / (ev.window * energy))) if visible else None
             checks.append(
                 Check(
                     f"{gen.name}: sensor {plant.outputs[j]} reaches the residual",
@@ -343,8 +361,23 @@ TS = Option(
     lambda v: is_real(v) and v > 0,
     plant_file="[model].Ts",
 )
-BANK_OPTIONS: tuple[Option, ...] = (P_F, PERSISTENCE, BANK, FAULTS)
-"""The options of every linear method: the bank and its χ² evaluation (Hu et al. 2013, Acta Automatica Sinica 39(8), eq. (20))."""
+EVALUATOR = Option(
+    "evaluator",
+    "chi2",
+    "the statistic of each generator: 'chi2', q = rᵀ W r per sample, or 'wssr', the sum of q over the last window valid samples",
+    "'chi2' or 'wssr'",
+    lambda v: v in ("chi2", "wssr"),
+)
+LINEAR_WINDOW = replace(
+    WINDOW,
+    default=1,
+    kind=f"a whole number of samples in 1..{MAX_WSSR_WINDOW}",
+    accepts=lambda v: is_count(v) and v <= MAX_WSSR_WINDOW,
+    doc="WSSR window N in samples (Long & Wang, Aeroengine 43(5), 2017, section 2); only with evaluator 'wssr'",
+)
+BANK_OPTIONS: tuple[Option, ...] = (P_F, PERSISTENCE, EVALUATOR, LINEAR_WINDOW, BANK, FAULTS)
+"""The options of every linear method: the bank and its evaluation (χ²: Hu et al. 2013, Acta Automatica Sinica 39(8),
+eq. (20); WSSR: Long & Wang, Aeroengine 43(5), 2017, section 2)."""
 
 GeneratorDesign = Callable[..., tuple[Generator, np.ndarray, Certificate]]
 """``(plant, outputs_used, name, **options) -> (generator on all outputs, residual covariance, certificate)``."""
@@ -354,12 +387,15 @@ def linear_recovery_samples(gf: GainFile) -> int:
     """Samples for a fault's transient to decay by 1e-8 in the slowest generator.
 
     ``ceil(ln 1e-8 / ln ρ)`` with ``ρ`` the largest spectral radius of the
-    generators' ``Ar``; after that the statistics no longer carry the fault.
+    generators' ``Ar``, plus ``N − 1`` for the longest WSSR window ``N`` (it
+    holds the fault's last samples that long); after that the statistics no
+    longer carry the fault.
     """
     rho = max((float(np.max(np.abs(np.linalg.eigvals(g.Ar)))) for g in gf.generators if g.n_state), default=0.0)
+    held = max((e.window for e in gf.evaluators), default=1) - 1
     if rho <= 0.0:
-        return 1
-    return max(1, math.ceil(math.log(1e-8) / math.log(rho)))
+        return 1 + held
+    return max(1, math.ceil(math.log(1e-8) / math.log(rho))) + held
 
 
 def bank_diagnoser(
@@ -374,12 +410,14 @@ def bank_diagnoser(
     P_f: float,
     persistence: int,
     bank: Mapping[str, Sequence[int]] | None,
+    evaluator: str = "chi2",
+    window: int = 1,
     faults: Sequence[FaultClass] | None,
     Ts: float | None = None,
     sampled_data: bool = False,
     **options: Any,
 ) -> GainFile:
-    """One generator per group of ``bank`` (``generator`` designs each), χ² evaluators, signatures.
+    """One generator per group of ``bank`` (``generator`` designs each), evaluators (``evaluator``, ``window``), signatures.
 
     ``sampled_data``: ``generator`` gets the continuous plant (sampled every
     ``Ts`` by the method itself); otherwise the discrete plant (a continuous
@@ -410,6 +448,8 @@ def bank_diagnoser(
         faults=faults if faults is not None else default_fault_classes(discrete, gens),
         certificates=certs,
         persistence=persistence,
+        evaluator=evaluator,
+        window=window,
         options=record,
     )
 
@@ -439,6 +479,11 @@ def linear_method(
     """
 
     def checks(plant: Any, opts: Mapping[str, Any], where: str) -> None:
+        if opts.get("evaluator", "chi2") == "chi2" and opts.get("window", 1) != 1:
+            raise ArgumentError(
+                f"{at(where, 'window')} = {shown(opts['window'])} needs evaluator = 'wssr' "
+                "(the χ² evaluator 'chi2' uses one sample)"
+            )
         if not sampled_data:
             _check_ts(plant, opts, where)
         if check is not None:

@@ -19,12 +19,14 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.linalg
+from fdisyn.evaluators.window import residual_autocovariance
 from fdisyn.models.linear import LinearPlant
 from fdisyn.numerics.linalg import dlyap, spectral_radius, transfer_size
 from fdisyn.runtime.errors import ExistenceError, ShapeError
 from fdisyn.runtime.gainfile import Generator
 
-__all__ = ["InternalForm", "internal_form", "dc_gain_y", "residual_covariance", "embed_outputs"]
+__all__ = ["InternalForm", "internal_form", "dc_gain_y", "residual_covariance", "residual_autocovariances", "embed_outputs"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -93,12 +95,50 @@ def residual_covariance(gen: Generator, plant: LinearPlant) -> np.ndarray:
             f"the plant with generator {gen.name!r} has no stationary residual covariance (internal form spectral radius "
             f"{spectral_radius(form.A):.6g}); use the design's own covariance"
         )
-    n, ns = plant.n, gen.n_state
-    bw = np.vstack([np.eye(n), np.zeros((ns, n))])
-    bv = np.vstack([np.zeros((n, plant.p)), gen.By])
+    bw, bv = _noise_inputs(gen, plant)
     sig = dlyap(form.A, bw @ plant.Q @ bw.T + bv @ plant.R @ bv.T)
     s = form.C @ sig @ form.C.T + gen.Dy @ plant.R @ gen.Dy.T
     return 0.5 * (s + s.T)
+
+
+def _noise_inputs(gen: Generator, plant: LinearPlant) -> tuple[np.ndarray, np.ndarray]:
+    """How the plant's noise enters the internal form: ``B_w = [I; 0]`` (process), ``B_v = [0; By]`` (sensors)."""
+    n, ns = plant.n, gen.n_state
+    return np.vstack([np.eye(n), np.zeros((ns, n))]), np.vstack([np.zeros((n, plant.p)), gen.By])
+
+
+_DECOUPLED_RTOL = 1e-9
+"""A mode the residual does not see: its output direction ``‖C_i U₁‖`` below this fraction of ``‖C_i‖``
+(round-off of an exact decoupling is ~1e-15 times the conditioning; cf. the UIO's ``DECOUPLING_TOL``)."""
+
+
+def residual_autocovariances(gen: Generator, plant: LinearPlant, lags: int) -> np.ndarray:
+    """``R(τ) = E[r(k+τ) r(k)ᵀ]``, ``τ = 0..lags``, of ``gen``'s residual on ``plant`` under its noise ``Q``, ``R``.
+
+    The internal form driven by ``n = [w; v] ~ N(0, blkdiag(Q, R))`` through ``K = [B_w, B_v]`` with the
+    feedthrough ``[0, Dy]`` (as :func:`residual_covariance`, which is ``R(0)``), by
+    :func:`fdisyn.evaluators.window.residual_autocovariance`. A plant with modes on or outside the unit circle
+    (an integrator, say) has a stationary residual only if the residual does not see them: then the internal
+    form's real Schur form, ordered with those modes first (``A_i = U [[A₁₁, A₁₂], [0, A₂₂]] Uᵀ``), has
+    ``C_i U₁ = 0`` and the residual is the output of the stable quotient ``(A₂₂, U₂ᵀ K, C_i U₂)``. Raises
+    :class:`ExistenceError` when it does see one (no stationary law).
+    """
+    form = internal_form(gen, plant)
+    bw, bv = _noise_inputs(gen, plant)
+    k = np.hstack([bw, bv])
+    dn = np.hstack([np.zeros((gen.n_residual, plant.n)), gen.Dy])
+    w = scipy.linalg.block_diag(plant.Q, plant.R)
+    a, c = form.A, form.C
+    if spectral_radius(a) >= 1.0:
+        t, u, unstable = scipy.linalg.schur(a, output="real", sort=lambda re, im: re * re + im * im >= 1.0 - 1e-12)
+        seen = float(np.linalg.norm(c @ u[:, :unstable]))
+        if not seen <= _DECOUPLED_RTOL * max(float(np.linalg.norm(c)), 1e-300):
+            raise ExistenceError(
+                f"the residual of generator {gen.name!r} sees a mode of the plant on or outside the unit circle "
+                f"(output direction {seen:.3g}): it has no stationary law and no windowed threshold"
+            )
+        a, k, c = t[unstable:, unstable:], (u.T @ k)[unstable:], (c @ u)[:, unstable:]
+    return residual_autocovariance(a, k, c, dn, w, lags)
 
 
 def embed_outputs(gen: Generator, outputs_used: Sequence[int], n_outputs: int) -> Generator:

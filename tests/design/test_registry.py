@@ -229,8 +229,11 @@ def test_register_refuses_a_bad_method() -> None:
 
 
 def test_plant_file_design_keys_come_from_the_schema(tmp_path) -> None:
-    doc = {"name": "p", "model": {"time": "discrete", "Ts": 0.1, "A": [[0.5]], "C": [[1.0]], "E": [[1.0]]}, "design": {"window": 3}}
-    with pytest.raises(SpecError, match=r"\[design\].window is read by methods 'beard_fdf', 'nafdf', not by 'kalman_uio'"):
+    doc = {"name": "p", "model": {"time": "discrete", "Ts": 0.1, "A": [[0.5]], "C": [[1.0]], "E": [[1.0]]}, "design": {"sigma": 0.1}}
+    with pytest.raises(SpecError, match=r"\[design\].sigma is read only by method 'beard_fdf', not by 'kalman_uio'"):
+        problem_from_document(doc, tmp_path / "p.toml")
+    doc["design"] = {"window": 3}  # the linear bank's WSSR window: with its evaluator only
+    with pytest.raises(SpecError, match=r"\[design\].window = 3 needs evaluator = 'wssr'"):
         problem_from_document(doc, tmp_path / "p.toml")
     doc["design"] = {"method": "lmi"}
     with pytest.raises(SpecError, match="designs for a continuous plant sampled at Ts"):

@@ -259,7 +259,7 @@ def _no_input_toy() -> GainFile:
     by = np.array([[0.25, 0.25]])
     gen = Generator.from_canonical(name="g0", outputs_used=(0, 1), Ar=ar, Bu=np.zeros((1, 0)), By=by, Cr=np.array([[-0.5], [-0.5]]), Du=np.zeros((2, 0)), Dy=np.eye(2))
     ev = Evaluator(kind="chi2", generator=0, P_f=0.01, dof=2, threshold=9.21, Sigma_r=np.eye(2), W=np.eye(2))
-    lay = linear_state_layout([gen], 1)
+    lay = linear_state_layout([gen], [ev])
     return GainFile(
         kind="linear", name="free", problem="free", design="toy", Ts=1.0, inputs=(), outputs=("a", "b"), faults=("a",),
         step=StepSpec(nu=0, ny=2, nr=2, nj=1, nstate=lay.size, init_state=np.zeros(lay.size), residual_names=("g0.a", "g0.b"), statistic_names=("J_g0",)),

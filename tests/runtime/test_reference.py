@@ -31,7 +31,7 @@ def toy(persistence: int = 1) -> GainFile:
             )
         )
     evs = [Evaluator(kind="chi2", generator=i, P_f=0.05, dof=1, threshold=THRESHOLD, Sigma_r=np.eye(1), W=np.eye(1)) for i in range(2)]
-    lay = linear_state_layout(gens, 2)
+    lay = linear_state_layout(gens, evs)
     return GainFile(
         kind="linear", name="toy", problem="toy", design="toy", Ts=0.1, inputs=("u",), outputs=("y0", "y1"), faults=("y0", "y1", "both"),
         step=StepSpec(nu=1, ny=2, nr=2, nj=2, nstate=lay.size, init_state=np.zeros(lay.size), residual_names=("r0", "r1"), statistic_names=("J0", "J1")),
