@@ -34,6 +34,27 @@ The TOML format (every key is validated; errors name the key)::
                                       # default: one per sensor and component fault, merged when alike
     poles = [0.5, 0.6]                # an option of one method (here uio_pole_placement)
 
+The generalised UIO bank (``method = "kalman_uio_gos"``, Long & Wang,
+Aeroengine 43(5), 2017) reads, besides ``P_f``, ``persistence``, ``faults``::
+
+    groups = "auto"                   # or [["y1", "y2"], ["y2", "y3"]]: one UIO per sensor in each group,
+                                      # fed the group's other sensors; "auto": fewest groups of independent
+                                      # outputs covering the sensors, best conditioned
+    sensors = ["y1", "y2", "y3"]      # the sensors to diagnose (default: all)
+    evaluator = "wssr"                # default; or "chi2"
+    window = 25                       # WSSR window in samples (default 25)
+    training = "train.csv"            # estimate E from a fault-free trace (path relative to this file):
+                                      # columns t, the inputs, the outputs and the virtual outputs' states
+                                      # (in the model's state coordinates); needs time = "continuous";
+                                      # without it [model].E is decoupled
+    virtual_outputs = "auto"          # or ["x3", "x4"]: states completing group 1 to rank n while E is estimated
+    E_rank = 2                        # optional: the rank of E (default: from the singular-value gap)
+    rank_gap = 10.0                   # smallest σ_q/σ_(q+1) accepted as that gap
+    d_rate = 1.0                      # the estimator's random-walk rate of d₁, state magnitudes per second
+
+With ``training`` and no ``[model].Q``, the process noise becomes the
+mismatch ``E`` leaves out (its low-frequency power, as white noise).
+
 For the UIO methods ``E`` holds unknown inputs to decouple; for the
 sampled-data methods (Qiu, Wen & Jiang, Control Theory & Applications 27(8),
 2010) it holds the disturbance, continuous white noise of unit intensity, and
@@ -364,6 +385,9 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
     except FdisynError as exc:
         raise SpecError(f"{path} [model].state_scale: {exc}") from exc
     method, options = _design_section(top, path, name, ("linear", "continuous"))
+    if isinstance(options.get("training"), str) and options["training"]:
+        # a training trace is named relative to the plant file, like the file's other companions
+        options = {**options, "training": str(path.parent / options["training"])}
     white = method.plant_kind == "continuous"
     if white and time != "continuous":
         raise SpecError(f"{path} [design].method {method.name!r} designs for a continuous plant sampled at Ts: set [model].time = \"continuous\"")

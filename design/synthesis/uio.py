@@ -569,7 +569,7 @@ def _nlp_gain(red: ReducedProblem, lt0: np.ndarray) -> tuple[np.ndarray, dict[st
     sig0_hat = sig0 / np.outer(dsc, dsc)
     ev = np.linalg.eigvalsh(sig0_hat)
     w0 = np.linalg.cholesky(sig0_hat + max(0.0, 1e-8 - ev[0]) * np.eye(n))
-    lt = ca.SX.sym("Ltilde", n, nr)
+    lhat = ca.SX.sym("Lhat", n, nr)
     tri = ca.SX.sym("W_tri", n * (n + 1) // 2)
     w = ca.SX(n, n)
     k = 0
@@ -585,12 +585,16 @@ def _nlp_gain(red: ReducedProblem, lt0: np.ndarray) -> tuple[np.ndarray, dict[st
     dinv = ca.DM(np.diag(1.0 / dsc))
     sig_hat = ca.mtimes(w, w.T)
     a, c, q, r, s = (ca.DM(m) for m in (red.A, red.C, red.Q, red.R, red.S))
+    # the gain in scaled states and innovations: L̃ = D L̂ Dₑ⁻¹ with Dₑ² = diag(C̃ Σ̃ C̃ᵀ + R̃) at the start, so
+    # that sensors of different units (volts beside kelvins) give gain entries of one magnitude
+    dinn = np.sqrt(np.diag(red.C @ sig0 @ red.C.T + red.R))
+    lt = ca.mtimes([dm, lhat, ca.DM(np.diag(1.0 / dinn))])
     f_hat = ca.mtimes([dinv, a - ca.mtimes(lt, c), dm])  # D⁻¹ F̃ D
     noise = q - ca.mtimes(s, lt.T) - ca.mtimes(lt, s.T) + ca.mtimes([lt, r, lt.T])
     lyap = ca.mtimes([f_hat, sig_hat, f_hat.T]) + ca.mtimes([dinv, noise, dinv]) - sig_hat
     cons = ca.vertcat(*[lyap[i, j] for j in range(n) for i in range(j, n)])
-    x = ca.vertcat(ca.vec(lt), tri)
-    x0 = np.concatenate([lt0.reshape(-1, order="F"), start])
+    x = ca.vertcat(ca.vec(lhat), tri)
+    x0 = np.concatenate([(lt0 / dsc[:, None] * dinn[None, :]).reshape(-1, order="F"), start])
     lbx = np.concatenate([np.full(n * nr, -np.inf), lower_bounds])
     opts: dict[str, Any] = {
         "print_time": False,
@@ -613,7 +617,7 @@ def _nlp_gain(red: ReducedProblem, lt0: np.ndarray) -> tuple[np.ndarray, dict[st
             "check that (C, A1) is detectable and that Q, R are sensible covariances in scaled states"
         )
     xs = np.asarray(sol["x"]).reshape(-1)
-    return xs[: n * nr].reshape((n, nr), order="F"), {
+    return dsc[:, None] * xs[: n * nr].reshape((n, nr), order="F") / dinn[None, :], {
         "iter_count": int(stats.get("iter_count", -1)),
         "return_status": str(stats.get("return_status")),
     }

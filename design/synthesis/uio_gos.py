@@ -39,7 +39,8 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from pathlib import PurePath
 from typing import Any
 
 import numpy as np
@@ -47,9 +48,12 @@ import scipy.linalg
 from fdisyn.models.linear import LinearPlant
 from fdisyn.numerics.certificate import Certificate, Check
 from fdisyn.numerics.linalg import rank
-from fdisyn.runtime.errors import ArgumentError, ExistenceError, FdisynError, ShapeError
+from fdisyn.runtime.errors import ArgumentError, ExistenceError, FdisynError, ShapeError, TraceError
 from fdisyn.runtime.gainfile import GainFile
-from fdisyn.synthesis.linear_diagnoser import FaultClass, default_fault_classes, linear_diagnoser
+from fdisyn.runtime.names import shown
+from fdisyn.runtime.trace import Trace, read_trace
+from fdisyn.synthesis.linear_diagnoser import FaultClass, _sensor_indices, default_fault_classes, linear_diagnoser
+from fdisyn.synthesis.registry import Option, at
 from fdisyn.synthesis.residual import internal_form
 from fdisyn.synthesis.uio import kalman_uio
 
@@ -62,6 +66,8 @@ __all__ = [
     "estimate_unknown_input",
     "gos_bank",
     "gos_diagnoser",
+    "gos_design",
+    "GosDesign",
     "uio_name",
 ]
 
@@ -128,6 +134,9 @@ def virtual_outputs(C: np.ndarray, group: Sequence[int], *, state_names: Sequenc
     return tuple(best)
 
 
+_completion = virtual_outputs  # the function, where an option of the same name shadows it
+
+
 def output_groups(
     C: np.ndarray, sensors: Sequence[int] | None = None, *, outputs: Sequence[str] | None = None
 ) -> list[Grouping]:
@@ -187,6 +196,35 @@ class UnknownInputEstimate:
     """``N × n``: the estimates ``d̂₁(k)`` (physical units)."""
     group: tuple[int, ...]
     virtual: tuple[int, ...]
+    burn_in: int
+    """Samples left out at the start (the estimator's transient)."""
+
+    Ts: float
+
+    def left_out(self) -> np.ndarray:
+        """``N' × n``: the mismatch ``E`` leaves out, ``d̂₁ − E E⁺ d̂₁`` after the burn-in (physical units: the
+        part the UIOs are not decoupled from)."""
+        d = self.d_hat[self.burn_in :]
+        return d - d @ np.linalg.pinv(self.E).T @ self.E.T
+
+    def left_out_intensity(self, max_lag: float) -> np.ndarray:
+        """``n × n``: the intensity of the white noise with the left-out mismatch's low-frequency power.
+
+        The long-run covariance ``Ts · Σ_k w_k R(k)`` over lags ``|k| Ts ≤ max_lag`` with Bartlett weights
+        ``w_k = 1 − |k|/(L+1)`` (Newey & West, Econometrica 55(3), 1987: positive semi-definite). A slowly
+        varying mismatch has ``R(k) ≈ R(0)`` over many samples, so treating it as white with covariance
+        ``Ts · R(0)`` would understate its effect on the state by its correlation time over ``Ts``.
+        """
+        rest = self.left_out()
+        rest = rest - rest.mean(axis=0)
+        nn = rest.shape[0]
+        lags = min(int(max_lag / self.Ts), nn - 1)
+        w = rest.T @ rest / nn
+        for k in range(1, lags + 1):
+            g = rest[k:].T @ rest[:-k] / nn
+            w = w + (1.0 - k / (lags + 1)) * (g + g.T)
+        w = self.Ts * 0.5 * (w + w.T)
+        return w
 
 
 def estimate_unknown_input(
@@ -203,6 +241,7 @@ def estimate_unknown_input(
     burn_in: float = 2.0,
     rank_gap: float = RANK_GAP_MIN,
     rank_max: int | None = None,
+    rank_fixed: int | None = None,
 ) -> UnknownInputEstimate:
     """Observe ``d₁`` with the augmented model of Long & Wang 2017, eq. (4), and take ``E`` from its SVD.
 
@@ -215,7 +254,8 @@ def estimate_unknown_input(
     per sample (``S`` the state scale) and virtual outputs read with noise
     ``virtual_noise · S``. The rank is the ``q`` of the largest gap
     ``σ_q / σ_{q+1} ≥ rank_gap`` (``q ≤ rank_max``); no such gap is an
-    :class:`ExistenceError` naming the singular values.
+    :class:`ExistenceError` naming the singular values. ``rank_fixed`` takes that
+    many directions whatever the gap (which is still reported).
     """
     if plant.is_discrete:
         raise ArgumentError("estimate_unknown_input needs the continuous design model (d₁ enters ẋ, Long & Wang 2017, eq. (4))")
@@ -269,8 +309,13 @@ def estimate_unknown_input(
     top = len(ratios) if rank_max is None else min(rank_max, len(ratios))
     if top < 1:
         raise ArgumentError(f"rank_max must be ≥ 1; got {rank_max}")
-    qi = int(np.argmax(ratios[:top]))
-    if ratios[qi] < rank_gap:
+    if rank_fixed is not None:
+        if not 1 <= rank_fixed < n:
+            raise ArgumentError(f"the rank of E must be in 1..{n - 1}; got {rank_fixed}")
+        qi = rank_fixed - 1
+    else:
+        qi = int(np.argmax(ratios[:top]))
+    if rank_fixed is None and ratios[qi] < rank_gap:
         raise ExistenceError(
             f"the unknown-input estimate has no clear rank gap: largest σ_k/σ_(k+1) = {ratios[qi]:.3g} (k = {qi + 1}) < {rank_gap:g}; "
             f"singular values {np.array2string(s, precision=3)}; give E explicitly or train on richer data"
@@ -285,6 +330,8 @@ def estimate_unknown_input(
         d_hat=dh,
         group=tuple(g),
         virtual=tuple(v),
+        burn_in=keep,
+        Ts=float(Ts),
     )
 
 
@@ -349,6 +396,8 @@ def gos_diagnoser(
     design: str,
     P_f: float,
     persistence: int = 1,
+    evaluator: str = "wssr",
+    window: int = 25,
     sensors: Sequence[int] | None = None,
     faults: Sequence[FaultClass] | None = None,
     options: Mapping[str, object] | None = None,
@@ -372,5 +421,309 @@ def gos_diagnoser(
         faults=faults,
         certificates=certs,
         persistence=persistence,
+        evaluator=evaluator,
+        window=window,
         options=options,
     )
+
+
+# --------------------------------------------------------------------------- the method
+
+
+def _state_indices(value: Any, where: str, plant: LinearPlant) -> list[int]:
+    if not isinstance(value, (list, tuple)) or not value:
+        raise ArgumentError(f"{where} must be 'auto' or a non-empty list of state names, got {shown(value)}")
+    idx: list[int] = []
+    for j, s in enumerate(value):
+        if not isinstance(s, str) or s not in plant.states:
+            raise ArgumentError(f"{where}[{j}]: no state {shown(s)}; states are {list(plant.states)}")
+        if plant.states.index(s) in idx:
+            raise ArgumentError(f"{where} names state {s!r} twice")
+        idx.append(plant.states.index(s))
+    return idx
+
+
+def _groups_option(value: Any, where: str, plant: LinearPlant | None) -> Any:
+    if value == "auto" or plant is None:
+        return value
+    label = at(where, "groups")
+    if not isinstance(value, (list, tuple)) or not value:
+        raise ArgumentError(f"{label} must be 'auto' or a non-empty list of groups of output names, got {shown(value)}")
+    return tuple(tuple(_sensor_indices(g, plant, f"{label}[{gi}]")) for gi, g in enumerate(value))
+
+
+def _virtual_option(value: Any, where: str, plant: LinearPlant | None) -> Any:
+    if value == "auto" or plant is None:
+        return value
+    return tuple(_state_indices(value, at(where, "virtual_outputs"), plant))
+
+
+def _sensors_option(value: Any, where: str, plant: LinearPlant | None) -> Any:
+    if plant is None:
+        return value
+    return tuple(_sensor_indices(value, plant, at(where, "sensors")))
+
+
+def _training_option(value: Any, where: str, plant: LinearPlant | None) -> Any:
+    """A trace CSV's path (a plant file's, resolved against its folder) or a :class:`~fdisyn.runtime.trace.Trace`."""
+    if isinstance(value, Trace):
+        return value
+    if not isinstance(value, (str, PurePath)) or not str(value) or "\x00" in str(value):
+        raise ArgumentError(f"{at(where, 'training')} must be the path of a trace CSV, got {shown(value)}")
+    return str(value)
+
+
+def _check(plant: Any, opts: Mapping[str, Any], where: str) -> None:
+    if opts["evaluator"] == "chi2" and opts["window"] not in (None, 1):
+        raise ArgumentError(f"{at(where, 'window')} = {shown(opts['window'])} needs evaluator = 'wssr' (the χ² evaluator uses one sample)")
+    if isinstance(plant, LinearPlant):
+        if plant.is_discrete and opts["Ts"] is not None:
+            raise ArgumentError(f"{at(where, 'Ts')} = {shown(opts['Ts'])}: the plant is discrete (Ts = {plant.Ts}); give Ts for a continuous plant only")
+        if not plant.is_discrete and opts["Ts"] is None:
+            raise ArgumentError(f"{where}: missing option 'Ts': expected a positive sample time in seconds to sample the continuous plant")
+        if opts["training"] is not None and plant.is_discrete:
+            raise ArgumentError(
+                f"{at(where, 'training')}: estimating E needs the continuous model (d₁ enters ẋ, Long & Wang 2017, eq. (4)); "
+                "give [model].time = 'continuous' or E itself"
+            )
+        if opts["training"] is None and plant.q == 0:
+            raise ArgumentError(f"{where}: the UIO bank needs the unknown-input matrix E: give [model].E, or the option training to estimate it")
+    if opts["training"] is None and opts["virtual_outputs"] != "auto":
+        raise ArgumentError(f"{at(where, 'virtual_outputs')} is read only with the option training (they observe d₁ while E is estimated)")
+
+
+def _training_data(training: Any, plant: LinearPlant, virtual: Sequence[int], Ts: float, where: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``U``, ``Y`` and the virtual states of a training trace, sampled every ``Ts``."""
+    names = [plant.states[j] for j in virtual]
+    label = at(where, "training")
+    if isinstance(training, Trace):
+        trace = training
+        missing = [s for s in names if s not in trace.extra]
+        if missing:
+            raise ArgumentError(f"{label}: the trace has no column for the virtual output(s) {missing}")
+        xv = np.column_stack([np.asarray(trace.extra[s], dtype=float) for s in names])
+        u, y, t = trace.U, trace.Y, trace.t
+        if trace.inputs != plant.inputs or trace.outputs != plant.outputs:
+            raise ArgumentError(f"{label}: the trace's inputs and outputs {list(trace.inputs + trace.outputs)} are not the plant's")
+    else:
+        try:
+            trace = read_trace(training, inputs=plant.inputs, outputs=(*plant.outputs, *names))
+        except TraceError as exc:
+            raise TraceError(f"{label} {training}: {exc}") from None
+        u, y, xv, t = trace.U, trace.Y[:, : plant.p], trace.Y[:, plant.p :], trace.t
+    if t.shape[0] < 10:
+        raise ArgumentError(f"{label}: {t.shape[0]} samples; the estimate needs a training run of many samples")
+    step = np.diff(t)
+    if np.max(np.abs(step - Ts)) > 1e-6 * Ts:
+        raise ArgumentError(f"{label}: the trace's time steps range over [{step.min():.6g}, {step.max():.6g}] s; expected every Ts = {Ts:g} s")
+    return np.asarray(u, dtype=float), np.asarray(y, dtype=float), np.asarray(xv, dtype=float)
+
+
+@dataclass(frozen=True, eq=False)
+class GosDesign:
+    """What :func:`gos_design` chose besides the gain file: the groups, the virtual outputs and the ``E`` estimate."""
+
+    gain_file: GainFile
+    groups: tuple[tuple[int, ...], ...]
+    virtual: tuple[int, ...] | None
+    estimate: UnknownInputEstimate | None
+    plant: LinearPlant
+    """The discrete design plant (``E`` estimated or given, scaled states)."""
+
+
+def gos_design(
+    plant: LinearPlant,
+    *,
+    name: str,
+    problem: str | None = None,
+    record: Mapping[str, object] | None = None,
+    where: str = "",
+    P_f: float,
+    persistence: int = 1,
+    evaluator: str = "wssr",
+    window: int | None = None,
+    faults: Sequence[FaultClass] | None = None,
+    Ts: float | None = None,
+    groups: Any = "auto",
+    virtual_outputs: Any = "auto",
+    sensors: Sequence[int] | None = None,
+    training: Any = None,
+    d_rate: float = 1.0,
+    rank_gap: float = RANK_GAP_MIN,
+    E_rank: int | None = None,
+) -> GosDesign:
+    """The generalised UIO bank of Long & Wang 2017 on ``plant``, every choice of the paper made from data.
+
+    ``groups``: ``"auto"`` (:func:`output_groups`, the best-conditioned of the
+    fewest groups) or explicit groups of output indices, which must cover
+    ``sensors`` (default: every output). ``training`` (a trace with the inputs,
+    the outputs and the virtual outputs' state columns, fault-free, sampled
+    every ``Ts``) estimates ``E`` (:func:`estimate_unknown_input`, on the first
+    group completed by ``virtual_outputs``; ``E_rank`` overrides the rank the
+    gap gives); the process noise of a plant without one becomes the mismatch
+    ``E`` leaves out, as white noise of the same low-frequency power
+    (:meth:`UnknownInputEstimate.left_out_intensity` over lags up to three
+    times the slowest open-loop time constant). The UIOs are designed in states
+    scaled by the estimate's state magnitudes (their residuals do not depend
+    on it). Without ``training`` the plant's own ``E`` is decoupled.
+    """
+    where = where or "method 'kalman_uio_gos'"
+    window = (25 if evaluator == "wssr" else 1) if window is None else window
+    want = tuple(range(plant.p)) if sensors is None else tuple(sensors)
+    if groups == "auto":
+        try:
+            grouping = output_groups(plant.C, want, outputs=plant.outputs)[0].groups
+        except ExistenceError as exc:
+            raise ExistenceError(f"{at(where, 'groups')} = 'auto': {exc}") from None
+    else:
+        grouping = tuple(tuple(g) for g in groups)
+        uncovered = [plant.outputs[s] for s in want if not any(s in g for g in grouping)]
+        if uncovered:
+            raise ArgumentError(
+                f"{at(where, 'groups')}: sensor(s) {uncovered} are in no group; every diagnosed sensor must be in one "
+                "(or leave them out with the option sensors)"
+            )
+    ts = plant.Ts if plant.is_discrete else Ts
+    est, virt = None, None
+    model = plant
+    if training is not None:
+        g0 = grouping[0]
+        if virtual_outputs == "auto":
+            c = np.asarray(plant.C)
+            basis: list[int] = []
+            for j in g0:  # a group of dependent outputs (an ungrouped bank): complete an independent subset
+                if rank(c[[*basis, j]]) > len(basis):
+                    basis.append(j)
+            try:
+                virt = _completion(c, basis)
+            except ExistenceError as exc:
+                raise ExistenceError(f"{at(where, 'virtual_outputs')} = 'auto', group 1 {[plant.outputs[j] for j in g0]}: {exc}") from None
+        else:
+            virt = tuple(virtual_outputs)
+        u, y, xv = _training_data(training, plant, virt, ts, where)  # type: ignore[arg-type]
+        try:
+            est = estimate_unknown_input(
+                plant, ts, u, y, xv, group=g0, virtual=virt, d_rate=d_rate, rank_gap=rank_gap, rank_fixed=E_rank  # type: ignore[arg-type]
+            )
+        except ExistenceError as exc:
+            raise ExistenceError(f"{at(where, 'training')}: group 1 {[plant.outputs[j] for j in g0]}: {exc}") from None
+        q_model = np.asarray(plant.Q)
+        if not np.any(q_model):
+            lam = np.linalg.eigvals(np.asarray(plant.A)).real
+            slowest = 1.0 / float(np.min(-lam)) if np.all(lam < 0) else 0.0
+            q_model = est.left_out_intensity(max(3.0 * slowest, 10 * ts))  # type: ignore[operator]
+        model = LinearPlant.create(
+            A=plant.A, B=plant.B, C=plant.C, D=plant.D, E=est.E, Fx=plant.Fx, Q=0.5 * (q_model + q_model.T), R=plant.R,
+            states=plant.states, inputs=plant.inputs, outputs=plant.outputs,
+            unknown_inputs=tuple(f"d{i + 1}" for i in range(est.rank)), component_faults=plant.component_faults, units=plant.units,
+        )
+    discrete = model if model.is_discrete else model.discretise(ts)  # type: ignore[arg-type]
+    if est is not None:
+        discrete = discrete.scaled(est.scale)
+    info = {
+        "groups": [[plant.outputs[j] for j in g] for g in grouping],
+        **({} if virt is None else {"virtual_outputs": [plant.states[j] for j in virt]}),
+        **(
+            {}
+            if est is None
+            else {"E_rank": est.rank, "E_gap": est.gap, "E_singular_values": [float(x) for x in est.singular_values], "E": est.E.tolist()}
+        ),
+    }
+    gf = gos_diagnoser(
+        discrete,
+        grouping,
+        name=name,
+        problem=problem or name,
+        design="kalman_uio_gos",
+        P_f=P_f,
+        persistence=persistence,
+        evaluator=evaluator,
+        window=window,
+        sensors=want,
+        faults=faults,
+        options={**(record or {}), "chosen": info},
+    )
+    return GosDesign(gain_file=gf, groups=grouping, virtual=virt, estimate=est, plant=discrete)
+
+
+def _register() -> None:
+    from fdisyn.codegen.step import linear_step_function
+    from fdisyn.synthesis.linear_diagnoser import EVALUATOR, FAULTS, LINEAR_WINDOW, TS, linear_recovery_samples
+    from fdisyn.synthesis.registry import P_F, PERSISTENCE, Method, is_count, is_real, register
+
+    options = (
+        P_F,
+        PERSISTENCE,
+        replace(EVALUATOR, default="wssr"),
+        replace(LINEAR_WINDOW, default=None, doc="WSSR window N in samples (default 25; 1 with evaluator 'chi2')"),
+        FAULTS,
+        TS,
+        Option(
+            "groups",
+            "auto",
+            "groups of linearly independent outputs, one UIO per diagnosed sensor in each: 'auto' (fewest groups, best conditioned) or a list of lists of output names",
+            "'auto' or a list of lists of output names",
+            lambda v: v == "auto" or isinstance(v, (list, tuple)),
+            _groups_option,
+        ),
+        Option(
+            "virtual_outputs",
+            "auto",
+            "states of the model that complete the first group to rank n while E is estimated: 'auto' (best conditioned) or a list of state names",
+            "'auto' or a list of state names",
+            lambda v: v == "auto" or isinstance(v, (list, tuple)),
+            _virtual_option,
+        ),
+        Option("sensors", None, "the outputs to diagnose (default: all)", "a list of output names", lambda v: isinstance(v, (list, tuple)), _sensors_option),
+        Option(
+            "training",
+            None,
+            "fault-free training data to estimate E from: a trace CSV (columns t, the inputs, the outputs and the virtual outputs' states)",
+            "the path of a trace CSV",
+            lambda v: isinstance(v, (str, PurePath, Trace)),
+            _training_option,
+        ),
+        Option(
+            "d_rate",
+            1.0,
+            "random-walk rate of d₁ in the estimator, in state magnitudes per second (smaller: smoother, slower estimate)",
+            "a positive number",
+            lambda v: is_real(v) and v > 0,
+        ),
+        Option(
+            "E_rank",
+            None,
+            "the rank of the estimated E, overriding the gap rule (default: read from the largest gap ≥ rank_gap)",
+            "a whole number ≥ 1",
+            is_count,
+        ),
+        Option(
+            "rank_gap",
+            RANK_GAP_MIN,
+            "smallest singular-value ratio σ_q/σ_(q+1) accepted as the rank gap of the E estimate",
+            "a number > 1",
+            lambda v: is_real(v) and v > 1,
+        ),
+    )
+
+    def design(plant: LinearPlant, *, name: str, problem: str | None = None, record: Mapping[str, object] | None = None, where: str = "", **opts: Any) -> GainFile:
+        return gos_design(plant, name=name, problem=problem, record=record, where=where, **opts).gain_file
+
+    register(
+        Method(
+            name="kalman_uio_gos",
+            plant_kind="linear",
+            summary="generalised observer scheme: per group of independent outputs, one minimum-variance UIO per sensor fed the others; E estimated from training data",
+            reference="Long & Wang, Aeroengine 43(5), 2017, eqs. (4)-(6), section 2; Frank, Automatica 26(3), 1990",
+            options=options,
+            design=design,
+            diagnoser_kind="linear",
+            step_builder=linear_step_function,
+            recovery_samples=linear_recovery_samples,
+            check=_check,
+            samples_itself=True,
+        )
+    )
+
+
+_register()

@@ -93,8 +93,8 @@ PLANT_CASES: list[tuple[str, str, str, str, list[str], tuple[str, ...]]] = [
     ("bank unknown output", MOTOR, '["w_meas", "theta_meas"]]', '["w_meas", "rpm"]]', ["design"], ("[design].bank[1][1]: no output 'rpm'",)),
     ("bank empty", MOTOR, 'bank = [["i_meas", "theta_meas"], ["w_meas", "theta_meas"]]', "bank = []", ["design"], ("[design].bank is empty; expected groups of outputs",)),
     ("bank repeats", MOTOR, '["w_meas", "theta_meas"]]', '["w_meas", "w_meas"]]', ["design"], ("[design].bank[1] names output 'w_meas' twice",)),
-    # a group whose sensors the load reaches only through ~1e-7 of a sample: named, with the remedy
-    ("weak C E", MOTOR.replace("duration = 10.0", "duration = 0.1").replace("onset = 5.0", "onset = 0.05"), "Ts = 0.001 ", "Ts = 0.00001 ", ["design"],
+    # a group whose sensors the load reaches only through ~1e-9 of a sample (C E ~ Ts²): named, with the remedy
+    ("weak C E", MOTOR.replace("duration = 10.0", "duration = 0.1").replace("onset = 5.0", "onset = 0.05"), "Ts = 0.001 ", "Ts = 0.000001 ", ["design"],
      ("[design].bank[0]: UIO for the outputs ['i_meas', 'theta_meas']", "C E is nearly zero", "remedy:")),
     ("Bd a scalar", SAMPLED, "Bd = [[0.1], [1.0]]", "Bd = 0", ["design"], ("[model].Bd must be a matrix (a list of rows), got 0",)),
     ("Bd zero", SAMPLED, "Bd = [[0.1], [1.0]]", "Bd = [[0.0], [0.0]]", ["design"], ("[design]: the disturbance direction E (Bd of Qiu, Wen & Jiang 2010, eq. (1)) is zero",)),

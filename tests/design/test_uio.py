@@ -8,7 +8,7 @@ import pytest
 import scipy.linalg
 from fdisyn.models.linear import LinearPlant
 from fdisyn.numerics.linalg import dlyap
-from fdisyn.runtime.errors import ArgumentError, CertificateError, ExistenceError, ShapeError
+from fdisyn.runtime.errors import ArgumentError, CertificateError, ExistenceError, ShapeError, SolverError
 from fdisyn.synthesis.uio import GAIN_TOL, kalman_uio, uio_error_covariance, uio_pole_placement, uio_structure
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -100,17 +100,37 @@ def test_optimal_gain_certificate_on_random_plants(seed):
 
 
 def test_plants_that_once_failed_the_minimum_variance_design():
-    """47942: IPOPT left the stabilising region from the paper's gain (local infeasibility); the
-    second start designs it. 1353417274: F = A1 − L C is strongly non-normal (‖F‖₂ = 328 at
-    ρ = 0.34) and an unrefined Lyapunov solve missed the optimal trace by 2.6e-8 (bound 1e-8)."""
+    """47942: IPOPT left the stabilising region from the paper's gain (local infeasibility) before the
+    gain was scaled by states and innovations; it now converges from the paper's gain. 1353417274:
+    F = A1 − L C is strongly non-normal (‖F‖₂ = 328 at ρ = 0.34) and an unrefined Lyapunov solve missed
+    the optimal trace by 2.6e-8 (bound 1e-8)."""
     d = kalman_uio(random_plant(47942))
-    assert d.certificate.info["nlp_start"] == "midpoint of the paper and Riccati gains"
+    assert d.certificate.info["nlp_start"] == "paper gain"
     d = kalman_uio(random_plant(1353417274))
     checks = {c.name: c for c in d.certificate.checks}
     # measured 1.1e-9 (cond Σ = 7e5 amplifies round-off in evaluating the trace): half the bound
     # fails if the unrefined solve (2.6e-8) comes back
     assert checks["trace Σ: NLP vs DARE"].value <= 0.5 * checks["trace Σ: NLP vs DARE"].bound
     assert checks["Lyapunov residual of Σ"].value <= 0.5 * checks["Lyapunov residual of Σ"].bound
+
+
+def test_a_failed_first_start_is_retried_from_the_midpoint(monkeypatch):
+    """When IPOPT fails from the paper's gain, the midpoint of the paper's and Riccati gains is the second
+    start, and the design is still certified against the Riccati solution."""
+    import fdisyn.synthesis.uio as uio
+
+    solve, calls = uio._nlp_gain, []
+
+    def first_fails(red, lt0):  # noqa: ANN001, ANN202 - the solver's own signature
+        calls.append(lt0)
+        if len(calls) == 1:
+            raise SolverError("IPOPT did not solve the minimum-variance gain NLP: Local_Infeasibility")
+        return solve(red, lt0)
+
+    monkeypatch.setattr(uio, "_nlp_gain", first_fails)
+    d = kalman_uio(random_plant(47942))
+    assert len(calls) == 2 and d.certificate.info["nlp_start"] == "midpoint of the paper and Riccati gains"
+    assert all(c.passed for c in d.certificate.checks)
 
 
 def test_a_wrong_gain_fails_the_certificate(monkeypatch):

@@ -76,3 +76,93 @@ def test_estimated_unknown_input_is_the_spool_curvature() -> None:
     assert np.linalg.norm(e[[10, 11]]) > 0.99
     with pytest.raises(ExistenceError, match="no clear rank gap"):
         estimate_unknown_input(tf.design_model(), tf.TS, u, y, x[:, v], group=g, virtual=v, d_rate=0.003, rank_gap=50)
+
+
+# ------------------------------------------------------------------ the grouped bank, compiled
+
+
+@pytest.fixture(scope="module")
+def grouped(tmp_path_factory: pytest.TempPathFactory):  # noqa: ANN201 - (GosDesign, CompiledDiagnoser)
+    from fdisyn.codegen.library import codegen
+    from fdisyn.runtime.compiled import CompiledDiagnoser
+    from fdisyn.runtime.gainfile import write_gain_file
+
+    gd = tf.gos(tf.PAPER_GROUPS)
+    d = tmp_path_factory.mktemp("turbofan_grouped")
+    write_gain_file(gd.gain_file, d / "gains.json")
+    return gd, CompiledDiagnoser(codegen(d).library, gd.gain_file)
+
+
+def test_every_uio_is_decoupled_from_the_estimated_e(grouped) -> None:  # noqa: ANN001
+    from fdisyn.synthesis.residual import internal_form
+
+    gd, _ = grouped
+    assert gd.estimate.rank == tf.E_RANK == 2
+    assert gd.groups == tuple(tuple(_idx(g, tf.OUTPUTS)) for g in tf.PAPER_GROUPS)
+    for gen in gd.gain_file.generators:
+        # every Markov parameter from d to r vanishes to round-off (relative to the generator's own gains)
+        assert internal_form(gen, gd.plant).coupling("d") <= 1e-9, gen.name
+        # and the generator does see the sensors it reads: not a residual that is decoupled from everything
+        assert internal_form(gen, gd.plant).C.any()
+
+
+def test_the_wssr_follows_its_law_without_a_fault(grouped) -> None:  # noqa: ANN001
+    """On the design model with an arbitrary, large unknown input, every UIO's WSSR is χ²(N·dof): its
+    residual is the white innovation of a steady-state Kalman filter, decoupled from d."""
+    from scipy import stats
+
+    gd, cd = grouped
+    pl = gd.plant
+    rng = np.random.default_rng(7)
+    n = 12_500
+    t = np.arange(n) * tf.TS
+    u = tf.throttle(t)
+    d = 50.0 * np.cumsum(rng.standard_normal((n, pl.q)), axis=0)  # a random walk far above the noise
+    w = rng.multivariate_normal(np.zeros(pl.n), np.asarray(pl.Q), n)
+    v = rng.multivariate_normal(np.zeros(pl.p), np.asarray(pl.R), n)
+    x = np.zeros(pl.n)
+    y = np.empty((n, pl.p))
+    for k in range(n):
+        y[k] = pl.C @ x + pl.D @ u[k] + v[k]
+        x = pl.A @ x + pl.B @ u[k] + pl.E @ d[k] + w[k]
+    res = cd.run(u, y)
+    ev = gd.gain_file.evaluators
+    window = ev[0].window
+    # the threshold is the χ²(N·dof) quantile (a white residual), to the quantile solver's accuracy
+    for e in ev:
+        assert e.threshold == pytest.approx(stats.chi2.isf(e.P_f, window * e.dof), rel=1e-6)
+    # non-overlapping windows after the filters' transient are independent draws of χ²(N·dof)
+    ends = np.arange(2000 + window - 1, n, window)
+    q95 = np.array([stats.chi2.ppf(0.95, window * e.dof) for e in ev])
+    exceed = int(np.sum(res.J[ends] > q95))
+    trials = ends.size * len(ev)
+    # 5σ binomial bound around 5 %: a wrong law (a residual that still carries d, a wrong W) moves it by far more
+    assert abs(exceed - 0.05 * trials) <= 5 * np.sqrt(trials * 0.05 * 0.95), (exceed, trials)
+    assert not res.alarm[2000:].any() or res.alarm[2000:].mean() < 1e-3
+
+
+@pytest.mark.parametrize("kind", [*tf.FAULT_KINDS, "open_circuit"])
+def test_every_single_sensor_fault_is_detected_and_isolated(grouped, kind: str) -> None:  # noqa: ANN001
+    """Two runs of every sensor's fault: detected after onset, and isolated as that sensor — except a T42 bias,
+    which the UIOs without T5 cannot see (the second direction of E lies in T4 and P4, which T42 reads)."""
+    gd, cd = grouped
+    gf = gd.gain_file
+    sensors = ["P3"] if kind == "open_circuit" else list(tf.OUTPUTS)
+    for s in sensors:
+        sc = tf.SCENARIOS["P3_open_circuit" if kind == "open_circuit" else f"{s}_{kind}"]
+        b = tf.PROBLEM.run(sc, [0, 1])
+        for i in range(2):
+            res = cd.run(b.U[i], b.Y[i])
+            after = b.t >= sc.onset
+            assert res.alarm[after].any(), (s, kind, i)
+            isolated = res.isolated[after]
+            if (s, kind) == ("T42", "bias"):
+                masked = [k for k, g in enumerate(gf.generators) if g.name.endswith("_no_T5")]
+                late = b.t[after] >= sc.onset + 5.0
+                assert (res.J[after][late][:, masked] < np.asarray(gf.thresholds)[masked]).mean() > 0.99
+                assert not np.any((isolated >= 0) & (isolated != gf.faults.index(s)))
+                continue
+            # isolated (the pattern of silent UIOs matches the sensor) at some sample, never as another sensor;
+            # on samples where a small fault's statistics dip below threshold the pattern is incomplete (-1)
+            assert np.any(isolated == gf.faults.index(s)), (s, kind, i)
+            assert not np.any((isolated >= 0) & (isolated != gf.faults.index(s))), (s, kind, i, np.unique(isolated, return_counts=True))
