@@ -31,7 +31,7 @@ second column); states scaled by their operating magnitudes for the design
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import casadi as ca
@@ -274,6 +274,8 @@ def _bank_design(
     P_f: float = 3e-4,
     persistence: int = 1,
     poles: Sequence[float] = DEFAULT_POLES,
+    detector: str | None = None,
+    arl0: float | None = None,
 ) -> GainFile:
     plant = design_model(parameters)
     method = get_method(design)
@@ -289,6 +291,8 @@ def _bank_design(
             "parameters": parameters,
             "P_f": P_f,
             "persistence": persistence,
+            "detector": detector,
+            "arl0": arl0,
             "poles": extra.get("poles"),
             "state_scale": state_scale(_parameters(parameters)).tolist(),
             "cond_A_unscaled": float(np.linalg.cond(unscaled.A)),
@@ -296,13 +300,15 @@ def _bank_design(
         },
         P_f=P_f,
         persistence=persistence,
+        detector=detector,
+        arl0=arl0,
         bank=bank,
         faults=FAULTS,
         **extra,
     )
 
 
-_SUPPLIED = {"P_f", "persistence", "bank", "faults", "poles"}
+_SUPPLIED = {"P_f", "persistence", "detector", "arl0", "bank", "faults", "poles"}
 """Options this problem gives a method: a linear method that takes a bank and needs no other option can design it."""
 
 
@@ -373,6 +379,16 @@ SCENARIOS: dict[str, Scenario] = {
             params={"sensor_faults": [("omega_g_m1", "offset", 25.0)]},
         ),
         Scenario(
+            "omega_r_m1_one_sigma",
+            "omega_r_m1 reads one noise standard deviation high (the designed minimum fault of the sequential "
+            "detectors) for 100 s: a small fault, for the delays beside the Lorden bound.",
+            300.0,
+            fault="omega_r_m1",
+            onset=100.0,
+            end=200.0,
+            params={"sensor_faults": [("omega_r_m1", "offset_sd", 1.0)]},
+        ),
+        Scenario(
             "omega_g_m2_gain",
             "omega_g_m2 reads 0.85 times the speed for 100 s (about −23 rad/s).",
             300.0,
@@ -400,6 +416,11 @@ def simulate(scenario: Scenario, seeds: Sequence[int], *, parameters: str = "ben
     p = _parameters(parameters)
     op = OPERATING_POINT
     x0, tau_g0 = operating_point(p, op)
+    faults = scenario.params.get("sensor_faults", [])
+    if any(kind == "offset_sd" for _, kind, _ in faults):  # an offset in the sensor's noise standard deviations
+        sd = np.sqrt(np.diag(design_model(parameters).R))
+        faults = [(name, "offset", v * float(sd[OUTPUTS.index(name)])) if kind == "offset_sd" else (name, kind, v) for name, kind, v in faults]
+        scenario = replace(scenario, params={**scenario.params, "sensor_faults": faults})
     k_opt = tau_g0 / x0[1] ** 2
     limit = op.torque_limit * tau_g0
     g1 = OUTPUTS.index("omega_g_m1")
@@ -591,7 +612,7 @@ PROBLEM = Problem(
     default_design="kalman_uio",
     scenarios=SCENARIOS,
     simulate=simulate,
-    options={"parameters": "benchmark", "P_f": 3e-4, "persistence": 1},
+    options={"parameters": "benchmark", "P_f": 3e-4, "persistence": 1, "detector": None, "arl0": None},
     reference={
         "threshold_P_f_0.0003_dof_1": 13.0704,
         "claims": [

@@ -85,14 +85,22 @@ __all__ = [
     "gain_file_sha256",
     "read_regular_file",
     "EVALUATOR_KINDS",
+    "SEQUENTIAL_KINDS",
     "MAX_WSSR_WINDOW",
+    "MAX_GLR_WINDOW",
+    "glr_weights",
+    "release_level",
 ]
 
 FORMAT = "fdisyn.gains/1"
 _FORMAT_FAMILY = "fdisyn.gains/"
 _MATRIX_KEYS = ("Ar", "Bu", "By", "Cr", "Du", "Dy", "Xu", "Xy")
-EVALUATOR_KINDS = ("chi2", "wssr")
+EVALUATOR_KINDS = ("chi2", "wssr", "cusum", "glr")
 """The statistics a linear diagnoser evaluates (:class:`Evaluator`)."""
+SEQUENTIAL_KINDS = ("cusum", "glr")
+"""Statistics that accumulate evidence over time (:class:`Evaluator`): their alarm holds until the evidence is gone."""
+MAX_GLR_WINDOW = 1000
+"""Largest GLR onset window accepted: the step updates ``window`` sums per hypothesis and sample."""
 MAX_WSSR_WINDOW = 100_000
 """Largest WSSR window accepted in a gain file. The window's ``q`` values are part of the state, so
 ``nstate`` ≤ :data:`LIMITS` ``["nstate"]`` bounds the windows of a compiled diagnoser further."""
@@ -248,6 +256,25 @@ class Evaluator:
     generator evaluated (a sample it skips — a non-finite input, an overflow — does not enter); until ``N``
     such samples have been seen, ``J`` sums those there are and is compared with the same full-window
     threshold (conservative at start-up). ``window = 1`` is the χ² statistic.
+
+    Sequential kinds (the generator's residual is white, with covariance ``Sigma_r``; ``W`` its pseudo-inverse):
+
+    * ``"cusum"`` (Page, Biometrika 41(1/2), 1954): one CUSUM per row ``a_i`` of ``directions``
+      (``a_i = μ_iᵀ W`` for a fault of steady-state residual signature ``μ_i``) with ``drift[i] = ½ μ_iᵀ W μ_i``:
+      ``S_i(k) = min(max(0, S_i(k−1) + a_i r(k) − drift[i]), 2·threshold)`` and ``J = max_i S_i``.
+    * ``"glr"`` (Willsky & Jones, IEEE Transactions on Automatic Control 21(1), 1976): ``directions`` holds
+      ``M = window`` rows per hypothesis, row ``i·M + ℓ`` being ``ρ_i(ℓ)ᵀ W`` for the residual signature
+      ``ρ_i(ℓ)`` ``ℓ`` samples after a unit step fault, and ``information[i·M + n − 1] = c_i(n) =
+      Σ_{ℓ<n} ρ_i(ℓ)ᵀ W ρ_i(ℓ)``. The state holds ``d_i(n) = Σ_{ℓ<n} ρ_i(ℓ)ᵀ W r(k − n + 1 + ℓ)`` for the onsets
+      ``n = 1 … M`` samples ago; ``J = max_{i,n} d_i(n)² / (2 c_i(n))`` over the onsets whose information is
+      above ``1e-12`` of the hypothesis's largest (:func:`glr_weights`). At start-up the onsets older than
+      the first sample see zeros for the samples before it (their ``d`` sums fewer terms than ``c`` counts:
+      conservative).
+
+    A sequential statistic's alarm, once raised (``J > threshold``), holds while ``J`` stays above its release
+    level (:func:`release_level`: 0 for CUSUM — the evidence is gone when ``S`` returns to 0 —, half the
+    threshold for the GLR), so that one excursion is one alarm; ``persistence`` must be 1. ``P_f`` is the
+    per-sample false-alarm probability whose mean run length ``1/P_f`` the threshold was designed for.
     """
 
     kind: str
@@ -258,6 +285,32 @@ class Evaluator:
     Sigma_r: np.ndarray
     W: np.ndarray
     window: int = 1
+    directions: np.ndarray | None = None
+    drift: np.ndarray | None = None
+    information: np.ndarray | None = None
+
+    @property
+    def hypotheses(self) -> int:
+        """Fault hypotheses a sequential statistic tests (0 for χ² and WSSR)."""
+        if self.directions is None:
+            return 0
+        return int(self.directions.shape[0]) // (int(self.window) if self.kind == "glr" else 1)
+
+
+def glr_weights(information: np.ndarray | None, window: int) -> np.ndarray:
+    """``1 / (2 c_i(n))`` for each onset, 0 where ``c_i(n)`` is below ``1e-12`` of hypothesis ``i``'s largest
+    (an onset too recent for the fault to have shown: ``d_i(n)`` is then 0 too, and the term is left out)."""
+    if information is None:
+        raise GainFileError("a GLR evaluator needs its information")
+    c = np.asarray(information, dtype=float).reshape(-1, int(window))
+    top = np.max(c, axis=1, keepdims=True)
+    with np.errstate(divide="ignore"):
+        return np.where(c > 1e-12 * top, 0.5 / np.where(c > 0, c, 1.0), 0.0).reshape(-1)
+
+
+def release_level(e: Evaluator) -> float:
+    """Where a raised sequential alarm ends: ``J ≤`` this level (CUSUM: 0; GLR: half the threshold)."""
+    return 0.0 if e.kind == "cusum" else 0.5 * float(e.threshold)
 
 
 @dataclass(frozen=True, eq=False)
@@ -374,6 +427,9 @@ class GainFile:
                     "W": to_jsonable(e.W),
                     # a χ² evaluator's window is 1 and not written: its files stay as they were
                     **({"window": int(e.window)} if e.kind != "chi2" else {}),
+                    **({"directions": to_jsonable(e.directions)} if e.directions is not None else {}),
+                    **({"drift": to_jsonable(e.drift)} if e.drift is not None else {}),
+                    **({"information": to_jsonable(e.information)} if e.information is not None else {}),
                 }
                 for e in self.evaluators
             ]
@@ -401,11 +457,15 @@ def linear_state_layout(generators: Sequence[Generator], evaluators: Sequence[Ev
     one and writes ``q`` at the top; zeros not yet overwritten are the samples
     not seen yet, so ``J`` — the sum of the register — needs no fill count,
     and the step has no index arithmetic, which the symbolic step would spell
-    out as one comparison per entry anyway).
+    out as one comparison per entry anyway); ``sequential<j>``: for each CUSUM
+    statistic its sums ``S_i``, for each GLR statistic its onset sums ``d_i(n)``
+    (hypothesis-major, ``n = 1 … M``). A sequential statistic's persistence
+    counter holds its raised alarm (1) or 0.
     """
     blocks = [(f"xi{g}", gen.n_state, 1) for g, gen in enumerate(generators)]
     blocks += [("counters", len(evaluators), 1), ("ready", len(generators), 1), ("nonfinite", 1, 1)]
     blocks += [(f"window{j}", int(e.window), 1) for j, e in enumerate(evaluators) if e.kind == "wssr"]
+    blocks += [(f"sequential{j}", int(e.directions.shape[0]), 1) for j, e in enumerate(evaluators) if e.kind in SEQUENTIAL_KINDS and e.directions is not None]
     return StateLayout(tuple(blocks), scalars=frozenset({"nonfinite"}))
 
 
@@ -562,7 +622,8 @@ def gain_file_from_dict(doc: object, *, source: str = "gain file") -> GainFile:
             er = _Reader(ed, f"{source}: evaluators[{i}]")
             ev_kind = er.string("kind")
             # a χ² evaluator's window is 1 when not written (the files of earlier versions); a WSSR one needs it
-            window = er.integer("window") if ev_kind == "wssr" or "window" in er.doc else 1
+            window = er.integer("window") if ev_kind in ("wssr", "glr") or "window" in er.doc else 1
+            sequential = ev_kind in SEQUENTIAL_KINDS
             evs.append(
                 Evaluator(
                     kind=ev_kind,
@@ -573,6 +634,9 @@ def gain_file_from_dict(doc: object, *, source: str = "gain file") -> GainFile:
                     Sigma_r=er.matrix("Sigma_r"),
                     W=er.matrix("W"),
                     window=window,
+                    directions=er.matrix("directions") if sequential else None,
+                    drift=er.vector("drift") if ev_kind == "cusum" else None,
+                    information=er.vector("information") if ev_kind == "glr" else None,
                 )
             )
         kwargs["evaluators"] = tuple(evs)
@@ -803,7 +867,7 @@ def _validate_extension_thresholds(gf: GainFile) -> None:
 def step_coefficients(generators: Sequence[Generator], evaluators: Sequence[Evaluator]) -> int:
     """Nonzero coefficients a linear step multiplies by: the generated C has one multiply-add per coefficient."""
     count = sum(int(np.count_nonzero(getattr(g, k))) for g in generators for k in _MATRIX_KEYS)
-    return count + sum(int(np.count_nonzero(e.W)) for e in evaluators)
+    return count + sum(int(np.count_nonzero(e.W)) + (int(np.count_nonzero(e.directions)) if e.directions is not None else 0) for e in evaluators)
 
 
 def check_limits(gf: GainFile) -> None:
@@ -917,6 +981,31 @@ def _validate_chi2_weight(e: Evaluator, w: str) -> None:
         )
 
 
+def _validate_sequential(e: Evaluator, w: str, ng: int, decision: Decision | None) -> None:
+    """A CUSUM or GLR statistic: its directions lie in ``W``'s range (they are ``μᵀ W``), its drifts and
+    information are positive where they must be, and it decides without persistence."""
+    assert e.directions is not None
+    rows = e.directions.shape[0]
+    _shape(e.directions, f"{w}.directions", (rows, ng))
+    _finite(e.directions, f"{w}.directions")
+    per = int(e.window) if e.kind == "glr" else 1
+    if rows == 0 or rows % per:
+        _fail(f"{w}.directions must hold {per} row(s) per fault hypothesis and at least one hypothesis, found {rows} rows")
+    if e.kind == "cusum":
+        assert e.drift is not None
+        _finite(e.drift, f"{w}.drift")
+        if e.drift.shape != (rows,) or not np.all(e.drift > 0):
+            _fail(f"{w}.drift must hold one positive number per direction ({rows}), found {shown(e.drift.tolist())}")
+    else:
+        assert e.information is not None
+        _finite(e.information, f"{w}.information")
+        c = e.information.reshape(-1, per) if e.information.shape == (rows,) else None
+        if c is None or not np.all(c >= 0) or not np.all(np.diff(c, axis=1) >= -1e-9 * c[:, -1:]) or not np.all(c[:, -1] > 0):
+            _fail(f"{w}.information must hold, per hypothesis, {per} nondecreasing cumulative informations ending positive")
+    if decision is not None and decision.persistence != 1:
+        _fail(f"decision.persistence must be 1 with a sequential ({e.kind!r}) evaluator, found {decision.persistence}")
+
+
 def _finite(a: np.ndarray, where: str) -> None:
     if not np.all(np.isfinite(a)):
         _fail(f"{where} holds a non-finite number")
@@ -976,6 +1065,12 @@ def _validate_linear(gf: GainFile) -> None:
             _fail(f"{w}.window must be 1 for a 'chi2' evaluator (one sample), found {shown(e.window)}; use kind 'wssr' for a window")
         if e.kind == "wssr" and not (type(e.window) is int and 1 <= e.window <= MAX_WSSR_WINDOW):
             _fail(f"{w}.window must be a whole number of samples in 1..{MAX_WSSR_WINDOW}, found {shown(e.window)}")
+        if e.kind == "cusum" and not (type(e.window) is int and e.window == 1):
+            _fail(f"{w}.window must be 1 for a 'cusum' evaluator (it has no window), found {shown(e.window)}")
+        if e.kind == "glr" and not (type(e.window) is int and 1 <= e.window <= MAX_GLR_WINDOW):
+            _fail(f"{w}.window must be a whole number of onsets in 1..{MAX_GLR_WINDOW} for a 'glr' evaluator, found {shown(e.window)}")
+        if (e.kind in SEQUENTIAL_KINDS) != (e.directions is not None):
+            _fail(f"{w}.directions: {'required' if e.kind in SEQUENTIAL_KINDS else 'only allowed'} for a 'cusum' or 'glr' evaluator")
         if not 0 <= e.generator < len(gf.generators):
             _fail(f"{w}.generator {e.generator} is not a generator index (0..{len(gf.generators) - 1})")
         ng = gf.generators[e.generator].n_residual
@@ -986,6 +1081,8 @@ def _validate_linear(gf: GainFile) -> None:
         if not e.threshold > 0:
             _fail(f"{w}.threshold must be positive, found {e.threshold}")
         _validate_chi2_weight(e, w)
+        if e.kind in SEQUENTIAL_KINDS:
+            _validate_sequential(e, w, ng, gf.decision)
     d = gf.decision
     if d is None:
         _fail("a linear diagnoser needs a decision")

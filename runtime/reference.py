@@ -18,9 +18,15 @@ Then each statistic of ``g`` weighs ``q_j = r_gᵀ W_j r_g``: a χ² statistic i
 ``J_j = q_j``; a WSSR one (window ``N``) shifts ``q_j`` into its window —
 the last ``N`` samples ``g`` did not skip, newest first, zeros for those not
 seen yet — and ``J_j`` is the window's sum, added newest first (the order of
-the generated C). A statistic's persistence counter counts
+the generated C). A CUSUM statistic adds ``a_i r − drift_i`` to each sum
+``S_i``, clamps it to ``[0, 2·threshold]`` and reports the largest; a GLR one
+shifts its onset sums ``d_i(n) ← d_i(n−1) + ρ_i(n−1)ᵀ W r`` (``d_i(1) =
+ρ_i(0)ᵀ W r``) and reports ``max d_i(n)² / (2 c_i(n))`` (see
+:class:`~fdisyn.runtime.gainfile.Evaluator`). A statistic's persistence counter counts
 consecutive samples with ``J_j > threshold_j`` (reset by a sample below); its
-flag is set when the counter reaches ``persistence``. ``alarm`` is any flag;
+flag is set when the counter reaches ``persistence``. A sequential statistic's
+counter is instead its held alarm: 1 from ``J_j > threshold_j`` until ``J_j``
+falls to its release level. ``alarm`` is any flag;
 ``isolated`` the fault whose signature equals the flag pattern, else −1.
 ``status`` is 1 when any input or output of the sample was non-finite or a
 generator skipped it on overflow; the state keeps a running count of such
@@ -42,7 +48,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from fdisyn.runtime.errors import ArgumentError, ShapeError
-from fdisyn.runtime.gainfile import GainFile, linear_state_layout
+from fdisyn.runtime.gainfile import SEQUENTIAL_KINDS, GainFile, glr_weights, linear_state_layout, release_level
 
 __all__ = ["StepOutput", "RunResult", "LinearReference", "sample_vector", "sample_block", "step_state"]
 
@@ -153,6 +159,8 @@ class LinearReference:
         self.signatures = np.asarray(gf.decision.signatures, dtype=int)
         self.persistence = int(gf.decision.persistence)
         offsets = np.cumsum([0] + [g.n_residual for g in gf.generators])
+        self.release = [release_level(e) for e in gf.evaluators]
+        self.glr_weights = {j: glr_weights(e.information, e.window) for j, e in enumerate(gf.evaluators) if e.kind == "glr"}
         self.r_slices = [slice(int(offsets[i]), int(offsets[i + 1])) for i in range(len(gf.generators))]
 
     def init_state(self) -> np.ndarray:
@@ -182,12 +190,27 @@ class LinearReference:
             with np.errstate(over="ignore", invalid="ignore"):
                 rg = gen.Cr @ xi + gen.Du @ us + gen.Dy @ ys
                 xi_next = gen.Ar @ xi + gen.Bu @ us + gen.By @ ys
-                jg = {j: float(rg @ ev.W @ rg) for j, ev in enumerate(gf.evaluators) if ev.generator == g}
+                evs = [j for j, ev in enumerate(gf.evaluators) if ev.generator == g]
+                jg = {j: float(rg @ gf.evaluators[j].W @ rg) for j in evs if gf.evaluators[j].kind not in SEQUENTIAL_KINDS}
                 windows = {}
-                for j in jg:
-                    if gf.evaluators[j].kind == "wssr":
+                for j in evs:
+                    ev = gf.evaluators[j]
+                    if ev.kind == "wssr":
                         windows[j] = np.concatenate([[jg[j]], state[lay[f"window{j}"]][:-1]])
                         jg[j] = float(np.add.accumulate(windows[j])[-1])  # in order, newest first
+                    elif ev.kind == "cusum":
+                        assert ev.directions is not None and ev.drift is not None
+                        sums = state[lay[f"sequential{j}"]] + ev.directions @ rg - ev.drift
+                        windows[j] = np.minimum(np.maximum(sums, 0.0), 2.0 * ev.threshold)
+                        jg[j] = float(np.max(windows[j]))
+                    elif ev.kind == "glr":
+                        assert ev.directions is not None
+                        m = ev.window
+                        z = (ev.directions @ rg).reshape(-1, m)
+                        old = state[lay[f"sequential{j}"]].reshape(-1, m)
+                        d = np.concatenate([z[:, :1], old[:, :-1] + z[:, 1:]], axis=1).reshape(-1)
+                        windows[j] = d
+                        jg[j] = float(np.max(d * d * self.glr_weights[j]))
             # a finite but absurd value can overflow: the sample is then skipped like a non-finite one
             if not (np.all(np.isfinite(rg)) and np.all(np.isfinite(xi_next)) and np.all(np.isfinite(list(jg.values())))):
                 overflow = True
@@ -197,10 +220,13 @@ class LinearReference:
             r[self.r_slices[g]] = rg
             state[sl] = xi_next
             for j, window in windows.items():
-                state[lay[f"window{j}"]] = window
+                state[lay[("window" if gf.evaluators[j].kind == "wssr" else "sequential") + str(j)]] = window
             for j, value in jg.items():
                 jv[j] = value
-                counters[j] = counters[j] + 1.0 if value > self.thresholds[j] else 0.0
+                if gf.evaluators[j].kind in SEQUENTIAL_KINDS:  # raised above the threshold, held down to the release level
+                    counters[j] = 1.0 if value > self.thresholds[j] or (counters[j] > 0.0 and value > self.release[j]) else 0.0
+                else:
+                    counters[j] = counters[j] + 1.0 if value > self.thresholds[j] else 0.0
                 flags[j] = int(counters[j] >= self.persistence)
         state[lay["ready"]] = ready
         state[lay["counters"]] = counters

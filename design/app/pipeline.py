@@ -23,7 +23,7 @@ from fdisyn.codegen.step import step_function
 from fdisyn.evaluation.evaluate import Built, Evaluation, build, evaluate, progress_printer
 from fdisyn.models.problem import Problem
 from fdisyn.runtime.errors import ArgumentError, CertificateError
-from fdisyn.runtime.gainfile import GainFile, linear_state_layout
+from fdisyn.runtime.gainfile import SEQUENTIAL_KINDS, GainFile, linear_state_layout
 from fdisyn.runtime.reference import LinearReference, RunResult
 
 __all__ = ["EXPORT_TOL", "ExportCheck", "check_export", "VariantResult", "reproduce_problem"]
@@ -80,8 +80,9 @@ def _rounding_scale(gf: GainFile, states: np.ndarray, res: RunResult, U: np.ndar
     the same factor; a WSSR statistic sums that scale over its window (the
     last ``window`` samples its generator evaluated). A residual that is a
     small difference of large terms (an integrating state, a large operating
-    point) is compared against its terms, not against itself. Other kinds:
-    ``|r|`` and ``|J|``.
+    point) is compared against its terms, not against itself. A CUSUM or GLR
+    statistic is a sum clamped to ``[0, 2h]`` or over a window, of terms of
+    its own size: ``|J| + h``. Other kinds: ``|r|`` and ``|J|``.
     """
     if gf.kind != "linear":
         return np.abs(res.r), np.abs(res.J)
@@ -101,7 +102,10 @@ def _rounding_scale(gf: GainFile, states: np.ndarray, res: RunResult, U: np.ndar
         for j, ev in enumerate(gf.evaluators):
             if ev.generator == g:
                 s_j[:, j] = np.einsum("ki,ij,kj->k", r_abs, np.abs(ev.W), r_abs + 2.0 * block)
-                if ev.kind == "wssr":
+                if ev.kind in SEQUENTIAL_KINDS:
+                    # clamped (CUSUM) or windowed (GLR) sums of terms of the size of J and h: errors of |J| + h
+                    s_j[:, j] = np.abs(res.J[:, j]) + ev.threshold
+                elif ev.kind == "wssr":
                     valid = np.all(np.isfinite(U), axis=1) & np.all(np.isfinite(Y[:, list(gen.outputs_used)]), axis=1)
                     summed = np.convolve(s_j[valid, j], np.ones(ev.window))[: int(np.sum(valid))]
                     s_j[:, j] = 0.0

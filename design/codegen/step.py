@@ -20,7 +20,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 from fdisyn.runtime.errors import GainFileError
-from fdisyn.runtime.gainfile import GainFile, linear_state_layout
+from fdisyn.runtime.gainfile import SEQUENTIAL_KINDS, GainFile, glr_weights, linear_state_layout, release_level
 
 __all__ = ["STEP_INPUTS", "STEP_OUTPUTS", "step_function", "linear_step_function", "finite", "all_finite"]
 
@@ -90,18 +90,44 @@ def linear_step_function(gf: GainFile) -> ca.Function:
         r_g = ca.mtimes(_const(gen.Cr), xi) + ca.mtimes(_const(gen.Du), us) + ca.mtimes(_const(gen.Dy), ys)
         xi_next = ca.mtimes(_const(gen.Ar), xi) + ca.mtimes(_const(gen.Bu), us) + ca.mtimes(_const(gen.By), ys)
         evs = [j for j, ev in enumerate(gf.evaluators) if ev.generator == g]
-        j_g = {j: ca.mtimes([r_g.T, _const(gf.evaluators[j].W), r_g]) for j in evs}
+        j_g = {j: ca.mtimes([r_g.T, _const(gf.evaluators[j].W), r_g]) for j in evs if gf.evaluators[j].kind not in SEQUENTIAL_KINDS}
         windows = {}
         for j in evs:
-            if gf.evaluators[j].kind == "wssr":  # shift q in, sum newest first (the reference's order)
+            ev = gf.evaluators[j]
+            if ev.kind == "wssr":  # shift q in, sum newest first (the reference's order)
                 ws = lay[f"window{j}"]
                 windows[j] = ca.vertcat(j_g[j], state[ws.start : ws.stop - 1])
                 total = windows[j][0]
                 for i in range(1, windows[j].numel()):
                     total = total + windows[j][i]
                 j_g[j] = total
+            elif ev.kind in SEQUENTIAL_KINDS:
+                assert ev.directions is not None
+                ws = lay[f"sequential{j}"]
+                z = ca.mtimes(_const(ev.directions), r_g)
+                old = state[ws.start : ws.stop]
+                if ev.kind == "cusum":
+                    assert ev.drift is not None
+                    sums = ca.fmin(ca.fmax(old + z - _const(ev.drift), 0), 2.0 * float(ev.threshold))
+                    terms = sums
+                else:
+                    m = int(ev.window)
+                    parts = []
+                    for h in range(ev.hypotheses):
+                        base = h * m
+                        parts.append(z[base])
+                        for n in range(1, m):
+                            parts.append(old[base + n - 1] + z[base + n])
+                    sums = ca.vertcat(*parts)
+                    weights = glr_weights(ev.information, m)
+                    terms = ca.vertcat(*[sums[i] * sums[i] * float(weights[i]) for i in range(sums.numel()) if weights[i] > 0])
+                windows[j] = sums
+                top = terms[0]
+                for i in range(1, terms.numel()):
+                    top = ca.fmax(top, terms[i])
+                j_g[j] = top
         # a finite but absurd value can overflow: the sample is then skipped like a non-finite one
-        results_ok = all_finite(r_g, xi_next, *j_g.values())
+        results_ok = all_finite(r_g, xi_next, *j_g.values(), *windows.values())
         ok = ca.logic_and(inputs_ok, results_ok)
         overflow = ca.logic_or(overflow, ca.logic_and(inputs_ok, 1 - results_ok))
         nxt[sl.start : sl.stop] = ca.if_else(ok, xi_next, state[sl.start : sl.stop])
@@ -109,12 +135,17 @@ def linear_step_function(gf: GainFile) -> ca.Function:
         nxt[lay["ready"].start + g] = ca.if_else(ok, 1, ca.if_else(inputs_ok, 0, ready))
         r_parts.append(ca.if_else(ok, r_g, 0))
         for j, window in windows.items():
-            ws = lay[f"window{j}"]
+            ws = lay[("window" if gf.evaluators[j].kind == "wssr" else "sequential") + str(j)]
             nxt[ws.start : ws.stop] = ca.if_else(ok, window, state[ws.start : ws.stop])
         for j in evs:
             jj = ca.if_else(ok, j_g[j], 0)
             c = state[lay["counters"].start + j]
-            c_next = ca.if_else(ok, ca.if_else(jj > gf.evaluators[j].threshold, c + 1, 0), c)
+            ev = gf.evaluators[j]
+            if ev.kind in SEQUENTIAL_KINDS:  # raised above the threshold, held down to the release level
+                held = ca.logic_or(jj > ev.threshold, ca.logic_and(c > 0, jj > release_level(ev)))
+                c_next = ca.if_else(ok, ca.if_else(held, 1, 0), c)
+            else:
+                c_next = ca.if_else(ok, ca.if_else(jj > ev.threshold, c + 1, 0), c)
             nxt[lay["counters"].start + j] = c_next
             flags[j] = ca.logic_and(ok, c_next >= persistence)
             j_parts[j] = jj

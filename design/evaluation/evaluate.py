@@ -21,6 +21,7 @@ from fdisyn.runtime.compiled import CompiledDiagnoser
 from fdisyn.runtime.errors import ArgumentError
 from fdisyn.runtime.gainfile import GainFile, write_gain_file
 from fdisyn.runtime.reference import RunResult
+from fdisyn.synthesis.linear_diagnoser import budget_seconds, lorden_bound
 from fdisyn.synthesis.registry import extra_metrics, recovery_samples
 
 __all__ = ["Built", "build", "Evaluation", "evaluate", "progress_printer"]
@@ -90,6 +91,16 @@ sample and design). 4 GiB fits a laptop; larger campaigns are refused with the
 number of runs that fits, instead of running out of memory hours in."""
 
 
+def _lorden(gf: GainFile, sums: list[Any]) -> tuple[float, float] | None:
+    """The fault's Lorden bound from the mean residual shift it brought over the runs (:func:`lorden_bound`)."""
+    on, off, n_on, n_off = sums
+    if n_on == 0 or n_off == 0:
+        return None
+    mu = on / n_on - off / n_off
+    offsets = np.cumsum([0] + [g.n_residual for g in gf.generators])
+    return lorden_bound(gf, [mu[offsets[g] : offsets[g + 1]] for g in range(len(gf.generators))])
+
+
 def evaluate(
     problem: Problem,
     built: Mapping[str, Built],
@@ -122,6 +133,8 @@ def evaluate(
     for sname in names:
         sc: Scenario = problem.scenario(sname)
         acc: dict[str, dict[str, list[np.ndarray]]] = {d: {"alarm": [], "isolated": [], "J": []} for d in built}
+        # residual sums while the fault is active and while it is not: the mean shift the fault brings (Lorden bound)
+        shift: dict[str, list[Any]] = {d: [np.zeros(b.gain_file.step.nr), np.zeros(b.gain_file.step.nr), 0, 0] for d, b in built.items()}
         nonfinite = {d: 0 for d in built}
         t = active = None
         for start in range(0, runs, chunk):
@@ -136,6 +149,13 @@ def evaluate(
                     acc[dname]["alarm"].append(res.alarm)
                     acc[dname]["isolated"].append(res.isolated)
                     acc[dname]["J"].append(res.J)
+                    if sc.fault is not None and b.gain_file.kind == "linear":
+                        on = batch.active
+                        sums = shift[dname]
+                        sums[0] += np.sum(res.r[on], axis=0)
+                        sums[1] += np.sum(res.r[~on], axis=0)
+                        sums[2] += int(on.sum())
+                        sums[3] += int((~on).sum())
                     nonfinite[dname] += res.nonfinite_samples
                     if start == 0 and i == 0:
                         examples[dname][sname] = res
@@ -159,6 +179,8 @@ def evaluate(
                 Ts=gf.Ts,
                 recovery=recovery_samples(gf),
                 nonfinite=nonfinite[dname],
+                budget_s=budget_seconds(gf) if gf.kind == "linear" else None,
+                lorden=_lorden(gf, shift[dname]) if gf.kind == "linear" else None,
             )
             extra = problem.extra_metrics or extra_metrics(gf.kind)
             if extra is not None:

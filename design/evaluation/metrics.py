@@ -25,6 +25,18 @@ isolation accuracy
 statistic exceedance
     per statistic, the fraction of fault-free samples with ``J > threshold``
     (to compare with its ``P_f``), with a two-sided 99.9 % binomial interval.
+mean time between false alarms
+    fault-free time (all runs) divided by the number of false-alarm episodes
+    (an episode starts at a fault-free sample that alarms after one that did
+    not), with Garwood's exact 95 % Poisson interval on the count; beside the
+    design's budget ``arl0`` (or, for a design by ``P_f``, the budget it implies,
+    ``Ts / Σ_j P_f,j``).
+Lorden bound and delay ratio
+    ``ln(ARL_j) / I_j`` samples, the smallest over the statistics ``j``, with
+    ``ARL_j`` statistic ``j``'s share of the budget and ``I_j`` the
+    Kullback–Leibler information per sample the fault brings to its
+    generator's residual (Lorden, Annals of Mathematical Statistics 42(6),
+    1971); the ratio is the measured mean delay over it.
 """
 
 from __future__ import annotations
@@ -36,7 +48,7 @@ from typing import Any
 import numpy as np
 import scipy.stats
 
-__all__ = ["ScenarioMetrics", "scenario_metrics", "binomial_interval"]
+__all__ = ["ScenarioMetrics", "scenario_metrics", "binomial_interval", "poisson_time_interval"]
 
 
 def binomial_interval(n: int, p: float, *, alpha: float = 1e-3) -> tuple[int, int]:
@@ -68,6 +80,15 @@ class ScenarioMetrics:
     statistic_exceedance_interval: list[tuple[float, float]]
     fault_free_samples: int
     nonfinite_samples: int
+    false_alarm_episodes: int = 0
+    mean_time_between_false_alarms_s: float | None = None
+    """``None`` when no false alarm was seen (the interval's lower end still bounds it)."""
+    mean_time_between_false_alarms_interval_s: tuple[float, float | None] = (0.0, None)
+    arl0_budget_s: float | None = None
+    fault_information: float | None = None
+    """Largest KL information per sample the fault brings to one generator (nats)."""
+    lorden_bound_samples: float | None = None
+    delay_bound_ratio: float | None = None
     extra: Mapping[str, Any] = field(default_factory=dict)
     """Figures beyond detection (``Problem.extra_metrics``, else the diagnoser kind's)."""
 
@@ -89,8 +110,13 @@ def scenario_metrics(
     Ts: float,
     recovery: int,
     nonfinite: int = 0,
+    budget_s: float | None = None,
+    lorden: tuple[float, float] | None = None,
 ) -> ScenarioMetrics:
-    """Metrics of one scenario. ``alarm``, ``isolated``: ``R × N``; ``J``: ``R × N × nj``."""
+    """Metrics of one scenario. ``alarm``, ``isolated``: ``R × N``; ``J``: ``R × N × nj``.
+
+    ``budget_s``: the design's false-alarm budget; ``lorden``: ``(I, bound in samples)`` of the fault.
+    """
     alarm = np.asarray(alarm, dtype=bool)
     isolated = np.asarray(isolated, dtype=int)
     runs, n = alarm.shape
@@ -133,6 +159,13 @@ def scenario_metrics(
             iso_acc = float(np.mean(np.asarray(modes) == fault_index))
             n_alarmed = int(hit.sum())
             siso = float(np.sum((iso_win == fault_index) & hit) / n_alarmed) if n_alarmed else 0.0
+    onset = alarm & ~np.concatenate([np.zeros((runs, 1), dtype=bool), alarm[:, :-1]], axis=1)
+    episodes = int(onset[:, quiet].sum())
+    exposure = runs * n_quiet * Ts
+    mtbfa_lo, mtbfa_hi = poisson_time_interval(episodes, exposure)
+    ratio = None
+    if lorden is not None and ds_mean is not None and lorden[1] > 0:
+        ratio = ds_mean / lorden[1]
     return ScenarioMetrics(
         scenario=scenario,
         fault=fault,
@@ -155,4 +188,23 @@ def scenario_metrics(
         statistic_exceedance_interval=intervals,
         fault_free_samples=n_quiet * runs,
         nonfinite_samples=int(nonfinite),
+        false_alarm_episodes=episodes,
+        mean_time_between_false_alarms_s=exposure / episodes if episodes else None,
+        mean_time_between_false_alarms_interval_s=(mtbfa_lo, mtbfa_hi),
+        arl0_budget_s=budget_s,
+        fault_information=None if lorden is None else lorden[0],
+        lorden_bound_samples=None if lorden is None else lorden[1],
+        delay_bound_ratio=ratio,
     )
+
+
+def poisson_time_interval(count: int, exposure: float, *, level: float = 0.95) -> tuple[float, float | None]:
+    """Garwood's exact interval for the mean time between events, ``count`` events in ``exposure``:
+    ``exposure / λ`` over the Poisson interval of the count (upper end ``None`` when no event was seen)."""
+    a = 1.0 - level
+    hi_count = float(scipy.stats.chi2.ppf(1.0 - a / 2, 2 * count + 2)) / 2.0
+    lo = exposure / hi_count if hi_count > 0 else 0.0
+    if count == 0:
+        return lo, None
+    lo_count = float(scipy.stats.chi2.ppf(a / 2, 2 * count)) / 2.0
+    return lo, exposure / lo_count

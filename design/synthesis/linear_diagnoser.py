@@ -25,13 +25,17 @@ from typing import Any
 import numpy as np
 from fdisyn.codegen.step import linear_step_function
 from fdisyn.evaluators.chi2 import chi2_evaluator
+from fdisyn.evaluators.sequential import cusum_evaluator, glr_evaluator, lorden_delay, split_budget
 from fdisyn.evaluators.wssr import wssr_evaluator
 from fdisyn.models.linear import LinearPlant
 from fdisyn.numerics.certificate import Certificate, Check
 from fdisyn.numerics.linalg import transfer_size
-from fdisyn.runtime.errors import ArgumentError, FdisynError, ShapeError
+from fdisyn.runtime.errors import ArgumentError, ExistenceError, FdisynError, ShapeError
 from fdisyn.runtime.gainfile import (
+    EVALUATOR_KINDS,
+    MAX_GLR_WINDOW,
     MAX_WSSR_WINDOW,
+    SEQUENTIAL_KINDS,
     Decision,
     Evaluator,
     GainFile,
@@ -40,14 +44,39 @@ from fdisyn.runtime.gainfile import (
     linear_state_layout,
 )
 from fdisyn.runtime.names import check_fault_name, shown
-from fdisyn.synthesis.registry import P_F, PERSISTENCE, REQUIRED, WINDOW, Method, Option, at, is_count, is_real, register
-from fdisyn.synthesis.residual import dc_gain_y, internal_form, residual_autocovariances
+from fdisyn.synthesis.registry import (
+    ARL0,
+    DETECTOR,
+    P_F,
+    PERSISTENCE,
+    REQUIRED,
+    WINDOW,
+    Method,
+    Option,
+    at,
+    is_count,
+    is_real,
+    register,
+)
+from fdisyn.synthesis.residual import (
+    WHITE_RTOL,
+    dc_gain_y,
+    fault_step_response,
+    internal_form,
+    long_run_covariance,
+    residual_autocovariances,
+    whitened,
+    whiteness,
+)
 
 __all__ = [
     'BANK_OPTIONS',
     'FaultClass',
     'GeneratorDesign',
     'bank_diagnoser',
+    'budget_seconds',
+    'design_plant',
+    'lorden_bound',
     'default_fault_classes',
     'linear_diagnoser',
     'linear_method',
@@ -107,7 +136,9 @@ def linear_diagnoser(
     certificates: Sequence[Certificate],
     persistence: int = 1,
     evaluator: str = "chi2",
-    window: int = 1,
+    window: int | None = 1,
+    arl0: float | None = None,
+    min_fault: Mapping[str, float] | None = None,
     options: Mapping[str, object] | None = None,
 ) -> GainFile:
     """Build and check the gain file of a bank of linear residual generators.
@@ -117,7 +148,13 @@ def linear_diagnoser(
     statistic (Hu et al. 2013, Acta Automatica Sinica 39(8), eqs. (18)–(19);
     ``window`` must be 1), or ``"wssr"``, its sum over ``window`` samples
     (Long & Wang, Aeroengine 43(5), 2017, section 2) with the threshold from
-    the residual's autocovariance on ``plant``. ``faults`` name the fault
+    the residual's autocovariance on ``plant``; or a sequential statistic,
+    ``"cusum"`` or ``"glr"`` (:func:`sequential_evaluators`: each generator is
+    whitened first, and ``window`` is the GLR's onset window, ``None`` to
+    choose it). ``arl0`` (seconds), when given, is the diagnoser's mean time
+    between false alarms and sets every threshold in place of ``P_f``: each
+    statistic gets an equal share (:func:`~fdisyn.evaluators.sequential.split_budget`),
+    ``Ts / (n · arl0)`` per sample for χ² and WSSR. ``faults`` name the fault
     classes to isolate; their signatures must be nonzero and distinct.
     """
     if not plant.is_discrete:
@@ -126,21 +163,41 @@ def linear_diagnoser(
         raise ShapeError(f"{len(generators)} generators need as many residual covariances and certificates")
     if int(persistence) < 1:
         raise ArgumentError(f"persistence must be a positive number of samples; got {persistence!r}")
-    if evaluator not in ("chi2", "wssr"):
-        raise ArgumentError(f"evaluator must be 'chi2' or 'wssr'; got {shown(evaluator)}")
-    if evaluator == "chi2" and window != 1:
+    if evaluator not in EVALUATOR_KINDS:
+        raise ArgumentError(f"detector must be one of {', '.join(map(repr, EVALUATOR_KINDS))}; got {shown(evaluator)}")
+    if evaluator == "chi2" and window not in (1, None):
         raise ArgumentError(f"window = {shown(window)} needs evaluator = 'wssr'; the χ² evaluator ('chi2') uses one sample")
+    if evaluator == "cusum" and window not in (1, None):
+        raise ArgumentError(f"window = {shown(window)}: the CUSUM has no window (give it for 'wssr' or 'glr')")
+    if evaluator in SEQUENTIAL_KINDS and int(persistence) != 1:
+        raise ArgumentError(
+            f"persistence = {persistence!r} with detector {evaluator!r}: a sequential statistic accumulates the evidence "
+            "itself; use persistence 1 (set the false-alarm budget with arl0)"
+        )
     gens = list(generators)
-    if evaluator == "wssr":
+    arl_stat = split_budget(arl0 / float(plant.Ts or 1.0), len(gens)) if arl0 is not None else 1.0 / float(P_f)
+    sequential_info: dict[str, Any] = {}
+    if evaluator in SEQUENTIAL_KINDS:
+        evals, gens, sigma_r, sequential_info = sequential_evaluators(
+            plant, gens, faults, kind=evaluator, arl_samples=arl_stat, window=window, min_fault=min_fault
+        )
+    elif evaluator == "wssr":
+        n = 1 if window is None else int(window)
         evals = [
-            wssr_evaluator(i, s, residual_autocovariances(g, plant, int(window) - 1), P_f, window)
+            wssr_evaluator(i, s, residual_autocovariances(g, plant, n - 1), 1.0 / arl_stat, n)
             for i, (g, s) in enumerate(zip(gens, sigma_r, strict=True))
         ]
     else:
-        evals = [chi2_evaluator(i, s, P_f) for i, s in enumerate(sigma_r)]
+        evals = [chi2_evaluator(i, s, 1.0 / arl_stat) for i, s in enumerate(sigma_r)]
     sig = np.array([[_expected(fault, gens[ev.generator], plant) for ev in evals] for fault in faults], dtype=int)
-    checks, sensitivity = _bank_checks(generators, evals, plant)
-    bank_cert = Certificate.of(f"{problem}/{design} bank", checks, {"min_detectable_bias": sensitivity}).require()
+    checks, sensitivity = _bank_checks(gens, evals, plant)
+    info: dict[str, object] = {"min_detectable_bias": sensitivity, "arl_per_statistic_samples": arl_stat}
+    if arl0 is not None:
+        info["arl0_s"] = float(arl0)
+    if sequential_info:
+        checks += sequential_info.pop("checks")
+        info["sequential"] = sequential_info
+    bank_cert = Certificate.of(f"{problem}/{design} bank", checks, info).require()
     nr = sum(g.n_residual for g in gens)
     lay = linear_state_layout(gens, evals)
     step = StepSpec(
@@ -174,6 +231,154 @@ def linear_diagnoser(
         },
         provenance=provenance(options=dict(options or {})),
     )
+
+
+VISIBLE_RTOL = 1e-3
+"""A fault class whose designed fault brings a generator less than this fraction of the Kullback–Leibler
+information of its best-seen class is not one of that generator's sequential hypotheses: it would take over
+a thousand times longer to detect, and a CUSUM with so small a drift integrates the plant's model error
+(low-frequency residual content the noise model does not have) rather than the fault."""
+
+
+def design_plant(gf: GainFile) -> LinearPlant:
+    """The discrete model a linear gain file was designed on (``gf.plant``), with generic state names."""
+    pl = gf.plant
+    n = pl["A"].shape[0]
+    return LinearPlant(
+        A=pl["A"], B=pl["B"], C=pl["C"], D=pl["D"], E=pl["E"], Fx=np.zeros((n, 0)), Q=pl["Q"], R=pl["R"], Ts=gf.Ts,
+        inputs=gf.inputs, outputs=gf.outputs, states=tuple(f"x{i}" for i in range(n)),
+        unknown_inputs=tuple(f"d{i}" for i in range(pl["E"].shape[1])), component_faults=(),
+    )
+
+
+def lorden_bound(gf: GainFile, shifts: Sequence[np.ndarray]) -> tuple[float, float] | None:
+    """``(I, ln(ARL_j)/I_j)`` for residual mean shifts ``shifts[g]`` of each generator: the largest information
+    per sample ``I_g = ½ μ_gᵀ (Σ_τ R_g(τ))⁺ μ_g`` (:func:`fdisyn.synthesis.residual.long_run_covariance`) and the
+    smallest Lorden delay over the statistics, each at its share ``ARL_j = 1/P_f,j`` of the budget. ``None``
+    when no generator sees the shift."""
+    plant = design_plant(gf)
+    best_i, bound = 0.0, math.inf
+    for ev in gf.evaluators:
+        gen = gf.generators[ev.generator]
+        s = long_run_covariance(gen, plant)
+        mu = np.asarray(shifts[ev.generator], dtype=float)
+        info = 0.5 * float(mu @ np.linalg.pinv(s, rcond=1e-9, hermitian=True) @ mu)
+        if info > 0:
+            best_i = max(best_i, info)
+            bound = min(bound, lorden_delay(1.0 / ev.P_f, info))
+    return (best_i, bound) if math.isfinite(bound) else None
+
+
+def budget_seconds(gf: GainFile) -> float:
+    """A linear diagnoser's false-alarm budget: its ``arl0``, or ``Ts / Σ_j P_f,j`` for a design by ``P_f``."""
+    bank = gf.certificate.get("bank", {})
+    info = bank.get("info", {}) if isinstance(bank, Mapping) else {}
+    if isinstance(info, Mapping) and isinstance(info.get("arl0_s"), (int, float)):
+        return float(info["arl0_s"])
+    return float(gf.Ts) / sum(float(e.P_f) for e in gf.evaluators)
+
+
+def fault_sizes(plant: LinearPlant, faults: Sequence[FaultClass], min_fault: Mapping[str, float] | None) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """The designed minimum fault of each class: ``(sensor biases, component faults)`` on the plant's outputs and
+    ``Fx`` columns. ``min_fault[name]`` is its size in the fault's own units (every sensor or component of the
+    class biased by it); by default one standard deviation of each sensor's noise (``sqrt R_ii``) and 1 for a
+    component fault."""
+    given = dict(min_fault or {})
+    unknown = sorted(set(given) - {f.name for f in faults})
+    if unknown:
+        raise ArgumentError(f"min_fault names {unknown}, not fault classes of this diagnoser; they are {[f.name for f in faults]}")
+    out = {}
+    sd = np.sqrt(np.clip(np.diag(plant.R), 0.0, None))
+    for f in faults:
+        sens = np.zeros(plant.p)
+        comp = np.zeros(plant.Fx.shape[1])
+        for name in f.sensors:
+            j = plant.outputs.index(name)
+            sens[j] = float(given.get(f.name, sd[j]))
+            if sens[j] <= 0:
+                raise ArgumentError(
+                    f"fault {f.name!r}: sensor {name!r} has no noise (R = 0), so no default minimum fault; give min_fault.{f.name}"
+                )
+        for name in f.components:
+            comp[plant.component_faults.index(name)] = float(given.get(f.name, 1.0))
+        out[f.name] = (sens, comp)
+    return out
+
+
+def sequential_evaluators(
+    plant: LinearPlant,
+    generators: Sequence[Generator],
+    faults: Sequence[FaultClass],
+    *,
+    kind: str,
+    arl_samples: float,
+    window: int | None,
+    min_fault: Mapping[str, float] | None,
+) -> tuple[list[Evaluator], list[Generator], list[np.ndarray], dict[str, Any]]:
+    """CUSUM or GLR statistics for a bank: ``(evaluators, whitened generators, their covariances, information)``.
+
+    Each generator is whitened (:func:`fdisyn.synthesis.residual.whitened`). Its hypotheses are the fault
+    classes of the signature table that reach it, each as the designed minimum fault (:func:`fault_sizes`):
+    the CUSUM on its steady-state residual signature (the step response after the generator has settled,
+    ``G_rf(1) f``), the GLR on its transient signature over the onset window. A class whose steady-state
+    signature carries less than :data:`VISIBLE_RTOL` of the generator's largest information is left out (a
+    bias that looks like the decoupled unknown input, say: only its onset shows). ``window`` (GLR)
+    ``None``: twice the Lorden delay of the weakest hypothesis, clipped to 25…100 samples. The information
+    returned holds, per generator and class, the steady-state Kullback–Leibler information per sample of the
+    designed fault and its Lorden delay ``ln(ARL) / I`` at this statistic's share of the budget.
+    """
+    sizes = fault_sizes(plant, faults, min_fault)
+    gens = [whitened(g, plant) for g in generators]
+    sigmas = [residual_autocovariances(g, plant, 0)[0] for g in gens]
+    checks = [
+        Check(
+            f"{g.name}: residual white (largest lag-1…50 autocorrelation)",
+            whiteness(g, plant),
+            1e3 * WHITE_RTOL,
+            "<=",
+            "CUSUM and GLR thresholds assume independent samples; an innovation's autocorrelations are round-off",
+        )
+        for g in gens
+    ]
+    evals: list[Evaluator] = []
+    table: dict[str, object] = {}
+    for gi, (gen, sig) in enumerate(zip(gens, sigmas, strict=True)):
+        rho_max = float(np.max(np.abs(np.linalg.eigvals(gen.Ar)))) if gen.n_state else 0.0
+        settle = 1 if rho_max <= 0 else min(20_000, max(1, math.ceil(math.log(1e-9) / math.log(rho_max))))
+        w_pinv = chi2_evaluator(gi, sig, 0.5).W
+        hyp: dict[str, np.ndarray] = {}
+        for f in faults:
+            if not _expected(f, generators[gi], plant):
+                continue
+            resp = fault_step_response(gen, plant, *sizes[f.name], settle + 1)
+            hyp[f.name] = resp
+        infos = {k: 0.5 * float(v[-1] @ w_pinv @ v[-1]) for k, v in hyp.items()}
+        top = max(infos.values(), default=0.0)
+        visible = [k for k in hyp if infos[k] > VISIBLE_RTOL * top]
+        if not visible:
+            raise ExistenceError(
+                f"generator {gen.name!r} sees no fault class at steady state; a {kind} statistic has nothing to test there "
+                "(use detector 'chi2' or 'wssr', or name fault classes it reads)"
+            )
+        table[gen.name] = {
+            "hypotheses": visible,
+            "faults": {k: {"information": infos[k], "lorden_samples": lorden_delay(arl_samples, infos[k])} for k in visible},
+        }
+        if kind == "cusum":
+            evals.append(cusum_evaluator(gi, sig, [hyp[k][-1] for k in visible], arl_samples))
+        else:
+            m = window
+            if m is None:
+                weakest = min(infos[k] for k in visible)
+                m = int(min(100, max(25, math.ceil(2.0 * lorden_delay(arl_samples, weakest)))))
+            if not 1 <= int(m) <= MAX_GLR_WINDOW:
+                raise ArgumentError(f"window = {m}: a GLR onset window must be 1..{MAX_GLR_WINDOW} samples")
+            signatures = [
+                hyp[k][: int(m)] if hyp[k].shape[0] >= int(m) else fault_step_response(gen, plant, *sizes[k], int(m))
+                for k in visible
+            ]
+            evals.append(glr_evaluator(gi, sig, signatures, arl_samples, int(m)))
+    return evals, gens, sigmas, {"kind": kind, "generators": table, "min_fault": {k: [a.tolist(), b.tolist()] for k, (a, b) in sizes.items()}, "checks": checks}
 
 
 def default_fault_classes(plant: LinearPlant, generators: Sequence[Generator]) -> list[FaultClass]:
@@ -252,7 +457,8 @@ def _bank_checks(
             energy = float(g @ ev.W @ g)
             scale = float(np.linalg.norm(gen.Dy[:, j]) + np.linalg.norm(gen.Cr) * np.linalg.norm(gen.By[:, j]))
             visible = energy > 1e-20 * scale**2 * np.linalg.norm(ev.W, 2)  # a DC gain cancelled to round-off
-            row[plant.outputs[j]] = float(np.sqrt(ev.threshold / (ev.window * energy))) if visible else None
+            if ev.kind not in SEQUENTIAL_KINDS:  # a sequential statistic's sensitivity is its hypotheses' information
+                row[plant.outputs[j]] = float(np.sqrt(ev.threshold / (ev.window * energy))) if visible else None
             checks.append(
                 Check(
                     f"{gen.name}: sensor {plant.outputs[j]} reaches the residual",
@@ -263,7 +469,8 @@ def _bank_checks(
                     "(~1e-16) would make its faults invisible",
                 )
             )
-        table[gen.name] = row
+        if row:
+            table[gen.name] = row
     return checks, table
 
 
@@ -364,18 +571,27 @@ TS = Option(
 EVALUATOR = Option(
     "evaluator",
     "chi2",
-    "the statistic of each generator: 'chi2', q = rᵀ W r per sample, or 'wssr', the sum of q over the last window valid samples",
-    "'chi2' or 'wssr'",
-    lambda v: v in ("chi2", "wssr"),
+    "the statistic of each generator (the same option as detector, its earlier name)",
+    "'chi2', 'wssr', 'cusum' or 'glr'",
+    lambda v: v in EVALUATOR_KINDS,
+)
+MIN_FAULT = Option(
+    "min_fault",
+    None,
+    "the designed minimum fault of each class for 'cusum' and 'glr', in the fault's units (default: one noise standard "
+    "deviation of each sensor, 1 for a component fault)",
+    "a table fault-class name → positive size",
+    lambda v: isinstance(v, Mapping) and all(isinstance(k, str) and is_real(x) and x > 0 for k, x in v.items()),
 )
 LINEAR_WINDOW = replace(
     WINDOW,
-    default=1,
+    default=None,
     kind=f"a whole number of samples in 1..{MAX_WSSR_WINDOW}",
     accepts=lambda v: is_count(v) and v <= MAX_WSSR_WINDOW,
-    doc="WSSR window N in samples (Long & Wang, Aeroengine 43(5), 2017, section 2); only with evaluator 'wssr'",
+    doc="WSSR window N in samples (Long & Wang, Aeroengine 43(5), 2017, section 2), or the GLR's onset window; "
+    "default 1 for 'wssr', chosen from the designed faults for 'glr'",
 )
-BANK_OPTIONS: tuple[Option, ...] = (P_F, PERSISTENCE, EVALUATOR, LINEAR_WINDOW, BANK, FAULTS)
+BANK_OPTIONS: tuple[Option, ...] = (P_F, ARL0, PERSISTENCE, DETECTOR, EVALUATOR, LINEAR_WINDOW, MIN_FAULT, BANK, FAULTS)
 """The options of every linear method: the bank and its evaluation (χ²: Hu et al. 2013, Acta Automatica Sinica 39(8),
 eq. (20); WSSR: Long & Wang, Aeroengine 43(5), 2017, section 2)."""
 
@@ -387,12 +603,15 @@ def linear_recovery_samples(gf: GainFile) -> int:
     """Samples for a fault's transient to decay by 1e-8 in the slowest generator.
 
     ``ceil(ln 1e-8 / ln ρ)`` with ``ρ`` the largest spectral radius of the
-    generators' ``Ar``, plus ``N − 1`` for the longest WSSR window ``N`` (it
-    holds the fault's last samples that long); after that the statistics no
-    longer carry the fault.
+    generators' ``Ar``, plus ``N − 1`` for the longest WSSR or GLR window ``N`` (it
+    holds the fault's last samples that long) or ``2h / drift`` for a CUSUM (it
+    drains from its cap at its drift); after that the statistics no longer
+    carry the fault.
     """
     rho = max((float(np.max(np.abs(np.linalg.eigvals(g.Ar)))) for g in gf.generators if g.n_state), default=0.0)
     held = max((e.window for e in gf.evaluators), default=1) - 1
+    # a CUSUM, capped at 2h, drains at its smallest drift per sample once the fault is gone
+    held = max([held] + [math.ceil(2.0 * e.threshold / float(np.min(e.drift))) for e in gf.evaluators if e.drift is not None])
     if rho <= 0.0:
         return 1 + held
     return max(1, math.ceil(math.log(1e-8) / math.log(rho))) + held
@@ -411,7 +630,10 @@ def bank_diagnoser(
     persistence: int,
     bank: Mapping[str, Sequence[int]] | None,
     evaluator: str = "chi2",
-    window: int = 1,
+    window: int | None = None,
+    detector: str | None = None,
+    arl0: float | None = None,
+    min_fault: Mapping[str, float] | None = None,
     faults: Sequence[FaultClass] | None,
     Ts: float | None = None,
     sampled_data: bool = False,
@@ -448,10 +670,19 @@ def bank_diagnoser(
         faults=faults if faults is not None else default_fault_classes(discrete, gens),
         certificates=certs,
         persistence=persistence,
-        evaluator=evaluator,
+        evaluator=chosen_detector(detector, evaluator, where),
         window=window,
+        arl0=arl0,
+        min_fault=min_fault,
         options=record,
     )
+
+
+def chosen_detector(detector: str | None, evaluator: str, where: str) -> str:
+    """``detector``, or ``evaluator`` (its earlier name) when it is not given; both given and different is an error."""
+    if detector is not None and evaluator not in ("chi2", detector):
+        raise ArgumentError(f"{at(where, 'detector')} = {detector!r} but evaluator = {evaluator!r}: they are the same option, give one")
+    return detector if detector is not None else evaluator
 
 
 def _check_ts(plant: Any, options: Mapping[str, Any], where: str) -> None:
@@ -479,10 +710,16 @@ def linear_method(
     """
 
     def checks(plant: Any, opts: Mapping[str, Any], where: str) -> None:
-        if opts.get("evaluator", "chi2") == "chi2" and opts.get("window", 1) != 1:
+        kind = chosen_detector(opts.get("detector"), opts.get("evaluator", "chi2"), where)
+        if kind in ("chi2", "cusum") and opts.get("window") not in (None, 1):
             raise ArgumentError(
-                f"{at(where, 'window')} = {shown(opts['window'])} needs evaluator = 'wssr' "
-                "(the χ² evaluator 'chi2' uses one sample)"
+                f"{at(where, 'window')} = {shown(opts['window'])} needs detector = 'wssr' or 'glr' "
+                f"(the {kind!r} statistic has no window)"
+            )
+        if kind in SEQUENTIAL_KINDS and opts.get("persistence", 1) != 1:
+            raise ArgumentError(
+                f"{at(where, 'persistence')} = {shown(opts['persistence'])} with detector {kind!r}: a sequential statistic "
+                "accumulates the evidence itself; use persistence 1 (set the false-alarm budget with arl0)"
             )
         if not sampled_data:
             _check_ts(plant, opts, where)

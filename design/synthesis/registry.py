@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from fdisyn.runtime.errors import ArgumentError, GainFileError
-from fdisyn.runtime.gainfile import LIMITS, GainFile
+from fdisyn.runtime.gainfile import EVALUATOR_KINDS, LIMITS, GainFile
 from fdisyn.runtime.names import shown
 
 __all__ = [
@@ -356,9 +356,25 @@ PERSISTENCE = Option(
     f"a whole number ≥ 1 of consecutive exceedances, at most {LIMITS['persistence']}",
     lambda v: is_count(v) and v <= LIMITS["persistence"],  # a count in a double; the gain file's limit
 )
+DETECTOR = Option(
+    "detector",
+    None,
+    "the statistic of each generator: 'chi2', q = rᵀ W r per sample; 'wssr', the sum of q over the last window samples; "
+    "'cusum', Page's CUSUM for each fault class's designed minimum fault; 'glr', the windowed GLR of Willsky & Jones "
+    "for a fault of unknown size and onset (default: evaluator's value)",
+    "'chi2', 'wssr', 'cusum' or 'glr'",
+    lambda v: v in EVALUATOR_KINDS,
+)
+ARL0 = Option(
+    "arl0",
+    None,
+    "the diagnoser's mean time between false alarms (s): sets every threshold from its statistic's law, in place of P_f",
+    "a positive number of seconds",
+    lambda v: is_real(v) and v > 0,
+)
 WINDOW = Option("window", 10, "WSSR window N in samples (Zhou, Xi & Zhang c. 1991, eq. (2.4))", "a whole number of samples ≥ 1", is_count)
 
-SHARED_OPTIONS: Mapping[str, Option] = {o.name: o for o in (P_F, PERSISTENCE, WINDOW)}
+SHARED_OPTIONS: Mapping[str, Option] = {o.name: o for o in (P_F, PERSISTENCE, WINDOW, DETECTOR, ARL0)}
 """Options several methods and problems share, with their domains (a problem's own
 default may differ: :func:`check_option` keeps the domain)."""
 

@@ -26,7 +26,19 @@ from fdisyn.numerics.linalg import dlyap, spectral_radius, transfer_size
 from fdisyn.runtime.errors import ExistenceError, ShapeError
 from fdisyn.runtime.gainfile import Generator
 
-__all__ = ["InternalForm", "internal_form", "dc_gain_y", "residual_covariance", "residual_autocovariances", "embed_outputs"]
+__all__ = [
+    "InternalForm",
+    "internal_form",
+    "dc_gain_y",
+    "residual_covariance",
+    "residual_autocovariances",
+    "embed_outputs",
+    "whiteness",
+    "whitened",
+    "fault_step_response",
+    "long_run_covariance",
+    "WHITE_RTOL",
+]
 
 
 @dataclass(frozen=True, eq=False)
@@ -123,6 +135,13 @@ def residual_autocovariances(gen: Generator, plant: LinearPlant, lags: int) -> n
     ``C_i U₁ = 0`` and the residual is the output of the stable quotient ``(A₂₂, U₂ᵀ K, C_i U₂)``. Raises
     :class:`ExistenceError` when it does see one (no stationary law).
     """
+    a, k, c, dn, w = _stationary_model(gen, plant)
+    return residual_autocovariance(a, k, c, dn, w, lags)
+
+
+def _stationary_model(gen: Generator, plant: LinearPlant) -> tuple[np.ndarray, ...]:
+    """``(A, K, C, Dn, W)``: the residual as the output of a stable system driven by white noise ``n ~ N(0, W)``
+    (the internal form, or its stable quotient; see :func:`residual_autocovariances`)."""
     form = internal_form(gen, plant)
     bw, bv = _noise_inputs(gen, plant)
     k = np.hstack([bw, bv])
@@ -138,7 +157,98 @@ def residual_autocovariances(gen: Generator, plant: LinearPlant, lags: int) -> n
                 f"(output direction {seen:.3g}): it has no stationary law and no windowed threshold"
             )
         a, k, c = t[unstable:, unstable:], (u.T @ k)[unstable:], (c @ u)[:, unstable:]
-    return residual_autocovariance(a, k, c, dn, w, lags)
+    return a, k, c, dn, w
+
+
+WHITE_RTOL = 1e-8
+"""A residual counts as white when no lag-1…``lags`` autocorrelation of its normalised form exceeds this
+(an exact innovation's are round-off, ~1e-14; the paper gains of a UIO bank give 0.1–1)."""
+
+
+def whiteness(gen: Generator, plant: LinearPlant, lags: int = 50) -> float:
+    """``max_{1 ≤ τ ≤ lags} ‖T R(τ) Tᵀ‖₂`` with ``Tᵀ T = R(0)⁺``: the largest autocorrelation of ``gen``'s residual."""
+    r = residual_autocovariances(gen, plant, lags)
+    lam, vec = np.linalg.eigh(0.5 * (r[0] + r[0].T))
+    keep = lam > 1e-12 * max(float(lam[-1]), 1e-300)
+    t = (vec[:, keep] / np.sqrt(lam[keep])).T
+    return max((float(np.linalg.norm(t @ r[k] @ t.T, 2)) for k in range(1, lags + 1)), default=0.0)
+
+
+def whitened(gen: Generator, plant: LinearPlant) -> Generator:
+    """``gen`` followed by the whitening filter of its residual: the residual becomes its innovation.
+
+    The residual is the output of a stable system driven by the plant's noise (:func:`_stationary_model`:
+    ``z⁺ = A z + K n``, ``r = C z + Dn n``). Its steady-state Kalman predictor ``ẑ⁺ = A ẑ + L (r − C ẑ)``
+    (the filtering DARE with ``Q = K W Kᵀ``, ``R = Dn W Dnᵀ``, ``S = K W Dnᵀ``:
+    :func:`fdisyn.numerics.riccati.solve_filter_dare`) makes ``e = r − C ẑ`` white (Anderson & Moore, Optimal
+    Filtering, Prentice-Hall 1979, section 5.3), with the same information about a fault as ``r``. Composed
+    with the generator, in canonical form on state ``[ξ; ẑ]``::
+
+        Ar' = [[Ar, 0], [L Cr, A − L C]],  Bu' = [Bu; L Du],  By' = [By; L Dy],
+        Cr' = [Cr, −C],                    Du' = Du,          Dy' = Dy.
+
+    A residual that is already white (:data:`WHITE_RTOL`) is returned unchanged. One that is not is first
+    projected on the directions its χ² statistic keeps (variance above
+    :data:`fdisyn.evaluators.chi2.CHI2_RANK_RTOL` of the largest, the eigenvectors of its covariance): a
+    direction without noise of its own would make the innovation model singular.
+    """
+    if whiteness(gen, plant) <= WHITE_RTOL:
+        return gen
+    from fdisyn.evaluators.chi2 import CHI2_RANK_RTOL
+    from fdisyn.numerics.riccati import solve_filter_dare
+
+    lam, vec = np.linalg.eigh(residual_autocovariances(gen, plant, 0)[0])
+    keep = lam > CHI2_RANK_RTOL * max(float(lam[-1]), 1e-300)
+    if not np.all(keep):
+        t = vec[:, keep][:, ::-1].T  # largest variance first
+        gen = Generator.from_canonical(
+            name=gen.name, outputs_used=gen.outputs_used, Ar=gen.Ar, Bu=gen.Bu, By=gen.By,
+            Cr=t @ gen.Cr, Du=t @ gen.Du, Dy=t @ gen.Dy, method={**dict(gen.method), "projection": t},
+        )
+    a, k, c, dn, w = _stationary_model(gen, plant)
+    sol = solve_filter_dare(a, c, k @ w @ k.T, dn @ w @ dn.T, k @ w @ dn.T)
+    lg = sol.L
+    ns, nz = gen.n_state, a.shape[0]
+    ar = np.block([[gen.Ar, np.zeros((ns, nz))], [lg @ gen.Cr, a - lg @ c]])
+    return Generator.from_canonical(
+        name=gen.name,
+        outputs_used=gen.outputs_used,
+        Ar=ar,
+        Bu=np.vstack([gen.Bu, lg @ gen.Du]),
+        By=np.vstack([gen.By, lg @ gen.Dy]),
+        Cr=np.hstack([gen.Cr, -c]),
+        Du=gen.Du,
+        Dy=gen.Dy,
+        method={**dict(gen.method), "whitening_L": lg},
+    )
+
+
+def long_run_covariance(gen: Generator, plant: LinearPlant) -> np.ndarray:
+    """``Σ_τ R(τ) = H(1) W H(1)ᵀ``, ``H(1) = C (I − A)⁻¹ K + Dn`` (:func:`_stationary_model`): the residual's
+    spectral density at zero frequency. A constant mean shift ``μ`` of a stationary Gaussian residual brings
+    ``½ μᵀ (Σ_τ R(τ))⁺ μ`` nats of Kullback–Leibler information per sample in the long run — ``½ μᵀ Σ_r⁺ μ`` for
+    a white residual, and the same for a residual and its whitened form."""
+    a, k, c, dn, w = _stationary_model(gen, plant)
+    h = c @ np.linalg.solve(np.eye(a.shape[0]) - a, k) + dn
+    s = h @ w @ h.T
+    return 0.5 * (s + s.T)
+
+
+def fault_step_response(gen: Generator, plant: LinearPlant, sensors: np.ndarray, components: np.ndarray, lags: int) -> np.ndarray:
+    """``ρ(ℓ)``, ``ℓ = 0 … lags − 1``: the residual ``ℓ`` samples after a step fault appears, from rest.
+
+    ``sensors`` (one entry per output) is the additive sensor bias, ``components`` (one per column of
+    ``Fx``) the component fault; the internal form's response (:func:`internal_form`), shape ``(lags, nr)``.
+    """
+    form = internal_form(gen, plant)
+    b = form.Bs @ np.asarray(sensors, dtype=float) + form.Bf @ np.asarray(components, dtype=float)
+    d = form.Ds @ np.asarray(sensors, dtype=float)
+    out = np.empty((int(lags), gen.n_residual))
+    z = np.zeros(form.A.shape[0])
+    for ell in range(int(lags)):
+        out[ell] = form.C @ z + d
+        z = form.A @ z + b
+    return out
 
 
 def embed_outputs(gen: Generator, outputs_used: Sequence[int], n_outputs: int) -> Generator:

@@ -233,7 +233,7 @@ def test_plant_file_design_keys_come_from_the_schema(tmp_path) -> None:
     with pytest.raises(SpecError, match=r"\[design\].sigma is read only by method 'beard_fdf', not by 'kalman_uio'"):
         problem_from_document(doc, tmp_path / "p.toml")
     doc["design"] = {"window": 3}  # the linear bank's WSSR window: with its evaluator only
-    with pytest.raises(SpecError, match=r"\[design\].window = 3 needs evaluator = 'wssr'"):
+    with pytest.raises(SpecError, match=r"\[design\].window = 3 needs detector = 'wssr' or 'glr'"):
         problem_from_document(doc, tmp_path / "p.toml")
     doc["design"] = {"method": "lmi"}
     with pytest.raises(SpecError, match="designs for a continuous plant sampled at Ts"):

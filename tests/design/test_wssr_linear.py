@@ -188,7 +188,8 @@ def test_a_chi2_gain_file_is_written_without_window_and_reads_back_with_window_1
         (0, {"window": True}, "field 'window' must be an integer, found True"),
         (0, {"window": None}, "missing field 'window'"),
         (1, {"window": 2}, "window must be 1 for a 'chi2' evaluator"),
-        (0, {"kind": "cusum"}, "kind 'cusum' is not supported (supported: 'chi2', 'wssr')"),
+        (0, {"kind": "sprt"}, "kind 'sprt' is not supported (supported: 'chi2', 'wssr', 'cusum', 'glr')"),
+        (0, {"kind": "cusum"}, "missing field 'directions'"),
         (0, {"window": 5}, "step sizes"),  # the state no longer matches the window
     ],
 )
@@ -207,10 +208,10 @@ def test_bad_evaluator_values_are_refused_with_one_line(index, edit, message):
 
 def test_the_options_refuse_a_window_without_wssr():
     plant = random_plant(1)
-    with pytest.raises(ArgumentError, match=r"option window = 5 needs evaluator = 'wssr'"):
+    with pytest.raises(ArgumentError, match=r"option window = 5 needs detector = 'wssr' or 'glr'"):
         design(plant, "kalman_uio", window=5)
-    with pytest.raises(ArgumentError, match=r"option evaluator = 'cusum': expected 'chi2' or 'wssr'"):
-        design(plant, "kalman_uio", evaluator="cusum")
+    with pytest.raises(ArgumentError, match=r"option evaluator = 'bogus': expected 'chi2', 'wssr', 'cusum' or 'glr'"):
+        design(plant, "kalman_uio", evaluator="bogus")
     with pytest.raises(ArgumentError, match=r"option window = 0: expected a whole number of samples in 1..100000"):
         design(plant, "kalman_uio", evaluator="wssr", window=0)
     gf = design(plant, "kalman_uio")  # the default: χ², as before
