@@ -90,11 +90,11 @@ def noise_plant(plant: SampledDataPlant = PLANT) -> LinearPlant:
     )
 
 
-def _diagnoser(design: str, observer: Any, *, P_f: float) -> GainFile:
+def _diagnoser(design: str, observer: Any, *, P_f: float, detector: str | None = None, arl0: float | None = None) -> GainFile:
     dplant = noise_plant()
     gen = observer.generator(name=design)
     return linear_diagnoser(
-        name=f"sampled_data_example_{design}",
+        name=f"sampled_data_example_{design}" + ("" if detector is None else f"_{detector}"),
         problem="sampled_data_example",
         design=design,
         plant=dplant,
@@ -103,19 +103,23 @@ def _diagnoser(design: str, observer: Any, *, P_f: float) -> GainFile:
         P_f=P_f,
         faults=[FaultClass("f", components=("f",))],
         certificates=[observer.certificate],
-        options={"P_f": P_f, "J": dict(observer.J), "h": PLANT.Ts},  # "h": the key gain files have always held
+        evaluator=detector or "chi2",
+        window=None,
+        arl0=arl0,
+        options={"P_f": P_f, "J": dict(observer.J), "h": PLANT.Ts, **({"detector": detector, "arl0": arl0} if detector else {})},  # "h": the key gain files have always held
     )
 
 
 def _designs() -> dict[str, Callable[..., GainFile]]:
-    def direct(*, P_f: float = 1e-3, **_: object) -> GainFile:
-        return _diagnoser("direct", optimal_diagnostic_observer(plant=PLANT, design="direct"), P_f=P_f)
+    def direct(*, P_f: float = 1e-3, detector: str | None = None, arl0: float | None = None, **_: object) -> GainFile:
+        return _diagnoser("direct", optimal_diagnostic_observer(plant=PLANT, design="direct"), P_f=P_f, detector=detector, arl0=arl0)
 
-    def indirect(*, P_f: float = 1e-3, **_: object) -> GainFile:
-        return _diagnoser("indirect", optimal_diagnostic_observer(plant=PLANT, design="indirect"), P_f=P_f)
+    def indirect(*, P_f: float = 1e-3, detector: str | None = None, arl0: float | None = None, **_: object) -> GainFile:
+        observer = optimal_diagnostic_observer(plant=PLANT, design="indirect")
+        return _diagnoser("indirect", observer, P_f=P_f, detector=detector, arl0=arl0)
 
-    def lmi(*, P_f: float = 1e-3, **_: object) -> GainFile:
-        return _diagnoser("lmi", lmi_diagnostic_observer(plant=PLANT, eta="inf"), P_f=P_f)
+    def lmi(*, P_f: float = 1e-3, detector: str | None = None, arl0: float | None = None, **_: object) -> GainFile:
+        return _diagnoser("lmi", lmi_diagnostic_observer(plant=PLANT, eta="inf"), P_f=P_f, detector=detector, arl0=arl0)
 
     return {"direct": direct, "indirect": indirect, "lmi": lmi}
 
@@ -277,9 +281,13 @@ PROBLEM = Problem(
     default_design="direct",
     scenarios=SCENARIOS,
     simulate=_simulate,
-    options={"P_f": 1e-3},
+    options={"P_f": 1e-3, "detector": None, "arl0": None},
     reference={"J_direct_detects_at_60s": True, "J_indirect_detects": False},
     monte_carlo_runs=200,
+    variants=tuple(
+        {"label": f"{label} at arl0 = 1000 s", "options": {"detector": det, "arl0": 1000.0}}
+        for det, label in (("chi2", "χ²"), ("cusum", "CUSUM"), ("glr", "GLR"))
+    ),
     report=_report,
     notes=NOTES,
 )

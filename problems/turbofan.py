@@ -387,20 +387,26 @@ spool speeds, over seconds."""
 
 def gos(
     groups: Any = "auto", *, P_f: float = 1e-5, persistence: int = 1, window: int = 25, truth: Truth = TRUTH, name: str = "grouped",
-    E_rank: int | None = E_RANK,
+    E_rank: int | None = E_RANK, detector: str | None = None, arl0: float | None = None,
 ) -> Any:
     """The generalised UIO bank of Long & Wang 2017 on this engine, ``E`` estimated from :func:`training_trace`."""
     from fdisyn.synthesis.uio_gos import gos_design
 
     return gos_design(
         design_model(truth=truth),
-        name=f"turbofan_{name}",
+        name=f"turbofan_{name}" + ("" if detector is None else f"_{detector}"),
         problem="turbofan",
-        record={"method": "kalman_uio_gos", "groups": groups if groups == "auto" else [list(g) for g in groups], "P_f": P_f, "window": window},
+        record={
+            "method": "kalman_uio_gos", "groups": groups if groups == "auto" else [list(g) for g in groups], "P_f": P_f, "window": window,
+            **({"detector": detector, "arl0": arl0} if detector is not None else {}),
+        },
         P_f=P_f,
         persistence=persistence,
         evaluator="wssr",
-        window=window,
+        detector=detector,
+        arl0=arl0,
+        # the problem's window is the WSSR's: a sequential detector chooses its own (GLR) or has none (CUSUM)
+        window=window if detector in (None, "wssr") else None,
         Ts=TS,
         groups=groups if groups == "auto" else tuple(tuple(OUTPUTS.index(s) for s in g) for g in groups),
         training=training_trace(truth),
@@ -411,13 +417,13 @@ def gos(
 
 
 def _designs() -> dict[str, Any]:
-    def grouped(*, P_f: float, persistence: int, window: int) -> GainFile:
+    def grouped(*, P_f: float, persistence: int, window: int, detector: str | None = None, arl0: float | None = None) -> GainFile:
         """The paper's two groups (the search's best, checked by a test), one UIO per sensor in each."""
-        return gos(PAPER_GROUPS, P_f=P_f, persistence=persistence, window=window, name="grouped").gain_file
+        return gos(PAPER_GROUPS, P_f=P_f, persistence=persistence, window=window, name="grouped", detector=detector, arl0=arl0).gain_file
 
-    def ungrouped(*, P_f: float, persistence: int, window: int) -> GainFile:
+    def ungrouped(*, P_f: float, persistence: int, window: int, detector: str | None = None, arl0: float | None = None) -> GainFile:
         """The bank without grouping: UIO i reads every output but sensor i (eight outputs of rank seven or eight)."""
-        return gos((OUTPUTS,), P_f=P_f, persistence=persistence, window=window, name="ungrouped").gain_file
+        return gos((OUTPUTS,), P_f=P_f, persistence=persistence, window=window, name="ungrouped", detector=detector, arl0=arl0).gain_file
 
     return {"grouped": grouped, "ungrouped": ungrouped}
 
@@ -673,7 +679,7 @@ PROBLEM = Problem(
     default_design="grouped",
     scenarios=SCENARIOS,
     simulate=simulate,
-    options={"P_f": 1e-5, "persistence": 1, "window": 25},
+    options={"P_f": 1e-5, "persistence": 1, "window": 25, "detector": None, "arl0": None},
     reference={
         "rank_C": 8,
         "claims": [

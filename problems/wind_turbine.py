@@ -246,8 +246,9 @@ def design_model(parameters: str = "benchmark") -> LinearPlant:
     return discrete_model(p).scaled(state_scale(p))
 
 
-def _name(parameters: str, design: str) -> str:
-    return f"wind_turbine_{design}" if parameters == "benchmark" else f"wind_turbine_{parameters}_{design}"
+def _name(parameters: str, design: str, detector: str | None = None) -> str:
+    base = f"wind_turbine_{design}" if parameters == "benchmark" else f"wind_turbine_{parameters}_{design}"
+    return base if detector is None else f"{base}_{detector}"
 
 
 def _fault_classes() -> list[FaultClass]:
@@ -265,6 +266,12 @@ observers alarm) and are detected but not isolated."""
 DEFAULT_POLES = (0.5, 0.6, 0.7)
 """Observer poles of the plain UIO: real, 36–69 rad/s, faster than the 28 rad/s
 torsional mode, as a designer placing them by hand typically would."""
+
+
+DETECTORS = (("chi2", "χ²"), ("cusum", "CUSUM"), ("glr", "GLR"))
+"""The detectors the report compares at one false-alarm budget."""
+DETECTOR_SCENARIOS = ("fault_free", "paper_F2", "omega_r_m1_one_sigma", "omega_g_m1_offset", "benchmark_stuck", "benchmark_gain_pair")
+"""The scenarios of that comparison: no fault, small faults (the designed minimum fault among them) and large ones."""
 
 
 def _bank_design(
@@ -285,7 +292,7 @@ def _bank_design(
     return design_with(
         plant,
         design,
-        name=_name(parameters, design),
+        name=_name(parameters, design, detector),
         problem="wind_turbine",
         record={
             "parameters": parameters,
@@ -626,6 +633,18 @@ PROBLEM = Problem(
     variants=(
         {"label": "paper parameter set", "options": {"parameters": "paper"}, "scenarios": ["fault_free", "paper_F1", "paper_F2"]},
         {"label": "persistence 3", "options": {"persistence": 3}},
+        *(
+            {"label": f"{label} at arl0 = 60 s", "options": {"detector": det, "arl0": 60.0}, "scenarios": list(DETECTOR_SCENARIOS)}
+            for det, label in DETECTORS
+        ),
+        *(
+            {
+                "label": f"paper parameter set, {label} at arl0 = 60 s",
+                "options": {"parameters": "paper", "detector": det, "arl0": 60.0},
+                "scenarios": ["fault_free", "paper_F2"],
+            }
+            for det, label in DETECTORS
+        ),
     ),
     notes=NOTES,
 )

@@ -259,9 +259,10 @@ class Evaluator:
 
     Sequential kinds (the generator's residual is white, with covariance ``Sigma_r``; ``W`` its pseudo-inverse):
 
-    * ``"cusum"`` (Page, Biometrika 41(1/2), 1954): one CUSUM per row ``a_i`` of ``directions``
-      (``a_i = μ_iᵀ W`` for a fault of steady-state residual signature ``μ_i``) with ``drift[i] = ½ μ_iᵀ W μ_i``:
-      ``S_i(k) = min(max(0, S_i(k−1) + a_i r(k) − drift[i]), 2·threshold)`` and ``J = max_i S_i``.
+    * ``"cusum"`` (Page, Biometrika 41(1/2), 1954): two CUSUMs per row ``a_i`` of ``directions``
+      (``a_i = μ_iᵀ W`` for a fault of steady-state residual signature ``μ_i``), one per sign of the fault,
+      with ``drift[i] = ½ μ_iᵀ W μ_i``: ``S_i^±(k) = min(max(0, S_i^±(k−1) ± a_i r(k) − drift[i]), 2·threshold)``
+      and ``J = max_i max(S_i^+, S_i^−)``.
     * ``"glr"`` (Willsky & Jones, IEEE Transactions on Automatic Control 21(1), 1976): ``directions`` holds
       ``M = window`` rows per hypothesis, row ``i·M + ℓ`` being ``ρ_i(ℓ)ᵀ W`` for the residual signature
       ``ρ_i(ℓ)`` ``ℓ`` samples after a unit step fault, and ``information[i·M + n − 1] = c_i(n) =
@@ -458,14 +459,18 @@ def linear_state_layout(generators: Sequence[Generator], evaluators: Sequence[Ev
     not seen yet, so ``J`` — the sum of the register — needs no fill count,
     and the step has no index arithmetic, which the symbolic step would spell
     out as one comparison per entry anyway); ``sequential<j>``: for each CUSUM
-    statistic its sums ``S_i``, for each GLR statistic its onset sums ``d_i(n)``
+    statistic its sums ``S_i^+`` then ``S_i^−``, for each GLR statistic its onset sums ``d_i(n)``
     (hypothesis-major, ``n = 1 … M``). A sequential statistic's persistence
     counter holds its raised alarm (1) or 0.
     """
     blocks = [(f"xi{g}", gen.n_state, 1) for g, gen in enumerate(generators)]
     blocks += [("counters", len(evaluators), 1), ("ready", len(generators), 1), ("nonfinite", 1, 1)]
     blocks += [(f"window{j}", int(e.window), 1) for j, e in enumerate(evaluators) if e.kind == "wssr"]
-    blocks += [(f"sequential{j}", int(e.directions.shape[0]), 1) for j, e in enumerate(evaluators) if e.kind in SEQUENTIAL_KINDS and e.directions is not None]
+    blocks += [
+        (f"sequential{j}", int(e.directions.shape[0]) * (2 if e.kind == "cusum" else 1), 1)
+        for j, e in enumerate(evaluators)
+        if e.kind in SEQUENTIAL_KINDS and e.directions is not None
+    ]
     return StateLayout(tuple(blocks), scalars=frozenset({"nonfinite"}))
 
 

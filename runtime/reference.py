@@ -18,8 +18,8 @@ Then each statistic of ``g`` weighs ``q_j = r_gᵀ W_j r_g``: a χ² statistic i
 ``J_j = q_j``; a WSSR one (window ``N``) shifts ``q_j`` into its window —
 the last ``N`` samples ``g`` did not skip, newest first, zeros for those not
 seen yet — and ``J_j`` is the window's sum, added newest first (the order of
-the generated C). A CUSUM statistic adds ``a_i r − drift_i`` to each sum
-``S_i``, clamps it to ``[0, 2·threshold]`` and reports the largest; a GLR one
+the generated C). A CUSUM statistic adds ``±a_i r − drift_i`` to each sum
+``S_i^±``, clamps it to ``[0, 2·threshold]`` and reports the largest; a GLR one
 shifts its onset sums ``d_i(n) ← d_i(n−1) + ρ_i(n−1)ᵀ W r`` (``d_i(1) =
 ρ_i(0)ᵀ W r``) and reports ``max d_i(n)² / (2 c_i(n))`` (see
 :class:`~fdisyn.runtime.gainfile.Evaluator`). A statistic's persistence counter counts
@@ -200,7 +200,8 @@ class LinearReference:
                         jg[j] = float(np.add.accumulate(windows[j])[-1])  # in order, newest first
                     elif ev.kind == "cusum":
                         assert ev.directions is not None and ev.drift is not None
-                        sums = state[lay[f"sequential{j}"]] + ev.directions @ rg - ev.drift
+                        z = ev.directions @ rg
+                        sums = state[lay[f"sequential{j}"]] + np.concatenate([z, -z]) - np.concatenate([ev.drift, ev.drift])
                         windows[j] = np.minimum(np.maximum(sums, 0.0), 2.0 * ev.threshold)
                         jg[j] = float(np.max(windows[j]))
                     elif ev.kind == "glr":

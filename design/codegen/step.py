@@ -108,7 +108,8 @@ def linear_step_function(gf: GainFile) -> ca.Function:
                 old = state[ws.start : ws.stop]
                 if ev.kind == "cusum":
                     assert ev.drift is not None
-                    sums = ca.fmin(ca.fmax(old + z - _const(ev.drift), 0), 2.0 * float(ev.threshold))
+                    drift = _const(np.concatenate([ev.drift, ev.drift]))
+                    sums = ca.fmin(ca.fmax(old + ca.vertcat(z, -z) - drift, 0), 2.0 * float(ev.threshold))
                     terms = sums
                 else:
                     m = int(ev.window)

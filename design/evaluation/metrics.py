@@ -18,7 +18,9 @@ detection delay
 isolation accuracy
     fraction of runs whose most frequent isolation decision (``isolated ≥ 0``)
     while the fault is active names the true fault; runs that never isolate
-    count as wrong. ``first isolation accuracy``: the same for the first
+    count as wrong. ``false isolation``: the fraction of runs whose most
+    frequent decision names another fault (a run that never isolates is not
+    counted: detected, not isolated). ``first isolation accuracy``: the same for the first
     decision (harsh for multi-sensor faults, whose pattern builds up over a
     few samples). ``sample isolation accuracy``: among fault-active samples
     with an alarm, the fraction with the true fault isolated.
@@ -89,6 +91,7 @@ class ScenarioMetrics:
     """Largest KL information per sample the fault brings to one generator (nats)."""
     lorden_bound_samples: float | None = None
     delay_bound_ratio: float | None = None
+    false_isolation_rate: float | None = None
     extra: Mapping[str, Any] = field(default_factory=dict)
     """Figures beyond detection (``Problem.extra_metrics``, else the diagnoser kind's)."""
 
@@ -135,7 +138,7 @@ def scenario_metrics(
         lo, hi = binomial_interval(runs * n_quiet, float(pf))
         total = max(runs * n_quiet, 1)
         intervals.append((lo / total, hi / total))
-    md = maf = d_mean = d_med = d_max = ds_mean = iso_acc = first_acc = siso = None
+    md = maf = d_mean = d_med = d_max = ds_mean = iso_acc = first_acc = siso = false_iso = None
     ds_max: int | None = None
     if active.any():
         idx = np.flatnonzero(active)
@@ -157,6 +160,7 @@ def scenario_metrics(
             first_acc = float(np.mean(firsts == fault_index))
             modes = [int(np.bincount(row[row >= 0]).argmax()) if np.any(row >= 0) else -1 for row in iso_win]
             iso_acc = float(np.mean(np.asarray(modes) == fault_index))
+            false_iso = float(np.mean((np.asarray(modes) >= 0) & (np.asarray(modes) != fault_index)))
             n_alarmed = int(hit.sum())
             siso = float(np.sum((iso_win == fault_index) & hit) / n_alarmed) if n_alarmed else 0.0
     onset = alarm & ~np.concatenate([np.zeros((runs, 1), dtype=bool), alarm[:, :-1]], axis=1)
@@ -195,6 +199,7 @@ def scenario_metrics(
         fault_information=None if lorden is None else lorden[0],
         lorden_bound_samples=None if lorden is None else lorden[1],
         delay_bound_ratio=ratio,
+        false_isolation_rate=false_iso,
     )
 
 

@@ -34,6 +34,7 @@ from dataclasses import replace
 
 import numpy as np
 import scipy.optimize
+import scipy.special
 import scipy.stats
 from fdisyn.evaluators.chi2 import chi2_evaluator
 from fdisyn.runtime.errors import ArgumentError, ExistenceError, ShapeError, SolverError
@@ -58,10 +59,10 @@ deviation of the increment on the continuation region; the tests compare it with
 Siegmund's approximation, which is within a few per cent)."""
 
 _NODES = 96
-_DIFFUSION_BEYOND = 60.0
+_DIFFUSION_BEYOND = 30.0
 """``h/σ`` beyond which :func:`cusum_arl` uses Siegmund's approximation (a Nyström system of ``8 h/σ`` nodes
-would grow past 480; the increment is then a small fraction of the threshold, where the corrected diffusion is
-accurate: within 0.1 % at ``h/σ ≈ 20`` already)."""
+would grow past 240; the increment is then a small fraction of the threshold, where the corrected diffusion is
+accurate: within 0.05 % of the integral equation at ``h/σ ≈ 25`` already)."""
 
 
 def _positive(value: float, name: str) -> float:
@@ -96,8 +97,9 @@ def cusum_arl(h: float, information: float, *, shift: float = 0.0, nodes: int = 
     w = 0.5 * top * w
     # L(x_i) = 1 + L(0) F(−x_i) + Σ_j w_j f(x_j − x_i) L(x_j), with L(0) as an extra unknown (row for x = 0)
     pts = np.concatenate([[0.0], x])
-    kern = scipy.stats.norm.pdf(x[None, :] - pts[:, None], mean, 1.0) * w[None, :]
-    atom = scipy.stats.norm.cdf(-pts, mean, 1.0)
+    dz = x[None, :] - pts[:, None] - mean
+    kern = np.exp(-0.5 * dz * dz) * (w[None, :] / math.sqrt(2.0 * math.pi))
+    atom = scipy.special.ndtr(-pts - mean)
     m = np.zeros((len(pts), len(pts)))
     m[:, 0] = -atom
     m[:, 1:] = -kern
@@ -198,9 +200,17 @@ def split_budget(arl0_samples: float, parts: int) -> float:
 # --------------------------------------------------------------------------- evaluators of a linear generator
 
 
-def _union_threshold(arl_samples: float, arl_of: Callable[[float], float], what: str) -> float:
-    """``h`` with ``Σ_i 1/ARL_i(h) = 1/arl_samples`` (``arl_of(h)`` returns ``1/Σ_i 1/ARL_i(h)``)."""
+def _union_threshold(
+    arl_samples: float, arl_of: Callable[[float], float], what: str, approx: Callable[[float], float] | None = None
+) -> float:
+    """``h`` with ``Σ_i 1/ARL_i(h) = 1/arl_samples`` (``arl_of(h)`` returns ``1/Σ_i 1/ARL_i(h)``); ``approx``, a
+    cheap approximation of ``arl_of``, brackets the root first."""
     target = math.log(_positive(arl_samples, "arl0"))
+    if approx is not None:
+        guess = _union_threshold(arl_samples, approx, what)
+        lo, hi = 0.8 * guess, 1.25 * guess
+        if math.log(arl_of(lo)) < target < math.log(arl_of(hi)):
+            return float(scipy.optimize.brentq(lambda h: math.log(arl_of(h)) - target, lo, hi, xtol=1e-10, rtol=1e-12))
     lo, hi = 1e-3, 1.0
     while math.log(arl_of(hi)) < target:
         lo, hi = hi, 2.0 * hi
@@ -226,8 +236,8 @@ def _distinct(signatures: Sequence[np.ndarray]) -> list[np.ndarray]:
 def cusum_evaluator(generator: int, sigma_r: np.ndarray, signatures: Sequence[np.ndarray], arl_samples: float) -> Evaluator:
     """A CUSUM statistic on a white residual of covariance ``sigma_r`` for the fault signatures ``μ_i``.
 
-    Each ``μ`` gives two CUSUMs, for ``+μ`` and ``−μ`` (a bias of either sign), with directions ``±μᵀ W`` and
-    drift ``½ μᵀ W μ``. ``J = max_i S_i`` alarms above the ``h`` whose union run length
+    Each ``μ`` gives two CUSUMs, for ``+μ`` and ``−μ`` (a bias of either sign), on the direction ``μᵀ W``
+    with drift ``½ μᵀ W μ``. ``J = max_i S_i`` alarms above the ``h`` whose union run length
     ``1 / Σ_i 1/ARL₀_i(h)`` (:func:`cusum_arl` of each CUSUM's information) is ``arl_samples``: the CUSUMs of one
     statistic share its budget as the statistics share the diagnoser's (:func:`split_budget`).
     """
@@ -236,19 +246,22 @@ def cusum_evaluator(generator: int, sigma_r: np.ndarray, signatures: Sequence[np
     for mu in _distinct(signatures):
         a = np.asarray(mu, dtype=float) @ base.W
         info = 0.5 * float(a @ np.asarray(mu, dtype=float))
-        rows += [a, -a]
-        drift += [info, info]
+        rows.append(a)
+        drift.append(info)
     if not rows:
         raise ExistenceError(f"generator {generator} has no fault signature to run a CUSUM on")
 
     counts: dict[float, int] = {}
     for i in drift:
-        counts[i] = counts.get(i, 0) + 1
+        counts[i] = counts.get(i, 0) + 2  # both signs
 
     def arl(h: float) -> float:
         return 1.0 / sum(c / cusum_arl(h, i) for i, c in counts.items())
 
-    h = _union_threshold(arl_samples, arl, "CUSUM")
+    def siegmund(h: float) -> float:
+        return 1.0 / sum(c / cusum_arl_siegmund(h, i) for i, c in counts.items())
+
+    h = _union_threshold(arl_samples, arl, "CUSUM", siegmund)
     return replace(
         base, kind="cusum", P_f=1.0 / float(arl_samples), threshold=h, directions=np.array(rows), drift=np.array(drift)
     )

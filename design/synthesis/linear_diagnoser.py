@@ -61,6 +61,7 @@ from fdisyn.synthesis.registry import (
 from fdisyn.synthesis.residual import (
     WHITE_RTOL,
     dc_gain_y,
+    fault_steady_state,
     fault_step_response,
     internal_form,
     long_run_covariance,
@@ -346,13 +347,13 @@ def sequential_evaluators(
         rho_max = float(np.max(np.abs(np.linalg.eigvals(gen.Ar)))) if gen.n_state else 0.0
         settle = 1 if rho_max <= 0 else min(20_000, max(1, math.ceil(math.log(1e-9) / math.log(rho_max))))
         w_pinv = chi2_evaluator(gi, sig, 0.5).W
-        hyp: dict[str, np.ndarray] = {}
+        hyp: dict[str, np.ndarray] = {}  # the steady-state signature of each class that reaches the generator
         for f in faults:
             if not _expected(f, generators[gi], plant):
                 continue
-            resp = fault_step_response(gen, plant, *sizes[f.name], settle + 1)
-            hyp[f.name] = resp
-        infos = {k: 0.5 * float(v[-1] @ w_pinv @ v[-1]) for k, v in hyp.items()}
+            steady = fault_steady_state(gen, plant, *sizes[f.name])
+            hyp[f.name] = steady if steady is not None else fault_step_response(gen, plant, *sizes[f.name], settle + 1)[-1]
+        infos = {k: 0.5 * float(v @ w_pinv @ v) for k, v in hyp.items()}
         top = max(infos.values(), default=0.0)
         visible = [k for k in hyp if infos[k] > VISIBLE_RTOL * top]
         if not visible:
@@ -365,7 +366,7 @@ def sequential_evaluators(
             "faults": {k: {"information": infos[k], "lorden_samples": lorden_delay(arl_samples, infos[k])} for k in visible},
         }
         if kind == "cusum":
-            evals.append(cusum_evaluator(gi, sig, [hyp[k][-1] for k in visible], arl_samples))
+            evals.append(cusum_evaluator(gi, sig, [hyp[k] for k in visible], arl_samples))
         else:
             m = window
             if m is None:
@@ -373,10 +374,7 @@ def sequential_evaluators(
                 m = int(min(100, max(25, math.ceil(2.0 * lorden_delay(arl_samples, weakest)))))
             if not 1 <= int(m) <= MAX_GLR_WINDOW:
                 raise ArgumentError(f"window = {m}: a GLR onset window must be 1..{MAX_GLR_WINDOW} samples")
-            signatures = [
-                hyp[k][: int(m)] if hyp[k].shape[0] >= int(m) else fault_step_response(gen, plant, *sizes[k], int(m))
-                for k in visible
-            ]
+            signatures = [fault_step_response(gen, plant, *sizes[k], int(m)) for k in visible]
             evals.append(glr_evaluator(gi, sig, signatures, arl_samples, int(m)))
     return evals, gens, sigmas, {"kind": kind, "generators": table, "min_fault": {k: [a.tolist(), b.tolist()] for k, (a, b) in sizes.items()}, "checks": checks}
 
@@ -678,9 +676,10 @@ def bank_diagnoser(
     )
 
 
-def chosen_detector(detector: str | None, evaluator: str, where: str) -> str:
-    """``detector``, or ``evaluator`` (its earlier name) when it is not given; both given and different is an error."""
-    if detector is not None and evaluator not in ("chi2", detector):
+def chosen_detector(detector: str | None, evaluator: str, where: str, default: str = "chi2") -> str:
+    """``detector``, or ``evaluator`` (its earlier name, ``default`` when not given) when it is not given; both
+    given and different is an error."""
+    if detector is not None and evaluator not in (default, detector):
         raise ArgumentError(f"{at(where, 'detector')} = {detector!r} but evaluator = {evaluator!r}: they are the same option, give one")
     return detector if detector is not None else evaluator
 

@@ -36,6 +36,7 @@ __all__ = [
     "whiteness",
     "whitened",
     "fault_step_response",
+    "fault_steady_state",
     "long_run_covariance",
     "WHITE_RTOL",
 ]
@@ -232,6 +233,17 @@ def long_run_covariance(gen: Generator, plant: LinearPlant) -> np.ndarray:
     h = c @ np.linalg.solve(np.eye(a.shape[0]) - a, k) + dn
     s = h @ w @ h.T
     return 0.5 * (s + s.T)
+
+
+def fault_steady_state(gen: Generator, plant: LinearPlant, sensors: np.ndarray, components: np.ndarray) -> np.ndarray | None:
+    """The residual's steady-state shift under a step fault (:func:`fault_step_response` at ``ℓ → ∞``):
+    ``C (I − A)⁻¹ b + d`` on the internal form; ``None`` when the internal form is not Schur stable (the
+    step response then tells whether it settles)."""
+    form = internal_form(gen, plant)
+    if spectral_radius(form.A) >= 1.0:
+        return None
+    b = form.Bs @ np.asarray(sensors, dtype=float) + form.Bf @ np.asarray(components, dtype=float)
+    return form.C @ np.linalg.solve(np.eye(form.A.shape[0]) - form.A, b) + form.Ds @ np.asarray(sensors, dtype=float)
 
 
 def fault_step_response(gen: Generator, plant: LinearPlant, sensors: np.ndarray, components: np.ndarray, lags: int) -> np.ndarray:

@@ -52,7 +52,13 @@ from fdisyn.runtime.errors import ArgumentError, ExistenceError, FdisynError, Sh
 from fdisyn.runtime.gainfile import GainFile
 from fdisyn.runtime.names import shown
 from fdisyn.runtime.trace import Trace, read_trace
-from fdisyn.synthesis.linear_diagnoser import FaultClass, _sensor_indices, default_fault_classes, linear_diagnoser
+from fdisyn.synthesis.linear_diagnoser import (
+    FaultClass,
+    _sensor_indices,
+    chosen_detector,
+    default_fault_classes,
+    linear_diagnoser,
+)
 from fdisyn.synthesis.registry import Option, at
 from fdisyn.synthesis.residual import internal_form
 from fdisyn.synthesis.uio import kalman_uio
@@ -397,9 +403,11 @@ def gos_diagnoser(
     P_f: float,
     persistence: int = 1,
     evaluator: str = "wssr",
-    window: int = 25,
+    window: int | None = 25,
     sensors: Sequence[int] | None = None,
     faults: Sequence[FaultClass] | None = None,
+    arl0: float | None = None,
+    min_fault: Mapping[str, float] | None = None,
     options: Mapping[str, object] | None = None,
 ) -> GainFile:
     """The gain file of the generalised observer scheme: :func:`gos_bank` with the linear diagnoser's statistics.
@@ -423,6 +431,8 @@ def gos_diagnoser(
         persistence=persistence,
         evaluator=evaluator,
         window=window,
+        arl0=arl0,
+        min_fault=min_fault,
         options=options,
     )
 
@@ -474,8 +484,9 @@ def _training_option(value: Any, where: str, plant: LinearPlant | None) -> Any:
 
 
 def _check(plant: Any, opts: Mapping[str, Any], where: str) -> None:
-    if opts["evaluator"] == "chi2" and opts["window"] not in (None, 1):
-        raise ArgumentError(f"{at(where, 'window')} = {shown(opts['window'])} needs evaluator = 'wssr' (the χ² evaluator uses one sample)")
+    kind = chosen_detector(opts.get("detector"), opts["evaluator"], where, default="wssr")
+    if kind in ("chi2", "cusum") and opts["window"] not in (None, 1):
+        raise ArgumentError(f"{at(where, 'window')} = {shown(opts['window'])} needs detector = 'wssr' or 'glr' (the {kind!r} statistic has no window)")
     if isinstance(plant, LinearPlant):
         if plant.is_discrete and opts["Ts"] is not None:
             raise ArgumentError(f"{at(where, 'Ts')} = {shown(opts['Ts'])}: the plant is discrete (Ts = {plant.Ts}); give Ts for a continuous plant only")
@@ -542,6 +553,9 @@ def gos_design(
     persistence: int = 1,
     evaluator: str = "wssr",
     window: int | None = None,
+    detector: str | None = None,
+    arl0: float | None = None,
+    min_fault: Mapping[str, float] | None = None,
     faults: Sequence[FaultClass] | None = None,
     Ts: float | None = None,
     groups: Any = "auto",
@@ -568,7 +582,9 @@ def gos_design(
     on it). Without ``training`` the plant's own ``E`` is decoupled.
     """
     where = where or "method 'kalman_uio_gos'"
-    window = (25 if evaluator == "wssr" else 1) if window is None else window
+    evaluator = chosen_detector(detector, evaluator, where, default="wssr")
+    if window is None:
+        window = {"wssr": 25, "glr": None}.get(evaluator, 1)
     want = tuple(range(plant.p)) if sensors is None else tuple(sensors)
     if groups == "auto":
         try:
@@ -641,6 +657,8 @@ def gos_design(
         window=window,
         sensors=want,
         faults=faults,
+        arl0=arl0,
+        min_fault=min_fault,
         options={**(record or {}), "chosen": info},
     )
     return GosDesign(gain_file=gf, groups=grouping, virtual=virt, estimate=est, plant=discrete)
@@ -648,14 +666,17 @@ def gos_design(
 
 def _register() -> None:
     from fdisyn.codegen.step import linear_step_function
-    from fdisyn.synthesis.linear_diagnoser import EVALUATOR, FAULTS, LINEAR_WINDOW, TS, linear_recovery_samples
-    from fdisyn.synthesis.registry import P_F, PERSISTENCE, Method, is_count, is_real, register
+    from fdisyn.synthesis.linear_diagnoser import EVALUATOR, FAULTS, LINEAR_WINDOW, MIN_FAULT, TS, linear_recovery_samples
+    from fdisyn.synthesis.registry import ARL0, DETECTOR, P_F, PERSISTENCE, Method, is_count, is_real, register
 
     options = (
         P_F,
+        ARL0,
         PERSISTENCE,
+        replace(DETECTOR, doc=DETECTOR.doc.replace("(default: evaluator's value)", "(default: evaluator's value, 'wssr')")),
         replace(EVALUATOR, default="wssr"),
-        replace(LINEAR_WINDOW, default=None, doc="WSSR window N in samples (default 25; 1 with evaluator 'chi2')"),
+        replace(LINEAR_WINDOW, default=None, doc="WSSR window N in samples, or the GLR's onset window (default 25 for 'wssr', chosen for 'glr')"),
+        MIN_FAULT,
         FAULTS,
         TS,
         Option(

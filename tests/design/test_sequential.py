@@ -154,10 +154,12 @@ def _independent_statistics(gf, r, skipped):
     for j, ev in enumerate(gf.evaluators):
         rg = r[valid, offsets[ev.generator] : offsets[ev.generator + 1]]
         if ev.kind == "cusum":
-            s = np.zeros(ev.directions.shape[0])
+            up = np.zeros(ev.directions.shape[0])
+            down = np.zeros(ev.directions.shape[0])
             for k in range(len(rg)):
-                s = np.clip(s + ev.directions @ rg[k] - ev.drift, 0.0, 2 * ev.threshold)
-                out[valid[k], j] = s.max()
+                up = np.clip(up + ev.directions @ rg[k] - ev.drift, 0.0, 2 * ev.threshold)
+                down = np.clip(down - ev.directions @ rg[k] - ev.drift, 0.0, 2 * ev.threshold)
+                out[valid[k], j] = max(up.max(), down.max())
         else:
             m = ev.window
             a = ev.directions.reshape(-1, m, rg.shape[1])  # hypothesis, lag, residual
