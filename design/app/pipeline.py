@@ -186,16 +186,21 @@ def reproduce_problem(problem: Problem, *, runs: int | None = None, reports: Pat
     from fdisyn.app.report import write_report
 
     say = progress_printer(problem.name)
+    given = runs
     runs = problem.monte_carlo_runs if runs is None else runs  # 0 is refused by evaluate, not replaced
     if isinstance(runs, bool) or not isinstance(runs, int) or runs < 1:
         raise ArgumentError(f"runs must be a whole number ≥ 1 (or None for the problem's {problem.monte_carlo_runs}); got {runs!r}")
-    variants = [("default", {}, None)] + [(v["label"], v.get("options", {}), v.get("scenarios")) for v in problem.variants]
+    # a variant may name its designs and runs (the user's --runs wins); scenarios default to every one
+    variants = [("default", {}, None, list(problem.designs), runs)] + [
+        (v["label"], v.get("options", {}), v.get("scenarios"), v.get("designs", list(problem.designs)), given or v.get("runs", runs))
+        for v in problem.variants
+    ]
     results = []
-    for label, opts, scen in variants:
+    for label, opts, scen, names, n_runs in variants:
         t0 = time.perf_counter()
-        say(f"{label}: designing, verifying, exporting and compiling {len(problem.designs)} design(s)")
+        say(f"{label}: designing, verifying, exporting and compiling {len(names)} design(s)")
         tag = "default" if label == "default" else "".join(ch if ch.isalnum() else "_" for ch in label)
-        built = {d: build(problem, d, workdir / problem.name / tag / d, **opts) for d in problem.designs}
+        built = {d: build(problem, d, workdir / problem.name / tag / d, **opts) for d in names}
         U, Y = export_trace(problem, **opts)
         exports = {}
         for d, b in built.items():
@@ -203,8 +208,8 @@ def reproduce_problem(problem: Problem, *, runs: int | None = None, reports: Pat
             if not chk.passed:
                 raise CertificateError(f"{problem.name}/{d}: the generated C disagrees with the Python references: {chk.to_dict()}")
             exports[d] = chk
-        say(f"{label}: C export agrees with the references; Monte Carlo with {runs} runs per scenario")
-        ev = evaluate(problem, built, runs=runs, scenarios=scen, progress=say, **opts)
+        say(f"{label}: C export agrees with the references; Monte Carlo with {n_runs} runs per scenario")
+        ev = evaluate(problem, built, runs=n_runs, scenarios=scen, progress=say, **opts)
         results.append(VariantResult(label=label, options=ev.options, built=built, exports=exports, evaluation=ev, seconds=time.perf_counter() - t0))
     out_dir = reports / problem.name
     out_dir.mkdir(parents=True, exist_ok=True)

@@ -221,16 +221,30 @@ def _union_threshold(
     return float(scipy.optimize.brentq(lambda h: math.log(arl_of(h)) - target, lo, hi, xtol=1e-10, rtol=1e-12))
 
 
-def _distinct(signatures: Sequence[np.ndarray]) -> list[np.ndarray]:
-    """The signatures without repeats (equal to 1e-9 of their size, or opposite: the statistics test both
-    signs): two fault classes alike in one generator are one hypothesis there, and one share of the budget."""
-    out: list[np.ndarray] = []
-    for s in signatures:
-        a = np.asarray(s, dtype=float)
-        size = float(np.linalg.norm(a))
-        if not any(min(np.linalg.norm(a - b), np.linalg.norm(a + b)) <= 1e-9 * max(size, float(np.linalg.norm(b))) for b in out):
-            out.append(a)
-    return out
+ALIKE_COSINE = 0.99
+ALIKE_SIZE = 0.1
+"""Two fault signatures in one generator whose directions agree to a cosine of :data:`ALIKE_COSINE` (either
+sign, in the metric of ``W``) and whose informations differ by less than :data:`ALIKE_SIZE` (relative) are one
+hypothesis: their statistics would run within a fraction of a drift of each other, and counting them twice
+would spend the false-alarm budget twice on one test. The smaller one is kept (it detects the larger)."""
+
+
+def _distinct(signatures: Sequence[np.ndarray], weight: np.ndarray) -> list[np.ndarray]:
+    """The signatures without alike repeats (:data:`ALIKE_COSINE`, :data:`ALIKE_SIZE`), smallest first."""
+    sig = [np.asarray(s, dtype=float) for s in signatures]
+    info = [float(np.sum((s @ weight) * s)) for s in sig]
+    out: list[tuple[np.ndarray, float]] = []
+    for k in np.argsort(info, kind="stable"):
+        a, ia = sig[k], info[k]
+        alike = False
+        for b, ib in out:
+            cross = float(np.sum((a @ weight) * b))
+            if ia > 0 and ib > 0 and abs(cross) >= ALIKE_COSINE * math.sqrt(ia * ib) and ia <= (1.0 + ALIKE_SIZE) * ib:
+                alike = True
+                break
+        if not alike:
+            out.append((a, ia))
+    return [a for a, _ in out]
 
 
 def cusum_evaluator(generator: int, sigma_r: np.ndarray, signatures: Sequence[np.ndarray], arl_samples: float) -> Evaluator:
@@ -243,7 +257,7 @@ def cusum_evaluator(generator: int, sigma_r: np.ndarray, signatures: Sequence[np
     """
     base = chi2_evaluator(generator, sigma_r, 0.5)
     rows, drift = [], []
-    for mu in _distinct(signatures):
+    for mu in _distinct(signatures, base.W):
         a = np.asarray(mu, dtype=float) @ base.W
         info = 0.5 * float(a @ np.asarray(mu, dtype=float))
         rows.append(a)
@@ -277,7 +291,7 @@ def glr_evaluator(generator: int, sigma_r: np.ndarray, signatures: Sequence[np.n
     m = int(window)
     base = chi2_evaluator(generator, sigma_r, 0.5)
     rows, info = [], []
-    for rho in _distinct(signatures):
+    for rho in _distinct(signatures, base.W):
         r = np.asarray(rho, dtype=float)
         if r.shape != (m, base.W.shape[0]):
             raise ShapeError(f"a GLR signature must be ({m}, {base.W.shape[0]}); got {r.shape}")

@@ -111,7 +111,8 @@ class Problem:
     report: Callable[..., Any] | None = None
     """Problem-specific report sections: ``report(ctx) -> [(title, html), …]``."""
     variants: Sequence[Mapping[str, Any]] = ()
-    """Extra report variants: ``{"label", "options", "scenarios"}`` (e.g. another parameter set)."""
+    """Extra report variants: ``{"label", "options", "scenarios", "designs", "runs"}`` (e.g. another parameter set);
+    ``scenarios`` and ``designs`` default to all, ``runs`` to :attr:`monte_carlo_runs` (``--runs`` overrides it)."""
     notes: Sequence[str] = ()
     """Modelling choices the sources left open, stated in the report."""
     extra_metrics: Callable[..., Mapping[str, Any]] | None = None

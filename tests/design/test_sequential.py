@@ -300,3 +300,29 @@ def test_a_sequential_file_with_persistence_is_refused():
     doc["evaluators"][0]["information"] = doc["evaluators"][0]["information"][::-1]
     with pytest.raises(GainFileError, match="nondecreasing cumulative informations"):
         gain_file_from_dict(doc)
+
+
+# ------------------------------------------------------------------------------------------------ every entry point
+
+
+def test_plant_files_and_problems_take_the_detector_and_the_budget(tmp_path, data_dir):
+    """A plant file's ``[design] detector``/``arl0`` and a built-in problem's options reach the design; a bad
+    value is one line naming the key."""
+    from fdisyn.app.plant_file import load_spec
+    from fdisyn.problems.sampled_data_example import PROBLEM
+    from fdisyn.runtime.errors import SpecError
+
+    text = (data_dir / "dc_motor.toml").read_text(encoding="utf-8")
+    path = tmp_path / "motor.toml"
+    path.write_text(text.replace('P_f = 1e-4 ', 'detector = "glr"\narl0 = 30.0\n# '), encoding="utf-8")
+    gf = load_spec(path).design()
+    assert all(e.kind == "glr" for e in gf.evaluators)
+    assert gf.certificate["bank"]["info"]["arl0_s"] == 30.0
+    path.write_text(text.replace('P_f = 1e-4 ', 'detector = "cusum"\npersistence = 2\n# '), encoding="utf-8")
+    with pytest.raises(SpecError, match=r"\[design\]\.persistence = 2 with detector 'cusum'") as info:
+        load_spec(path).design()
+    assert "\n" not in str(info.value)
+    gf = PROBLEM.design("direct", detector="cusum", arl0=1000.0)
+    assert gf.name == "sampled_data_example_direct_cusum" and gf.evaluators[0].kind == "cusum"
+    with pytest.raises(ArgumentError, match=r"option detector = 'sprt': expected 'chi2', 'wssr', 'cusum' or 'glr'"):
+        PROBLEM.design("direct", detector="sprt")
