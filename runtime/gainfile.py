@@ -272,9 +272,10 @@ class Evaluator:
       the first sample see zeros for the samples before it (their ``d`` sums fewer terms than ``c`` counts:
       conservative).
 
-    A sequential statistic's alarm, once raised (``J > threshold``), holds while ``J`` stays above its release
-    level (:func:`release_level`: 0 for CUSUM — the evidence is gone when ``S`` returns to 0 —, half the
-    threshold for the GLR), so that one excursion is one alarm; ``persistence`` must be 1. ``P_f`` is the
+    A sequential statistic's alarm, once raised, holds until the evidence is gone, so that one excursion is one
+    alarm: for the CUSUM each sum that crossed the threshold holds a latch until it returns to 0 (the end of
+    its excursion; the alarm is any latch), for the GLR the alarm holds while ``J`` stays above half the
+    threshold (:func:`release_level`); ``persistence`` must be 1. ``P_f`` is the
     per-sample false-alarm probability whose mean run length ``1/P_f`` the threshold was designed for.
     """
 
@@ -289,13 +290,9 @@ class Evaluator:
     directions: np.ndarray | None = None
     drift: np.ndarray | None = None
     information: np.ndarray | None = None
-
-    @property
-    def hypotheses(self) -> int:
-        """Fault hypotheses a sequential statistic tests (0 for χ² and WSSR)."""
-        if self.directions is None:
-            return 0
-        return int(self.directions.shape[0]) // (int(self.window) if self.kind == "glr" else 1)
+    hypotheses: tuple[str, ...] = ()
+    """The fault classes a sequential statistic tests, one per hypothesis (labels; classes alike in this
+    generator are tested as one and named ``a|b``)."""
 
 
 def glr_weights(information: np.ndarray | None, window: int) -> np.ndarray:
@@ -310,7 +307,7 @@ def glr_weights(information: np.ndarray | None, window: int) -> np.ndarray:
 
 
 def release_level(e: Evaluator) -> float:
-    """Where a raised sequential alarm ends: ``J ≤`` this level (CUSUM: 0; GLR: half the threshold)."""
+    """Where a raised sequential alarm ends: each latched CUSUM sum at 0; the GLR's ``J`` at half the threshold."""
     return 0.0 if e.kind == "cusum" else 0.5 * float(e.threshold)
 
 
@@ -431,6 +428,7 @@ class GainFile:
                     **({"directions": to_jsonable(e.directions)} if e.directions is not None else {}),
                     **({"drift": to_jsonable(e.drift)} if e.drift is not None else {}),
                     **({"information": to_jsonable(e.information)} if e.information is not None else {}),
+                    **({"hypotheses": list(e.hypotheses)} if e.kind in SEQUENTIAL_KINDS else {}),
                 }
                 for e in self.evaluators
             ]
@@ -459,7 +457,8 @@ def linear_state_layout(generators: Sequence[Generator], evaluators: Sequence[Ev
     not seen yet, so ``J`` — the sum of the register — needs no fill count,
     and the step has no index arithmetic, which the symbolic step would spell
     out as one comparison per entry anyway); ``sequential<j>``: for each CUSUM
-    statistic its sums ``S_i^+`` then ``S_i^−``, for each GLR statistic its onset sums ``d_i(n)``
+    statistic its sums ``S_i^+``, ``S_i^−`` then their latches (1 from crossing the
+    threshold until the sum returns to 0), for each GLR statistic its onset sums ``d_i(n)``
     (hypothesis-major, ``n = 1 … M``). A sequential statistic's persistence
     counter holds its raised alarm (1) or 0.
     """
@@ -467,7 +466,7 @@ def linear_state_layout(generators: Sequence[Generator], evaluators: Sequence[Ev
     blocks += [("counters", len(evaluators), 1), ("ready", len(generators), 1), ("nonfinite", 1, 1)]
     blocks += [(f"window{j}", int(e.window), 1) for j, e in enumerate(evaluators) if e.kind == "wssr"]
     blocks += [
-        (f"sequential{j}", int(e.directions.shape[0]) * (2 if e.kind == "cusum" else 1), 1)
+        (f"sequential{j}", int(e.directions.shape[0]) * (4 if e.kind == "cusum" else 1), 1)
         for j, e in enumerate(evaluators)
         if e.kind in SEQUENTIAL_KINDS and e.directions is not None
     ]
@@ -642,6 +641,7 @@ def gain_file_from_dict(doc: object, *, source: str = "gain file") -> GainFile:
                     directions=er.matrix("directions") if sequential else None,
                     drift=er.vector("drift") if ev_kind == "cusum" else None,
                     information=er.vector("information") if ev_kind == "glr" else None,
+                    hypotheses=er.strings("hypotheses") if sequential else (),
                 )
             )
         kwargs["evaluators"] = tuple(evs)
@@ -1009,6 +1009,10 @@ def _validate_sequential(e: Evaluator, w: str, ng: int, decision: Decision | Non
             _fail(f"{w}.information must hold, per hypothesis, {per} nondecreasing cumulative informations ending positive")
     if decision is not None and decision.persistence != 1:
         _fail(f"decision.persistence must be 1 with a sequential ({e.kind!r}) evaluator, found {decision.persistence}")
+    if len(e.hypotheses) != rows // per:
+        _fail(f"{w}.hypotheses must name the {rows // per} hypotheses of its directions, found {len(e.hypotheses)} names")
+    for i, h in enumerate(e.hypotheses):
+        check_label(h, f"{w}.hypotheses[{i}]", error=GainFileError)
 
 
 def _finite(a: np.ndarray, where: str) -> None:

@@ -26,7 +26,7 @@ import numpy as np
 from fdisyn.runtime.compiled import CompiledDiagnoser, library_path
 from fdisyn.runtime.errors import BuildError
 from fdisyn.runtime.gainfile import GainFile, read_gain_file
-from fdisyn.runtime.reference import LinearReference, RunResult
+from fdisyn.runtime.reference import ChangeEstimate, LinearReference, RunResult, glr_estimates
 
 __all__ = ["Verdict", "Monitor"]
 
@@ -98,6 +98,10 @@ class Monitor:
             r=out.r,
             skipped=bool(out.status),
         )
+
+    def change_estimates(self) -> list[ChangeEstimate]:
+        """Each GLR statistic's most likely fault class, onset and size now (:func:`glr_estimates`)."""
+        return glr_estimates(self.gf, self.state)
 
     def run(self, U: np.ndarray, Y: np.ndarray) -> RunResult:
         """Process a whole block of samples, continuing from the current state."""

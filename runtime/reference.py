@@ -26,7 +26,8 @@ shifts its onset sums ``d_i(n) ← d_i(n−1) + ρ_i(n−1)ᵀ W r`` (``d_i(1) =
 consecutive samples with ``J_j > threshold_j`` (reset by a sample below); its
 flag is set when the counter reaches ``persistence``. A sequential statistic's
 counter is instead its held alarm: 1 from ``J_j > threshold_j`` until ``J_j``
-falls to its release level. ``alarm`` is any flag;
+falls to its release level (a CUSUM: until every sum that crossed the
+threshold has returned to 0). ``alarm`` is any flag;
 ``isolated`` the fault whose signature equals the flag pattern, else −1.
 ``status`` is 1 when any input or output of the sample was non-finite or a
 generator skipped it on overflow; the state keeps a running count of such
@@ -50,7 +51,7 @@ import numpy as np
 from fdisyn.runtime.errors import ArgumentError, ShapeError
 from fdisyn.runtime.gainfile import SEQUENTIAL_KINDS, GainFile, glr_weights, linear_state_layout, release_level
 
-__all__ = ["StepOutput", "RunResult", "LinearReference", "sample_vector", "sample_block", "step_state"]
+__all__ = ["StepOutput", "RunResult", "LinearReference", "ChangeEstimate", "glr_estimates", "sample_vector", "sample_block", "step_state"]
 
 
 def _real_array(a: object, name: str, expected: str) -> np.ndarray:
@@ -146,6 +147,49 @@ class RunResult:
         return int(np.sum(self.status == 1))
 
 
+@dataclass(frozen=True)
+class ChangeEstimate:
+    """What a GLR statistic's state says about the change it sees (Willsky & Jones 1976)."""
+
+    statistic: str
+    hypothesis: str
+    """The fault class(es) of the most likely hypothesis."""
+    onset_samples_ago: int
+    """The maximising onset: the change started this many samples ago (1: at the last sample)."""
+    size: float
+    """The estimated size ``d/c`` in multiples of the designed minimum fault of the hypothesis's first class
+    (its sign included)."""
+    J: float
+
+
+def glr_estimates(gf: GainFile, state: np.ndarray) -> list[ChangeEstimate]:
+    """The most likely hypothesis, onset and size of every GLR statistic of ``gf`` from a step ``state``
+    (the state after a sample: the C ``<prefix>_state`` array or :attr:`Monitor.state`). The step's outputs
+    are unchanged by this; it reads the onset sums ``d_i(n)`` the state holds."""
+    lay = linear_state_layout(gf.generators, gf.evaluators)
+    st = step_state(np.asarray(state, dtype=np.float64).copy(), gf.step.nstate)
+    out = []
+    for j, ev in enumerate(gf.evaluators):
+        if ev.kind != "glr":
+            continue
+        d = st[lay[f"sequential{j}"]]
+        w = glr_weights(ev.information, ev.window)
+        terms = d * d * w
+        best = int(np.argmax(terms))
+        h, n = divmod(best, ev.window)
+        c = np.asarray(ev.information)[best]
+        out.append(
+            ChangeEstimate(
+                statistic=gf.step.statistic_names[j],
+                hypothesis=ev.hypotheses[h],
+                onset_samples_ago=n + 1,
+                size=float(d[best] / c) if w[best] > 0 else 0.0,
+                J=float(terms[best]),
+            )
+        )
+    return out
+
+
 class LinearReference:
     """The reference implementation of a ``kind = "linear"`` gain file."""
 
@@ -201,9 +245,13 @@ class LinearReference:
                     elif ev.kind == "cusum":
                         assert ev.directions is not None and ev.drift is not None
                         z = ev.directions @ rg
-                        sums = state[lay[f"sequential{j}"]] + np.concatenate([z, -z]) - np.concatenate([ev.drift, ev.drift])
-                        windows[j] = np.minimum(np.maximum(sums, 0.0), 2.0 * ev.threshold)
-                        jg[j] = float(np.max(windows[j]))
+                        old = state[lay[f"sequential{j}"]]
+                        m2 = 2 * ev.directions.shape[0]
+                        sums = old[:m2] + np.concatenate([z, -z]) - np.concatenate([ev.drift, ev.drift])
+                        sums = np.minimum(np.maximum(sums, 0.0), 2.0 * ev.threshold)
+                        latch = np.where((sums > ev.threshold) | ((old[m2:] > 0.0) & (sums > 0.0)), 1.0, 0.0)
+                        windows[j] = np.concatenate([sums, latch])
+                        jg[j] = float(np.max(sums))
                     elif ev.kind == "glr":
                         assert ev.directions is not None
                         m = ev.window
@@ -224,7 +272,9 @@ class LinearReference:
                 state[lay[("window" if gf.evaluators[j].kind == "wssr" else "sequential") + str(j)]] = window
             for j, value in jg.items():
                 jv[j] = value
-                if gf.evaluators[j].kind in SEQUENTIAL_KINDS:  # raised above the threshold, held down to the release level
+                if gf.evaluators[j].kind == "cusum":  # any latched sum
+                    counters[j] = float(np.any(windows[j][2 * gf.evaluators[j].directions.shape[0] :] > 0.0))  # type: ignore[union-attr]
+                elif gf.evaluators[j].kind == "glr":  # raised above the threshold, held down to the release level
                     counters[j] = 1.0 if value > self.thresholds[j] or (counters[j] > 0.0 and value > self.release[j]) else 0.0
                 else:
                     counters[j] = counters[j] + 1.0 if value > self.thresholds[j] else 0.0

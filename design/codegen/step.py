@@ -52,6 +52,13 @@ def all_finite(*exprs: ca.SX) -> ca.SX:
     return _all(finite(ca.vertcat(*[ca.vec(ca.SX(e)) for e in exprs])))
 
 
+def _any(flags: ca.SX) -> ca.SX:
+    out = ca.SX(0)
+    for i in range(flags.numel()):
+        out = ca.logic_or(out, flags[i])
+    return out
+
+
 def _all(flags: ca.SX) -> ca.SX:
     out = ca.SX(1)
     for i in range(flags.numel()):
@@ -92,6 +99,7 @@ def linear_step_function(gf: GainFile) -> ca.Function:
         evs = [j for j, ev in enumerate(gf.evaluators) if ev.generator == g]
         j_g = {j: ca.mtimes([r_g.T, _const(gf.evaluators[j].W), r_g]) for j in evs if gf.evaluators[j].kind not in SEQUENTIAL_KINDS}
         windows = {}
+        latched = {}
         for j in evs:
             ev = gf.evaluators[j]
             if ev.kind == "wssr":  # shift q in, sum newest first (the reference's order)
@@ -109,12 +117,18 @@ def linear_step_function(gf: GainFile) -> ca.Function:
                 if ev.kind == "cusum":
                     assert ev.drift is not None
                     drift = _const(np.concatenate([ev.drift, ev.drift]))
-                    sums = ca.fmin(ca.fmax(old + ca.vertcat(z, -z) - drift, 0), 2.0 * float(ev.threshold))
+                    m2 = 2 * ev.directions.shape[0]
+                    sums = ca.fmin(ca.fmax(old[:m2] + ca.vertcat(z, -z) - drift, 0), 2.0 * float(ev.threshold))
                     terms = sums
+                    latch = ca.vertcat(
+                        *[ca.if_else(ca.logic_or(sums[i] > ev.threshold, ca.logic_and(old[m2 + i] > 0, sums[i] > 0)), 1, 0) for i in range(m2)]
+                    )
+                    latched[j] = _any(latch)
+                    sums = ca.vertcat(sums, latch)
                 else:
                     m = int(ev.window)
                     parts = []
-                    for h in range(ev.hypotheses):
+                    for h in range(ev.directions.shape[0] // m):
                         base = h * m
                         parts.append(z[base])
                         for n in range(1, m):
@@ -142,7 +156,9 @@ def linear_step_function(gf: GainFile) -> ca.Function:
             jj = ca.if_else(ok, j_g[j], 0)
             c = state[lay["counters"].start + j]
             ev = gf.evaluators[j]
-            if ev.kind in SEQUENTIAL_KINDS:  # raised above the threshold, held down to the release level
+            if ev.kind == "cusum":  # any latched sum
+                c_next = ca.if_else(ok, ca.if_else(latched[j], 1, 0), c)
+            elif ev.kind == "glr":  # raised above the threshold, held down to the release level
                 held = ca.logic_or(jj > ev.threshold, ca.logic_and(c > 0, jj > release_level(ev)))
                 c_next = ca.if_else(ok, ca.if_else(held, 1, 0), c)
             else:

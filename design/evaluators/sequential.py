@@ -31,6 +31,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 import scipy.optimize
@@ -229,25 +230,33 @@ hypothesis: their statistics would run within a fraction of a drift of each othe
 would spend the false-alarm budget twice on one test. The smaller one is kept (it detects the larger)."""
 
 
-def _distinct(signatures: Sequence[np.ndarray], weight: np.ndarray) -> list[np.ndarray]:
-    """The signatures without alike repeats (:data:`ALIKE_COSINE`, :data:`ALIKE_SIZE`), smallest first."""
+def _distinct(
+    signatures: Sequence[np.ndarray], names: Sequence[str], weight: np.ndarray, *, any_size: bool = False
+) -> list[tuple[np.ndarray, str]]:
+    """The signatures without alike repeats (:data:`ALIKE_COSINE`, :data:`ALIKE_SIZE`; ``any_size``: of any
+    size, for a statistic that estimates the size — the GLR's is the same for parallel signatures), smallest
+    first, each with the names of the classes it stands for (``a|b``, the kept one first)."""
     sig = [np.asarray(s, dtype=float) for s in signatures]
+    if len(names) != len(sig):
+        raise ShapeError(f"{len(sig)} signatures need as many names, got {len(names)}")
     info = [float(np.sum((s @ weight) * s)) for s in sig]
-    out: list[tuple[np.ndarray, float]] = []
+    out: list[list[Any]] = []
     for k in np.argsort(info, kind="stable"):
         a, ia = sig[k], info[k]
-        alike = False
-        for b, ib in out:
+        for kept in out:
+            b, ib = kept[0], kept[1]
             cross = float(np.sum((a @ weight) * b))
-            if ia > 0 and ib > 0 and abs(cross) >= ALIKE_COSINE * math.sqrt(ia * ib) and ia <= (1.0 + ALIKE_SIZE) * ib:
-                alike = True
+            if ia > 0 and ib > 0 and abs(cross) >= ALIKE_COSINE * math.sqrt(ia * ib) and (any_size or ia <= (1.0 + ALIKE_SIZE) * ib):
+                kept[2].append(names[k])
                 break
-        if not alike:
-            out.append((a, ia))
-    return [a for a, _ in out]
+        else:
+            out.append([a, ia, [names[k]]])
+    return [(a, "|".join(n)) for a, _, n in out]
 
 
-def cusum_evaluator(generator: int, sigma_r: np.ndarray, signatures: Sequence[np.ndarray], arl_samples: float) -> Evaluator:
+def cusum_evaluator(
+    generator: int, sigma_r: np.ndarray, signatures: Sequence[np.ndarray], arl_samples: float, names: Sequence[str] | None = None
+) -> Evaluator:
     """A CUSUM statistic on a white residual of covariance ``sigma_r`` for the fault signatures ``μ_i``.
 
     Each ``μ`` gives two CUSUMs, for ``+μ`` and ``−μ`` (a bias of either sign), on the direction ``μᵀ W``
@@ -256,8 +265,9 @@ def cusum_evaluator(generator: int, sigma_r: np.ndarray, signatures: Sequence[np
     statistic share its budget as the statistics share the diagnoser's (:func:`split_budget`).
     """
     base = chi2_evaluator(generator, sigma_r, 0.5)
-    rows, drift = [], []
-    for mu in _distinct(signatures, base.W):
+    rows, drift, labels = [], [], []
+    for mu, label in _distinct(signatures, names or [f"h{i}" for i in range(len(signatures))], base.W):
+        labels.append(label)
         a = np.asarray(mu, dtype=float) @ base.W
         info = 0.5 * float(a @ np.asarray(mu, dtype=float))
         rows.append(a)
@@ -277,11 +287,20 @@ def cusum_evaluator(generator: int, sigma_r: np.ndarray, signatures: Sequence[np
 
     h = _union_threshold(arl_samples, arl, "CUSUM", siegmund)
     return replace(
-        base, kind="cusum", P_f=1.0 / float(arl_samples), threshold=h, directions=np.array(rows), drift=np.array(drift)
+        base,
+        kind="cusum",
+        P_f=1.0 / float(arl_samples),
+        threshold=h,
+        directions=np.array(rows),
+        drift=np.array(drift),
+        hypotheses=tuple(labels),
     )
 
 
-def glr_evaluator(generator: int, sigma_r: np.ndarray, signatures: Sequence[np.ndarray], arl_samples: float, window: int) -> Evaluator:
+def glr_evaluator(
+    generator: int, sigma_r: np.ndarray, signatures: Sequence[np.ndarray], arl_samples: float, window: int,
+    names: Sequence[str] | None = None,
+) -> Evaluator:
     """A windowed GLR statistic on a white residual of covariance ``sigma_r`` for the transient fault
     signatures ``ρ_i`` (each ``(window, nr)``: the residual ``ℓ`` samples after a unit step fault).
 
@@ -290,8 +309,9 @@ def glr_evaluator(generator: int, sigma_r: np.ndarray, signatures: Sequence[np.n
     """
     m = int(window)
     base = chi2_evaluator(generator, sigma_r, 0.5)
-    rows, info = [], []
-    for rho in _distinct(signatures, base.W):
+    rows, info, labels = [], [], []
+    for rho, label in _distinct(signatures, names or [f"h{i}" for i in range(len(signatures))], base.W, any_size=True):
+        labels.append(label)
         r = np.asarray(rho, dtype=float)
         if r.shape != (m, base.W.shape[0]):
             raise ShapeError(f"a GLR signature must be ({m}, {base.W.shape[0]}); got {r.shape}")
@@ -310,4 +330,5 @@ def glr_evaluator(generator: int, sigma_r: np.ndarray, signatures: Sequence[np.n
         window=m,
         directions=np.vstack(rows),
         information=np.concatenate(info),
+        hypotheses=tuple(labels),
     )

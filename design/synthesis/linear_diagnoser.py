@@ -279,6 +279,27 @@ def budget_seconds(gf: GainFile) -> float:
     return float(gf.Ts) / sum(float(e.P_f) for e in gf.evaluators)
 
 
+def _alternatives(f: FaultClass) -> list[FaultClass]:
+    """The faults a class stands for: each of its sensors and components alone when it was merged from
+    look-alikes (named ``a|b``, one part per sensor or component: :func:`default_fault_classes`), else itself
+    (a class such as ``a+b`` corrupts all of them at once)."""
+    parts = f.name.split("|")
+    members = [*f.sensors, *f.components]
+    if len(parts) > 1 and sorted(parts) == sorted(members):
+        return [FaultClass(p, sensors=(p,) if p in f.sensors else (), components=(p,) if p in f.components else ()) for p in parts]
+    return [f]
+
+
+def _part_size(whole: tuple[np.ndarray, np.ndarray], f: FaultClass, part: FaultClass, plant: LinearPlant) -> tuple[np.ndarray, np.ndarray]:
+    """The designed fault of one alternative of a merged class: the class's size on that sensor or component."""
+    sens, comp = np.zeros_like(whole[0]), np.zeros_like(whole[1])
+    for s in part.sensors:
+        sens[plant.outputs.index(s)] = whole[0][plant.outputs.index(s)]
+    for c in part.components:
+        comp[plant.component_faults.index(c)] = whole[1][plant.component_faults.index(c)]
+    return sens, comp
+
+
 def fault_sizes(plant: LinearPlant, faults: Sequence[FaultClass], min_fault: Mapping[str, float] | None) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """The designed minimum fault of each class: ``(sensor biases, component faults)`` on the plant's outputs and
     ``Fx`` columns. ``min_fault[name]`` is its size in the fault's own units (every sensor or component of the
@@ -329,6 +350,9 @@ def sequential_evaluators(
     designed fault and its Lorden delay ``ln(ARL) / I`` at this statistic's share of the budget.
     """
     sizes = fault_sizes(plant, faults, min_fault)
+    # a class merged from look-alikes ("a|b": a or b) is tested as each of its alternatives, each from its own size
+    tested = [(f, part) for f in faults for part in _alternatives(f)]
+    sizes.update({p.name: _part_size(sizes[f.name], f, p, plant) for f, p in tested if p is not f})
     gens = [whitened(g, plant) for g in generators]
     sigmas = [residual_autocovariances(g, plant, 0)[0] for g in gens]
     checks = [
@@ -348,11 +372,11 @@ def sequential_evaluators(
         settle = 1 if rho_max <= 0 else min(20_000, max(1, math.ceil(math.log(1e-9) / math.log(rho_max))))
         w_pinv = chi2_evaluator(gi, sig, 0.5).W
         hyp: dict[str, np.ndarray] = {}  # the steady-state signature of each class that reaches the generator
-        for f in faults:
-            if not _expected(f, generators[gi], plant):
+        for _whole, part in tested:
+            if not _expected(part, generators[gi], plant):
                 continue
-            steady = fault_steady_state(gen, plant, *sizes[f.name])
-            hyp[f.name] = steady if steady is not None else fault_step_response(gen, plant, *sizes[f.name], settle + 1)[-1]
+            steady = fault_steady_state(gen, plant, *sizes[part.name])
+            hyp[part.name] = steady if steady is not None else fault_step_response(gen, plant, *sizes[part.name], settle + 1)[-1]
         infos = {k: 0.5 * float(v @ w_pinv @ v) for k, v in hyp.items()}
         top = max(infos.values(), default=0.0)
         visible = [k for k in hyp if infos[k] > VISIBLE_RTOL * top]
@@ -366,7 +390,7 @@ def sequential_evaluators(
             "faults": {k: {"information": infos[k], "lorden_samples": lorden_delay(arl_samples, infos[k])} for k in visible},
         }
         if kind == "cusum":
-            evals.append(cusum_evaluator(gi, sig, [hyp[k] for k in visible], arl_samples))
+            evals.append(cusum_evaluator(gi, sig, [hyp[k] for k in visible], arl_samples, names=visible))
         else:
             m = window
             if m is None:
@@ -375,7 +399,7 @@ def sequential_evaluators(
             if not 1 <= int(m) <= MAX_GLR_WINDOW:
                 raise ArgumentError(f"window = {m}: a GLR onset window must be 1..{MAX_GLR_WINDOW} samples")
             signatures = [fault_step_response(gen, plant, *sizes[k], int(m)) for k in visible]
-            evals.append(glr_evaluator(gi, sig, signatures, arl_samples, int(m)))
+            evals.append(glr_evaluator(gi, sig, signatures, arl_samples, int(m), names=visible))
     return evals, gens, sigmas, {"kind": kind, "generators": table, "min_fault": {k: [a.tolist(), b.tolist()] for k, (a, b) in sizes.items()}, "checks": checks}
 
 
