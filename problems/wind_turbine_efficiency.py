@@ -192,7 +192,7 @@ def design(*, false_alarm_probability: float = 1e-4) -> NafdfDesign:
         W1=50.0,
         W2=350.0,
         T1=100,
-        convergence_tolerance=[0.01],
+        isolable_jump=[ETA_NOMINAL - ETA_FAULTY],
     )
 
 

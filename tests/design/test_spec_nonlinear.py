@@ -157,6 +157,18 @@ def test_cli_refuses_with_status_2_and_one_line(tmp_path, capsys, old, new) -> N
     assert not (tmp_path / "out" / "gains.json").exists()
 
 
+def test_a_file_with_the_deprecated_convergence_tolerance_still_designs(problem, tmp_path, capsys) -> None:
+    """``convergence_tolerance`` (a plant file written before the information law) designs the step that
+    ``isolable_jump = √W1 · tol`` designs; the CLI succeeds and says so in one warning line."""
+    old = _write(tmp_path, "isolable_jump = { a = 0.29, b = 0.1 }", "convergence_tolerance = [0.03, 0.01]")
+    with pytest.warns(FutureWarning, match="convergence_tolerance is deprecated"):
+        gf = load_spec(old).design()
+    assert gf.extensions["nafdf"]["settings"]["isolable_jump"] == pytest.approx([0.03 * 50**0.5, 0.01 * 50**0.5], rel=1e-15)
+    assert main(["design", str(old), "--out", str(tmp_path / "out")]) == 0
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("fdisyn design: warning: FutureWarning: the NAFDF option convergence_tolerance is deprecated") and "\n" not in err
+
+
 def test_square_signal_on_the_sample_grid() -> None:
     s = Signal(kind="square", offset=5.0, amplitude=4.0, period=50.0)
     u = s.sample(np.arange(200.0), np.random.default_rng(0), 1.0)

@@ -97,13 +97,59 @@ that wander: a long healthy run would eventually be "isolated". class 2 (severe)
 stay latched until the caller re-initialises the diagnoser.
 
 Block 4 — mutual re-initialisation.
+* *The NF's own uncertainty.* With ``Ī(t) = R(t)/a(t)`` the recursion (2.5)
+  reads ``Ī(t) = λ(t) Ī(t−1) + Φ S⁻¹ Φᵀ``, ``Ī(0) = R(0)`` (because
+  ``(1 − a(t))/a(t) = λ(t)/a(t−1)``), and the step
+  ``θ̂(t) = θ̂(t−1) + Ī(t)⁻¹ Φ S⁻¹ ε``: the recursive weighted least-squares
+  (Gauss–Newton) estimate with forgetting of Ljung & Söderström (1983), whose
+  information ``Ī`` is the exponentially weighted Fisher information of the
+  innovations (``ε ~ N(0, S)`` with sensitivity ``Φᵀ``). So
+  ``P_θ(t) = a(t) R(t)⁻¹ = Ī(t)⁻¹``, up to the innovation scale (``S`` is the
+  model's innovation covariance; the innovation test below checks that
+  scale). For a constant ``λ < 1`` and stationary ``Φ``,
+  ``θ̂(t) − θ = Ī⁻¹ Σ_k λ^(t−k) Φ(k) S⁻¹ ν(k)`` (``ν`` the white innovations)
+  gives
+
+      Cov θ̂(t) = P_θ / (1 + λ),
+      Cov[θ̂(t) − θ̂(t−N2)] = c P_θ,   c = 2 (1 − λ^N2) / (1 + λ),
+
+  used with the NF's current ``λ(t)`` capped at ``1 − 1/age`` (``age``: NF
+  updates since its (re)initialisation; with ``λ∞ = 1`` the estimate's memory
+  is its age). ``σ_i² = (P_θ)_ii / (1 + λ)`` is the marginal variance of
+  ``θ̂_i`` (the other parameters unknown); the statistic ``info_<θ>`` is
+  ``1/σ_i²``, the Fisher information about ``θ_i``.
+* *Settled*: at least ``N2`` NF updates since its (re)initialisation, and
+  (i) the drift ``δ = θ̂(t) − θ̂(t−N2)`` is explained by the estimate's
+  uncertainty, ``δᵀ (c P_θ)⁻¹ δ = δᵀ R(t) δ / (a(t) c) ≤ χ²_{1−α}(l)``;
+  (ii) the NF's normalised innovations over the window pass the ``χ²(N2 p)``
+  test (the model with ``θ̂`` explains the data); both at
+  ``α = convergence_level``; (iii) the projection ``Π`` did not cut this
+  sample's step (an estimate held at the box is no stationary point of the
+  criterion).
 * *Converged* (the paper: "once the NF has estimated the parameters
-  accurately"): at least ``N2`` NF updates since its (re)initialisation, the
-  range ``max − min`` of every ``θ̂_i`` over the last ``N2`` samples is at
-  most ``convergence_tolerance_i``, and the NF's own normalised innovations
-  over those samples pass the ``χ²(N2 p)`` test at level
-  ``convergence_level`` (the model with ``θ̂`` explains the data). It is
-  sticky until the next NF (re)initialisation.
+  accurately"): settled, and the data carry the information the classifier
+  needs, ``W1 σ_i² ≤ isolable_jump_i²`` for every ``i`` — by (2.7) a jump
+  ``Δ_i`` of a stationary estimate of spread ``σ_i`` (which ``σ̂²_i0``
+  estimates) shows as ``d_i ≈ Δ_i²/σ_i²``, so a jump of ``isolable_jump_i``
+  reaches ``W1`` only then; ``info_<θ> ≥ W1 / isolable_jump²`` is the bound
+  (default ``isolable_jump``: 50 % of ``|θ0_i|``, the paper's fault). Both
+  flags are sticky until the next NF (re)initialisation. The deprecated
+  ``convergence_tolerance`` (before payload version 3: a fixed bound on the
+  range of ``θ̂_i`` over ``N2`` samples, whatever the data's information) is
+  read as a bound on ``σ_i``: ``isolable_jump = √W1 · convergence_tolerance``.
+* *Detected, not isolable (insufficient excitation)*: inside an open episode
+  the NF has settled but not converged — the estimate is as good as the data
+  allow, and they cannot resolve a jump of ``isolable_jump``. The episode
+  stays open (the EKF keeps its model: a poorly determined ``θ̂`` would only
+  raise the next alarm), ``isolated = −1``, the statistic
+  ``insufficient_excitation`` is 1 and ``info_<θ>`` shows which parameter
+  lacks information. It is also 1 when the NF converges inside the episode
+  before any nominal statistics (2.6) exist (the excitation before the fault
+  was insufficient). Cleared by the next episode or an isolation; when the
+  excitation returns, the NF converges and the episode closes as usual.
+* *Alarm*: the output ``alarm`` is the WSSR decision or an open episode: it
+  stays 1 from the detection until the EKF's re-parameterisation, one
+  episode per fault whatever the excitation.
 * *NF reset*: on a WSSR alarm, unless an episode is already open (an alarm
   whose NF reset has not yet led to an EKF re-parameterisation): ``θ̂ ← θ̂(0)``,
   ``P ← P(0)``, ``R ← R(0)``, ``W ← 0``, ``a, λ`` to their initial values,
@@ -125,31 +171,33 @@ Block 4 — mutual re-initialisation.
   except the ``skipped`` counter, raises no alarm and returns ``status = 1``.
 
 Step contract (shared with the linear diagnosers). Inputs ``state[nstate]``,
-``u[m]``, ``y[p]``; outputs ``state_next``, ``r[2p]``, ``J[3 + 4l + 2]``,
-``alarm`` (the WSSR decision of this sample, 0/1), ``isolated`` (−1, or the
+``u[m]``, ``y[p]``; outputs ``state_next``, ``r[2p]``, ``J[3 + 5l + 3]``,
+``alarm`` (the WSSR decision of this sample or an open episode, 0/1), ``isolated`` (−1, or the
 index of the first isolated parameter in ``plant.parameters``, which are the
 fault names), ``status`` (0 processed, 1 skipped). All dense column vectors.
 
 * ``r = [γ (EKF innovation, one per output: ekf_innovation_<y>),
   ε (NF innovation: nf_innovation_<y>)]``.
 * ``J = [wssr (L(t)), wssr_threshold, ekf_nis (γᵀV0⁻¹γ), theta_hat_<θ>…,
-  d_<θ>…, fault_class_<θ>… (0/1/2, latched), fault_size_<θ>… (latched),
-  nf_converged, diverged]``.
+  info_<θ>… (1/σ_i², 0 after an NF reset), d_<θ>…, fault_class_<θ>…
+  (0/1/2, latched), fault_size_<θ>… (latched), nf_converged,
+  insufficient_excitation, diverged]``.
 * ``state`` blocks in order (matrices column-major; see :class:`StateLayout`):
   ``ekf_x[n], ekf_P[n×n], ekf_theta[l], wssr_buffer[N], wssr_count,
   nf_x[n], nf_P[n×n], nf_theta[l], nf_R[l×l], nf_W[n×l], nf_gain (a),
-  nf_forgetting (λ), nf_age, nf_converged, theta_window[l×N2]
-  (column j = θ̂(t−1−j)), nis_window[N2], nominal_count, nominal_mean[l],
-  nominal_m2[l], nominal_frozen, count_w1[l], count_w2[l], fault_class[l],
-  fault_size[l], isolated, episode_open, diagnosis_left, samples, skipped,
+  nf_forgetting (λ), nf_age, nf_settled, nf_converged, nf_info[l],
+  theta_window[l×N2] (column j = θ̂(t−1−j)), nis_window[N2], nominal_count,
+  nominal_mean[l], nominal_m2[l], nominal_frozen, count_w1[l], count_w2[l],
+  fault_class[l], fault_size[l], isolated, episode_open,
+  insufficient_excitation, diagnosis_left, samples, skipped,
   alarm_resets, ekf_reparameterisations, ekf_divergence_resets,
   nf_divergence_resets``.
 
 Limits (constants of :mod:`fdisyn.synthesis.nafdf.settings`, checked before
 anything is built or generated, at design time and again on reading a gain
 file; each keeps one resource bounded, with room for
-the documented problems — ship: ``N = 10``, ``N2 = 50``, 3 086 operations;
-drive train: ``N = 50``, ``N2 = 200``, 11 202 operations):
+the documented problems — ship: ``N = 10``, ``N2 = 50``, 3 081 operations;
+drive train: ``N = 50``, ``N2 = 200``, 10 919 operations):
 
 * :data:`MAX_DIMENSION` states, inputs, outputs and parameters each;
 * :data:`MAX_WINDOW` for the WSSR window ``N``, :data:`MAX_CLASSIFIER_WINDOW`
@@ -187,6 +235,7 @@ is refused.
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, Literal
@@ -286,18 +335,21 @@ def nafdf(
     W1: float = 50.0,
     W2: float = 350.0,
     T1: int = 50,
-    convergence_tolerance: object | None = None,
+    isolable_jump: object | None = None,
     convergence_level: float = 1e-3,
+    convergence_tolerance: object | None = None,
     u0: object | None = None,
     name: str = "nafdf",
 ) -> NafdfDesign:
     """Design the NAFDF of Zhou, Xi & Zhang 1991 (fig. 1, eqs. (2.3)–(2.8)) for ``plant``.
 
     Defaults: ``θ̂(0) = θ0`` (nominal), ``R(0) = I``, the paper's ``W1 = 50``,
-    ``W2 = 350``, ``T1 = 50``; ``convergence_tolerance`` 5 % of ``|θ0_i|``
-    (0.05 for a zero nominal) — set it to about twice the standard deviation
-    of the converged estimate, which depends on the noise and the input;
-    ``u0`` (the nominal input) zero. Every setting is validated and the
+    ``W2 = 350``, ``T1 = 50``; ``isolable_jump`` 50 % of ``|θ0_i|`` (0.5 for a
+    zero nominal) — the smallest jump the classifier must isolate, from which
+    the information the NF needs to converge follows (module docstring,
+    block 4); ``convergence_tolerance`` is deprecated (read as
+    ``isolable_jump = √W1 · convergence_tolerance``, with a ``FutureWarning``;
+    not together with ``isolable_jump``); ``u0`` (the nominal input) zero. Every setting is validated and the
     sizes are held to the module's limits before anything is built. The
     model must be finite, with its Jacobians, at ``(x0, u0)`` for the nominal
     ``θ`` (the EKF's start) and for ``θ̂(0)`` (the NF's start). The returned
@@ -305,6 +357,13 @@ def nafdf(
     ``x0``, a first step from the initial state that neither diverges nor
     skips, positive thresholds) and refuses to exist if it fails.
     """
+    if convergence_tolerance is not None:
+        warnings.warn(
+            "the NAFDF option convergence_tolerance is deprecated: it is read as the largest standard deviation of "
+            "θ̂_i (isolable_jump = √W1 · convergence_tolerance); give isolable_jump instead",
+            FutureWarning,
+            stacklevel=2,
+        )
     settings = _settings(
         plant,
         x0=x0,
@@ -325,6 +384,7 @@ def nafdf(
         W1=W1,
         W2=W2,
         T1=T1,
+        isolable_jump=isolable_jump,
         convergence_tolerance=convergence_tolerance,
         convergence_level=convergence_level,
         u0=u0,
@@ -340,10 +400,11 @@ def _names_r_J(plant: NonlinearPlant) -> tuple[tuple[str, ...], tuple[str, ...]]
     J = (
         ("wssr", "wssr_threshold", "ekf_nis")
         + tuple(f"theta_hat_{q}" for q in par)
+        + tuple(f"info_{q}" for q in par)
         + tuple(f"d_{q}" for q in par)
         + tuple(f"fault_class_{q}" for q in par)
         + tuple(f"fault_size_{q}" for q in par)
-        + ("nf_converged", "diverged")
+        + ("nf_converged", "insufficient_excitation", "diverged")
     )
     return r, J
 
@@ -408,7 +469,9 @@ def _init_state(plant: NonlinearPlant, s: NafdfSettings, layout: StateLayout) ->
         "nf_gain": 1.0,
         "nf_forgetting": s.forgetting_initial,
         "nf_age": 0.0,
+        "nf_settled": 0.0,
         "nf_converged": 0.0,
+        "nf_info": np.zeros(l),
         "theta_window": np.zeros((l, s.classifier_window)),
         "nis_window": np.zeros(s.classifier_window),
         "nominal_count": 0.0,
@@ -421,6 +484,7 @@ def _init_state(plant: NonlinearPlant, s: NafdfSettings, layout: StateLayout) ->
         "fault_size": np.zeros(l),
         "isolated": -1.0,
         "episode_open": 0.0,
+        "insufficient_excitation": 0.0,
         "diagnosis_left": 0.0,
     }
     for c in ("samples", "skipped", "alarm_resets", "ekf_reparameterisations", "ekf_divergence_resets", "nf_divergence_resets"):
