@@ -118,22 +118,27 @@ Block 4 — mutual re-initialisation.
   is its age). ``σ_i² = (P_θ)_ii / (1 + λ)`` is the marginal variance of
   ``θ̂_i`` (the other parameters unknown); the statistic ``info_<θ>`` is
   ``1/σ_i²``, the Fisher information about ``θ_i``.
-* *Settled*: at least ``N2`` NF updates since its (re)initialisation, and
-  (i) the drift ``δ = θ̂(t) − θ̂(t−N2)`` is explained by the estimate's
-  uncertainty, ``δᵀ (c P_θ)⁻¹ δ = δᵀ R(t) δ / (a(t) c) ≤ χ²_{1−α}(l)``;
-  (ii) the NF's normalised innovations over the window pass the ``χ²(N2 p)``
-  test (the model with ``θ̂`` explains the data); both at
-  ``α = convergence_level``; (iii) the projection ``Π`` did not cut this
-  sample's step (an estimate held at the box is no stationary point of the
-  criterion).
+* *Settled* (at sample ``t``): (i) none of ``θ̂(t−N2..t)`` was cut by the
+  projection ``Π`` nor precedes the NF's (re)initialisation (a projected
+  estimate is no stationary point of the criterion, and ``P_θ`` does not
+  describe it); (ii) the drift ``δ = θ̂(t) − θ̂(t−N2)`` is explained by the
+  estimate's uncertainty, ``δᵀ (c P_θ)⁻¹ δ = δᵀ R(t) δ / (a(t) c) ≤
+  χ²_{1−α}(l)``; (iii) the NF's normalised innovations over the window pass
+  the ``χ²(N2 p)`` test (the model with ``θ̂`` explains the data); both tests
+  at ``α = convergence_level``.
 * *Converged* (the paper: "once the NF has estimated the parameters
-  accurately"): settled, and the data carry the information the classifier
-  needs, ``W1 σ_i² ≤ isolable_jump_i²`` for every ``i`` — by (2.7) a jump
+  accurately"): settled, and at the same sample the data carry the
+  information the classifier needs, ``W1 σ_i² ≤ isolable_jump_i²`` for every
+  ``i`` — by (2.7) a jump
   ``Δ_i`` of a stationary estimate of spread ``σ_i`` (which ``σ̂²_i0``
   estimates) shows as ``d_i ≈ Δ_i²/σ_i²``, so a jump of ``isolable_jump_i``
   reaches ``W1`` only then; ``info_<θ> ≥ W1 / isolable_jump²`` is the bound
   (default ``isolable_jump``: 50 % of ``|θ0_i|``, the paper's fault). Both
-  flags are sticky until the next NF (re)initialisation. The deprecated
+  flags (``nf_settled``: settled once) are sticky until the next NF
+  (re)initialisation. ``P_θ`` is a local measure: where the model's
+  sensitivities depend strongly on ``θ`` (the ship near ``a = 0``, an
+  integrator) an estimate on a ridge of the criterion can look informative.
+  The deprecated
   ``convergence_tolerance`` (before payload version 3: a fixed bound on the
   range of ``θ̂_i`` over ``N2`` samples, whatever the data's information) is
   read as a bound on ``σ_i``: ``isolable_jump = √W1 · convergence_tolerance``.
@@ -147,9 +152,16 @@ Block 4 — mutual re-initialisation.
   before any nominal statistics (2.6) exist (the excitation before the fault
   was insufficient). Cleared by the next episode or an isolation; when the
   excitation returns, the NF converges and the episode closes as usual.
+* *Dismissal* (a false alarm under too little excitation): inside an open
+  episode the NF has settled without converging, the WSSR test on the EKF's
+  own model passes again, and the EKF's parameters lie in the NF's confidence
+  region, ``(θ_e − θ̂)ᵀ (P_θ/(1 + λ))⁻¹ (θ_e − θ̂) ≤ χ²_{1−α}(l)``: the data
+  show no jump, the episode closes without re-parameterisation (counted in
+  the state's ``episodes_dismissed``). Without it one false alarm would hold
+  the alarm on for as long as the input stays poor.
 * *Alarm*: the output ``alarm`` is the WSSR decision or an open episode: it
-  stays 1 from the detection until the EKF's re-parameterisation, one
-  episode per fault whatever the excitation.
+  stays 1 from the detection until the EKF's re-parameterisation (or the
+  episode's dismissal), one episode per fault whatever the excitation.
 * *NF reset*: on a WSSR alarm, unless an episode is already open (an alarm
   whose NF reset has not yet led to an EKF re-parameterisation): ``θ̂ ← θ̂(0)``,
   ``P ← P(0)``, ``R ← R(0)``, ``W ← 0``, ``a, λ`` to their initial values,
@@ -185,12 +197,13 @@ fault names), ``status`` (0 processed, 1 skipped). All dense column vectors.
 * ``state`` blocks in order (matrices column-major; see :class:`StateLayout`):
   ``ekf_x[n], ekf_P[n×n], ekf_theta[l], wssr_buffer[N], wssr_count,
   nf_x[n], nf_P[n×n], nf_theta[l], nf_R[l×l], nf_W[n×l], nf_gain (a),
-  nf_forgetting (λ), nf_age, nf_settled, nf_converged, nf_info[l],
+  nf_forgetting (λ), nf_age, nf_free (updates since the reset or the last
+  projected step), nf_settled, nf_converged, nf_info[l],
   theta_window[l×N2] (column j = θ̂(t−1−j)), nis_window[N2], nominal_count,
   nominal_mean[l], nominal_m2[l], nominal_frozen, count_w1[l], count_w2[l],
   fault_class[l], fault_size[l], isolated, episode_open,
   insufficient_excitation, diagnosis_left, samples, skipped,
-  alarm_resets, ekf_reparameterisations, ekf_divergence_resets,
+  alarm_resets, ekf_reparameterisations, episodes_dismissed, ekf_divergence_resets,
   nf_divergence_resets``.
 
 Limits (constants of :mod:`fdisyn.synthesis.nafdf.settings`, checked before
@@ -253,7 +266,10 @@ from fdisyn.runtime.names import shown
 from fdisyn.synthesis.nafdf.settings import _IDENT, _MAX_NAME, NafdfSettings, _settings
 from fdisyn.synthesis.nafdf.step import _build_step, _check_step_size
 
-__all__ = ['NafdfDesign', 'nafdf', 'nafdf_extra_metrics']
+__all__ = ['NOT_ISOLABLE', 'NafdfDesign', 'nafdf', 'nafdf_diagnosis', 'nafdf_extra_metrics']
+
+NOT_ISOLABLE = "detected, not isolable (insufficient excitation)"
+"""The diagnosis of an episode whose data cannot resolve the jump (module docstring, block 4)."""
 
 
 # --------------------------------------------------------------------------- design
@@ -469,6 +485,7 @@ def _init_state(plant: NonlinearPlant, s: NafdfSettings, layout: StateLayout) ->
         "nf_gain": 1.0,
         "nf_forgetting": s.forgetting_initial,
         "nf_age": 0.0,
+        "nf_free": 0.0,
         "nf_settled": 0.0,
         "nf_converged": 0.0,
         "nf_info": np.zeros(l),
@@ -487,7 +504,7 @@ def _init_state(plant: NonlinearPlant, s: NafdfSettings, layout: StateLayout) ->
         "insufficient_excitation": 0.0,
         "diagnosis_left": 0.0,
     }
-    for c in ("samples", "skipped", "alarm_resets", "ekf_reparameterisations", "ekf_divergence_resets", "nf_divergence_resets"):
+    for c in ("samples", "skipped", "alarm_resets", "ekf_reparameterisations", "episodes_dismissed", "ekf_divergence_resets", "nf_divergence_resets"):
         blocks[c] = 0.0
     return layout.pack(blocks)
 
@@ -577,6 +594,42 @@ def _central_difference_jacobians(pl: NonlinearPlant, x: np.ndarray, u: np.ndarr
 
 
 
+def nafdf_diagnosis(
+    statistic_names: tuple[str, ...] | list[str],
+    fault_names: tuple[str, ...] | list[str],
+    alarm: np.ndarray,
+    isolated: np.ndarray,
+    J: np.ndarray,
+    onset: int,
+) -> dict[str, Any]:
+    """The diagnosis of one run from ``onset`` on (the step's outputs, C or CasADi, time along axis 0).
+
+    ``verdict``: ``"isolated <θ>"`` (the latched ``isolated``), :data:`NOT_ISOLABLE` (the statistic
+    ``insufficient_excitation`` is 1 at the end), ``"detected, not isolated"`` or ``"not detected"``;
+    the detection and isolation delays in samples; the number of alarm episodes from ``onset`` on (a
+    steady alarm makes one per fault); ``info`` — ``info_<θ>`` (``1/σ²``) at ``onset − 1`` and at the end.
+    """
+    names = list(statistic_names)
+    alarm, isolated, J = np.asarray(alarm).reshape(-1), np.asarray(isolated).reshape(-1), np.asarray(J)
+    after = alarm[onset:] > 0
+    det, iso = np.flatnonzero(after), np.flatnonzero(isolated[onset:] >= 0)
+    last = int(isolated[-1])
+    if last >= 0:
+        verdict = f"isolated {fault_names[last]}"
+    elif J[-1, names.index("insufficient_excitation")] > 0:
+        verdict = NOT_ISOLABLE
+    else:
+        verdict = "detected, not isolated" if det.size else "not detected"
+    info = {q: (float(J[max(onset - 1, 0), names.index(f"info_{q}")]), float(J[-1, names.index(f"info_{q}")])) for q in fault_names}
+    return {
+        "verdict": verdict,
+        "detection_delay": int(det[0]) if det.size else None,
+        "isolation_delay": int(iso[0]) if iso.size else None,
+        "alarm_episodes": int(np.sum(np.diff(np.concatenate([[False], after]).astype(int)) > 0)),
+        "info": info,
+    }
+
+
 def nafdf_extra_metrics(scenario: Any, gf: GainFile, runs: Mapping[str, np.ndarray]) -> dict[str, float | None]:
     """Monte Carlo figures of a NAFDF beyond detection (a problem's ``extra_metrics``).
 
@@ -586,7 +639,8 @@ def nafdf_extra_metrics(scenario: Any, gf: GainFile, runs: Mapping[str, np.ndarr
     Faulty: the fraction of runs whose latched parameter classes are exactly
     the jumping parameters, the median isolation delay in samples, and per
     jumping parameter the mean and standard deviation of the latched size
-    estimate (2.8) minus the true jump, over the runs that classed it faulty.
+    estimate (2.8) minus the true jump, over the runs that classed it faulty; and the fraction of runs
+    ending :data:`NOT_ISOLABLE`.
     """
     names = list(gf.step.statistic_names)
     iso, alarm = runs["isolated"], runs["alarm"]
@@ -604,6 +658,7 @@ def nafdf_extra_metrics(scenario: Any, gf: GainFile, runs: Mapping[str, np.ndarr
     onset = int(round(float(scenario.onset or 0.0) / gf.Ts))
     found = [int(np.argmax(row[onset:] >= 0)) for row in iso if np.any(row[onset:] >= 0)]
     out["isolation delay median (samples)"] = float(np.median(found)) if found else None
+    out["runs detected, not isolable (insufficient excitation)"] = float(np.mean(last[:, names.index("insufficient_excitation")] > 0))
     for q, true in sizes.items():
         sel = last[:, names.index(f"fault_class_{q}")] > 0
         err = last[sel, names.index(f"fault_size_{q}")] - true

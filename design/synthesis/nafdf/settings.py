@@ -175,6 +175,7 @@ def _layout(n: int, l: int, window: int, n2: int) -> StateLayout:
             ("nf_gain", *one),
             ("nf_forgetting", *one),
             ("nf_age", *one),
+            ("nf_free", *one),
             ("nf_settled", *one),
             ("nf_converged", *one),
             ("nf_info", l, 1),
@@ -196,6 +197,7 @@ def _layout(n: int, l: int, window: int, n2: int) -> StateLayout:
             ("skipped", *one),
             ("alarm_resets", *one),
             ("ekf_reparameterisations", *one),
+            ("episodes_dismissed", *one),
             ("ekf_divergence_resets", *one),
             ("nf_divergence_resets", *one),
     )
@@ -209,6 +211,7 @@ _SCALAR_BLOCKS = frozenset(
         "nf_gain",
         "nf_forgetting",
         "nf_age",
+        "nf_free",
         "nf_settled",
         "nf_converged",
         "nominal_count",
@@ -221,6 +224,7 @@ _SCALAR_BLOCKS = frozenset(
         "skipped",
         "alarm_resets",
         "ekf_reparameterisations",
+        "episodes_dismissed",
         "ekf_divergence_resets",
         "nf_divergence_resets",
     }

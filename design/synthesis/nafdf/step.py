@@ -181,7 +181,9 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
     # ---- windows at time t (θ̂(t−1..t−N2), NF innovations) and convergence -----------------
     win, nisw = old["theta_window"], old["nis_window"]
     age = old["nf_age"] + 1  # NF updates since its (re)initialisation, this one included
-    full = old["nf_age"] >= N2
+    # N2 updates since the (re)initialisation or the last step cut by Π: the window is RPE estimates only
+    free = _select(inside, old["nf_free"] + 1, 0.0)
+    full = free >= N2 + 1
     # the NF's own uncertainty (module docstring, "Converged"): P_θ = a R⁻¹, stationary law with memory λ_m
     lam_m = ca.fmin(lam, 1.0 - 1.0 / age)
     r_inv = _inverse_diagonal(lr, dr)  # P_θ,ii = a (R⁻¹)_ii
@@ -192,18 +194,27 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
     drift_limit = float(scipy.stats.chi2.isf(s.convergence_level, l))
     nis_limit = float(scipy.stats.chi2.isf(s.convergence_level, N2 * p))
     explains = ca.sum1(nisw) <= nis_limit
-    settled_now = ca.logic_and(ca.logic_and(full, inside), ca.logic_and(q_drift <= drift_limit, explains))
+    settled_now = ca.logic_and(full, ca.logic_and(q_drift <= drift_limit, explains))
     informative = ca.SX(1)
     for i in range(l):  # W1 σ_i² ≤ isolable_jump_i² (an infinite jump sets no bound)
         if math.isfinite(s.isolable_jump[i]):
             informative = ca.logic_and(informative, info[i] * float(s.isolable_jump[i]) ** 2 >= s.W1)
     settled_old, conv_old = old["nf_settled"], old["nf_converged"]
     settled = ca.logic_and(ca.logic_or(settled_old, settled_now), nf_ok)
-    conv = ca.logic_and(ca.logic_or(conv_old, ca.logic_and(settled, informative)), nf_ok)
+    conv = ca.logic_and(ca.logic_or(conv_old, ca.logic_and(settled_now, informative)), nf_ok)  # both tests now
 
     # EKF re-parameterisation: the NF converges inside an open alarm episode (block 4)
     episode = old["episode_open"]
     reparam = ca.logic_and(ca.logic_and(conv, ca.logic_not(conv_old)), ca.logic_and(episode, nf_ok))
+    # dismissal (a false alarm): settled without the information to converge, the EKF's model passes the
+    # WSSR test again and lies in the NF's confidence region, (θ_e − θ̂)ᵀ (P_θ/(1 + λ))⁻¹ (θ_e − θ̂) ≤
+    # χ²_{1−α}(l): the data show no jump
+    gap = old["ekf_theta"] - th_new
+    consistent = ca.dot(gap, ca.mtimes(Rn_new, gap)) * (1.0 + lam_m) / gain <= drift_limit
+    dismiss = ca.logic_and(
+        ca.logic_and(ca.logic_and(episode, settled_now), ca.logic_not(conv)),
+        ca.logic_and(ca.logic_and(consistent, ca.logic_not(alarm)), nf_ok),
+    )
     # isolation follows detection: the classifier may decide for a limited time after the episode closes
     diag_left = _select(reparam, float(_diagnosis_samples(s)), old["diagnosis_left"])
 
@@ -250,15 +261,15 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
     # ---- block 4: mutual re-initialisation ------------------------------------------------
     alarm_reset = ca.logic_and(alarm, ca.logic_not(episode))
     nf_reset = ca.logic_or(alarm_reset, ca.logic_not(nf_ok))
-    episode_next = _select(reparam, 0.0, _select(alarm_reset, 1.0, episode))
+    episode_next = _select(ca.logic_or(reparam, dismiss), 0.0, _select(alarm_reset, 1.0, episode))
     any_latch = ca.SX(0)
     for latch in latch_now:
         any_latch = ca.logic_or(any_latch, latch)
     # detected, not isolable (insufficient excitation): inside an episode the NF has settled without the
     # information to converge, or it converged without a nominal reference (2.6) to classify against
-    starved = ca.logic_and(ca.logic_and(episode, settled), ca.logic_not(conv))
+    starved = ca.logic_and(ca.logic_and(episode, settled), ca.logic_not(ca.logic_or(conv, dismiss)))
     insufficient = _select(
-        ca.logic_or(alarm_reset, any_latch),
+        ca.logic_or(ca.logic_or(alarm_reset, any_latch), dismiss),
         0.0,
         _select(starved, 1.0, _select(reparam, ca.logic_not(nominal_ready), old["insufficient_excitation"])),
     )
@@ -282,6 +293,7 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
     new["nf_gain"] = _select(nf_reset, 1.0, gain)
     new["nf_forgetting"] = _select(nf_reset, s.forgetting_initial, lam)
     new["nf_age"] = _select(nf_reset, 0.0, old["nf_age"] + 1)
+    new["nf_free"] = _select(nf_reset, 0.0, free)
     new["nf_settled"] = _select(nf_reset, 0.0, settled)
     new["nf_converged"] = _select(nf_reset, 0.0, conv)
     new["nf_info"] = _select(nf_reset, ca.SX.zeros(l, 1), _select(nf_ok, info, 0.0))
@@ -311,6 +323,7 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
     new["samples"] = old["samples"] + 1
     new["alarm_resets"] = old["alarm_resets"] + alarm_reset
     new["ekf_reparameterisations"] = old["ekf_reparameterisations"] + reparam
+    new["episodes_dismissed"] = old["episodes_dismissed"] + dismiss
     new["ekf_divergence_resets"] = old["ekf_divergence_resets"] + ca.logic_not(ekf_ok)
     new["nf_divergence_resets"] = old["nf_divergence_resets"] + ca.logic_not(nf_ok)
     diverged = ca.logic_or(ca.logic_not(ekf_ok), ca.logic_not(nf_ok))
