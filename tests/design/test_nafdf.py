@@ -353,25 +353,25 @@ def test_limits_and_bad_numbers_are_refused_before_building(kw: dict, match: str
 
 
 def test_state_size_is_checked_from_the_layout_before_the_step_is_built() -> None:
-    """Four parameters and N2 = 1000 make a 5000-entry state (the θ window alone is 4 × 1000):
-    refused from the sizes, without building anything (well under a second)."""
+    """Four parameters and N2 = 1000 make a 6000-entry state (the θ window is 4 × 1000, the NF's and
+    the EKF's innovation windows 2 × 1000): refused from the sizes, without building anything."""
     x, u, th = ca.SX.sym("x"), ca.SX.sym("u"), ca.SX.sym("theta", 4)
     f = ca.Function("f", [x, u, th], [th[0] * x + th[1] * u + th[2] * x * u + th[3]])
     h = ca.Function("h", [x, th], [x])
     pl = NonlinearPlant.create(f=f, h=h, states=["x"], inputs=["u"], outputs=["y"], parameters=list("abcd"),
                                nominal=dict(a=0.5, b=1.0, c=0.0, d=0.0), Q=0.0, R=0.01)
-    with pytest.raises(ArgumentError, match=r"state would have 50\d\d entries .*; at most 4096"):
+    with pytest.raises(ArgumentError, match=r"state would have 60\d\d entries .*; at most 4096"):
         nafdf(pl, x0=[0.0], P0=1.0, classifier_window=1000)
 
 
 def test_step_operation_and_work_limits(monkeypatch) -> None:
-    """The step budget is checked on the SX graph before any C exists: the ship with N = N2 = 1000
-    has ~54 000 operations (> 40 000); lowering the work limit below the ship's own ~230 doubles
-    refuses the default ship design by its work memory (the C step's stack)."""
+    """The step budget is checked on the SX graph before any C exists: the ship with N = 1000 and
+    N2 = 700 has ~44 000 operations (> 40 000) in a 3 848-entry state; lowering the work limit below
+    the ship's own ~220 doubles refuses the default ship design by its work memory (the C step's stack)."""
     from fdisyn.synthesis.nafdf import step as mod
 
     with pytest.raises(ArgumentError, match=r"the NAFDF step has \d+ operations; at most 40000"):
-        nafdf(sp.plant(), x0=[0.0], P0=100.0, theta0=[0.0, 0.0], R0=sp.R0, window=1000, classifier_window=1000)
+        nafdf(sp.plant(), x0=[0.0], P0=100.0, theta0=[0.0, 0.0], R0=sp.R0, window=1000, classifier_window=700)
     monkeypatch.setattr(mod, "MAX_STEP_WORK", 100)
     with pytest.raises(ArgumentError, match=r"needs \d+ doubles of work memory; at most 100"):
         sp.design()

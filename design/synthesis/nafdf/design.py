@@ -118,14 +118,14 @@ Block 4 — mutual re-initialisation.
   is its age). ``σ_i² = (P_θ)_ii / (1 + λ)`` is the marginal variance of
   ``θ̂_i`` (the other parameters unknown); the statistic ``info_<θ>`` is
   ``1/σ_i²``, the Fisher information about ``θ_i``.
-* *Settled* (at sample ``t``): (i) none of ``θ̂(t−N2..t)`` was cut by the
-  projection ``Π`` nor precedes the NF's (re)initialisation (a projected
-  estimate is no stationary point of the criterion, and ``P_θ`` does not
-  describe it); (ii) the drift ``δ = θ̂(t) − θ̂(t−N2)`` is explained by the
-  estimate's uncertainty, ``δᵀ (c P_θ)⁻¹ δ = δᵀ R(t) δ / (a(t) c) ≤
-  χ²_{1−α}(l)``; (iii) the NF's normalised innovations over the window pass
-  the ``χ²(N2 p)`` test (the model with ``θ̂`` explains the data); both tests
-  at ``α = convergence_level``.
+* *Settled* (at sample ``t``): (i) at least ``N2`` NF updates since its
+  (re)initialisation, and the projection ``Π`` did not cut this sample's step
+  (an estimate held at the box is no stationary point of the criterion);
+  (ii) the drift ``δ = θ̂(t) − θ̂(t−N2)`` is explained by the estimate's
+  uncertainty, ``δᵀ (c P_θ)⁻¹ δ = δᵀ R(t) δ / (a(t) c) ≤ χ²_{1−α}(l)``;
+  (iii) the NF's normalised innovations over the window pass the
+  ``χ²(N2 p)`` test (the model with ``θ̂`` explains the data); both tests at
+  ``α = convergence_level``.
 * *Converged* (the paper: "once the NF has estimated the parameters
   accurately"): settled, and at the same sample the data carry the
   information the classifier needs, ``W1 σ_i² ≤ isolable_jump_i²`` for every
@@ -152,13 +152,16 @@ Block 4 — mutual re-initialisation.
   before any nominal statistics (2.6) exist (the excitation before the fault
   was insufficient). Cleared by the next episode or an isolation; when the
   excitation returns, the NF converges and the episode closes as usual.
-* *Dismissal* (a false alarm under too little excitation): inside an open
-  episode the NF has settled without converging, the WSSR test on the EKF's
-  own model passes again, and the EKF's parameters lie in the NF's confidence
-  region, ``(θ_e − θ̂)ᵀ (P_θ/(1 + λ))⁻¹ (θ_e − θ̂) ≤ χ²_{1−α}(l)``: the data
-  show no jump, the episode closes without re-parameterisation (counted in
-  the state's ``episodes_dismissed``). Without it one false alarm would hold
-  the alarm on for as long as the input stays poor.
+* *Dismissal* (a false alarm): at least ``N2`` samples into the episode the
+  EKF's own normalised innovations over the last ``N2`` samples pass the
+  ``χ²(N2 p)`` test at ``α`` — the WSSR's law over the NF's window — on
+  ``N2`` consecutive samples (one passing window among many is what a
+  slightly wrong model also produces). The data then demand no new model:
+  the episode closes without re-parameterisation, whatever the NF estimated
+  meanwhile (counted in the state's ``episodes_dismissed``). Without it one
+  false alarm under too little excitation would hold the alarm on for as
+  long as the input stays poor, and under any excitation a false alarm would
+  hand the EKF a fresh, noisier estimate.
 * *Alarm*: the output ``alarm`` is the WSSR decision or an open episode: it
   stays 1 from the detection until the EKF's re-parameterisation (or the
   episode's dismissal), one episode per fault whatever the excitation.
@@ -168,7 +171,9 @@ Block 4 — mutual re-initialisation.
   ``x̂`` kept (the paper: ``X̂(712) = X̂(712)``), windows and the
   classifier's run counters cleared. Alarms inside an open episode do not
   reset again: the EKF is known to be wrong until it is re-parameterised.
-* *EKF re-parameterisation*: when the NF converges inside an open episode:
+* *EKF re-parameterisation*: when the NF has converged inside an open
+  episode whose alarm stands (the EKF's innovations over the last ``N2``
+  samples fail the test above):
   ``θ_e ← θ̂``, ``P ← P(0)`` (the paper), and ``x̂_e ← x̂_NF`` (beyond the
   paper: the EKF's own state was estimated with the wrong model for the
   whole episode); the WSSR window is cleared and the episode closed.
@@ -197,20 +202,21 @@ fault names), ``status`` (0 processed, 1 skipped). All dense column vectors.
 * ``state`` blocks in order (matrices column-major; see :class:`StateLayout`):
   ``ekf_x[n], ekf_P[n×n], ekf_theta[l], wssr_buffer[N], wssr_count,
   nf_x[n], nf_P[n×n], nf_theta[l], nf_R[l×l], nf_W[n×l], nf_gain (a),
-  nf_forgetting (λ), nf_age, nf_free (updates since the reset or the last
-  projected step), nf_settled, nf_converged, nf_info[l],
-  theta_window[l×N2] (column j = θ̂(t−1−j)), nis_window[N2], nominal_count,
+  nf_forgetting (λ), nf_age, nf_settled, nf_converged, nf_info[l],
+  theta_window[l×N2] (column j = θ̂(t−1−j)), nis_window[N2],
+  ekf_nis_window[N2] (γᵀV0⁻¹γ, cleared with the NF), nominal_count,
   nominal_mean[l], nominal_m2[l], nominal_frozen, count_w1[l], count_w2[l],
   fault_class[l], fault_size[l], isolated, episode_open,
   insufficient_excitation, diagnosis_left, samples, skipped,
-  alarm_resets, ekf_reparameterisations, episodes_dismissed, ekf_divergence_resets,
+  alarm_resets, ekf_reparameterisations, episodes_dismissed, ekf_fit_run
+  (consecutive passing windows), ekf_divergence_resets,
   nf_divergence_resets``.
 
 Limits (constants of :mod:`fdisyn.synthesis.nafdf.settings`, checked before
 anything is built or generated, at design time and again on reading a gain
 file; each keeps one resource bounded, with room for
-the documented problems — ship: ``N = 10``, ``N2 = 50``, 3 081 operations;
-drive train: ``N = 50``, ``N2 = 200``, 10 919 operations):
+the documented problems — ship: ``N = 10``, ``N2 = 50``, 3 454 operations;
+drive train: ``N = 50``, ``N2 = 200``, 12 342 operations):
 
 * :data:`MAX_DIMENSION` states, inputs, outputs and parameters each;
 * :data:`MAX_WINDOW` for the WSSR window ``N``, :data:`MAX_CLASSIFIER_WINDOW`
@@ -228,8 +234,8 @@ drive train: ``N = 50``, ``N2 = 200``, 10 919 operations):
   registers or spills to the stack of ``<name>_step``, next to the wrapper's
   ``next[NSTATE]`` copy of the state: the stack use is at most about
   ``8·(MAX_STEP_WORK + MAX_STATE)`` bytes = 96 KiB. Measured with
-  ``gcc -O2 -fstack-usage``: ship 1.7 KiB, drive train 4.1 KiB, the ship
-  with ``N = 1000`` 9.5 KiB — the state copy dominates.
+  ``gcc -O2 -fstack-usage``: ship 2.2 KiB, drive train 5.7 KiB, the ship
+  with ``N = 1000`` 9.9 KiB — the state copy dominates.
 
 Gain files (:mod:`fdisyn.synthesis.nafdf.payload`). :func:`nafdf_payload`
 stores the model as data, not code:
@@ -249,7 +255,7 @@ is refused.
 from __future__ import annotations
 
 import warnings
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -485,12 +491,13 @@ def _init_state(plant: NonlinearPlant, s: NafdfSettings, layout: StateLayout) ->
         "nf_gain": 1.0,
         "nf_forgetting": s.forgetting_initial,
         "nf_age": 0.0,
-        "nf_free": 0.0,
         "nf_settled": 0.0,
         "nf_converged": 0.0,
         "nf_info": np.zeros(l),
         "theta_window": np.zeros((l, s.classifier_window)),
         "nis_window": np.zeros(s.classifier_window),
+        "ekf_nis_window": np.zeros(s.classifier_window),
+        "ekf_fit_run": 0.0,
         "nominal_count": 0.0,
         "nominal_mean": np.zeros(l),
         "nominal_m2": np.zeros(l),
@@ -595,8 +602,8 @@ def _central_difference_jacobians(pl: NonlinearPlant, x: np.ndarray, u: np.ndarr
 
 
 def nafdf_diagnosis(
-    statistic_names: tuple[str, ...] | list[str],
-    fault_names: tuple[str, ...] | list[str],
+    statistic_names: Sequence[str],
+    fault_names: Sequence[str],
     alarm: np.ndarray,
     isolated: np.ndarray,
     J: np.ndarray,

@@ -175,12 +175,12 @@ def _layout(n: int, l: int, window: int, n2: int) -> StateLayout:
             ("nf_gain", *one),
             ("nf_forgetting", *one),
             ("nf_age", *one),
-            ("nf_free", *one),
             ("nf_settled", *one),
             ("nf_converged", *one),
             ("nf_info", l, 1),
             ("theta_window", l, n2),
             ("nis_window", n2, 1),
+            ("ekf_nis_window", n2, 1),
             ("nominal_count", *one),
             ("nominal_mean", l, 1),
             ("nominal_m2", l, 1),
@@ -198,6 +198,7 @@ def _layout(n: int, l: int, window: int, n2: int) -> StateLayout:
             ("alarm_resets", *one),
             ("ekf_reparameterisations", *one),
             ("episodes_dismissed", *one),
+            ("ekf_fit_run", *one),
             ("ekf_divergence_resets", *one),
             ("nf_divergence_resets", *one),
     )
@@ -211,7 +212,6 @@ _SCALAR_BLOCKS = frozenset(
         "nf_gain",
         "nf_forgetting",
         "nf_age",
-        "nf_free",
         "nf_settled",
         "nf_converged",
         "nominal_count",
@@ -225,6 +225,7 @@ _SCALAR_BLOCKS = frozenset(
         "alarm_resets",
         "ekf_reparameterisations",
         "episodes_dismissed",
+        "ekf_fit_run",
         "ekf_divergence_resets",
         "nf_divergence_resets",
     }
@@ -320,7 +321,10 @@ def _isolable_jump(jump: object, tolerance: object, th_nom: np.ndarray, w1: floa
         tol = _vec(tolerance, "convergence_tolerance", l)
         if np.any(~np.isfinite(tol)) or np.any(tol <= 0):
             raise ArgumentError(f"convergence_tolerance must be positive and finite; got {shown(tol.tolist())}")
-        return math.sqrt(w1) * tol if w1 > 0 else np.full(l, np.inf)  # W1 = 0: no bound, whatever tol
+        if w1 <= 0:  # W1 = 0: no bound, whatever the tolerance
+            return np.full(l, np.inf)
+        with np.errstate(over="ignore"):  # a tolerance near the double range: no bound either
+            return math.sqrt(w1) * tol
     if jump is None:
         return np.where(th_nom != 0.0, DEFAULT_JUMP_FRACTION * np.abs(th_nom), DEFAULT_JUMP_FRACTION)
     out = _vec(jump, "isolable_jump", l)

@@ -181,9 +181,7 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
     # ---- windows at time t (θ̂(t−1..t−N2), NF innovations) and convergence -----------------
     win, nisw = old["theta_window"], old["nis_window"]
     age = old["nf_age"] + 1  # NF updates since its (re)initialisation, this one included
-    # N2 updates since the (re)initialisation or the last step cut by Π: the window is RPE estimates only
-    free = _select(inside, old["nf_free"] + 1, 0.0)
-    full = free >= N2 + 1
+    full = old["nf_age"] >= N2
     # the NF's own uncertainty (module docstring, "Converged"): P_θ = a R⁻¹, stationary law with memory λ_m
     lam_m = ca.fmin(lam, 1.0 - 1.0 / age)
     r_inv = _inverse_diagonal(lr, dr)  # P_θ,ii = a (R⁻¹)_ii
@@ -194,27 +192,26 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
     drift_limit = float(scipy.stats.chi2.isf(s.convergence_level, l))
     nis_limit = float(scipy.stats.chi2.isf(s.convergence_level, N2 * p))
     explains = ca.sum1(nisw) <= nis_limit
-    settled_now = ca.logic_and(full, ca.logic_and(q_drift <= drift_limit, explains))
+    settled_now = ca.logic_and(ca.logic_and(full, inside), ca.logic_and(q_drift <= drift_limit, explains))
     informative = ca.SX(1)
-    for i in range(l):  # W1 σ_i² ≤ isolable_jump_i² (an infinite jump sets no bound)
-        if math.isfinite(s.isolable_jump[i]):
-            informative = ca.logic_and(informative, info[i] * float(s.isolable_jump[i]) ** 2 >= s.W1)
+    for i in range(l):  # info_i = 1/σ_i² ≥ W1 / isolable_jump_i² (in that order: no overflow for any jump)
+        bound = s.W1 / float(s.isolable_jump[i]) / float(s.isolable_jump[i])
+        if not math.isfinite(bound):
+            informative = ca.SX(0)
+        elif bound > 0.0:
+            informative = ca.logic_and(informative, info[i] >= bound)
     settled_old, conv_old = old["nf_settled"], old["nf_converged"]
     settled = ca.logic_and(ca.logic_or(settled_old, settled_now), nf_ok)
     conv = ca.logic_and(ca.logic_or(conv_old, ca.logic_and(settled_now, informative)), nf_ok)  # both tests now
 
-    # EKF re-parameterisation: the NF converges inside an open alarm episode (block 4)
+    # dismissal (a false alarm): inside the episode the EKF's own model explains every window of N2
+    # samples, Σ γᵀ V0⁻¹ γ ≤ χ²_{1−α}(N2 p), N2 times in a row — the data demand no new model
     episode = old["episode_open"]
-    reparam = ca.logic_and(ca.logic_and(conv, ca.logic_not(conv_old)), ca.logic_and(episode, nf_ok))
-    # dismissal (a false alarm): settled without the information to converge, the EKF's model passes the
-    # WSSR test again and lies in the NF's confidence region, (θ_e − θ̂)ᵀ (P_θ/(1 + λ))⁻¹ (θ_e − θ̂) ≤
-    # χ²_{1−α}(l): the data show no jump
-    gap = old["ekf_theta"] - th_new
-    consistent = ca.dot(gap, ca.mtimes(Rn_new, gap)) * (1.0 + lam_m) / gain <= drift_limit
-    dismiss = ca.logic_and(
-        ca.logic_and(ca.logic_and(episode, settled_now), ca.logic_not(conv)),
-        ca.logic_and(ca.logic_and(consistent, ca.logic_not(alarm)), nf_ok),
-    )
+    fits = ca.logic_and(ca.logic_and(episode, full), ca.sum1(old["ekf_nis_window"]) <= nis_limit)
+    fit_run = _select(fits, old["ekf_fit_run"] + 1, 0.0)
+    dismiss = fit_run >= N2
+    # EKF re-parameterisation: the NF has converged inside an open episode whose alarm stands (block 4)
+    reparam = ca.logic_and(ca.logic_and(conv, ca.logic_not(fits)), ca.logic_and(episode, nf_ok))
     # isolation follows detection: the classifier may decide for a limited time after the episode closes
     diag_left = _select(reparam, float(_diagnosis_samples(s)), old["diagnosis_left"])
 
@@ -293,7 +290,6 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
     new["nf_gain"] = _select(nf_reset, 1.0, gain)
     new["nf_forgetting"] = _select(nf_reset, s.forgetting_initial, lam)
     new["nf_age"] = _select(nf_reset, 0.0, old["nf_age"] + 1)
-    new["nf_free"] = _select(nf_reset, 0.0, free)
     new["nf_settled"] = _select(nf_reset, 0.0, settled)
     new["nf_converged"] = _select(nf_reset, 0.0, conv)
     new["nf_info"] = _select(nf_reset, ca.SX.zeros(l, 1), _select(nf_ok, info, 0.0))
@@ -302,6 +298,9 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
     nis_safe = ca.fmin(_select(_all_finite(nis_n), nis_n, 0.0), _Q_CAP)
     nis_next = ca.vertcat(nis_safe, nisw[: N2 - 1]) if N2 > 1 else nis_safe
     new["nis_window"] = _select(nf_reset, ca.SX.zeros(N2, 1), nis_next)
+    ekf_nis_next = ca.vertcat(q_safe, old["ekf_nis_window"][: N2 - 1]) if N2 > 1 else q_safe
+    new["ekf_nis_window"] = _select(nf_reset, ca.SX.zeros(N2, 1), ekf_nis_next)
+    new["ekf_fit_run"] = _select(ca.logic_or(nf_reset, dismiss), 0.0, fit_run)
 
     # An alarm ends an unfinished learning phase: with ≥ N2 samples their statistics are kept
     # (learning on after the episode could learn a faulty plant); with fewer they are discarded.
