@@ -129,24 +129,25 @@ Block 4 — mutual re-initialisation.
 * *Converged* (the paper: "once the NF has estimated the parameters
   accurately"): settled, and at the same sample the data carry the
   information the classifier needs, ``W1 σ_i² ≤ isolable_jump_i²`` for every
-  ``i`` — by (2.7) a jump
-  ``Δ_i`` of a stationary estimate of spread ``σ_i`` (which ``σ̂²_i0``
-  estimates) shows as ``d_i ≈ Δ_i²/σ_i²``, so a jump of ``isolable_jump_i``
-  reaches ``W1`` only then; ``info_<θ> ≥ W1 / isolable_jump²`` is the bound
-  (default ``isolable_jump``: 50 % of ``|θ0_i|``, the paper's fault). Both
-  flags (``nf_settled``: settled once) are sticky until the next NF
-  (re)initialisation. ``P_θ`` is a local measure: where the model's
-  sensitivities depend strongly on ``θ`` (the ship near ``a = 0``, an
-  integrator) an estimate on a ridge of the criterion can look informative.
-  The deprecated
-  ``convergence_tolerance`` (before payload version 3: a fixed bound on the
-  range of ``θ̂_i`` over ``N2`` samples, whatever the data's information) is
-  read as a bound on ``σ_i``: ``isolable_jump = √W1 · convergence_tolerance``.
+  ``i`` — by (2.7) a jump ``Δ_i`` of a stationary estimate of spread ``σ_i``
+  (which ``σ̂²_i0`` estimates) shows as ``d_i ≈ Δ_i²/σ_i²``, so a jump of
+  ``isolable_jump_i`` reaches ``W1`` only then; ``info_<θ> ≥ W1 /
+  isolable_jump²`` is the bound (default ``isolable_jump``: 50 % of
+  ``|θ0_i|``, the paper's fault). Both flags (``nf_settled``: settled once)
+  are sticky until the next NF (re)initialisation. ``P_θ`` is a local
+  measure: where the model's sensitivities depend strongly on ``θ`` (the ship
+  near ``a = 0``, an integrator) an estimate on a ridge of the criterion can
+  look informative. With ``λ(t)`` still rising after a (re)initialisation the
+  estimate's memory is short, so an early convergence also learns a wider
+  nominal spread (2.6). The deprecated ``convergence_tolerance`` (before
+  payload version 3: a fixed bound on the range of ``θ̂_i`` over ``N2``
+  samples, whatever the data's information) is read as a bound on ``σ_i``:
+  ``isolable_jump = √W1 · convergence_tolerance``.
 * *Detected, not isolable (insufficient excitation)*: inside an open episode
   the NF has settled but not converged — the estimate is as good as the data
   allow, and they cannot resolve a jump of ``isolable_jump``. The episode
-  stays open (the EKF keeps its model: a poorly determined ``θ̂`` would only
-  raise the next alarm), ``isolated = −1``, the statistic
+  stays open unless dismissed (below; the EKF keeps its model: a poorly
+  determined ``θ̂`` would only raise the next alarm), ``isolated = −1``, the statistic
   ``insufficient_excitation`` is 1 and ``info_<θ>`` shows which parameter
   lacks information. It is also 1 when the NF converges inside the episode
   before any nominal statistics (2.6) exist (the excitation before the fault
