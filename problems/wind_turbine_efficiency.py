@@ -172,8 +172,10 @@ def design(*, false_alarm_probability: float = 1e-4) -> NafdfDesign:
     on the diagonal; ``θ̂(0) = 0.97``; ``R(0) = 1e4`` (a weak prior against a
     per-sample information of ~1e5 on ``η``); WSSR window 50 samples
     (0.5 s); ``λ∞ = 0.999`` (10 s memory); ``N1 = 1000``, ``N2 = 200``,
-    ``T1 = 100`` samples; converged when ``η̂`` moves less than 0.01 over
-    ``N2``; ``η ∈ [0.5, 1.2]``.
+    ``T1 = 100`` samples; ``isolable_jump`` the benchmark's drop 0.05, so the NF
+    converges when its own ``σ(η̂) ≤ 0.05/√W1 = 0.0071`` (the inputs give
+    ~1.5e-4: the NF converges as soon as ``N2`` samples have passed the drift
+    and innovation tests); ``η ∈ [0.5, 1.2]``.
     """
     x0, _ = operating_point()
     return nafdf(
@@ -192,7 +194,7 @@ def design(*, false_alarm_probability: float = 1e-4) -> NafdfDesign:
         W1=50.0,
         W2=350.0,
         T1=100,
-        convergence_tolerance=[0.01],
+        isolable_jump=[ETA_NOMINAL - ETA_FAULTY],
     )
 
 
@@ -285,7 +287,8 @@ NOTES = (
     "Inputs: ±5 % square wave of period 20 s on τ_r and ±3 % of period 6.2 s on τ_g around 1.5 MN·m of shaft torque "
     "at 1.6 rad/s: they excite the torsional mode (whose frequency moves with η) and the torque balance.",
     "Design: WSSR window 50 samples, P_f = 1e-4, λ∞ = 0.999 (10 s memory), N1 = 1000, N2 = 200, T1 = 100, "
-    "converged when η̂ moves less than 0.01 over N2, η ∈ [0.5, 1.2].",
+    "isolable jump 0.05 (the benchmark's drop: the NF converges when its own σ(η̂) ≤ 0.05/√W1 = 0.0071, and its "
+    "drift over N2 and its innovations pass their χ² tests; the inputs give σ(η̂) ≈ 1.5e-4), η ∈ [0.5, 1.2].",
 )
 
 PROBLEM = Problem(

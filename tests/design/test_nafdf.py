@@ -4,6 +4,7 @@ Cramér–Rao, χ² law; skip, divergence and latching contracts."""
 from __future__ import annotations
 
 import json
+from contextlib import nullcontext
 
 import casadi as ca
 import numpy as np
@@ -116,11 +117,12 @@ def test_wssr_fault_free_law_is_chi_square() -> None:
     """Under H0 N·L ~ χ²(N p) (2.4): exceedances of the P_f threshold on non-overlapping full windows
     are Binomial(M, P_f) — checked against its two-sided 99.9 % interval — and the window values pass
     a Kolmogorov–Smirnov test against χ²(N p) at level 1e-3. The NF is kept from ever converging
-    (tolerance 1e-12), so the EKF is never re-parameterised and runs on the true model throughout.
+    (an isolable jump of 1e-12 needs more information than any data carry), so the EKF is never
+    re-parameterised and runs on the true model throughout.
     """
     N, pf = 10, 0.01
     dsg = nafdf(sp.plant(), x0=[0.0], P0=100.0, theta0=[0.0, 0.0], R0=sp.R0, window=N,
-                false_alarm_probability=pf, convergence_tolerance=[1e-12, 1e-12])
+                false_alarm_probability=pf, isolable_jump=[1e-12, 1e-12])
     run = sp.PROBLEM.run(sp.fault_scenario("fault_free", length=40_000), [11])
     out = dsg.run(u=run.U[0], y=run.Y[0])
     assert dsg.unpack_state(out["state"][-1])["ekf_reparameterisations"] == 0
@@ -156,13 +158,32 @@ def test_threshold_table_rules() -> None:
         (dict(window=0), "positive integer"),
         (dict(false_alarm_probability=1.5), "between 0 and 1"),
         (dict(threshold_rule="gaussian"), "'chi2' or 'beta0'"),
-        (dict(convergence_tolerance=[0.0, 1.0]), "positive and finite"),
+        (dict(isolable_jump=[0.0, 1.0]), "isolable_jump must be positive"),
+        (dict(isolable_jump=[float("nan"), 1.0]), "isolable_jump must be positive"),
+        (dict(isolable_jump=[0.1, 0.1], convergence_tolerance=[0.01, 0.01]), "not both"),
     ],
 )
 def test_bad_settings_are_refused(kw: dict, match: str) -> None:
     base = dict(x0=[0.0], P0=100.0, theta0=[0.0, 0.0], R0=sp.R0)
-    with pytest.raises(ArgumentError, match=match):
+    with pytest.raises(ArgumentError, match=match), pytest.warns(FutureWarning) if "convergence_tolerance" in kw else nullcontext():
         nafdf(sp.plant(), **{**base, **kw})
+
+
+def test_deprecated_convergence_tolerance_maps_to_the_information_bound() -> None:
+    """``convergence_tolerance`` still designs, with a FutureWarning: the tolerance is read as the largest
+    standard deviation of θ̂_i, so ``isolable_jump = √W1 · tol`` (W1 = 0 sets no bound); the step is the one
+    ``isolable_jump`` designs. A bad tolerance is still refused by its own name."""
+    base = dict(x0=[0.0], P0=100.0, theta0=[0.0, 0.0], R0=sp.R0)
+    with pytest.warns(FutureWarning, match="convergence_tolerance is deprecated"):
+        old = nafdf(sp.plant(), **base, W1=32.0, convergence_tolerance=[0.03, 0.01])
+    np.testing.assert_allclose(old.settings.isolable_jump, [0.03 * np.sqrt(32.0), 0.01 * np.sqrt(32.0)], rtol=1e-15)
+    new = nafdf(sp.plant(), **base, W1=32.0, isolable_jump=old.settings.isolable_jump)
+    assert new.step.serialize() == old.step.serialize()
+    with pytest.warns(FutureWarning):
+        free = nafdf(sp.plant(), **base, W1=0.0, convergence_tolerance=[0.03, 0.01])
+    assert np.all(np.isinf(free.settings.isolable_jump))
+    with pytest.warns(FutureWarning), pytest.raises(ArgumentError, match="convergence_tolerance must be positive and finite"):
+        nafdf(sp.plant(), **base, convergence_tolerance=[0.0, 1.0])
 
 
 def test_state_layout_round_trip(ship_design) -> None:
@@ -332,25 +353,25 @@ def test_limits_and_bad_numbers_are_refused_before_building(kw: dict, match: str
 
 
 def test_state_size_is_checked_from_the_layout_before_the_step_is_built() -> None:
-    """Four parameters and N2 = 1000 make a 5000-entry state (the θ window alone is 4 × 1000):
-    refused from the sizes, without building anything (well under a second)."""
+    """Four parameters and N2 = 1000 make a 6000-entry state (the θ window is 4 × 1000, the NF's and
+    the EKF's innovation windows 2 × 1000): refused from the sizes, without building anything."""
     x, u, th = ca.SX.sym("x"), ca.SX.sym("u"), ca.SX.sym("theta", 4)
     f = ca.Function("f", [x, u, th], [th[0] * x + th[1] * u + th[2] * x * u + th[3]])
     h = ca.Function("h", [x, th], [x])
     pl = NonlinearPlant.create(f=f, h=h, states=["x"], inputs=["u"], outputs=["y"], parameters=list("abcd"),
                                nominal=dict(a=0.5, b=1.0, c=0.0, d=0.0), Q=0.0, R=0.01)
-    with pytest.raises(ArgumentError, match=r"state would have 50\d\d entries .*; at most 4096"):
+    with pytest.raises(ArgumentError, match=r"state would have 60\d\d entries .*; at most 4096"):
         nafdf(pl, x0=[0.0], P0=1.0, classifier_window=1000)
 
 
 def test_step_operation_and_work_limits(monkeypatch) -> None:
-    """The step budget is checked on the SX graph before any C exists: the ship with N = N2 = 1000
-    has ~54 000 operations (> 40 000); lowering the work limit below the ship's own ~230 doubles
-    refuses the default ship design by its work memory (the C step's stack)."""
+    """The step budget is checked on the SX graph before any C exists: the ship with N = 1000 and
+    N2 = 700 has ~44 000 operations (> 40 000) in a 3 848-entry state; lowering the work limit below
+    the ship's own ~220 doubles refuses the default ship design by its work memory (the C step's stack)."""
     from fdisyn.synthesis.nafdf import step as mod
 
     with pytest.raises(ArgumentError, match=r"the NAFDF step has \d+ operations; at most 40000"):
-        nafdf(sp.plant(), x0=[0.0], P0=100.0, theta0=[0.0, 0.0], R0=sp.R0, window=1000, classifier_window=1000)
+        nafdf(sp.plant(), x0=[0.0], P0=100.0, theta0=[0.0, 0.0], R0=sp.R0, window=1000, classifier_window=700)
     monkeypatch.setattr(mod, "MAX_STEP_WORK", 100)
     with pytest.raises(ArgumentError, match=r"needs \d+ doubles of work memory; at most 100"):
         sp.design()

@@ -157,6 +157,18 @@ def test_cli_refuses_with_status_2_and_one_line(tmp_path, capsys, old, new) -> N
     assert not (tmp_path / "out" / "gains.json").exists()
 
 
+def test_a_file_with_the_deprecated_convergence_tolerance_still_designs(problem, tmp_path, capsys) -> None:
+    """``convergence_tolerance`` (a plant file written before the information law) designs the step that
+    ``isolable_jump = √W1 · tol`` designs; the CLI succeeds and says so in one warning line."""
+    old = _write(tmp_path, "isolable_jump = { a = 0.29, b = 0.1 }", "convergence_tolerance = [0.03, 0.01]")
+    with pytest.warns(FutureWarning, match="convergence_tolerance is deprecated"):
+        gf = load_spec(old).design()
+    assert gf.extensions["nafdf"]["settings"]["isolable_jump"] == pytest.approx([0.03 * 50**0.5, 0.01 * 50**0.5], rel=1e-15)
+    assert main(["design", str(old), "--out", str(tmp_path / "out")]) == 0
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("fdisyn design: warning: FutureWarning: the NAFDF option convergence_tolerance is deprecated") and "\n" not in err
+
+
 def test_square_signal_on_the_sample_grid() -> None:
     s = Signal(kind="square", offset=5.0, amplitude=4.0, period=50.0)
     u = s.sample(np.arange(200.0), np.random.default_rng(0), 1.0)
@@ -168,18 +180,20 @@ def test_square_signal_on_the_sample_grid() -> None:
 
 
 def test_nafdf_extra_metrics_by_hand() -> None:
-    """Three runs with known latched classes, sizes and isolation times."""
-    gf = SimpleNamespace(faults=("a", "b"), Ts=1.0, step=SimpleNamespace(statistic_names=("fault_class_a", "fault_class_b", "fault_size_a", "fault_size_b")))
+    """Three runs with known latched classes, sizes and isolation times (and a fourth, not isolable)."""
+    names = ("fault_class_a", "fault_class_b", "fault_size_a", "fault_size_b", "insufficient_excitation")
+    gf = SimpleNamespace(faults=("a", "b"), Ts=1.0, step=SimpleNamespace(statistic_names=names))
     N = 10
-    J = np.zeros((3, N, 4))
-    J[:, -1] = [[1, 0, 0.30, 0.0], [2, 0, 0.26, 0.0], [1, 1, 0.5, 0.1]]
-    iso = -np.ones((3, N), dtype=int)
+    J = np.zeros((4, N, 5))
+    J[:, -1] = [[1, 0, 0.30, 0.0, 0], [2, 0, 0.26, 0.0, 0], [1, 1, 0.5, 0.1, 0], [0, 0, 0.0, 0.0, 1]]
+    iso = -np.ones((4, N), dtype=int)
     iso[0, 7:], iso[1, 9:], iso[2, 6:] = 0, 0, 0
-    runs = {"J": J, "isolated": iso, "alarm": np.zeros((3, N), dtype=int)}
+    runs = {"J": J, "isolated": iso, "alarm": np.zeros((4, N), dtype=int)}
     sc = SimpleNamespace(fault="a", onset=5.0, params={"fault_size": {"a": 0.29}})
     m = nafdf_extra_metrics(sc, gf, runs)
-    assert m["all parameter classes correct"] == pytest.approx(2 / 3)
+    assert m["all parameter classes correct"] == pytest.approx(2 / 4)
     assert m["isolation delay median (samples)"] == 2.0  # delays 2, 4, 1
+    assert m["runs detected, not isolable (insufficient excitation)"] == 0.25
     err = np.array([0.30, 0.26, 0.5]) - 0.29
     assert m["size error a: mean"] == pytest.approx(err.mean()) and m["size error a: sd"] == pytest.approx(err.std(ddof=1))
     alarm = np.zeros((2, N), dtype=int)

@@ -77,8 +77,17 @@ NAFDF_OPTIONS: tuple[Option, ...] = (
     Option("W1", 50.0, "Bayes-distance threshold of a fault class (eq. (2.7))", "a number with 0 ≤ W1 < W2"),
     Option("W2", 350.0, "Bayes-distance threshold of a certain fault class (eq. (2.7))", "a finite number > W1"),
     Option("T1", 50, "samples the classifier waits after the NF converged", "a whole number ≥ 1"),
-    _per("convergence_tolerance", "largest range of θ̂_i over N2 samples to count as converged; default 5 % of |θ0_i|", "one positive number per parameter"),
-    Option("convergence_level", 1e-3, "significance of the NF innovation test inside the convergence check", "a number in (0, 1)"),
+    _per(
+        "isolable_jump",
+        "smallest jump of θ_i to isolate: the NF converges only when W1·σ_i² ≤ isolable_jump_i² (σ_i from its own covariance); default 50 % of |θ0_i|",
+        "one positive number (or inf) per parameter",
+    ),
+    Option("convergence_level", 1e-3, "significance of the drift and innovation tests of the NF's convergence check", "a number in (0, 1)"),
+    _per(
+        "convergence_tolerance",
+        "deprecated: read as the largest standard deviation of θ̂_i, i.e. isolable_jump = √W1 · convergence_tolerance",
+        "one positive number per parameter",
+    ),
     Option("u0", None, "nominal input (where the model must be finite, and the certificate's Jacobian check); default zeros", "one finite number per input", refine=_u0),
 )
 """The options of the NAFDF, named as a plant file's ``[design]`` keys and the keywords of ``fdisyn.design``."""

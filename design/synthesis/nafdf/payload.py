@@ -27,8 +27,15 @@ from fdisyn.synthesis.nafdf.settings import _IDENT, _MAX_NAME, MAX_DIMENSION, Na
 __all__ = ['PAYLOAD_FORMAT', 'PAYLOAD_VERSION', 'nafdf_from_gain_file', 'nafdf_from_payload', 'nafdf_gain_file', 'nafdf_payload', 'step_from_payload']
 
 PAYLOAD_FORMAT = "fdisyn.nafdf"
-PAYLOAD_VERSION = 2
-"""Version 2 stores the model as validated operation lists (version 1 held CasADi serialised strings)."""
+PAYLOAD_VERSION = 3
+"""Version 3: the convergence of the NF judged against its own covariance (``settings.isolable_jump``, the
+statistics ``info_<θ>`` and ``insufficient_excitation``); version 2 bounded the range of θ̂ by
+``settings.convergence_tolerance``; both store the model as validated operation lists (version 1 held
+CasADi serialised strings)."""
+_FORMER_VERSIONS: Mapping[int, str] = {
+    1: "the model as CasADi serialised strings",
+    2: "the NF's convergence by a fixed tolerance on the range of θ̂, without the information statistics",
+}
 _NOISE_KEYS: Mapping[str, str] = {"Q": "Q1", "R": "Q2"}
 """The plant's noise covariances → their keys in ``plant`` of the payload: Zhou, Xi & Zhang's letters
 (eq. (2.1)), which the payload format (version 2) keeps."""
@@ -240,9 +247,11 @@ def _read_payload(payload: object, where: str, *, gain_file: bool) -> _Payload:
     if isinstance(payload, Mapping) and payload.get("format") != PAYLOAD_FORMAT:
         raise GainFileError(f"{where}: payload format is {shown(payload.get('format'))}; expected {PAYLOAD_FORMAT!r}")
     if isinstance(payload, Mapping) and payload.get("version") != PAYLOAD_VERSION:
+        version = payload.get("version")
+        former = _FORMER_VERSIONS.get(version) if isinstance(version, int) and not isinstance(version, bool) else None
+        held = f" ({former})" if former else ""
         raise GainFileError(
-            f"{where}: payload version is {shown(payload.get('version'))}; this fdisyn reads version {PAYLOAD_VERSION} "
-            "(the model as validated operation lists, not CasADi serialised strings): design it again"
+            f"{where}: payload version is {shown(version)}{held}; this fdisyn reads version {PAYLOAD_VERSION}: design it again"
         )
     top = _Fields(payload, where, required=frozenset(required), optional=optional)
     name = top.string("name")
@@ -272,7 +281,7 @@ def _read_payload(payload: object, where: str, *, gain_file: bool) -> _Payload:
         "W1": sf.number("W1"),
         "W2": sf.number("W2"),
         "T1": sf.integer("T1"),
-        "convergence_tolerance": sf.numbers("convergence_tolerance", l),
+        "isolable_jump": np.nan_to_num(sf.numbers("isolable_jump", l, allow_none=True), nan=np.inf),
         "convergence_level": sf.number("convergence_level"),
         "u0": sf.numbers("u0", m),
     }

@@ -21,7 +21,8 @@ __all__ = ['MAX_CLASSIFIER_WINDOW', 'MAX_COUNT', 'MAX_DIMENSION', 'MAX_STATE', '
 # Resource limits (module docstring).
 MAX_DIMENSION = 30
 """Most states, inputs, outputs or parameters: the step unrolls LDLᵀ factorisations of n×n, p×p and l×l
-matrices (~k³/3 operations each), so ~30 already fills :data:`MAX_STEP_INSTRUCTIONS`."""
+matrices (~k³/3 operations each) and the diagonal of the l×l inverse (another ~l³/3), so ~30 already
+fills :data:`MAX_STEP_INSTRUCTIONS`."""
 MAX_WINDOW = 1000
 """Largest WSSR window ``N``: the window costs ~16 operations per sample (shift, sum, threshold lookup)."""
 MAX_CLASSIFIER_WINDOW = 1000
@@ -78,14 +79,16 @@ class NafdfSettings:
     nominal_samples: int
     """``N1`` of (2.6)."""
     classifier_window: int
-    """``N2`` of (2.7); also the convergence window."""
+    """``N2`` of (2.7); also the window of the convergence tests."""
     W1: float
     W2: float
     T1: int
-    convergence_tolerance: np.ndarray
-    """Largest range of each ``θ̂_i`` over ``N2`` samples for the NF to count as converged."""
+    isolable_jump: np.ndarray
+    """Smallest jump of each ``θ_i`` the classifier must isolate: the NF counts as converged only when
+    its own standard deviation ``σ_i`` satisfies ``W1 σ_i² ≤ isolable_jump_i²`` (the information law of
+    :mod:`fdisyn.synthesis.nafdf.design`, block 4)."""
     convergence_level: float
-    """Significance of the NF innovation test inside the convergence check."""
+    """Significance of the two tests of the convergence check: the drift of ``θ̂`` and the NF innovations."""
     u0: np.ndarray = field(default_factory=lambda: np.zeros(0))
     """Nominal input: with ``x0`` and ``θ0`` the point where the model must be finite and where the
     certificate compares the AD Jacobians with central differences (not used by the step)."""
@@ -172,9 +175,12 @@ def _layout(n: int, l: int, window: int, n2: int) -> StateLayout:
             ("nf_gain", *one),
             ("nf_forgetting", *one),
             ("nf_age", *one),
+            ("nf_settled", *one),
             ("nf_converged", *one),
+            ("nf_info", l, 1),
             ("theta_window", l, n2),
             ("nis_window", n2, 1),
+            ("ekf_nis_window", n2, 1),
             ("nominal_count", *one),
             ("nominal_mean", l, 1),
             ("nominal_m2", l, 1),
@@ -185,11 +191,14 @@ def _layout(n: int, l: int, window: int, n2: int) -> StateLayout:
             ("fault_size", l, 1),
             ("isolated", *one),
             ("episode_open", *one),
+            ("insufficient_excitation", *one),
             ("diagnosis_left", *one),
             ("samples", *one),
             ("skipped", *one),
             ("alarm_resets", *one),
             ("ekf_reparameterisations", *one),
+            ("episodes_dismissed", *one),
+            ("ekf_fit_run", *one),
             ("ekf_divergence_resets", *one),
             ("nf_divergence_resets", *one),
     )
@@ -203,16 +212,20 @@ _SCALAR_BLOCKS = frozenset(
         "nf_gain",
         "nf_forgetting",
         "nf_age",
+        "nf_settled",
         "nf_converged",
         "nominal_count",
         "nominal_frozen",
         "isolated",
         "episode_open",
+        "insufficient_excitation",
         "diagnosis_left",
         "samples",
         "skipped",
         "alarm_resets",
         "ekf_reparameterisations",
+        "episodes_dismissed",
+        "ekf_fit_run",
         "ekf_divergence_resets",
         "nf_divergence_resets",
     }
@@ -251,13 +264,10 @@ def _settings(plant: NonlinearPlant, **kw: Any) -> NafdfSettings:
     hi = np.full(l, np.inf) if kw["theta_upper"] is None else _vec(kw["theta_upper"], "theta_upper", l)
     if np.any(np.isnan(lo)) or np.any(np.isnan(hi)) or np.any(lo >= hi) or np.any(lo == np.inf) or np.any(hi == -np.inf):
         raise ArgumentError(f"theta_lower must be below theta_upper for every parameter; got {shown(lo.tolist())} and {shown(hi.tolist())}")
-    tol = (
-        np.where(th_nom != 0.0, 0.05 * np.abs(th_nom), 0.05)
-        if kw["convergence_tolerance"] is None
-        else _vec(kw["convergence_tolerance"], "convergence_tolerance", l)
-    )
-    if np.any(~np.isfinite(tol)) or np.any(tol <= 0):
-        raise ArgumentError(f"convergence_tolerance must be positive and finite; got {shown(tol.tolist())}")
+    w1, w2 = _number(kw["W1"], "W1"), _number(kw["W2"], "W2")
+    if not 0.0 <= w1 < w2 or not math.isfinite(w2):
+        raise ArgumentError(f"the classifier thresholds must satisfy 0 <= W1 < W2 < inf; got W1 = {kw['W1']}, W2 = {kw['W2']}")
+    jump = _isolable_jump(kw.get("isolable_jump"), kw.get("convergence_tolerance"), th_nom, w1)
     th0 = th_nom.copy() if kw["theta0"] is None else _finite_vec(kw["theta0"], "theta0", l)
     beta0 = None if kw["beta0"] is None else _number(kw["beta0"], "beta0")
     if beta0 is not None and not (math.isfinite(beta0) and beta0 > 0):
@@ -278,21 +288,49 @@ def _settings(plant: NonlinearPlant, **kw: Any) -> NafdfSettings:
         theta_upper=frozen_array(hi),
         nominal_samples=_positive_int(kw["nominal_samples"], "nominal_samples"),
         classifier_window=n2,
-        W1=_number(kw["W1"], "W1"),
-        W2=_number(kw["W2"], "W2"),
+        W1=w1,
+        W2=w2,
         T1=_positive_int(kw["T1"], "T1"),
-        convergence_tolerance=frozen_array(tol),
+        isolable_jump=frozen_array(jump),
         convergence_level=_unit_open(kw["convergence_level"], "convergence_level"),
         u0=frozen_array(np.zeros(m) if kw["u0"] is None else _finite_vec(kw["u0"], "u0", m)),
     )
-    if not 0.0 <= settings.W1 < settings.W2 or not math.isfinite(settings.W2):
-        raise ArgumentError(f"the classifier thresholds must satisfy 0 <= W1 < W2 < inf; got W1 = {kw['W1']}, W2 = {kw['W2']}")
     if np.any(settings.theta0 < lo) or np.any(settings.theta0 > hi):
         raise ArgumentError(
             f"theta0 = {shown(settings.theta0.tolist())} lies outside the parameter box "
             f"[{shown(lo.tolist())}, {shown(hi.tolist())}]"
         )
     return settings
+
+
+DEFAULT_JUMP_FRACTION = 0.5
+"""The default ``isolable_jump``: this fraction of ``|θ0_i|`` (of 1 for a zero nominal), the paper's fault
+(Zhou, Xi & Zhang 1991, section 3: ``a → a0/2``)."""
+
+
+def _isolable_jump(jump: object, tolerance: object, th_nom: np.ndarray, w1: float) -> np.ndarray:
+    """``isolable_jump`` as given, from the deprecated ``convergence_tolerance``, or the default.
+
+    ``convergence_tolerance`` (before payload version 3: the largest range of ``θ̂_i`` over ``N2``
+    samples) is read as the largest standard deviation of ``θ̂_i``: ``isolable_jump_i = √W1 · tol_i``.
+    """
+    l = th_nom.size  # noqa: E741 — the paper's letter for dim θ
+    if jump is not None and tolerance is not None:
+        raise ArgumentError("give isolable_jump or the deprecated convergence_tolerance, not both")
+    if tolerance is not None:
+        tol = _vec(tolerance, "convergence_tolerance", l)
+        if np.any(~np.isfinite(tol)) or np.any(tol <= 0):
+            raise ArgumentError(f"convergence_tolerance must be positive and finite; got {shown(tol.tolist())}")
+        if w1 <= 0:  # W1 = 0: no bound, whatever the tolerance
+            return np.full(l, np.inf)
+        with np.errstate(over="ignore"):  # a tolerance near the double range: no bound either
+            return math.sqrt(w1) * tol
+    if jump is None:
+        return np.where(th_nom != 0.0, DEFAULT_JUMP_FRACTION * np.abs(th_nom), DEFAULT_JUMP_FRACTION)
+    out = _vec(jump, "isolable_jump", l)
+    if np.any(np.isnan(out)) or np.any(out <= 0):
+        raise ArgumentError(f"isolable_jump must be positive (inf: no information bound); got {shown(out.tolist())}")
+    return out
 
 
 def _unit_interval(value: float, name: str) -> float:

@@ -51,6 +51,24 @@ def _ldl_solve(lt: ca.SX, d: ca.SX, b: ca.SX) -> ca.SX:
     return ca.ldl_solve(b, d, lt, list(range(d.numel())))
 
 
+def _inverse_diagonal(lt: ca.SX, d: ca.SX) -> list[ca.SX]:
+    """The diagonal of ``A⁻¹`` from the factors of :func:`_ldl` (``A = Uᵀ diag(d) U``, ``U = I + Lᵀ``).
+
+    ``(A⁻¹)_ii = Σ_{k≥i} (U⁻¹)_ik² / d_k``, with the unit upper triangular ``V = U⁻¹`` by back
+    substitution, ``V_ik = −Σ_{i<j≤k} U_ij V_jk``: ~k³/3 operations, a third of solving for all of ``A⁻¹``.
+    """
+    k = d.numel()
+    v = [[ca.SX(0.0)] * k for _ in range(k)]
+    for i in reversed(range(k)):
+        v[i][i] = ca.SX(1.0)
+        for c in range(i + 1, k):
+            acc = ca.SX(0.0)
+            for j in range(i + 1, c + 1):
+                acc = acc - lt[i, j] * v[j][c]
+            v[i][c] = acc
+    return [sum((v[i][c] ** 2 / d[c] for c in range(i + 1, k)), 1.0 / d[i]) for i in range(k)]
+
+
 def _positive(d: ca.SX) -> ca.SX:
     ok = ca.SX(1)
     for j in range(d.numel()):
@@ -141,10 +159,13 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
     lr, dr = _ldl(Rn_new)
     step = gain * _ldl_solve(lr, dr, ca.mtimes(Phi, sinv_eps))  # β R⁻¹ Φ S⁻¹ ε with β = a(t)
     th_new = thn + step
+    inside = ca.SX(1)  # Π leaves the step alone (a projected estimate is held, not settled)
     for i in range(l):  # Π: projection on the parameter box
         if math.isfinite(s.theta_lower[i]):
+            inside = ca.logic_and(inside, th_new[i] > s.theta_lower[i])
             th_new[i] = ca.fmax(th_new[i], s.theta_lower[i])
         if math.isfinite(s.theta_upper[i]):
+            inside = ca.logic_and(inside, th_new[i] < s.theta_upper[i])
             th_new[i] = ca.fmin(th_new[i], s.theta_upper[i])
     dth = th_new - thn
     K = _ldl_solve(ls_, ds_, ca.mtimes([Hn, Pn, Fn.T])).T  # K = F P Hᵀ S⁻¹
@@ -159,22 +180,38 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
 
     # ---- windows at time t (θ̂(t−1..t−N2), NF innovations) and convergence -----------------
     win, nisw = old["theta_window"], old["nis_window"]
+    age = old["nf_age"] + 1  # NF updates since its (re)initialisation, this one included
     full = old["nf_age"] >= N2
-    settled = ca.SX(1)
-    for i in range(l):
-        lo_i, hi_i = win[i, 0], win[i, 0]
-        for j in range(1, N2):
-            lo_i, hi_i = ca.fmin(lo_i, win[i, j]), ca.fmax(hi_i, win[i, j])
-        settled = ca.logic_and(settled, hi_i - lo_i <= float(s.convergence_tolerance[i]))
+    # the NF's own uncertainty (module docstring, "Converged"): P_θ = a R⁻¹, stationary law with memory λ_m
+    lam_m = ca.fmin(lam, 1.0 - 1.0 / age)
+    r_inv = _inverse_diagonal(lr, dr)  # P_θ,ii = a (R⁻¹)_ii
+    info = ca.vertcat(*[(1.0 + lam_m) / (gain * r_inv[i]) for i in range(l)])  # 1/σ²_i
+    drift = th_new - win[:, N2 - 1]  # θ̂(t) − θ̂(t−N2)
+    c_drift = 2.0 * (1.0 - lam_m**N2) / (1.0 + lam_m)
+    q_drift = ca.dot(drift, ca.mtimes(Rn_new, drift)) / (gain * c_drift)  # driftᵀ (c P_θ)⁻¹ drift
+    drift_limit = float(scipy.stats.chi2.isf(s.convergence_level, l))
     nis_limit = float(scipy.stats.chi2.isf(s.convergence_level, N2 * p))
     explains = ca.sum1(nisw) <= nis_limit
-    conv_old = old["nf_converged"]
-    conv = ca.logic_or(conv_old, ca.logic_and(full, ca.logic_and(settled, explains)))
-    conv = ca.logic_and(conv, nf_ok)
+    settled_now = ca.logic_and(ca.logic_and(full, inside), ca.logic_and(q_drift <= drift_limit, explains))
+    informative = ca.SX(1)
+    for i in range(l):  # info_i = 1/σ_i² ≥ W1 / isolable_jump_i² (in that order: no overflow for any jump)
+        bound = s.W1 / float(s.isolable_jump[i]) / float(s.isolable_jump[i])
+        if not math.isfinite(bound):
+            informative = ca.SX(0)
+        elif bound > 0.0:
+            informative = ca.logic_and(informative, info[i] >= bound)
+    settled_old, conv_old = old["nf_settled"], old["nf_converged"]
+    settled = ca.logic_and(ca.logic_or(settled_old, settled_now), nf_ok)
+    conv = ca.logic_and(ca.logic_or(conv_old, ca.logic_and(settled_now, informative)), nf_ok)  # both tests now
 
-    # EKF re-parameterisation: the NF converges inside an open alarm episode (block 4)
+    # dismissal (a false alarm): inside the episode the EKF's own model explains every window of N2
+    # samples, Σ γᵀ V0⁻¹ γ ≤ χ²_{1−α}(N2 p), N2 times in a row — the data demand no new model
     episode = old["episode_open"]
-    reparam = ca.logic_and(ca.logic_and(conv, ca.logic_not(conv_old)), ca.logic_and(episode, nf_ok))
+    fits = ca.logic_and(ca.logic_and(episode, full), ca.sum1(old["ekf_nis_window"]) <= nis_limit)
+    fit_run = _select(fits, old["ekf_fit_run"] + 1, 0.0)
+    dismiss = fit_run >= N2
+    # EKF re-parameterisation: the NF has converged inside an open episode whose alarm stands (block 4)
+    reparam = ca.logic_and(ca.logic_and(conv, ca.logic_not(fits)), ca.logic_and(episode, nf_ok))
     # isolation follows detection: the classifier may decide for a limited time after the episode closes
     diag_left = _select(reparam, float(_diagnosis_samples(s)), old["diagnosis_left"])
 
@@ -221,7 +258,18 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
     # ---- block 4: mutual re-initialisation ------------------------------------------------
     alarm_reset = ca.logic_and(alarm, ca.logic_not(episode))
     nf_reset = ca.logic_or(alarm_reset, ca.logic_not(nf_ok))
-    episode_next = _select(reparam, 0.0, _select(alarm_reset, 1.0, episode))
+    episode_next = _select(ca.logic_or(reparam, dismiss), 0.0, _select(alarm_reset, 1.0, episode))
+    any_latch = ca.SX(0)
+    for latch in latch_now:
+        any_latch = ca.logic_or(any_latch, latch)
+    # detected, not isolable (insufficient excitation): inside an episode the NF has settled without the
+    # information to converge, or it converged without a nominal reference (2.6) to classify against
+    starved = ca.logic_and(ca.logic_and(episode, settled), ca.logic_not(ca.logic_or(conv, dismiss)))
+    insufficient = _select(
+        ca.logic_or(ca.logic_or(alarm_reset, any_latch), dismiss),
+        0.0,
+        _select(starved, 1.0, _select(reparam, ca.logic_not(nominal_ready), old["insufficient_excitation"])),
+    )
     wssr_clear = ca.logic_or(reparam, ca.logic_not(ekf_ok))
 
     # EKF next state: normal, re-parameterised from the NF, or re-initialised after divergence
@@ -242,12 +290,17 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
     new["nf_gain"] = _select(nf_reset, 1.0, gain)
     new["nf_forgetting"] = _select(nf_reset, s.forgetting_initial, lam)
     new["nf_age"] = _select(nf_reset, 0.0, old["nf_age"] + 1)
+    new["nf_settled"] = _select(nf_reset, 0.0, settled)
     new["nf_converged"] = _select(nf_reset, 0.0, conv)
+    new["nf_info"] = _select(nf_reset, ca.SX.zeros(l, 1), _select(nf_ok, info, 0.0))
     win_next = ca.horzcat(th_new, win[:, : N2 - 1]) if N2 > 1 else th_new
     new["theta_window"] = _select(nf_reset, ca.SX.zeros(l, N2), win_next)
     nis_safe = ca.fmin(_select(_all_finite(nis_n), nis_n, 0.0), _Q_CAP)
     nis_next = ca.vertcat(nis_safe, nisw[: N2 - 1]) if N2 > 1 else nis_safe
     new["nis_window"] = _select(nf_reset, ca.SX.zeros(N2, 1), nis_next)
+    ekf_nis_next = ca.vertcat(q_safe, old["ekf_nis_window"][: N2 - 1]) if N2 > 1 else q_safe
+    new["ekf_nis_window"] = _select(nf_reset, ca.SX.zeros(N2, 1), ekf_nis_next)
+    new["ekf_fit_run"] = _select(ca.logic_or(nf_reset, dismiss), 0.0, fit_run)
 
     # An alarm ends an unfinished learning phase: with ≥ N2 samples their statistics are kept
     # (learning on after the episode could learn a faulty plant); with fewer they are discarded.
@@ -264,10 +317,12 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
     new["fault_size"] = ca.vertcat(*size_new)
     new["isolated"] = isolated
     new["episode_open"] = episode_next
+    new["insufficient_excitation"] = insufficient
     new["diagnosis_left"] = _select(nf_reset, 0.0, ca.fmax(diag_left - 1, 0.0))
     new["samples"] = old["samples"] + 1
     new["alarm_resets"] = old["alarm_resets"] + alarm_reset
     new["ekf_reparameterisations"] = old["ekf_reparameterisations"] + reparam
+    new["episodes_dismissed"] = old["episodes_dismissed"] + dismiss
     new["ekf_divergence_resets"] = old["ekf_divergence_resets"] + ca.logic_not(ekf_ok)
     new["nf_divergence_resets"] = old["nf_divergence_resets"] + ca.logic_not(nf_ok)
     diverged = ca.logic_or(ca.logic_not(ekf_ok), ca.logic_not(nf_ok))
@@ -278,10 +333,12 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
         thr,
         q_safe,
         new["nf_theta"],
+        new["nf_info"],
         ca.vertcat(*d_stat),
         new["fault_class"],
         new["fault_size"],
         new["nf_converged"],
+        insufficient,
         diverged,
     )
 
@@ -294,17 +351,19 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
         _table_lookup(cnt_hold, thresholds),
         0.0,
         thn,
+        old["nf_info"],
         ca.SX.zeros(l, 1),
         old["fault_class"],
         old["fault_size"],
         old["nf_converged"],
+        old["insufficient_excitation"],
         0.0,
     )
     ok_in = _all_finite(u, y)
     state_next = _select(ok_in, _join_sx(lay, new), _join_sx(lay, held))
     r_out = _select(ok_in, _sanitise(r_proc), ca.SX.zeros(2 * p, 1))
     J_out = _select(ok_in, _sanitise(J_proc), _sanitise(J_hold))
-    alarm_out = _select(ok_in, alarm, 0.0)
+    alarm_out = _select(ok_in, ca.logic_or(alarm, episode_next), 0.0)  # steady while an episode is open
     iso_out = _select(ok_in, isolated, old["isolated"])
     status = _select(ok_in, 0.0, 1.0)
     fun = ca.Function(
