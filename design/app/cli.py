@@ -255,7 +255,7 @@ def _cmd_report(a: argparse.Namespace) -> None:
     _output_dir(a.workdir, "--workdir")
     prob = _problem(a.spec)
     with _user_paths("writable directories with room for the report", ("--reports", a.reports), ("--workdir", a.workdir)):
-        out = reproduce_problem(prob, runs=a.runs, reports=Path(a.reports), workdir=Path(a.workdir))
+        out = reproduce_problem(prob, runs=a.runs, reports=Path(a.reports), workdir=Path(a.workdir), variants=a.variants)
     print(f"wrote {out}")
 
 
@@ -268,7 +268,7 @@ def _cmd_reproduce(a: argparse.Namespace) -> None:
     problems = [_problem(spec) for spec in a.specs or problem_names()]  # every SPEC is checked before the long run
     for prob in problems:
         with _user_paths("writable directories with room for the reports", ("--reports", a.reports), ("--workdir", a.workdir)):
-            out = reproduce_problem(prob, runs=a.runs, reports=Path(a.reports), workdir=Path(a.workdir))
+            out = reproduce_problem(prob, runs=a.runs, reports=Path(a.reports), workdir=Path(a.workdir), variants=a.variants)
         print(f"wrote {out}")
 
 
@@ -448,6 +448,13 @@ def _parser() -> argparse.ArgumentParser:
             p.add_argument("spec", metavar="SPEC", help=_SPEC)
         p.add_argument("--runs", type=_runs, default=None, help="Monte Carlo runs per scenario, ≥ 1 (default: the problem's)")
         p.add_argument("--reports", default="reports", help="report folder (default: reports)")
+        p.add_argument(
+            "--variants",
+            type=lambda s: [v.strip() for v in s.split(",") if v.strip()],
+            default=None,
+            metavar="LABEL,…",
+            help="only these report variants, by label ('default' is the main one; default: all)",
+        )
         work(p)
         p.set_defaults(fn=fn)
 

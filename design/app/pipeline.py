@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import json
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -181,8 +181,13 @@ class VariantResult:
     seconds: float
 
 
-def reproduce_problem(problem: Problem, *, runs: int | None = None, reports: Path = Path("reports"), workdir: Path = Path("build")) -> Path:
-    """Run the whole pipeline for ``problem`` and write its report; return the page's path."""
+def reproduce_problem(
+    problem: Problem, *, runs: int | None = None, reports: Path = Path("reports"), workdir: Path = Path("build"),
+    variants: Sequence[str] | None = None,
+) -> Path:
+    """Run the whole pipeline for ``problem`` and write its report; return the page's path.
+
+    ``variants``: the labels of the report variants to run (``"default"`` the main one; ``None``: all)."""
     from fdisyn.app.report import write_report
 
     say = progress_printer(problem.name)
@@ -191,12 +196,18 @@ def reproduce_problem(problem: Problem, *, runs: int | None = None, reports: Pat
     if isinstance(runs, bool) or not isinstance(runs, int) or runs < 1:
         raise ArgumentError(f"runs must be a whole number ≥ 1 (or None for the problem's {problem.monte_carlo_runs}); got {runs!r}")
     # a variant may name its designs and runs (the user's --runs wins); scenarios default to every one
-    variants = [("default", {}, None, list(problem.designs), runs)] + [
+    spec = [("default", {}, None, list(problem.designs), runs)] + [
         (v["label"], v.get("options", {}), v.get("scenarios"), v.get("designs", list(problem.designs)), given or v.get("runs", runs))
         for v in problem.variants
     ]
+    labels = [v[0] for v in spec]
+    if variants is not None:
+        unknown = [v for v in variants if v not in labels]
+        if unknown or not variants:
+            raise ArgumentError(f"problem {problem.name!r} has no report variant(s) {unknown}; its variants are {labels}")
+        spec = [v for v in spec if v[0] in variants]
     results = []
-    for label, opts, scen, names, n_runs in variants:
+    for label, opts, scen, names, n_runs in spec:
         t0 = time.perf_counter()
         say(f"{label}: designing, verifying, exporting and compiling {len(names)} design(s)")
         tag = "default" if label == "default" else "".join(ch if ch.isalnum() else "_" for ch in label)

@@ -130,16 +130,26 @@ def _assert_exports_agree(metrics: dict) -> None:
 
 
 def test_reproduce_end_to_end(tmp_path):
-    # the main job, with one Monte Carlo run per scenario to keep the suite short
-    assert main(["reproduce", "wind_turbine", "--runs", "1", "--reports", str(tmp_path / "r"), "--workdir", str(tmp_path / "b")]) == 0
+    # the main job, with one Monte Carlo run per scenario and three of its report variants to keep the suite short
+    three = "default,paper parameter set,GLR at arl0 = 60 s"
+    args = ["--runs", "1", "--variants", three, "--reports", str(tmp_path / "r"), "--workdir", str(tmp_path / "b")]
+    assert main(["reproduce", "wind_turbine", *args]) == 0
     page = tmp_path / "r" / "wind_turbine" / "index.html"
     text = page.read_text()
     for fig in ("fig1_residuals_benchmark.png", "fig2_paper_F1_benchmark.png", "fig3_paper_F2_benchmark.png"):
         assert fig in text and (page.parent / fig).exists()
     metrics = json.loads((page.parent / "metrics.json").read_text())
-    assert [v["label"] for v in metrics["variants"]] == ["default", "paper parameter set", "persistence 3"]
+    assert [v["label"] for v in metrics["variants"]] == ["default", "paper parameter set", "GLR at arl0 = 60 s"]
+    assert "Detectors at one false-alarm budget" not in text  # one variant with arl0: nothing to compare
+    assert "False-alarm budget and the Lorden bound" in text
     _assert_exports_agree(metrics)
     assert (page.parent / "gains" / "wind_turbine_kalman_uio.json").exists()
+
+
+def test_reproduce_refuses_an_unknown_variant(tmp_path, capsys):
+    assert main(["reproduce", "wind_turbine", "--variants", "default,nope", "--reports", str(tmp_path / "r"), "--workdir", str(tmp_path / "b")]) == 2
+    err = capsys.readouterr().err
+    assert "has no report variant(s) ['nope']" in err and err.count("\n") == 1
 
 
 def test_reproduce_plant_files(tmp_path):
