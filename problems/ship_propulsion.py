@@ -236,7 +236,9 @@ STANDARD_FAULTS: Sequence[tuple[str, Mapping[str, float]]] = (
 """Fault scenarios beyond the paper's: jumps in ``a``, in ``b`` and in both, of several sizes."""
 
 
-def design(*, false_alarm_probability: float = 1e-4, window: int = 10) -> NafdfDesign:
+def design(
+    *, false_alarm_probability: float = 1e-4, window: int = 10, detector: str = "wssr", arl0: float | None = None, min_shift: float = 1.0
+) -> NafdfDesign:
     """The recommended NAFDF for this plant (every number below is a documented choice).
 
     * The paper's initialisation: ``x̂(0) = 0``, ``θ̂(0) = [0, 0]``,
@@ -282,6 +284,9 @@ def design(*, false_alarm_probability: float = 1e-4, window: int = 10) -> NafdfD
         W2=350.0,
         T1=50,
         isolable_jump=[0.29, 0.1],
+        detector=detector,  # type: ignore[arg-type]
+        arl0=arl0,
+        min_shift=min_shift,
     )
 
 
@@ -471,12 +476,24 @@ def _simulate(sc: Scenario, seeds: Sequence[int], **_options: object) -> Batch:
     )
 
 
-def _gain_file(*, P_f: float = 1e-4, window: int = 10, **_options: object) -> GainFile:
+def _gain_file(
+    *, P_f: float = 1e-4, window: int = 10, detector: str | None = None, arl0: float | None = None, **_options: object
+) -> GainFile:
+    det = detector or "wssr"
     return nafdf_gain_file(
-        design(false_alarm_probability=P_f, window=window),
+        design(false_alarm_probability=P_f, window=window, detector=det, arl0=arl0),
         problem="ship_propulsion",
-        options={"P_f": P_f, "window": window},
+        name=None if detector is None else f"ship_propulsion_nafdf_{det}",
+        options={"P_f": P_f, "window": window, **({"detector": det, "arl0": arl0} if detector is not None else {})},
     )
+
+
+DETECTOR_ARL0 = 10_000.0
+"""The false-alarm budget at which the report compares the detectors (samples; ``Ts = 1``): the budget of the
+paper's design by ``P_f = 1e-4`` per sample, ``1/P_f + 2 N2`` = 10 100 samples, rounded."""
+DETECTOR_VARIANTS: Sequence[tuple[str, str, int]] = (("wssr", "WSSR", 10), ("cusum", "CUSUM", 10), ("glr", "GLR", 50))
+"""``(detector, label, window)``: the WSSR over the paper's window of 10 samples, the CUSUM (no window) and the
+GLR over 50 onsets (its run-length approximation is checked for windows of 25–100)."""
 
 
 def _report(ctx: ReportContext) -> list[tuple[str, str]]:
@@ -644,9 +661,18 @@ PROBLEM = Problem(
     default_design="nafdf",
     scenarios=_pipeline_scenarios(),
     simulate=_simulate,
-    options={"P_f": 1e-4, "window": 10},
+    options={"P_f": 1e-4, "window": 10, "detector": None, "arl0": None},
     reference=dict(PAPER),
     monte_carlo_runs=100,
     report=_report,
+    variants=tuple(
+        {
+            "label": f"{label} at arl0 = {DETECTOR_ARL0:g} samples",
+            "options": {"detector": det, "arl0": DETECTOR_ARL0, "window": window},
+            "scenarios": ["fault_free", "paper_a_half", "a_x0.7", "a_x1.5", "b_x0.7", "b_x1.5"],
+            "runs": 50,
+        }
+        for det, label, window in DETECTOR_VARIANTS
+    ),
     notes=NOTES,
 )

@@ -21,8 +21,7 @@ from fdisyn.runtime.compiled import CompiledDiagnoser
 from fdisyn.runtime.errors import ArgumentError
 from fdisyn.runtime.gainfile import GainFile, write_gain_file
 from fdisyn.runtime.reference import RunResult
-from fdisyn.synthesis.linear_diagnoser import budget_seconds, lorden_bound
-from fdisyn.synthesis.registry import extra_metrics, recovery_samples
+from fdisyn.synthesis.registry import extra_metrics, false_alarm_budget, lorden_bound, recovery_samples
 
 __all__ = ["Built", "build", "Evaluation", "evaluate", "progress_printer"]
 
@@ -92,13 +91,14 @@ number of runs that fits, instead of running out of memory hours in."""
 
 
 def _lorden(gf: GainFile, sums: list[Any]) -> tuple[float, float] | None:
-    """The fault's Lorden bound from the mean residual shift it brought over the runs (:func:`lorden_bound`)."""
-    on, off, n_on, n_off = sums
-    if n_on == 0 or n_off == 0:
+    """The fault's Lorden bound from the mean residual shift it brought over the runs and the residual's covariance
+    without it (:func:`fdisyn.synthesis.registry.lorden_bound` of the gain file's kind)."""
+    on, off, n_on, n_off, off2 = sums
+    if n_on == 0 or n_off < 2:
         return None
-    mu = on / n_on - off / n_off
-    offsets = np.cumsum([0] + [g.n_residual for g in gf.generators])
-    return lorden_bound(gf, [mu[offsets[g] : offsets[g + 1]] for g in range(len(gf.generators))])
+    mean_off = off / n_off
+    cov = (off2 - n_off * np.outer(mean_off, mean_off)) / (n_off - 1)
+    return lorden_bound(gf, on / n_on - mean_off, cov)
 
 
 def evaluate(
@@ -134,7 +134,9 @@ def evaluate(
         sc: Scenario = problem.scenario(sname)
         acc: dict[str, dict[str, list[np.ndarray]]] = {d: {"alarm": [], "isolated": [], "J": []} for d in built}
         # residual sums while the fault is active and while it is not: the mean shift the fault brings (Lorden bound)
-        shift: dict[str, list[Any]] = {d: [np.zeros(b.gain_file.step.nr), np.zeros(b.gain_file.step.nr), 0, 0] for d, b in built.items()}
+        shift: dict[str, list[Any]] = {
+            d: [np.zeros(b.gain_file.step.nr), np.zeros(b.gain_file.step.nr), 0, 0, np.zeros((b.gain_file.step.nr,) * 2)] for d, b in built.items()
+        }
         nonfinite = {d: 0 for d in built}
         t = active = None
         for start in range(0, runs, chunk):
@@ -149,13 +151,14 @@ def evaluate(
                     acc[dname]["alarm"].append(res.alarm)
                     acc[dname]["isolated"].append(res.isolated)
                     acc[dname]["J"].append(res.J)
-                    if sc.fault is not None and b.gain_file.kind == "linear":
+                    if sc.fault is not None:
                         on = batch.active
                         sums = shift[dname]
                         sums[0] += np.sum(res.r[on], axis=0)
                         sums[1] += np.sum(res.r[~on], axis=0)
                         sums[2] += int(on.sum())
                         sums[3] += int((~on).sum())
+                        sums[4] += res.r[~on].T @ res.r[~on]
                     nonfinite[dname] += res.nonfinite_samples
                     if start == 0 and i == 0:
                         examples[dname][sname] = res
@@ -179,8 +182,8 @@ def evaluate(
                 Ts=gf.Ts,
                 recovery=recovery_samples(gf),
                 nonfinite=nonfinite[dname],
-                budget_s=budget_seconds(gf) if gf.kind == "linear" else None,
-                lorden=_lorden(gf, shift[dname]) if gf.kind == "linear" else None,
+                budget_s=false_alarm_budget(gf),
+                lorden=_lorden(gf, shift[dname]),
             )
             extra = problem.extra_metrics or extra_metrics(gf.kind)
             if extra is not None:

@@ -252,11 +252,14 @@ def design_plant(gf: GainFile) -> LinearPlant:
     )
 
 
-def lorden_bound(gf: GainFile, shifts: Sequence[np.ndarray]) -> tuple[float, float] | None:
-    """``(I, ln(ARL_j)/I_j)`` for residual mean shifts ``shifts[g]`` of each generator: the largest information
-    per sample ``I_g = ½ μ_gᵀ (Σ_τ R_g(τ))⁺ μ_g`` (:func:`fdisyn.synthesis.residual.long_run_covariance`) and the
-    smallest Lorden delay over the statistics, each at its share ``ARL_j = 1/P_f,j`` of the budget. ``None``
-    when no generator sees the shift."""
+def lorden_bound(gf: GainFile, shift: np.ndarray, covariance: np.ndarray | None = None) -> tuple[float, float] | None:
+    """``(I, ln(ARL_j)/I_j)`` for a mean shift ``shift`` of the bank's stacked residual: with ``μ_g`` its part in
+    generator ``g``, the largest information per sample ``I_g = ½ μ_gᵀ (Σ_τ R_g(τ))⁺ μ_g``
+    (:func:`fdisyn.synthesis.residual.long_run_covariance`, from the design: ``covariance``, the measured one, is
+    not used) and the smallest Lorden delay over the statistics, each at its share ``ARL_j = 1/P_f,j`` of the
+    budget. ``None`` when no generator sees the shift."""
+    offsets = np.cumsum([0] + [g.n_residual for g in gf.generators])
+    shifts = [np.asarray(shift, dtype=float)[offsets[g] : offsets[g + 1]] for g in range(len(gf.generators))]
     plant = design_plant(gf)
     best_i, bound = 0.0, math.inf
     for ev in gf.evaluators:
@@ -763,6 +766,8 @@ def linear_method(
         diagnoser_kind="linear",
         step_builder=linear_step_function,
         recovery_samples=linear_recovery_samples,
+        false_alarm_budget=budget_seconds,
+        lorden_bound=lorden_bound,
         generator=generator,
         check=checks,
     )

@@ -24,6 +24,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
 from fdisyn.runtime.errors import ArgumentError, GainFileError
 from fdisyn.runtime.gainfile import EVALUATOR_KINDS, LIMITS, GainFile
 from fdisyn.runtime.names import shown
@@ -151,6 +152,11 @@ class Method:
     """Samples after a fault's end during which alarms are not false alarms (Monte Carlo metrics)."""
     extra_metrics: Callable[..., Mapping[str, Any]] | None = None
     """Monte Carlo figures of one scenario beyond detection: ``(scenario, gain_file, runs) -> {name: value}``."""
+    false_alarm_budget: Callable[[GainFile], float] | None = None
+    """The diagnoser's designed mean time between false alarms (s), ``gain_file -> seconds``."""
+    lorden_bound: Callable[[GainFile, np.ndarray, np.ndarray], tuple[float, float] | None] | None = None
+    """``(gain_file, μ, Σ) -> (I, ln(ARL)/I)``: the information per sample of a fault that shifts the residual's mean by
+    ``μ`` (``Σ``: the residual's covariance measured without the fault) and the Lorden bound on its delay (samples)."""
     generator: Callable[..., Any] | None = None
     """Linear bank methods: the design of one generator,
     ``(plant, outputs_used, name, **options) -> (Generator, Σ_r, Certificate)``."""
@@ -250,6 +256,18 @@ def recovery_samples(gf: GainFile) -> int:
     """Samples after a fault during which the gain file's statistics still carry it (0 for an unknown kind)."""
     m = _kind(gf.kind)
     return 0 if m is None else int(m.recovery_samples(gf))
+
+
+def false_alarm_budget(gf: GainFile) -> float | None:
+    """The gain file's designed mean time between false alarms in seconds (None: its kind has none)."""
+    m = _kind(gf.kind)
+    return None if m is None or m.false_alarm_budget is None else float(m.false_alarm_budget(gf))
+
+
+def lorden_bound(gf: GainFile, shift: np.ndarray, covariance: np.ndarray) -> tuple[float, float] | None:
+    """``(I, bound)`` of a residual mean shift for the gain file's kind (:attr:`Method.lorden_bound`; None: none)."""
+    m = _kind(gf.kind)
+    return None if m is None or m.lorden_bound is None else m.lorden_bound(gf, shift, covariance)
 
 
 def extra_metrics(kind: str) -> Callable[..., Mapping[str, Any]] | None:

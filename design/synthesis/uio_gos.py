@@ -55,9 +55,11 @@ from fdisyn.runtime.trace import Trace, read_trace
 from fdisyn.synthesis.linear_diagnoser import (
     FaultClass,
     _sensor_indices,
+    budget_seconds,
     chosen_detector,
     default_fault_classes,
     linear_diagnoser,
+    lorden_bound,
 )
 from fdisyn.synthesis.registry import Option, at
 from fdisyn.synthesis.residual import internal_form
@@ -741,6 +743,8 @@ def _register() -> None:
             diagnoser_kind="linear",
             step_builder=linear_step_function,
             recovery_samples=linear_recovery_samples,
+            false_alarm_budget=budget_seconds,
+            lorden_bound=lorden_bound,
             check=_check,
             samples_itself=True,
         )

@@ -38,7 +38,7 @@ def test_the_file_designs_the_built_in_ship_nafdf(problem) -> None:
     assert gf.kind == "nafdf" and gf.name == "ship_nafdf" and gf.faults == ("a", "b")
     assert (gf.inputs, gf.outputs, gf.Ts) == (ref.inputs, ref.outputs, ref.Ts)
     ours, theirs = gf.extensions["nafdf"], ref.extensions["nafdf"]
-    for key in ("plant", "settings", "wssr_thresholds", "state_layout", "init_state", "r_names", "J_names", "thresholds"):
+    for key in ("plant", "settings", "detector_thresholds", "state_layout", "init_state", "r_names", "J_names", "thresholds"):
         assert ours[key] == theirs[key], key
 
 

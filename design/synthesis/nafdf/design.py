@@ -28,6 +28,18 @@ with ``k = min(samples in the window, N)`` (exact also while the window
 refills after a reset); rule ``"beta0"``: the paper's fixed ``L > β0``, only
 on a full window.
 
+Beyond the paper, the fast detection is a choice (``detector``): the WSSR
+above, or a sequential statistic on the normalised innovations
+``w = D^{-1/2} U^{-T} γ`` (``V0 = Uᵀ D U`` from the same LDLᵀ; ``w ~ N(0, I_p)``
+and ``‖w‖² = γᵀ V0⁻¹ γ``). ``"cusum"``: Page's CUSUM (Biometrika 41(1/2), 1954)
+on each component and sign, ``S± = min(max(0, S± ± δ w_i − δ²/2), 2h)`` for the
+designed shift ``δ = min_shift``, statistic ``max S``. ``"glr"``: the windowed
+GLR (Willsky & Jones, IEEE TAC 21(1), 1976) of a constant shift of unknown
+size on each component, ``max_{i, n ≤ M} d_i(n)² / (2n)`` over the onset sums
+``d_i(n)`` of the last ``n`` samples, ``M = window``. Both restart on a
+re-parameterisation, an EKF reset and a dismissal; their thresholds come from
+the detector's false-alarm rate (:func:`detector_thresholds`).
+
 Block 2 — the NF, joint state/parameter filter (2.5), a recursive
 prediction-error (Gauss–Newton) filter in the sense of Ljung (IEEE TAC 24(1),
 1979) and Zhou–Blanke (IEEE TAC 34(3), 1989), the paper's refs. [6], [7]. At
@@ -199,7 +211,8 @@ fault names), ``status`` (0 processed, 1 skipped). All dense column vectors.
 * ``J = [wssr (L(t)), wssr_threshold, ekf_nis (γᵀV0⁻¹γ), theta_hat_<θ>…,
   info_<θ>… (1/σ_i², 0 after an NF reset), d_<θ>…, fault_class_<θ>…
   (0/1/2, latched), fault_size_<θ>… (latched), nf_converged,
-  insufficient_excitation, diverged]``.
+  insufficient_excitation, diverged]``; ``cusum, cusum_threshold`` or
+  ``glr, glr_threshold`` in place of the first two for those detectors.
 * ``state`` blocks in order (matrices column-major; see :class:`StateLayout`):
   ``ekf_x[n], ekf_P[n×n], ekf_theta[l], wssr_buffer[N], wssr_count,
   nf_x[n], nf_P[n×n], nf_theta[l], nf_R[l×l], nf_W[n×l], nf_gain (a),
@@ -211,7 +224,8 @@ fault names), ``status`` (0 processed, 1 skipped). All dense column vectors.
   insufficient_excitation, diagnosis_left, samples, skipped,
   alarm_resets, ekf_reparameterisations, episodes_dismissed, ekf_fit_run
   (consecutive passing windows), ekf_divergence_resets,
-  nf_divergence_resets``.
+  nf_divergence_resets`` (``cusum_sums[2p]`` or ``glr_sums[p×M]`` in place of the WSSR's
+  two blocks for those detectors).
 
 Limits (constants of :mod:`fdisyn.synthesis.nafdf.settings`, checked before
 anything is built or generated, at design time and again on reading a gain
@@ -262,6 +276,7 @@ from typing import Any, Literal
 
 import casadi as ca
 import numpy as np
+from fdisyn.evaluators.sequential import cusum_threshold, glr_threshold
 from fdisyn.evaluators.wssr import wssr_threshold_table
 from fdisyn.models.nonlinear import NonlinearPlant
 from fdisyn.numerics.certificate import Certificate, Check, worst
@@ -362,6 +377,9 @@ def nafdf(
     convergence_level: float = 1e-3,
     convergence_tolerance: object | None = None,
     u0: object | None = None,
+    detector: Literal["wssr", "cusum", "glr"] = "wssr",
+    min_shift: float = 1.0,
+    arl0: float | None = None,
     name: str = "nafdf",
 ) -> NafdfDesign:
     """Design the NAFDF of Zhou, Xi & Zhang 1991 (fig. 1, eqs. (2.3)–(2.8)) for ``plant``.
@@ -379,6 +397,13 @@ def nafdf(
     design carries a certificate (AD Jacobians against central differences at
     ``x0``, a first step from the initial state that neither diverges nor
     skips, positive thresholds) and refuses to exist if it fails.
+
+    ``detector`` is the fast detection's statistic on the EKF innovations: ``"wssr"`` (the paper's (2.4),
+    ``window`` its length), ``"cusum"`` (Page's CUSUM on each normalised innovation and sign, tuned to a mean
+    shift of ``min_shift`` standard deviations) or ``"glr"`` (the windowed GLR of each normalised innovation
+    over ``window`` onsets). ``arl0`` (seconds), when given, is the diagnoser's mean time between false alarms
+    and sets the detector's false-alarm rate in place of ``false_alarm_probability``: ``1/(arl0/Ts − 2 N2)``
+    per sample (a false alarm's episode lasts ``2 N2`` samples before its dismissal).
     """
     if convergence_tolerance is not None:
         warnings.warn(
@@ -411,17 +436,41 @@ def nafdf(
         convergence_tolerance=convergence_tolerance,
         convergence_level=convergence_level,
         u0=u0,
+        detector=detector,
+        min_shift=min_shift,
+        arl0=arl0,
     )
     if not isinstance(name, str) or not _IDENT.fullmatch(name) or len(name) > _MAX_NAME:
         raise ArgumentError(f"name must be an identifier of at most {_MAX_NAME} characters; got {shown(name)}")
     return _design(plant, settings, name=name)
 
 
-def _names_r_J(plant: NonlinearPlant) -> tuple[tuple[str, ...], tuple[str, ...]]:
+def detector_thresholds(plant: NonlinearPlant, settings: NafdfSettings) -> np.ndarray:
+    """The fast detection's thresholds: the WSSR's table for ``1..N`` samples in the window (2.4), or the one
+    threshold ``h`` of the CUSUM or GLR on the ``p`` normalised innovations.
+
+    With ``ARL = 1/P_f`` samples (``false_alarm_probability``): the ``2p`` one-sided CUSUMs (each component,
+    either sign, drift ``½ min_shift²``) share it as a union, ``h = cusum_threshold(2p·ARL, ½ min_shift²)``
+    (:func:`~fdisyn.evaluators.sequential.cusum_threshold`, Page's integral equation); the ``p`` scalar GLRs
+    over ``M = window`` onsets likewise, ``h = glr_threshold(p·ARL, M)`` (Siegmund & Venkatraman 1995). The
+    normalised innovations of an exact filter are independent across components and samples, so the union's
+    rate is the sum of its members' (their alarms coincide with negligible probability).
+    """
+    s = settings
+    if s.detector == "cusum":
+        return np.array([cusum_threshold(2 * plant.p / s.false_alarm_probability, 0.5 * s.min_shift**2)])
+    if s.detector == "glr":
+        return np.array([glr_threshold(plant.p / s.false_alarm_probability, s.window)])
+    return wssr_threshold_table(
+        window=s.window, n_outputs=plant.p, rule=s.threshold_rule, false_alarm_probability=s.false_alarm_probability, beta0=s.beta0
+    )
+
+
+def _names_r_J(plant: NonlinearPlant, detector: str = "wssr") -> tuple[tuple[str, ...], tuple[str, ...]]:
     r = tuple(f"ekf_innovation_{y}" for y in plant.outputs) + tuple(f"nf_innovation_{y}" for y in plant.outputs)
     par = plant.parameters
     J = (
-        ("wssr", "wssr_threshold", "ekf_nis")
+        (detector, f"{detector}_threshold", "ekf_nis")
         + tuple(f"theta_hat_{q}" for q in par)
         + tuple(f"info_{q}" for q in par)
         + tuple(f"d_{q}" for q in par)
@@ -435,20 +484,10 @@ def _names_r_J(plant: NonlinearPlant) -> tuple[tuple[str, ...], tuple[str, ...]]
 def _design(plant: NonlinearPlant, settings: NafdfSettings, *, name: str, thresholds: np.ndarray | None = None) -> NafdfDesign:
     """Check the model at the filters' starting points, build the step within the limits, certify."""
     _check_model_finite(plant, settings)
-    thr = (
-        wssr_threshold_table(
-            window=settings.window,
-            n_outputs=plant.p,
-            rule=settings.threshold_rule,
-            false_alarm_probability=settings.false_alarm_probability,
-            beta0=settings.beta0,
-        )
-        if thresholds is None
-        else np.asarray(thresholds, dtype=float)
-    )
+    thr = detector_thresholds(plant, settings) if thresholds is None else np.asarray(thresholds, dtype=float)
     step, layout = _build_step(plant, settings, thr, name)
     _check_step_size(step, layout)
-    r_names, J_names = _names_r_J(plant)
+    r_names, J_names = _names_r_J(plant, settings.detector)
     draft = NafdfDesign(
         name=name,
         plant=plant,
@@ -484,6 +523,8 @@ def _init_state(plant: NonlinearPlant, s: NafdfSettings, layout: StateLayout) ->
         "ekf_theta": plant.theta_nominal,
         "wssr_buffer": np.zeros(s.window),
         "wssr_count": 0.0,
+        "cusum_sums": np.zeros(2 * plant.p),
+        "glr_sums": np.zeros((plant.p, s.window)),
         "nf_x": s.x0,
         "nf_P": s.P0,
         "nf_theta": s.theta0,
@@ -514,7 +555,7 @@ def _init_state(plant: NonlinearPlant, s: NafdfSettings, layout: StateLayout) ->
     }
     for c in ("samples", "skipped", "alarm_resets", "ekf_reparameterisations", "episodes_dismissed", "ekf_divergence_resets", "nf_divergence_resets"):
         blocks[c] = 0.0
-    return layout.pack(blocks)
+    return layout.pack({name: blocks[name] for name, _, _ in layout.entries})
 
 
 def _certify(design: NafdfDesign) -> Certificate:
@@ -555,7 +596,7 @@ def _certify(design: NafdfDesign) -> Certificate:
             "the filters start there; a step that diverges or skips at its own starting point would reset on every sample",
         ),
         Check(
-            "WSSR thresholds positive",
+            f"{design.settings.detector.upper()} thresholds positive",
             float(np.min(thr)),
             float(np.finfo(float).tiny),
             ">=",
@@ -566,7 +607,7 @@ def _certify(design: NafdfDesign) -> Certificate:
         "n_state": design.layout.size,
         "n_instructions": int(design.step.n_instructions()),
         "work_doubles": int(design.step.sz_w()),
-        "wssr_threshold_full_window": float(thr[-1]),
+        ("wssr_threshold_full_window" if design.settings.detector == "wssr" else f"{design.settings.detector}_threshold"): float(thr[-1]),
     }
     return Certificate.of(design.name, checks, info).require()
 

@@ -21,8 +21,8 @@ from fdisyn.runtime.errors import ArgumentError
 from fdisyn.runtime.gainfile import GainFile
 from fdisyn.runtime.names import shown
 from fdisyn.synthesis.nafdf.design import nafdf, nafdf_extra_metrics
-from fdisyn.synthesis.nafdf.payload import nafdf_from_gain_file, nafdf_gain_file
-from fdisyn.synthesis.registry import P_F, WINDOW, Method, Option, at, register
+from fdisyn.synthesis.nafdf.payload import nafdf_budget_seconds, nafdf_from_gain_file, nafdf_gain_file, nafdf_lorden_bound
+from fdisyn.synthesis.registry import ARL0, DETECTOR, P_F, WINDOW, Method, Option, at, register
 
 __all__ = ["NAFDF_OPTIONS", "NAFDF"]
 
@@ -59,8 +59,21 @@ def _per(name: str, doc: str, kind: str) -> Option:
 
 
 NAFDF_OPTIONS: tuple[Option, ...] = (
-    replace(P_F, default=0.01, doc="false-alarm probability of the WSSR test per sample under H0 (threshold rule 'chi2')"),
-    WINDOW,
+    replace(P_F, default=0.01, doc="false-alarm probability of the WSSR test per sample under H0 (threshold rule 'chi2'); for CUSUM and GLR 1/ARL₀ in samples"),
+    replace(WINDOW, doc="WSSR window N in samples (Zhou, Xi & Zhang c. 1991, eq. (2.4)), or the GLR's onset window (detector 'glr')"),
+    replace(
+        DETECTOR,
+        default="wssr",
+        doc="the fast detection's statistic on the EKF innovations: 'wssr' (eq. (2.4)), 'cusum' (Page's CUSUM per normalised "
+        "innovation and sign, tuned to min_shift) or 'glr' (windowed GLR per normalised innovation, Willsky & Jones 1976)",
+        kind="'wssr', 'cusum' or 'glr'",
+        accepts=lambda v: v in ("wssr", "cusum", "glr"),
+    ),
+    replace(ARL0, doc="the diagnoser's mean time between false alarms (s): the detector's rate 1/(arl0/Ts − 2·classifier_window) per sample, in place of P_f"),
+    Option(
+        "min_shift", 1.0, "the CUSUM's designed change: a mean shift of this many standard deviations in one normalised EKF innovation",
+        "a positive number", lambda v: isinstance(v, (int, float)) and not isinstance(v, bool) and 0 < v < float("inf"),
+    ),
     Option("threshold_rule", "chi2", "the WSSR threshold: the chi2 quantile for P_f, or the paper's fixed beta0", "'chi2' or 'beta0'", lambda v: v in ("chi2", "beta0")),
     Option("beta0", None, "the paper's fixed WSSR threshold (threshold rule 'beta0')", "a positive finite number"),
     Option("x0", None, "initial state estimate of both filters; default zeros (a plant file: [simulation].x0)", "one finite number per state"),
@@ -128,5 +141,7 @@ NAFDF = register(
         diagnoser_kind="nafdf",
         step_builder=lambda gf: nafdf_from_gain_file(gf).step,
         extra_metrics=nafdf_extra_metrics,
+        false_alarm_budget=nafdf_budget_seconds,
+        lorden_bound=nafdf_lorden_bound,
     )
 )

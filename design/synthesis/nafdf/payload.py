@@ -11,7 +11,7 @@ from typing import Any
 
 import casadi as ca
 import numpy as np
-from fdisyn.evaluators.wssr import wssr_threshold_table
+from fdisyn.evaluators.sequential import lorden_delay
 from fdisyn.models.nonlinear import NonlinearPlant, function_from_program, model_program
 from fdisyn.models.sampling import check_sample_time
 from fdisyn.numerics.linalg import as_covariance
@@ -21,14 +21,16 @@ from fdisyn.runtime.layout import StateLayout
 from fdisyn.runtime.names import shown
 from fdisyn.runtime.values import real_number
 from fdisyn.synthesis.linear_diagnoser import provenance
-from fdisyn.synthesis.nafdf.design import NafdfDesign, _design, _init_state, _names_r_J
+from fdisyn.synthesis.nafdf.design import NafdfDesign, _design, _init_state, _names_r_J, detector_thresholds
 from fdisyn.synthesis.nafdf.settings import _IDENT, _MAX_NAME, MAX_DIMENSION, NafdfSettings, _layout, _settings
 
-__all__ = ['PAYLOAD_FORMAT', 'PAYLOAD_VERSION', 'nafdf_from_gain_file', 'nafdf_from_payload', 'nafdf_gain_file', 'nafdf_payload', 'step_from_payload']
+__all__ = ['PAYLOAD_FORMAT', 'PAYLOAD_VERSION', 'nafdf_budget_seconds', 'nafdf_from_gain_file', 'nafdf_lorden_bound', 'nafdf_from_payload', 'nafdf_gain_file', 'nafdf_payload', 'step_from_payload']
 
 PAYLOAD_FORMAT = "fdisyn.nafdf"
-PAYLOAD_VERSION = 3
-"""Version 3: the convergence of the NF judged against its own covariance (``settings.isolable_jump``, the
+PAYLOAD_VERSION = 4
+"""Version 4: the fast detection's statistic is a choice (``settings.detector``: WSSR, CUSUM or GLR, with
+``settings.min_shift`` and ``settings.arl0``), its thresholds in ``detector_thresholds``. Version 3 (read as
+the WSSR, its table in ``wssr_thresholds``): the convergence of the NF judged against its own covariance (``settings.isolable_jump``, the
 statistics ``info_<θ>`` and ``insufficient_excitation``); version 2 bounded the range of θ̂ by
 ``settings.convergence_tolerance``; both store the model as validated operation lists (version 1 held
 CasADi serialised strings)."""
@@ -36,6 +38,7 @@ _FORMER_VERSIONS: Mapping[int, str] = {
     1: "the model as CasADi serialised strings",
     2: "the NF's convergence by a fixed tolerance on the range of θ̂, without the information statistics",
 }
+_READABLE_VERSIONS = (3, PAYLOAD_VERSION)
 _NOISE_KEYS: Mapping[str, str] = {"Q": "Q1", "R": "Q2"}
 """The plant's noise covariances → their keys in ``plant`` of the payload: Zhou, Xi & Zhang's letters
 (eq. (2.1)), which the payload format (version 2) keeps."""
@@ -78,7 +81,7 @@ def nafdf_payload(design: NafdfDesign) -> dict[str, object]:
             "units": dict(pl.units),
         },
         "settings": s.to_dict(),
-        "wssr_thresholds": [float(v) for v in design.thresholds],
+        "detector_thresholds": [float(v) for v in design.thresholds],
         "state_layout": [[nm, r, c] for nm, r, c in design.layout.entries],
         "init_state": [float(v) for v in design.init_state()],
         "r_names": list(design.r_names),
@@ -96,7 +99,7 @@ _PAYLOAD_FIELDS = frozenset(
         "casadi_version",
         "plant",
         "settings",
-        "wssr_thresholds",
+        "detector_thresholds",
         "state_layout",
         "init_state",
         "r_names",
@@ -109,6 +112,8 @@ _PLANT_FIELDS = frozenset(
     {"states", "inputs", "outputs", "parameters", "theta_nominal", *_NOISE_KEYS.values(), "Ts", "f", "h", "expressions", "units"}
 )
 _SETTINGS_FIELDS = tuple(NafdfSettings.__dataclass_fields__)
+_DETECTOR_SETTINGS = frozenset({"detector", "min_shift", "arl0"})
+"""Settings of version 4 (a version 3 file has the WSSR and none of them)."""
 # The WSSR table is recomputed on reading and compared at this relative tolerance: SciPy's χ² quantile is
 # accurate to ~1e-14, so another SciPy version passes while any edit of the stored numbers is refused.
 _TABLE_RTOL = 1e-9
@@ -246,13 +251,18 @@ def _read_payload(payload: object, where: str, *, gain_file: bool) -> _Payload:
     required = _PAYLOAD_FIELDS | ({"thresholds"} if gain_file else frozenset())
     if isinstance(payload, Mapping) and payload.get("format") != PAYLOAD_FORMAT:
         raise GainFileError(f"{where}: payload format is {shown(payload.get('format'))}; expected {PAYLOAD_FORMAT!r}")
-    if isinstance(payload, Mapping) and payload.get("version") != PAYLOAD_VERSION:
-        version = payload.get("version")
+    version = payload.get("version") if isinstance(payload, Mapping) else None
+    if isinstance(payload, Mapping) and (isinstance(version, bool) or version not in _READABLE_VERSIONS):
         former = _FORMER_VERSIONS.get(version) if isinstance(version, int) and not isinstance(version, bool) else None
         held = f" ({former})" if former else ""
         raise GainFileError(
-            f"{where}: payload version is {shown(version)}{held}; this fdisyn reads version {PAYLOAD_VERSION}: design it again"
+            f"{where}: payload version is {shown(version)}{held}; this fdisyn reads versions "
+            f"{', '.join(map(str, _READABLE_VERSIONS))}: design it again"
         )
+    v3 = version == 3
+    table_key = "wssr_thresholds" if v3 else "detector_thresholds"
+    if v3:
+        required = (required - {"detector_thresholds"}) | {"wssr_thresholds"}
     top = _Fields(payload, where, required=frozenset(required), optional=optional)
     name = top.string("name")
     if not _IDENT.fullmatch(name) or len(name) > _MAX_NAME:
@@ -261,7 +271,9 @@ def _read_payload(payload: object, where: str, *, gain_file: bool) -> _Payload:
     plant = _read_plant(top.doc["plant"], f"{where}.plant")
     n, m, l = plant.n, plant.m, plant.l  # noqa: E741 — the paper's letter for dim θ
 
-    sf = _Fields(top.doc["settings"], f"{where}.settings", required=_SETTINGS_FIELDS)
+    sf = _Fields(
+        top.doc["settings"], f"{where}.settings", required=tuple(k for k in _SETTINGS_FIELDS if not (v3 and k in _DETECTOR_SETTINGS))
+    )
     raw: dict[str, Any] = {
         "x0": sf.numbers("x0", n),
         "P0": sf.matrix("P0", n, n),
@@ -285,25 +297,26 @@ def _read_payload(payload: object, where: str, *, gain_file: bool) -> _Payload:
         "convergence_level": sf.number("convergence_level"),
         "u0": sf.numbers("u0", m),
     }
+    if not v3:
+        raw["detector"] = sf.string("detector")
+        raw["min_shift"] = sf.number("min_shift")
+        raw["arl0"] = sf.number("arl0", allow_none=True)
     settings: NafdfSettings = _wrap(f"{where}.settings", _settings, plant, **raw)
+    if settings.arl0 is not None and not math.isclose(raw["false_alarm_probability"], settings.false_alarm_probability, rel_tol=_TABLE_RTOL):
+        raise GainFileError(
+            f"{where}.settings.false_alarm_probability is {raw['false_alarm_probability']!r}; arl0 = {settings.arl0!r} s gives "
+            f"{settings.false_alarm_probability!r}"
+        )
 
-    table = top.numbers("wssr_thresholds", settings.window)
-    truth = _wrap(
-        f"{where}.settings",
-        wssr_threshold_table,
-        window=settings.window,
-        n_outputs=plant.p,
-        rule=settings.threshold_rule,
-        false_alarm_probability=settings.false_alarm_probability,
-        beta0=settings.beta0,
-    )
+    table = top.numbers(table_key, settings.window if settings.detector == "wssr" else 1)
+    truth = _wrap(f"{where}.settings", detector_thresholds, plant, settings)
     if not np.allclose(table, truth, rtol=_TABLE_RTOL, atol=0.0):
         k = int(np.argmax(np.abs(table - truth) > _TABLE_RTOL * np.abs(truth)))
         raise GainFileError(
-            f"{where}.wssr_thresholds[{k}] is {float(table[k])!r}; the settings (rule {settings.threshold_rule!r}, "
-            f"P_f {settings.false_alarm_probability!r}, window {settings.window}) give {float(truth[k])!r}"
+            f"{where}.{table_key}[{k}] is {float(table[k])!r}; the settings (detector {settings.detector!r}, rule "
+            f"{settings.threshold_rule!r}, P_f {settings.false_alarm_probability!r}, window {settings.window}) give {float(truth[k])!r}"
         )
-    layout = _layout(n, l, settings.window, settings.classifier_window)
+    layout = _layout(n, l, settings.window, settings.classifier_window, settings.detector, plant.p)
     if top.doc["state_layout"] != [[nm, r, c] for nm, r, c in layout.entries]:
         raise GainFileError(f"{where}.state_layout does not match the layout the settings imply ({layout.size} entries)")
     init = top.numbers("init_state", layout.size)
@@ -313,7 +326,7 @@ def _read_payload(payload: object, where: str, *, gain_file: bool) -> _Payload:
         raise GainFileError(
             f"{where}.init_state[{k}] ({layout.component_names()[k]}) is {float(init[k])!r}; the settings give {float(expected[k])!r}"
         )
-    r_names, J_names = _names_r_J(plant)
+    r_names, J_names = _names_r_J(plant, settings.detector)
     for key, want in (("r_names", r_names), ("J_names", J_names), ("fault_names", plant.parameters)):
         if top.doc[key] != list(want):
             raise GainFileError(f"{where}.{key} is {shown(top.doc[key])}; the plant implies {shown(list(want))}")
@@ -326,14 +339,15 @@ def _read_payload(payload: object, where: str, *, gain_file: bool) -> _Payload:
         if top.doc["thresholds"] != fixed:
             raise GainFileError(
                 f"{where}.thresholds is {shown(top.doc['thresholds'])}; expected {len(J_names)} entries "
-                "(the full-window WSSR threshold on wssr, W1 on each d_θ, null elsewhere)"
+                f"(the detector's (full-window) threshold on {J_names[0]}, W1 on each d_θ, null elsewhere)"
             )
     return _Payload(name=name, plant=plant, settings=settings, thresholds=table, layout=layout, fixed_thresholds=fixed)
 
 
 def _fixed_thresholds(J_names: tuple[str, ...], plant: NonlinearPlant, table: np.ndarray, W1: float) -> list[float | None]:
-    """The alarm threshold per statistic the C API exports: WSSR on ``wssr``, ``W1`` on each ``d_θ``."""
-    fixed = {"wssr": float(table[-1])} | {f"d_{q}": float(W1) for q in plant.parameters}
+    """The alarm threshold per statistic the C API exports: the detector's (the WSSR's full-window) on its
+    statistic (``J_names[0]``), ``W1`` on each ``d_θ``."""
+    fixed = {J_names[0]: float(table[-1])} | {f"d_{q}": float(W1) for q in plant.parameters}
     return [fixed.get(j) for j in J_names]
 
 
@@ -370,7 +384,7 @@ def nafdf_from_gain_file(gf: GainFile) -> NafdfDesign:
         raise GainFileError(f"certificate.passed is {shown(passed)}; a design that failed its verification is not built")
     parsed = _read_payload(gf.extensions.get("nafdf"), where, gain_file=True)
     pl = parsed.plant
-    r_names, J_names = _names_r_J(pl)
+    r_names, J_names = _names_r_J(pl, parsed.settings.detector)
     init = _init_state(pl, parsed.settings, parsed.layout)
     st = gf.step
     for field_name, found, want in (
@@ -442,3 +456,37 @@ def nafdf_gain_file(
         extensions={"nafdf": payload},
     )
 
+
+
+def _stored_settings(gf: GainFile) -> Mapping[str, Any]:
+    payload = gf.extensions.get("nafdf")
+    settings = payload.get("settings") if isinstance(payload, Mapping) else None
+    if not isinstance(settings, Mapping):
+        raise GainFileError("extensions.nafdf.settings is missing; expected the NAFDF's settings")
+    return settings
+
+
+def nafdf_budget_seconds(gf: GainFile) -> float:
+    """The NAFDF's designed mean time between false alarms (s): its ``arl0``, or for a design by ``P_f``
+    ``Ts·(1/P_f + 2 N2)`` — the detector's run length ``1/P_f`` (a bound for the WSSR, whose exceedances come in
+    clusters) plus the ``2 N2`` samples of the false alarm's episode."""
+    s = _stored_settings(gf)
+    if s.get("arl0") is not None:
+        return float(s["arl0"])
+    return float(gf.Ts) * (1.0 / float(s["false_alarm_probability"]) + 2.0 * float(s["classifier_window"]))
+
+
+def nafdf_lorden_bound(gf: GainFile, shift: np.ndarray, covariance: np.ndarray) -> tuple[float, float] | None:
+    """``(I, ln(ARL)/I)`` of a mean shift ``μ`` of the EKF innovation ``γ`` (the first ``p`` residuals):
+    ``I = ½ μᵀ Σ⁺ μ`` with ``Σ`` the innovation's covariance measured without the fault (an exact filter's
+    innovations are white, so it is also their long-run covariance), ``ARL = 1/P_f`` samples, the detector's
+    false-alarm rate. ``None`` when the shift carries no information."""
+    p = len(gf.outputs)
+    mu = np.asarray(shift, dtype=float)[:p]
+    cov = np.asarray(covariance, dtype=float)[:p, :p]
+    if not (np.all(np.isfinite(mu)) and np.all(np.isfinite(cov))):
+        return None
+    info = 0.5 * float(mu @ np.linalg.pinv(cov, rcond=1e-9, hermitian=True) @ mu)
+    if info <= 0.0:
+        return None
+    return info, lorden_delay(1.0 / float(_stored_settings(gf)["false_alarm_probability"]), info)

@@ -45,6 +45,8 @@ _VAR_FLOOR = 1e-280
 _D_OVERFLOW = 1e300
 # Largest normalised square kept in the WSSR window, so that the window sum cannot overflow.
 _Q_CAP = 1e300
+# Largest normalised innovation the CUSUM and GLR take in (their sums stay finite: M · 1e150 < DBL_MAX).
+_W_CAP = 1e150
 # Relative shift making a PSD covariance test tolerant of round-off (Joseph form: error ~ n·eps·‖P‖).
 _PSD_SHIFT = 1e-12
 
@@ -65,10 +67,11 @@ class NafdfSettings:
     R0: np.ndarray
     """Initial (and reset) NF information matrix (the paper's ``R(0)``, eq. (2.5))."""
     window: int
-    """WSSR window ``N`` (2.4)."""
+    """WSSR window ``N`` (2.4), or the GLR's onset window ``M`` (detector ``"glr"``)."""
     threshold_rule: Literal["chi2", "beta0"]
     false_alarm_probability: float
-    """``P_f`` of the WSSR test under H0 (rule ``"chi2"``)."""
+    """``P_f`` of the WSSR test per sample under H0 (rule ``"chi2"``); for CUSUM and GLR the detector's
+    false-alarm rate ``1/ARL₀`` (samples)."""
     beta0: float | None
     """The paper's fixed WSSR threshold (rule ``"beta0"``)."""
     forgetting_initial: float
@@ -89,6 +92,12 @@ class NafdfSettings:
     :mod:`fdisyn.synthesis.nafdf.design`, block 4)."""
     convergence_level: float
     """Significance of the two tests of the convergence check: the drift of ``θ̂`` and the NF innovations."""
+    detector: Literal["wssr", "cusum", "glr"] = "wssr"
+    """The fast detection's statistic on the EKF innovations (module :mod:`fdisyn.synthesis.nafdf.design`)."""
+    min_shift: float = 1.0
+    """The CUSUM's designed change: a mean shift of this many standard deviations in one normalised innovation."""
+    arl0: float | None = None
+    """The diagnoser's mean time between false alarms (seconds), when the thresholds were set from it."""
     u0: np.ndarray = field(default_factory=lambda: np.zeros(0))
     """Nominal input: with ``x0`` and ``θ0`` the point where the model must be finite and where the
     certificate compares the AD Jacobians with central differences (not used by the step)."""
@@ -159,14 +168,27 @@ def _unit_open(value: float, name: str) -> float:
 # --------------------------------------------------------------------------- state layout
 
 
-def _layout(n: int, l: int, window: int, n2: int) -> StateLayout:
+DETECTORS = ("wssr", "cusum", "glr")
+"""The NAFDF's fast-detection statistics on the EKF innovations."""
+
+
+def _detector_blocks(detector: str, window: int, p: int) -> tuple[tuple[str, int, int], ...]:
+    """The detector's state: the WSSR's window of normalised squares and its fill count, the CUSUM's ``2p``
+    sums, or the GLR's ``p × M`` onset sums."""
+    if detector == "cusum":
+        return (("cusum_sums", 2 * p, 1),)
+    if detector == "glr":
+        return (("glr_sums", p, window),)
+    return (("wssr_buffer", window, 1), ("wssr_count", 1, 1))
+
+
+def _layout(n: int, l: int, window: int, n2: int, detector: str = "wssr", p: int = 1) -> StateLayout:
     one = (1, 1)
     entries = (
             ("ekf_x", n, 1),
             ("ekf_P", n, n),
             ("ekf_theta", l, 1),
-            ("wssr_buffer", window, 1),
-            ("wssr_count", *one),
+            *_detector_blocks(detector, window, p),
             ("nf_x", n, 1),
             ("nf_P", n, n),
             ("nf_theta", l, 1),
@@ -202,7 +224,7 @@ def _layout(n: int, l: int, window: int, n2: int) -> StateLayout:
             ("ekf_divergence_resets", *one),
             ("nf_divergence_resets", *one),
     )
-    return StateLayout(entries, _SCALAR_BLOCKS, frozenset({"ekf_P", "nf_P", "nf_R", "nf_W", "theta_window"}))
+    return StateLayout(entries, _SCALAR_BLOCKS, frozenset({"ekf_P", "nf_P", "nf_R", "nf_W", "theta_window", "glr_sums"}))
 
 
 # Counters and flags of the state (every other block is a vector or matrix, whatever its size).
@@ -232,12 +254,12 @@ _SCALAR_BLOCKS = frozenset(
 )
 
 
-def _check_sizes(plant: NonlinearPlant, window: int, classifier_window: int) -> None:
+def _check_sizes(plant: NonlinearPlant, window: int, classifier_window: int, detector: str = "wssr") -> None:
     """The limits that need no step: dimensions and state size (module docstring)."""
     for what, count in (("states", plant.n), ("inputs", plant.m), ("outputs", plant.p), ("parameters", plant.l)):
         if count > MAX_DIMENSION:
             raise ArgumentError(f"the plant has {count} {what}; the NAFDF allows at most {MAX_DIMENSION}")
-    size = _layout(plant.n, plant.l, window, classifier_window).size
+    size = _layout(plant.n, plant.l, window, classifier_window, detector, plant.p).size
     if size > MAX_STATE:
         raise ArgumentError(
             f"the diagnoser state would have {size} entries (window {window}, classifier_window {classifier_window}, "
@@ -255,11 +277,23 @@ def _settings(plant: NonlinearPlant, **kw: Any) -> NafdfSettings:
     n, m, l = plant.n, plant.m, plant.l  # noqa: E741 — the paper's letter for dim θ
     window = _positive_int(kw["window"], "window", MAX_WINDOW)
     n2 = _positive_int(kw["classifier_window"], "classifier_window", MAX_CLASSIFIER_WINDOW)
-    _check_sizes(plant, window, n2)
+    detector = kw.get("detector", "wssr")
+    if detector not in DETECTORS:
+        raise ArgumentError(f"detector must be one of {', '.join(map(repr, DETECTORS))}; got {shown(detector)}")
+    _check_sizes(plant, window, n2, detector)
     th_nom = np.asarray(plant.theta_nominal)
     rule = kw["threshold_rule"]
     if rule not in ("chi2", "beta0"):
         raise ArgumentError(f"threshold_rule must be 'chi2' or 'beta0'; got {shown(rule)}")
+    if rule == "beta0" and detector != "wssr":
+        raise ArgumentError(f"threshold_rule 'beta0' is the paper's WSSR threshold; detector {detector!r} takes its threshold from P_f or arl0")
+    min_shift = _number(kw.get("min_shift", 1.0), "min_shift")
+    if not (math.isfinite(min_shift) and min_shift > 0):
+        raise ArgumentError(f"min_shift must be a positive finite number of standard deviations; got {shown(kw.get('min_shift'))}")
+    arl0 = None if kw.get("arl0") is None else _number(kw["arl0"], "arl0")
+    p_f = kw["false_alarm_probability"]
+    if arl0 is not None:
+        p_f = _budget_rate(arl0, float(plant.Ts or 1.0), n2)
     lo = np.full(l, -np.inf) if kw["theta_lower"] is None else _vec(kw["theta_lower"], "theta_lower", l)
     hi = np.full(l, np.inf) if kw["theta_upper"] is None else _vec(kw["theta_upper"], "theta_upper", l)
     if np.any(np.isnan(lo)) or np.any(np.isnan(hi)) or np.any(lo >= hi) or np.any(lo == np.inf) or np.any(hi == -np.inf):
@@ -279,7 +313,7 @@ def _settings(plant: NonlinearPlant, **kw: Any) -> NafdfSettings:
         R0=frozen_array(_spd(np.eye(l) if kw["R0"] is None else kw["R0"], "R0", l)),
         window=window,
         threshold_rule=rule,
-        false_alarm_probability=_unit_open(kw["false_alarm_probability"], "false_alarm_probability"),
+        false_alarm_probability=_unit_open(p_f, "false_alarm_probability"),
         beta0=beta0,
         forgetting_initial=_unit_interval(kw["forgetting_initial"], "forgetting_initial"),
         forgetting_rate=_unit_open(kw["forgetting_rate"], "forgetting_rate"),
@@ -293,6 +327,9 @@ def _settings(plant: NonlinearPlant, **kw: Any) -> NafdfSettings:
         T1=_positive_int(kw["T1"], "T1"),
         isolable_jump=frozen_array(jump),
         convergence_level=_unit_open(kw["convergence_level"], "convergence_level"),
+        detector=detector,
+        min_shift=min_shift,
+        arl0=arl0,
         u0=frozen_array(np.zeros(m) if kw["u0"] is None else _finite_vec(kw["u0"], "u0", m)),
     )
     if np.any(settings.theta0 < lo) or np.any(settings.theta0 > hi):
@@ -301,6 +338,24 @@ def _settings(plant: NonlinearPlant, **kw: Any) -> NafdfSettings:
             f"[{shown(lo.tolist())}, {shown(hi.tolist())}]"
         )
     return settings
+
+
+def _budget_rate(arl0: float, ts: float, n2: int) -> float:
+    """The detector's false-alarm rate per sample for a diagnoser budget of ``arl0`` seconds: ``1/(arl0/Ts − 2 N2)``.
+
+    A false alarm opens an episode that the dismissal closes no sooner than ``2 N2`` samples later (``N2`` until
+    the test may start, ``N2`` passing windows), and the detector cannot alarm again inside it: the time between
+    false alarms is the detector's run length plus the episode.
+    """
+    if not (math.isfinite(arl0) and arl0 > 0):
+        raise ArgumentError(f"arl0 must be a positive finite number of seconds; got {shown(arl0)}")
+    run = arl0 / ts - 2 * n2
+    if run < 2.0:
+        raise ArgumentError(
+            f"arl0 = {arl0:g} s leaves no time between false alarms: an episode lasts at least 2·classifier_window = {2 * n2} "
+            f"samples ({2 * n2 * ts:g} s); expected arl0 > {(2 * n2 + 2) * ts:g} s"
+        )
+    return 1.0 / run
 
 
 DEFAULT_JUMP_FRACTION = 0.5

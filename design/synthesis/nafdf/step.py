@@ -19,6 +19,7 @@ from fdisyn.synthesis.nafdf.settings import (
     _PSD_SHIFT,
     _Q_CAP,
     _VAR_FLOOR,
+    _W_CAP,
     MAX_STEP_INSTRUCTIONS,
     MAX_STEP_WORK,
     NafdfSettings,
@@ -69,6 +70,19 @@ def _inverse_diagonal(lt: ca.SX, d: ca.SX) -> list[ca.SX]:
     return [sum((v[i][c] ** 2 / d[c] for c in range(i + 1, k)), 1.0 / d[i]) for i in range(k)]
 
 
+def _normalised(lt: ca.SX, d: ca.SX, b: ca.SX) -> ca.SX:
+    """``D^{-1/2} U^{-T} b`` with the factors of :func:`_ldl` (``A = Uᵀ D U``, ``U = I + Lᵀ``): for ``b ~ N(0, A)``
+    a vector ``N(0, I)``, whose squared norm is ``bᵀ A⁻¹ b`` (forward substitution, ~k²/2 operations)."""
+    k = d.numel()
+    z: list[ca.SX] = []
+    for i in range(k):
+        zi = b[i]
+        for j in range(i):
+            zi = zi - lt[j, i] * z[j]
+        z.append(zi)
+    return ca.vertcat(*[z[i] / ca.sqrt(ca.fmax(d[i], float(np.finfo(float).tiny))) for i in range(k)])
+
+
 def _positive(d: ca.SX) -> ca.SX:
     ok = ca.SX(1)
     for j in range(d.numel()):
@@ -102,7 +116,7 @@ def _select(cond: ca.SX, a: ca.SX | ca.DM | float, b: ca.SX | ca.DM | float) -> 
 def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray, name: str) -> tuple[ca.Function, StateLayout]:
     n, m, p, l = plant.n, plant.m, plant.p, plant.l
     N, N2 = s.window, s.classifier_window
-    lay = _layout(n, l, N, N2)
+    lay = _layout(n, l, N, N2, s.detector, p)
     D = plant.derivatives()
     Q, R = ca.DM(plant.Q), ca.DM(plant.R)  # noise covariances (the paper's Q1, Q2), not the NF's R(t) = nf_R
     P0, R0 = ca.DM(s.P0), ca.DM(s.R0)
@@ -133,15 +147,39 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
     ekf_ok = ca.logic_and(_all_finite(xe_next, nis_e), _psd_ok(Pe_next))
     ekf_ok = ca.logic_and(ekf_ok, _positive(dv))
 
-    # ---- WSSR (eq. (2.4)) ---------------------------------------------------------------
+    # ---- fast detection on the EKF innovations: WSSR (eq. (2.4)), CUSUM or GLR ---------------
     # a huge but finite square stays finite in the window sum (N · 1e300 < DBL_MAX)
     q_safe = ca.fmin(_select(_all_finite(nis_e), nis_e, 0.0), _Q_CAP)
-    buf_old, cnt_old = old["wssr_buffer"], old["wssr_count"]
-    buf_new = ca.vertcat(q_safe, buf_old[: N - 1]) if N > 1 else ca.SX(q_safe)
-    cnt_new = ca.fmin(cnt_old + 1, N)
-    wssr = ca.sum1(buf_new) / cnt_new  # L(t); unfilled slots are zero
-    thr = _table_lookup(cnt_new, thresholds)
-    alarm = ca.logic_and(wssr > thr, _all_finite(nis_e))
+    if s.detector == "wssr":
+        buf_old, cnt_old = old["wssr_buffer"], old["wssr_count"]
+        buf_new = ca.vertcat(q_safe, buf_old[: N - 1]) if N > 1 else ca.SX(q_safe)
+        cnt_new = ca.fmin(cnt_old + 1, N)
+        stat = ca.sum1(buf_new) / cnt_new  # L(t); unfilled slots are zero
+        thr = _table_lookup(cnt_new, thresholds)
+        cnt_hold = ca.fmax(cnt_old, 1)
+        stat_hold, thr_hold = ca.sum1(buf_old) / cnt_hold, _table_lookup(cnt_hold, thresholds)
+    else:
+        # normalised innovations w = D^{-1/2} U^{-T} γ (V0 = Uᵀ D U, U = I + Lᵀ): N(0, I) under H0, ‖w‖² = γᵀ V0⁻¹ γ
+        w = _normalised(lv, dv, gamma)
+        w = _select(_all_finite(w), ca.fmax(ca.fmin(w, _W_CAP), -_W_CAP), ca.SX.zeros(p, 1))
+        h = float(thresholds[0])
+        thr = thr_hold = ca.SX(h)
+        if s.detector == "cusum":
+            # Page's CUSUM per component and sign, tuned to a shift of min_shift: increment δ w − δ²/2, capped at 2h
+            dlt = float(s.min_shift)
+            sums_old = old["cusum_sums"]
+            sums_new = ca.fmin(ca.fmax(sums_old + dlt * ca.vertcat(w, -w) - 0.5 * dlt * dlt, 0.0), 2.0 * h)
+            stat, stat_hold = ca.mmax(sums_new), ca.mmax(sums_old)
+        else:
+            # windowed GLR per component (Willsky & Jones 1976, constant signature): onset sums d(n) of the last
+            # n = 1..M samples, statistic max d(n)²/(2n); the oldest onset leaves the window
+            M = N
+            d_old = old["glr_sums"]
+            d_new = ca.horzcat(w, d_old[:, : M - 1] + ca.repmat(w, 1, M - 1)) if M > 1 else w
+            inv2n = ca.DM(0.5 / np.arange(1, M + 1)).T
+            stat = ca.mmax(d_new * d_new * ca.repmat(inv2n, p, 1))
+            stat_hold = ca.mmax(d_old * d_old * ca.repmat(inv2n, p, 1))
+    alarm = ca.logic_and(stat > thr, _all_finite(nis_e))
 
     # ---- block 2: NF, joint state/parameter filter (eq. (2.5)) --------------------------
     xn, Pn, thn, Rn, Wn = old["nf_x"], old["nf_P"], old["nf_theta"], old["nf_R"], old["nf_W"]
@@ -270,15 +308,20 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
         0.0,
         _select(starved, 1.0, _select(reparam, ca.logic_not(nominal_ready), old["insufficient_excitation"])),
     )
-    wssr_clear = ca.logic_or(reparam, ca.logic_not(ekf_ok))
+    detector_clear = ca.logic_or(reparam, ca.logic_not(ekf_ok))
 
     # EKF next state: normal, re-parameterised from the NF, or re-initialised after divergence
     xn_fallback = _select(_all_finite(xn_next), xn_next, x0)
     new["ekf_x"] = _select(ekf_ok, _select(reparam, xn_next, xe_next), xn_fallback)
     new["ekf_P"] = _select(ca.logic_and(ekf_ok, ca.logic_not(reparam)), Pe_next, P0)
     new["ekf_theta"] = _select(reparam, th_new, the)
-    new["wssr_buffer"] = _select(wssr_clear, ca.SX.zeros(N, 1), buf_new)
-    new["wssr_count"] = _select(wssr_clear, 0.0, cnt_new)
+    if s.detector == "wssr":
+        new["wssr_buffer"] = _select(detector_clear, ca.SX.zeros(N, 1), buf_new)
+        new["wssr_count"] = _select(detector_clear, 0.0, cnt_new)
+    elif s.detector == "cusum":  # sequential evidence also restarts when a false alarm is dismissed
+        new["cusum_sums"] = _select(ca.logic_or(detector_clear, dismiss), ca.SX.zeros(2 * p, 1), sums_new)
+    else:
+        new["glr_sums"] = _select(ca.logic_or(detector_clear, dismiss), ca.SX.zeros(p, N), d_new)
 
     # NF next state: normal or (re)initialised
     xe_fallback = _select(_all_finite(xe_next), xe_next, x0)
@@ -329,7 +372,7 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
 
     r_proc = ca.vertcat(gamma, eps)
     J_proc = ca.vertcat(
-        wssr,
+        stat,
         thr,
         q_safe,
         new["nf_theta"],
@@ -345,10 +388,9 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
     # ---- skipped sample: nothing changes but the counter ---------------------------------
     held = dict(old)
     held["skipped"] = old["skipped"] + 1
-    cnt_hold = ca.fmax(cnt_old, 1)
     J_hold = ca.vertcat(
-        ca.sum1(buf_old) / cnt_hold,
-        _table_lookup(cnt_hold, thresholds),
+        stat_hold,
+        thr_hold,
         0.0,
         thn,
         old["nf_info"],
