@@ -21,7 +21,7 @@ from fdisyn.runtime.compiled import CompiledDiagnoser
 from fdisyn.runtime.errors import ArgumentError
 from fdisyn.runtime.gainfile import GainFile, write_gain_file
 from fdisyn.runtime.reference import RunResult
-from fdisyn.synthesis.registry import extra_metrics, false_alarm_budget, lorden_bound, recovery_samples
+from fdisyn.synthesis.registry import extra_metrics, false_alarm_budget, lorden_bound, lorden_window, recovery_samples
 
 __all__ = ["Built", "build", "Evaluation", "evaluate", "progress_printer"]
 
@@ -138,6 +138,7 @@ def evaluate(
             d: [np.zeros(b.gain_file.step.nr), np.zeros(b.gain_file.step.nr), 0, 0, np.zeros((b.gain_file.step.nr,) * 2)] for d, b in built.items()
         }
         nonfinite = {d: 0 for d in built}
+        windows = {d: lorden_window(b.gain_file) or np.iinfo(np.int64).max for d, b in built.items()}
         t = active = None
         for start in range(0, runs, chunk):
             seeds = range(seed0 + start, seed0 + min(runs, start + chunk))
@@ -152,7 +153,7 @@ def evaluate(
                     acc[dname]["isolated"].append(res.isolated)
                     acc[dname]["J"].append(res.J)
                     if sc.fault is not None:
-                        on = batch.active
+                        on = batch.active & (np.cumsum(batch.active) <= windows[dname])
                         sums = shift[dname]
                         sums[0] += np.sum(res.r[on], axis=0)
                         sums[1] += np.sum(res.r[~on], axis=0)

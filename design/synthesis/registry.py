@@ -157,6 +157,9 @@ class Method:
     lorden_bound: Callable[[GainFile, np.ndarray, np.ndarray], tuple[float, float] | None] | None = None
     """``(gain_file, μ, Σ) -> (I, ln(ARL)/I)``: the information per sample of a fault that shifts the residual's mean by
     ``μ`` (``Σ``: the residual's covariance measured without the fault) and the Lorden bound on its delay (samples)."""
+    lorden_window: Callable[[GainFile], int] | None = None
+    """Samples after a fault's onset over which its mean shift ``μ`` is measured (None: while it is active) — for a
+    diagnoser that adapts its model to the fault, the samples before it can."""
     generator: Callable[..., Any] | None = None
     """Linear bank methods: the design of one generator,
     ``(plant, outputs_used, name, **options) -> (Generator, Σ_r, Certificate)``."""
@@ -268,6 +271,12 @@ def lorden_bound(gf: GainFile, shift: np.ndarray, covariance: np.ndarray) -> tup
     """``(I, bound)`` of a residual mean shift for the gain file's kind (:attr:`Method.lorden_bound`; None: none)."""
     m = _kind(gf.kind)
     return None if m is None or m.lorden_bound is None else m.lorden_bound(gf, shift, covariance)
+
+
+def lorden_window(gf: GainFile) -> int | None:
+    """:attr:`Method.lorden_window` of the gain file's kind (None: the fault's whole active time)."""
+    m = _kind(gf.kind)
+    return None if m is None or m.lorden_window is None else int(m.lorden_window(gf))
 
 
 def extra_metrics(kind: str) -> Callable[..., Mapping[str, Any]] | None:

@@ -21,7 +21,13 @@ from fdisyn.runtime.errors import ArgumentError
 from fdisyn.runtime.gainfile import GainFile
 from fdisyn.runtime.names import shown
 from fdisyn.synthesis.nafdf.design import nafdf, nafdf_extra_metrics
-from fdisyn.synthesis.nafdf.payload import nafdf_budget_seconds, nafdf_from_gain_file, nafdf_gain_file, nafdf_lorden_bound
+from fdisyn.synthesis.nafdf.payload import (
+    nafdf_budget_seconds,
+    nafdf_from_gain_file,
+    nafdf_gain_file,
+    nafdf_lorden_bound,
+    nafdf_lorden_window,
+)
 from fdisyn.synthesis.registry import ARL0, DETECTOR, P_F, WINDOW, Method, Option, at, register
 
 __all__ = ["NAFDF_OPTIONS", "NAFDF"]
@@ -143,5 +149,6 @@ NAFDF = register(
         extra_metrics=nafdf_extra_metrics,
         false_alarm_budget=nafdf_budget_seconds,
         lorden_bound=nafdf_lorden_bound,
+        lorden_window=nafdf_lorden_window,
     )
 )

@@ -24,7 +24,7 @@ from fdisyn.synthesis.linear_diagnoser import provenance
 from fdisyn.synthesis.nafdf.design import NafdfDesign, _design, _init_state, _names_r_J, detector_thresholds
 from fdisyn.synthesis.nafdf.settings import _IDENT, _MAX_NAME, MAX_DIMENSION, NafdfSettings, _layout, _settings
 
-__all__ = ['PAYLOAD_FORMAT', 'PAYLOAD_VERSION', 'nafdf_budget_seconds', 'nafdf_from_gain_file', 'nafdf_lorden_bound', 'nafdf_from_payload', 'nafdf_gain_file', 'nafdf_payload', 'step_from_payload']
+__all__ = ['PAYLOAD_FORMAT', 'PAYLOAD_VERSION', 'nafdf_budget_seconds', 'nafdf_from_gain_file', 'nafdf_lorden_bound', 'nafdf_lorden_window', 'nafdf_from_payload', 'nafdf_gain_file', 'nafdf_payload', 'step_from_payload']
 
 PAYLOAD_FORMAT = "fdisyn.nafdf"
 PAYLOAD_VERSION = 4
@@ -474,6 +474,12 @@ def nafdf_budget_seconds(gf: GainFile) -> float:
     if s.get("arl0") is not None:
         return float(s["arl0"])
     return float(gf.Ts) * (1.0 / float(s["false_alarm_probability"]) + 2.0 * float(s["classifier_window"]))
+
+
+def nafdf_lorden_window(gf: GainFile) -> int:
+    """The samples after a fault's onset over which its innovation shift is measured: ``N2``, before the EKF can
+    be re-parameterised (that needs an alarm and then ``N2`` samples of the NF), which removes the shift."""
+    return int(_stored_settings(gf)["classifier_window"])
 
 
 def nafdf_lorden_bound(gf: GainFile, shift: np.ndarray, covariance: np.ndarray) -> tuple[float, float] | None:
