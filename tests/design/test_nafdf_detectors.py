@@ -211,3 +211,19 @@ def test_lorden_information_of_a_known_shift() -> None:
     info, bound = nafdf_lorden_bound(gf, np.array([sd, 5.0]), np.diag([sd**2, 1.0]))
     assert math.isclose(info, 0.5, rel_tol=1e-12)
     assert math.isclose(bound, 2 * math.log(1900.0), rel_tol=1e-12)  # the NF's ε (second residual) is not read
+
+
+def test_the_budget_hooks_of_each_kind() -> None:
+    """The registry's hooks the Monte Carlo uses: a NAFDF's budget is its arl0 (or ``Ts·(1/P_f + 2 N2)``) and
+    its fault shift is measured over the ``N2`` samples before the EKF can adapt; a linear diagnoser's over the
+    whole fault."""
+    from fdisyn.problems import wind_turbine as wt
+    from fdisyn.synthesis.registry import false_alarm_budget, lorden_window
+
+    by_arl0 = nafdf_gain_file(sp.design(detector="cusum", arl0=2000.0), problem="ship_propulsion")
+    by_pf = nafdf_gain_file(sp.design(), problem="ship_propulsion")
+    assert false_alarm_budget(by_arl0) == 2000.0
+    assert false_alarm_budget(by_pf) == 1e4 + 100.0
+    assert lorden_window(by_arl0) == 50
+    linear = wt.PROBLEM.designs["kalman_uio"](detector="glr", arl0=60.0)
+    assert lorden_window(linear) is None and false_alarm_budget(linear) == 60.0
