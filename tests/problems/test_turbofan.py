@@ -166,3 +166,40 @@ def test_every_single_sensor_fault_is_detected_and_isolated(grouped, kind: str) 
             # on samples where a small fault's statistics dip below threshold the pattern is incomplete (-1)
             assert np.any(isolated == gf.faults.index(s)), (s, kind, i)
             assert not np.any((isolated >= 0) & (isolated != gf.faults.index(s))), (s, kind, i, np.unique(isolated, return_counts=True))
+
+
+# ------------------------------------------------------------------ the detectors at one false-alarm budget
+
+
+def test_the_detector_variants_share_the_grouped_banks_budget() -> None:
+    variants = [v for v in tf.PROBLEM.variants if v["options"].get("arl0") is not None]
+    assert [v["options"]["detector"] for v in variants] == [d for d, _ in tf.DETECTORS] == ["wssr", "cusum"]
+    assert {v["options"]["arl0"] for v in variants} == {tf.DETECTOR_ARL0}
+    for v in variants:
+        assert v["label"].endswith(f" at arl0 = {tf.DETECTOR_ARL0:g} s")
+        assert v["designs"] == ["grouped"] and v["runs"] == 50
+        assert v["scenarios"][0] == "fault_free" and set(v["scenarios"]) <= set(tf.SCENARIOS)
+        assert {tf.SCENARIOS[s].fault for s in v["scenarios"][1:]} == {"T5", "T25", "P3", "T42"}
+        tf.PROBLEM.check_options(v["options"])
+    # the WSSR at that budget is the paper's bank: each of its 16 statistics gets Ts/(16 arl0) per sample, the problem's P_f
+    statistics = sum(len(g) for g in tf.PAPER_GROUPS)
+    assert tf.TS / (statistics * tf.DETECTOR_ARL0) == pytest.approx(tf.PROBLEM.options["P_f"], rel=1e-12)
+
+
+def test_the_glr_of_the_grouped_bank_exceeds_the_step_limits(grouped) -> None:  # noqa: ANN001
+    """Why the comparison has no GLR: with the window the design chooses its onset sums exceed the state limit and its
+    directions the coefficient limit; the coefficients leave room for one onset, far below the predicted delays."""
+    from fdisyn.runtime.gainfile import LIMITS, linear_state_layout, step_coefficients
+
+    gd, _ = grouped
+    gf = gd.gain_file
+    fp = tf.glr_footprint(gf, tf.DETECTOR_ARL0)
+    assert fp.window == 100 and fp.hypotheses > 100
+    assert fp.nstate > LIMITS["nstate"] and fp.coefficients > LIMITS["coefficients"]
+    # without the GLR the step is the WSSR bank's less its windows (the whitened generators of a minimum-variance UIO
+    # are its own generators)
+    wssr_windows = sum(e.window for e in gf.evaluators)
+    assert fp.nstate - fp.hypotheses * fp.window == linear_state_layout(gf.generators, gf.evaluators).size - wssr_windows
+    assert fp.coefficients - fp.per_onset_coefficients * fp.window == step_coefficients(gf.generators, gf.evaluators)
+    assert fp.onsets_within("coefficients") == 1 < fp.onsets_within("nstate") == tf.GLR_AT_STATE_LIMIT["window"]
+    assert min(fp.lorden_samples) > 25
