@@ -431,6 +431,23 @@ _NAFDF_BUDGET_TEXT = (
 )
 
 
+_DETECTOR_NAMES = {
+    "chi2": "per-sample χ²",
+    "wssr": "WSSR (Long & Wang, Aeroengine 43(5), 2017, section 2)",
+    "cusum": "CUSUM (Page, Biometrika 41(1/2), 1954)",
+    "glr": "windowed GLR (Willsky & Jones, IEEE Transactions on Automatic Control 21(1), 1976)",
+}
+"""The detectors of the comparison as its introduction names them, in its order."""
+
+
+def _compared_detectors(variants: Sequence[Any]) -> str:
+    """The detectors of the variants with an ``arl0``, named for the comparison's first sentence: "WSSR (…) and CUSUM (…)"."""
+    used = {v.options.get("detector") for v in variants if v.options.get("arl0") is not None}
+    named = [name for key, name in _DETECTOR_NAMES.items() if key in used]
+    listed = (", ".join(named[:-1]) + " and " + named[-1] if len(named) > 1 else "".join(named)) or "the"
+    return listed[:1].upper() + listed[1:]
+
+
 def _detectors_section(variants: Sequence[Any]) -> str:
     """The detectors side by side at the same false-alarm budget (the variants with an ``arl0`` option)."""
     same = [v for v in variants if v.options.get("arl0") is not None]
@@ -469,8 +486,7 @@ def write_report(problem: Problem, variants: Sequence[Any], directory: Path) -> 
             "(Page, Biometrika 41(1/2), 1954) and windowed GLR (Willsky & Jones, IEEE Transactions on Automatic Control "
             "21(1), 1976) on the normalised innovations, the rest of the filter unchanged"
             if nafdf
-            else "Per-sample χ², CUSUM (Page, Biometrika 41(1/2), 1954) and windowed GLR (Willsky & Jones, IEEE Transactions "
-            "on Automatic Control 21(1), 1976) statistics of the same generators"
+            else f"{_compared_detectors(variants)} statistics of the same generators"
         )
         parts.append(
             f"<h2>Detectors at one false-alarm budget</h2><p>{what}, each designed for the same mean time between false "

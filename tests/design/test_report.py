@@ -32,3 +32,18 @@ def test_a_figure_is_saved_as_png_without_pyplot(tmp_path) -> None:
     html = ctx.figure("toy", fig, "a toy figure")
     assert (tmp_path / "toy.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert 'src="toy.png"' in html and ctx.figures == ["toy.png"]
+
+
+def test_the_detector_comparison_names_the_detectors_it_compares() -> None:
+    from types import SimpleNamespace
+
+    from fdisyn.app.report import _compared_detectors
+
+    def variants(*detectors: str) -> list[SimpleNamespace]:
+        return [SimpleNamespace(options={"detector": None, "arl0": None})] + [SimpleNamespace(options={"detector": d, "arl0": 60.0}) for d in detectors]
+
+    assert _compared_detectors(variants("glr", "chi2", "cusum")) == (
+        "Per-sample χ², CUSUM (Page, Biometrika 41(1/2), 1954) and windowed GLR (Willsky & Jones, IEEE Transactions on "
+        "Automatic Control 21(1), 1976)"
+    )
+    assert _compared_detectors(variants("wssr", "cusum")) == "WSSR (Long & Wang, Aeroengine 43(5), 2017, section 2) and CUSUM (Page, Biometrika 41(1/2), 1954)"
