@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 import pytest
@@ -14,6 +15,15 @@ def wt_built(tmp_path_factory: pytest.TempPathFactory):
     from fdisyn.problems.wind_turbine import PROBLEM
 
     return build(PROBLEM, "kalman_uio", tmp_path_factory.mktemp("wt") / "kalman_uio")
+
+
+@pytest.fixture
+def built_copy(wt_built, tmp_path: Path) -> Path:
+    """A private copy of the compiled wind-turbine directory (gains.json, library, manifest, replay): what
+    ``fdisyn design wind_turbine --out DIR`` and ``fdisyn codegen DIR`` write, for a test to change."""
+    d = tmp_path / "wt"
+    shutil.copytree(wt_built.directory, d)
+    return d
 
 
 @pytest.fixture(scope="session")
