@@ -1,4 +1,4 @@
-"""Shared fixtures: seeded random plants and one compiled wind-turbine diagnoser."""
+"""Shared fixtures: the compiled wind-turbine and DC-motor diagnosers, each built once, and a wind-turbine trace."""
 
 from __future__ import annotations
 
@@ -15,6 +15,17 @@ def wt_built(tmp_path_factory: pytest.TempPathFactory):
     from fdisyn.problems.wind_turbine import PROBLEM
 
     return build(PROBLEM, "kalman_uio", tmp_path_factory.mktemp("wt") / "kalman_uio")
+
+
+@pytest.fixture(scope="session")
+def motor_built(tmp_path_factory: pytest.TempPathFactory):
+    """The DC-motor plant file's (``tests/data/dc_motor.toml``) default design (4 outputs of 2 generators),
+    designed, written and compiled once."""
+    from fdisyn.app.plant_file import load_spec
+    from fdisyn.evaluation.evaluate import build
+
+    prob = load_spec(Path(__file__).parent / "data" / "dc_motor.toml")
+    return build(prob, prob.default_design, tmp_path_factory.mktemp("motor") / "kalman_uio")
 
 
 @pytest.fixture
