@@ -1,7 +1,8 @@
-"""Shared fixtures: seeded random plants and one compiled wind-turbine diagnoser."""
+"""Shared fixtures: the compiled wind-turbine and DC-motor diagnosers, each built once, and a wind-turbine trace."""
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 import pytest
@@ -14,6 +15,26 @@ def wt_built(tmp_path_factory: pytest.TempPathFactory):
     from fdisyn.problems.wind_turbine import PROBLEM
 
     return build(PROBLEM, "kalman_uio", tmp_path_factory.mktemp("wt") / "kalman_uio")
+
+
+@pytest.fixture(scope="session")
+def motor_built(tmp_path_factory: pytest.TempPathFactory):
+    """The DC-motor plant file's (``tests/data/dc_motor.toml``) default design (4 outputs of 2 generators),
+    designed, written and compiled once."""
+    from fdisyn.app.plant_file import load_spec
+    from fdisyn.evaluation.evaluate import build
+
+    prob = load_spec(Path(__file__).parent / "data" / "dc_motor.toml")
+    return build(prob, prob.default_design, tmp_path_factory.mktemp("motor") / "kalman_uio")
+
+
+@pytest.fixture
+def built_copy(wt_built, tmp_path: Path) -> Path:
+    """A private copy of the compiled wind-turbine directory (gains.json, library, manifest, replay): what
+    ``fdisyn design wind_turbine --out DIR`` and ``fdisyn codegen DIR`` write, for a test to change."""
+    d = tmp_path / "wt"
+    shutil.copytree(wt_built.directory, d)
+    return d
 
 
 @pytest.fixture(scope="session")

@@ -99,22 +99,20 @@ def test_unknown_problem_lists_the_problems(capsys):
     assert "no built-in problem 'windturbine'; problems: [" in err and "'wind_turbine'" in err
 
 
-def test_codegen_refuses_a_gain_file_of_another_version(tmp_path, capsys):
-    assert main(["design", "wind_turbine", "--out", str(tmp_path)]) == 0
-    p = tmp_path / "gains.json"
+def test_codegen_refuses_a_gain_file_of_another_version(built_copy, capsys):
+    p = built_copy / "gains.json"  # as `fdisyn design wind_turbine` wrote it
     doc = json.loads(p.read_text())
     doc["format"] = "fdisyn.gains/7"
     p.write_text(json.dumps(doc))
-    assert main(["codegen", str(tmp_path)]) == 2
+    assert main(["codegen", str(built_copy)]) == 2
     assert "format version '7'" in capsys.readouterr().err
 
 
-def test_replay_reports_a_missing_column(tmp_path, capsys):
-    assert main(["design", "wind_turbine", "--out", str(tmp_path)]) == 0
-    assert main(["codegen", str(tmp_path)]) == 0
+def test_replay_reports_a_missing_column(built_copy, tmp_path, capsys):
+    # built_copy: what `fdisyn design wind_turbine` and `fdisyn codegen` leave (the session's build)
     p = tmp_path / "in.csv"
     p.write_text("t,tau_g,omega_r_m1\n0,1,1\n")
-    assert main(["replay", str(tmp_path), str(p), str(tmp_path / "o.csv")]) == 2
+    assert main(["replay", str(built_copy), str(p), str(tmp_path / "o.csv")]) == 2
     assert "in.csv line 1: no column 'omega_r_m2' (output 1)" in capsys.readouterr().err
 
 

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from fdisyn.app.plant_file import load_spec
-from fdisyn.evaluation.evaluate import build, evaluate
+from fdisyn.evaluation.evaluate import evaluate
 from fdisyn.evaluation.metrics import binomial_interval
 
 ROOT = Path(__file__).parents[2]
@@ -25,10 +25,10 @@ def test_the_readme_shows_the_example_file_verbatim() -> None:
 
 
 @pytest.fixture(scope="module")
-def motor(tmp_path_factory: pytest.TempPathFactory):
+def motor(motor_built):
+    """The example's problem, its default design as the session built it and a Monte Carlo of ``RUNS`` runs."""
     prob = load_spec(EXAMPLE)
-    built = build(prob, prob.default_design, tmp_path_factory.mktemp("motor") / "kalman_uio")
-    return prob, built, evaluate(prob, {prob.default_design: built}, runs=RUNS)
+    return prob, motor_built, evaluate(prob, {prob.default_design: motor_built}, runs=RUNS)
 
 
 def test_fault_free_runs_alarm_at_the_promised_rate(motor) -> None:

@@ -281,6 +281,13 @@ def test_arl0_sets_the_chi2_threshold_by_the_split_budget():
         assert e.P_f == pytest.approx(1.0 / share) and e.threshold == pytest.approx(scipy.stats.chi2.isf(1.0 / share, e.dof))
 
 
+@pytest.fixture(scope="module")
+def cusum_gain_file():
+    """A CUSUM bank of a random plant, designed once for the corruptions below (its thresholds solve Page's
+    integral equation: seconds of work each time)."""
+    return design(random_plant(1), "kalman_uio", detector="cusum", arl0=5.0)
+
+
 @pytest.mark.parametrize(
     ("edit", "message"),
     [
@@ -290,9 +297,8 @@ def test_arl0_sets_the_chi2_threshold_by_the_split_budget():
         (lambda e: e.update(window=3), "window must be 1 for a 'cusum' evaluator"),
     ],
 )
-def test_a_corrupt_cusum_evaluator_is_refused_with_one_line(edit, message):
-    gf = design(random_plant(1), "kalman_uio", detector="cusum", arl0=5.0)
-    doc = json.loads(json.dumps(gf.to_dict()))
+def test_a_corrupt_cusum_evaluator_is_refused_with_one_line(cusum_gain_file, edit, message):
+    doc = json.loads(json.dumps(cusum_gain_file.to_dict()))
     edit(doc["evaluators"][0])
     with pytest.raises(GainFileError) as info:
         gain_file_from_dict(doc)

@@ -254,16 +254,21 @@ def test_error_covariance_matches_a_direct_simulation_of_the_observer():
     n_samples = 200_000
     a, b, c, e = (np.asarray(getattr(plant, k)) for k in ("A", "B", "C", "E"))
     lq, lr = np.linalg.cholesky(plant.Q), np.linalg.cholesky(plant.R)
-    x = np.zeros(plant.n)
-    xi = np.zeros(gen.n_state)
-    rs = np.empty((n_samples, plant.p))
+    u = rng.standard_normal((n_samples, 2))
+    dist = 5.0 * np.sin(0.01 * np.arange(n_samples))[:, None] + 3 * rng.standard_normal((n_samples, plant.q))  # arbitrary unknown input
+    w = rng.standard_normal((n_samples, plant.n)) @ lq.T
+    v = rng.standard_normal((n_samples, plant.p)) @ lr.T
+    # the plant and the observer in series, state (x, ξ): y = C x + v, r = Cr ξ + Du u + Dy y,
+    # ξ⁺ = Ar ξ + Bu u + By y, x⁺ = A x + B u + E d + w; the inputs of every step drawn beforehand
+    nz = plant.n + gen.n_state
+    big_a = np.block([[a, np.zeros((plant.n, gen.n_state))], [gen.By @ c, gen.Ar]])
+    drive = np.hstack([u @ b.T + dist @ e.T + w, u @ gen.Bu.T + v @ gen.By.T])
+    z = np.zeros(nz)
+    zs = np.empty((n_samples, nz))
     for k in range(n_samples):
-        u = rng.standard_normal(2)
-        dist = 5.0 * np.sin(0.01 * k) + rng.standard_normal(plant.q) * 3  # arbitrary unknown input
-        y = c @ x + lr @ rng.standard_normal(plant.p)
-        rs[k] = gen.Cr @ xi + gen.Du @ u + gen.Dy @ y
-        xi = gen.Ar @ xi + gen.Bu @ u + gen.By @ y
-        x = a @ x + b @ u + e @ dist + lq @ rng.standard_normal(plant.n)
+        zs[k] = z
+        z = big_a @ z + drive[k]
+    rs = zs @ np.hstack([gen.Dy @ c, gen.Cr]).T + u @ gen.Du.T + v @ gen.Dy.T
     emp = np.cov(rs[1000:].T)
     # the sample covariance of 2·10⁵ white samples is within a few % (≈ 5/sqrt(N) relative per entry)
     np.testing.assert_allclose(emp, d.Sigma_r, rtol=0.03, atol=0.03 * np.abs(d.Sigma_r).max())

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.stats
-from fdisyn.evaluation.evaluate import build, evaluate
+from fdisyn.evaluation.evaluate import evaluate
 from fdisyn.problems.wind_turbine import PARAMETER_SETS, PROBLEM, continuous_model, design_model, discrete_model, operating_point
 
 from tests.helpers import check_values, coupling_markov
@@ -91,10 +91,10 @@ def test_simulation_is_reproducible_per_seed():
 
 
 @pytest.fixture(scope="module")
-def evaluation(tmp_path_factory):
-    built = {"kalman_uio": build(PROBLEM, "kalman_uio", tmp_path_factory.mktemp("wt_eval") / "k")}
+def evaluation(wt_built):
+    """The session's compiled default bank (``build(PROBLEM, "kalman_uio", …)``) through five faulty scenarios."""
     scen = ["paper_F1", "benchmark_stuck", "benchmark_gain_pair", "omega_g_m1_offset", "omega_g_m2_gain"]
-    return evaluate(PROBLEM, built, runs=3, scenarios=scen)
+    return evaluate(PROBLEM, {"kalman_uio": wt_built}, runs=3, scenarios=scen)
 
 
 @pytest.mark.parametrize("scenario", ["paper_F1", "benchmark_stuck", "benchmark_gain_pair", "omega_g_m1_offset", "omega_g_m2_gain"])

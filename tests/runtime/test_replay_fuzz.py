@@ -27,20 +27,9 @@ from fdisyn.app.cli import main
 from fdisyn.runtime import trace
 from fdisyn.runtime.trace import MAX_COLUMNS, MAX_LINE_BYTES, MAX_NAME_BYTES
 
-DATA = Path(__file__).parents[1] / "data"
 HEADER = b"t,voltage,i_meas,w_meas,theta_meas,note"
 # a quiet DC motor: 0.615 A, 107.7 rad/s, a slowly turning angle; the note column is ignored by both replays
 ROWS = [b"%.3f,6,0.615,107.7,%.4f,ok" % (0.001 * k, 0.1077 * k) for k in range(12)]
-
-
-@pytest.fixture(scope="session")
-def motor(tmp_path_factory: pytest.TempPathFactory):
-    """The DC-motor plant file's default design (4 outputs of 2 generators), compiled once."""
-    from fdisyn.app.plant_file import load_spec
-    from fdisyn.evaluation.evaluate import build
-
-    prob = load_spec(str(DATA / "dc_motor.toml"))
-    return build(prob, prob.default_design, tmp_path_factory.mktemp("motor") / "kalman_uio")
 
 
 @dataclass(frozen=True)
@@ -61,29 +50,29 @@ def _outcome(status: int, stderr: str, out: Path, prefix: str) -> Outcome:
     return Outcome(status, msg, out.read_bytes() if out.is_file() else None)
 
 
-def replay_c(motor, src: Path, out: Path) -> Outcome:
-    proc = subprocess.run([str(motor.artifacts.replay), str(src), str(out)], capture_output=True, timeout=60)
+def replay_c(motor_built, src: Path, out: Path) -> Outcome:
+    proc = subprocess.run([str(motor_built.artifacts.replay), str(src), str(out)], capture_output=True, timeout=60)
     assert proc.returncode in (0, 1, 2), proc  # a signal (crash) is negative
     return _outcome(proc.returncode, proc.stderr.decode("utf-8"), out, "replay: error: ")
 
 
-def replay_py(motor, src: Path, out: Path) -> Outcome:
+def replay_py(motor_built, src: Path, out: Path) -> Outcome:
     err = io.StringIO()
     with contextlib.redirect_stderr(err):
         try:
-            status = main(["replay", str(motor.directory), str(src), str(out)])
+            status = main(["replay", str(motor_built.directory), str(src), str(out)])
         except SystemExit as exc:
             status = int(exc.code or 0)
     return _outcome(status, err.getvalue(), out, "fdisyn replay: error: ")
 
 
-def both(motor, tmp: Path, data: bytes) -> Outcome:
+def both(motor_built, tmp: Path, data: bytes) -> Outcome:
     """Run both replays on ``data``; assert they agree; return the (common) outcome."""
     src = tmp / "in.csv"
     src.write_bytes(data)
     before = set(os.listdir(tmp))
-    c = replay_c(motor, src, tmp / "c.csv")
-    p = replay_py(motor, src, tmp / "py.csv")
+    c = replay_c(motor_built, src, tmp / "c.csv")
+    p = replay_py(motor_built, src, tmp / "py.csv")
     assert (c.status, c.message) == (p.status, p.message), data[:300]
     assert c.output == p.output, data[:300]
     if c.status:
@@ -111,17 +100,17 @@ def _longest() -> bytes:
 # --------------------------------------------------------------- accepted
 
 
-def test_the_plain_trace_is_replayed(motor, tmp_path):
-    res = both(motor, tmp_path, csv(*ROWS))
+def test_the_plain_trace_is_replayed(motor_built, tmp_path):
+    res = both(motor_built, tmp_path, csv(*ROWS))
     assert res.status == 0 and res.message == "replay: 12 samples, 0 with non-finite values skipped"
     assert res.output is not None
     assert res.output.splitlines()[0] == b"t,alarm,isolated,J0,J1,r0,r1,r2,r3"
     assert [r[0] for r in _rows(res.output)][:3] == ["0", "0.001", "0.002"]
 
 
-def test_a_header_without_rows_gives_a_header_without_rows(motor, tmp_path):
+def test_a_header_without_rows_gives_a_header_without_rows(motor_built, tmp_path):
     for data in (HEADER, csv(), csv(b"", b" ")):
-        res = both(motor, tmp_path, data)
+        res = both(motor_built, tmp_path, data)
         assert (res.status, res.output) == (0, b"t,alarm,isolated,J0,J1,r0,r1,r2,r3\n")
         assert res.message == "replay: 0 samples, 0 with non-finite values skipped"
 
@@ -143,9 +132,9 @@ SAME_AS_PLAIN = {
 
 
 @pytest.mark.parametrize("case", list(SAME_AS_PLAIN))
-def test_equivalent_spellings_give_the_plain_bytes(motor, tmp_path, case):
-    plain = both(motor, tmp_path, csv(*ROWS))
-    res = both(motor, tmp_path, SAME_AS_PLAIN[case])
+def test_equivalent_spellings_give_the_plain_bytes(motor_built, tmp_path, case):
+    plain = both(motor_built, tmp_path, csv(*ROWS))
+    res = both(motor_built, tmp_path, SAME_AS_PLAIN[case])
     assert res.status == 0 and res.output == plain.output
 
 
@@ -165,21 +154,21 @@ def test_equivalent_spellings_give_the_plain_bytes(motor, tmp_path, case):
         (b"4.9406564584124654e-324", "4.9406564584124654e-324"),
     ],
 )
-def test_special_values_in_the_time_column(motor, tmp_path, field, printed):
+def test_special_values_in_the_time_column(motor_built, tmp_path, field, printed):
     rows = [ROWS[0], b",".join([field, *ROWS[1].split(b",")[1:]]), *ROWS[2:]]
-    res = both(motor, tmp_path, csv(*rows))
+    res = both(motor_built, tmp_path, csv(*rows))
     assert res.status == 0 and res.output is not None
     assert _rows(res.output)[1][0] == printed
 
 
 @pytest.mark.parametrize("field", [b"", b"nan", b"-nan", b"1e999", b"-inf", b'""'])
-def test_a_non_finite_reading_is_a_skipped_sample(motor, tmp_path, field):
+def test_a_non_finite_reading_is_a_skipped_sample(motor_built, tmp_path, field):
     rows = [*ROWS[:5], ROWS[5].replace(b",107.7,", b"," + field + b","), *ROWS[6:]]
-    res = both(motor, tmp_path, csv(*rows))
+    res = both(motor_built, tmp_path, csv(*rows))
     assert res.status == 0 and res.message == "replay: 12 samples, 1 with non-finite values skipped"
 
 
-def test_correct_rounding_of_long_numerals(motor, tmp_path):
+def test_correct_rounding_of_long_numerals(motor_built, tmp_path):
     """Decimal → double rounds correctly on both sides, against exact rational arithmetic.
 
     2^53 + 1 lies exactly halfway between two doubles: with 600 zeros after it the tie goes to the
@@ -188,22 +177,22 @@ def test_correct_rounding_of_long_numerals(motor, tmp_path):
     half = "9007199254740993." + "0" * 600
     numerals = [half, half + "1", "0." + "0" * 400 + "1e400", "1" * 4000 + "e-3990", "2.2250738585072011e-308", "1e-320"]
     rows = [b",".join([s.encode(), b"6", b"0.615", b"107.7", b"0", b"ok"]) for s in numerals]
-    res = both(motor, tmp_path, csv(*rows))
+    res = both(motor_built, tmp_path, csv(*rows))
     assert res.status == 0 and res.output is not None
     printed = [r[0] for r in _rows(res.output)]
     assert printed == ["%.17g" % float(Fraction(s)) for s in numerals]  # Fraction → float rounds exactly
     assert printed[:2] == ["9007199254740992", "9007199254740994"]
 
 
-def test_limits_are_inclusive(motor, tmp_path):
-    assert both(motor, tmp_path, csv(_longest(), *ROWS[1:], end=b"\r\n")).status == 0  # the CR of CRLF is not counted
-    assert both(motor, tmp_path, csv(ROWS[0]) + _longest()).status == 0  # nor a missing final line break
+def test_limits_are_inclusive(motor_built, tmp_path):
+    assert both(motor_built, tmp_path, csv(_longest(), *ROWS[1:], end=b"\r\n")).status == 0  # the CR of CRLF is not counted
+    assert both(motor_built, tmp_path, csv(ROWS[0]) + _longest()).status == 0  # nor a missing final line break
     wide = HEADER + b"".join(b",c%d" % i for i in range(MAX_COLUMNS - 6))
     assert wide.count(b",") + 1 == MAX_COLUMNS
     row = ROWS[0] + b"," * (MAX_COLUMNS - 6)
-    assert both(motor, tmp_path, csv(row, header=wide)).status == 0
+    assert both(motor_built, tmp_path, csv(row, header=wide)).status == 0
     named = HEADER.replace(b"note", b"n" * MAX_NAME_BYTES)
-    assert both(motor, tmp_path, csv(*ROWS, header=named)).status == 0
+    assert both(motor_built, tmp_path, csv(*ROWS, header=named)).status == 0
 
 
 # --------------------------------------------------------------- refused
@@ -256,38 +245,38 @@ REFUSED = {
 
 
 @pytest.mark.parametrize("case", list(REFUSED))
-def test_refused_inputs(motor, tmp_path, case):
+def test_refused_inputs(motor_built, tmp_path, case):
     data, expected = REFUSED[case]
-    res = both(motor, tmp_path, data)
+    res = both(motor_built, tmp_path, data)
     assert res.status == 2
     assert res.message.startswith(f"{tmp_path / IN} line ") and expected in res.message, res.message
 
 
-def test_the_first_fault_is_reported_across_blocks(motor, tmp_path):
+def test_the_first_fault_is_reported_across_blocks(motor_built, tmp_path):
     """Python checks the numbers of a block of rows at once; an earlier bad number still wins over a later fault."""
     rows = [b"%d,6,0.615,107.7,0,ok" % k for k in range(6000)]
     rows[4500] = rows[4500].replace(b",107.7,", b",1..2,")
     rows[4600] += b",extra"
-    res = both(motor, tmp_path, csv(*rows))
+    res = both(motor_built, tmp_path, csv(*rows))
     assert res.status == 2 and "line 4502: column 'w_meas' holds '1..2'" in res.message
     rows[4500] = rows[4500].replace(b",1..2,", b",\x00,")
-    assert "line 4502: character U+0000" in both(motor, tmp_path, csv(*rows)).message
+    assert "line 4502: character U+0000" in both(motor_built, tmp_path, csv(*rows)).message
     rows[100] = rows[100].replace(b",6,", b",x,")
-    assert "line 102: column 'voltage' holds 'x'" in both(motor, tmp_path, csv(*rows)).message
+    assert "line 102: column 'voltage' holds 'x'" in both(motor_built, tmp_path, csv(*rows)).message
 
 
-def test_a_failed_replay_leaves_an_existing_output_untouched(motor, tmp_path):
+def test_a_failed_replay_leaves_an_existing_output_untouched(motor_built, tmp_path):
     src = tmp_path / "in.csv"
     src.write_bytes(csv(ROWS[0], b"1,2"))
     for run in (replay_c, replay_py):
         out = tmp_path / "keep.csv"
         out.write_bytes(b"previous\n")
-        assert run(motor, src, out).status == 2
+        assert run(motor_built, src, out).status == 2
         assert out.read_bytes() == b"previous\n"
         assert sorted(os.listdir(tmp_path)) == ["in.csv", "keep.csv"]
 
 
-def test_an_output_that_is_a_link_a_device_or_a_fifo_is_refused_and_left_as_it_was(motor, tmp_path):
+def test_an_output_that_is_a_link_a_device_or_a_fifo_is_refused_and_left_as_it_was(motor_built, tmp_path):
     """The rename at the end replaces the name itself: OUT.csv = /dev/full or /dev/stdout (a link) would
     become a plain file (as root, the device node is gone), a link to a file would lose its target."""
     good = tmp_path / "good.csv"
@@ -301,7 +290,7 @@ def test_an_output_that_is_a_link_a_device_or_a_fifo_is_refused_and_left_as_it_w
     fifo = tmp_path / "fifo.csv"
     os.mkfifo(fifo)
     for out in (link, device, fifo):
-        c, p = replay_c(motor, good, out), replay_py(motor, good, out)
+        c, p = replay_c(motor_built, good, out), replay_py(motor_built, good, out)
         assert (c.status, c.message) == (p.status, p.message) == (
             2,
             f"{out} is not a regular file (a symbolic link, a device, a FIFO or a socket); expected the path of a file to create or replace",
@@ -311,7 +300,7 @@ def test_an_output_that_is_a_link_a_device_or_a_fifo_is_refused_and_left_as_it_w
     assert sorted(os.listdir(tmp_path)) == ["fifo.csv", "good.csv", "link.csv", "null.csv", "target.csv"]  # no temporary file
 
 
-def test_io_errors_end_with_status_1_and_the_same_line(motor, tmp_path):
+def test_io_errors_end_with_status_1_and_the_same_line(motor_built, tmp_path):
     good = tmp_path / "good.csv"
     good.write_bytes(csv(*ROWS))
     (tmp_path / "adir").mkdir()
@@ -322,28 +311,28 @@ def test_io_errors_end_with_status_1_and_the_same_line(motor, tmp_path):
         (good, tmp_path / "adir", f"cannot write {tmp_path / 'adir'}: Is a directory"),
     ]
     for src, out, message in cases:
-        c, p = replay_c(motor, src, out), replay_py(motor, src, out)
+        c, p = replay_c(motor_built, src, out), replay_py(motor_built, src, out)
         assert c == p == Outcome(1, message, None)
         assert sorted(os.listdir(tmp_path)) == ["adir", "good.csv"] and os.listdir(tmp_path / "adir") == []
 
 
-def test_usage_error_is_status_2(motor, tmp_path):
-    proc = subprocess.run([str(motor.artifacts.replay), "only-one"], capture_output=True, text=True)
+def test_usage_error_is_status_2(motor_built, tmp_path):
+    proc = subprocess.run([str(motor_built.artifacts.replay), "only-one"], capture_output=True, text=True)
     assert proc.returncode == 2 and proc.stderr.startswith("usage: ")
     err = io.StringIO()
     with contextlib.redirect_stderr(err):
-        status = main(["replay", str(motor.directory), "only-one"])
+        status = main(["replay", str(motor_built.directory), "only-one"])
     assert status == 2 and err.getvalue().count("\n") == 1 and err.getvalue().startswith("fdisyn replay: error: ")
 
 
-def test_the_output_gets_the_mode_of_a_new_file(motor, tmp_path):
-    res = both(motor, tmp_path, csv(*ROWS))
+def test_the_output_gets_the_mode_of_a_new_file(motor_built, tmp_path):
+    res = both(motor_built, tmp_path, csv(*ROWS))
     assert res.status == 0
     src = tmp_path / "in.csv"
     mask = os.umask(0)
     os.umask(mask)
     for run, name in ((replay_c, "c.csv"), (replay_py, "py.csv")):
-        run(motor, src, tmp_path / name)
+        run(motor_built, src, tmp_path / name)
         assert (tmp_path / name).stat().st_mode & 0o777 == 0o666 & ~mask
 
 
@@ -384,7 +373,7 @@ def _mutate(rng: np.random.Generator, data: bytes) -> bytes:
     return data
 
 
-def test_differential_fuzz(motor, tmp_path, monkeypatch):
+def test_differential_fuzz(motor_built, tmp_path, monkeypatch):
     """600 seeded mutations of a valid trace: identical bytes or the identical refusal, never a crash (~12 s).
 
     The Python side reads in chunks of 5 bytes to 1 MiB and hands out blocks of 1 to 4096 rows, so
@@ -397,7 +386,7 @@ def test_differential_fuzz(motor, tmp_path, monkeypatch):
         monkeypatch.setattr(trace, "_CHUNK", int(rng.choice([5, 64, 1 << 20])))
         monkeypatch.setattr(trace, "_BLOCK_ROWS", int(rng.choice([1, 3, 4096])))
         data = _mutate(rng, csv(*ROWS) if rng.random() < 0.9 else csv(*ROWS, end=b"\r\n"))
-        res = both(motor, tmp_path, data)
+        res = both(motor_built, tmp_path, data)
         seen[res.status] += 1
         kinds.add(re.sub(r"'[^']*'|\d+", "#", res.message.split(": ", 1)[-1].split(";")[0]))
     # the fuzzer must exercise both sides of the grammar and most of its refusals, not one of them over and over
@@ -432,7 +421,7 @@ def _exact(numeral: str) -> float:
         return sign * float("inf")
 
 
-def test_differential_fuzz_of_valid_files(motor, tmp_path):
+def test_differential_fuzz_of_valid_files(motor_built, tmp_path):
     """80 seeded valid files: random column order, quoting, blanks, line endings and numerals (up to
     400 digits, exponents at the ends of the double range). Both replays accept them, write the same
     bytes, and print each t as the correctly rounded double of its numeral."""
@@ -456,6 +445,6 @@ def test_differential_fuzz_of_valid_files(motor, tmp_path):
             times.append(row["t"])
             lines.append(",".join(row[names[i]] if names[i] == "note" else wrap(row[names[i]]) for i in order))
         eol = "\r\n" if rng.random() < 0.3 else "\n"
-        res = both(motor, tmp_path, (eol.join(lines) + (eol if rng.random() < 0.8 else "")).encode())
+        res = both(motor_built, tmp_path, (eol.join(lines) + (eol if rng.random() < 0.8 else "")).encode())
         assert res.status == 0 and res.output is not None, res.message
         assert [r[0] for r in _rows(res.output)] == ["%.17g" % _exact(s) for s in times]

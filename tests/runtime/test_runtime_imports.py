@@ -9,11 +9,8 @@ import subprocess
 import sys
 from pathlib import Path
 
-import fdisyn
 import pytest
-from fdisyn.app.plant_file import load_spec
 
-DATA = Path(__file__).parents[1] / "data"
 BLOCKED = ("casadi", "cvxpy", "clarabel", "control", "scipy", "matplotlib")
 
 PRELUDE = f"""
@@ -24,10 +21,9 @@ for name in {BLOCKED!r}:
 
 
 @pytest.fixture(scope="module")
-def motor_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    d = tmp_path_factory.mktemp("deploy") / "motor"
-    fdisyn.export(load_spec(DATA / "dc_motor.toml").design(), d)
-    return d
+def motor_dir(motor_built) -> Path:
+    """A deployed diagnoser: the session's compiled DC-motor folder (what ``fdisyn.export`` writes)."""
+    return motor_built.directory
 
 
 def _run(code: str) -> dict:
