@@ -3,9 +3,40 @@
 from __future__ import annotations
 
 import shutil
+import subprocess
+import tempfile
 from pathlib import Path
 
 import pytest
+
+_MYPY: list[tuple[subprocess.Popen, Path]] = []
+"""The mypy process of ``tests/test_typing.py`` and its scratch folder, while the session runs."""
+
+
+def pytest_collection_finish(session: pytest.Session) -> None:
+    """Start mypy as soon as ``tests/test_typing.py::test_mypy_passes`` is among the tests to run: a process of its
+    own for half a minute, it runs on the second core beside the other tests (which use one) instead of after them."""
+    for item in [] if session.config.option.collectonly else session.items:
+        if item.nodeid.endswith("test_typing.py::test_mypy_passes"):
+            scratch = Path(tempfile.mkdtemp(prefix="fdisyn-mypy-"))
+            _MYPY.append((item.module.start_mypy(scratch), scratch))  # type: ignore[attr-defined]
+            return
+
+
+def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
+    """A session that stops early (``-x``) does not leave mypy running; the scratch folder goes either way."""
+    for proc, scratch in _MYPY:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        shutil.rmtree(scratch, ignore_errors=True)
+    _MYPY.clear()
+
+
+@pytest.fixture(scope="session")
+def mypy_run() -> tuple[subprocess.Popen, Path]:
+    """The mypy process started when the tests were collected, and its scratch folder."""
+    return _MYPY[0]
 
 
 @pytest.fixture(scope="session")
