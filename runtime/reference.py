@@ -206,6 +206,11 @@ class LinearReference:
         self.release = [release_level(e) for e in gf.evaluators]
         self.glr_weights = {j: glr_weights(e.information, e.window) for j, e in enumerate(gf.evaluators) if e.kind == "glr"}
         self.r_slices = [slice(int(offsets[i]), int(offsets[i + 1])) for i in range(len(gf.generators))]
+        # looked up once rather than at every sample: the state's blocks by name, the outputs each generator
+        # reads and the statistics each feeds
+        self.blocks = {name: self.layout[name] for name, _, _ in self.layout.entries}
+        self.outputs_used = [list(gen.outputs_used) for gen in gf.generators]
+        self.statistics_of = [[j for j, ev in enumerate(gf.evaluators) if ev.generator == g] for g in range(len(gf.generators))]
 
     def init_state(self) -> np.ndarray:
         return self.gf.step.init_state.copy()
@@ -216,8 +221,9 @@ class LinearReference:
         return self._advance(step_state(state, st.nstate), sample_vector(u, "u", st.nu), sample_vector(y, "y", st.ny))
 
     def _advance(self, state: np.ndarray, u: np.ndarray, y: np.ndarray) -> StepOutput:
-        gf, lay = self.gf, self.layout
+        gf, lay = self.gf, self.blocks
         fin_u, fin_y = np.isfinite(u), np.isfinite(y)
+        all_u = bool(fin_u.all())
         us = np.where(fin_u, u, 0.0)
         ys = np.where(fin_y, y, 0.0)
         r = np.zeros(gf.step.nr)
@@ -227,14 +233,14 @@ class LinearReference:
         flags = np.zeros(gf.step.nj, dtype=int)
         overflow = False
         for g, gen in enumerate(gf.generators):
-            if not (np.all(fin_u) and np.all(fin_y[list(gen.outputs_used)])):
+            if not (all_u and fin_y[self.outputs_used[g]].all()):
                 continue
             sl = lay[f"xi{g}"]
             xi = gen.Xu @ us + gen.Xy @ ys if ready[g] == 0.0 else state[sl]
             with np.errstate(over="ignore", invalid="ignore"):
                 rg = gen.Cr @ xi + gen.Du @ us + gen.Dy @ ys
                 xi_next = gen.Ar @ xi + gen.Bu @ us + gen.By @ ys
-                evs = [j for j, ev in enumerate(gf.evaluators) if ev.generator == g]
+                evs = self.statistics_of[g]
                 jg = {j: float(rg @ gf.evaluators[j].W @ rg) for j in evs if gf.evaluators[j].kind not in SEQUENTIAL_KINDS}
                 windows = {}
                 for j in evs:
@@ -261,7 +267,7 @@ class LinearReference:
                         windows[j] = d
                         jg[j] = float(np.max(d * d * self.glr_weights[j]))
             # a finite but absurd value can overflow: the sample is then skipped like a non-finite one
-            if not (np.all(np.isfinite(rg)) and np.all(np.isfinite(xi_next)) and np.all(np.isfinite(list(jg.values())))):
+            if not (np.isfinite(rg).all() and np.isfinite(xi_next).all() and np.isfinite(list(jg.values())).all()):
                 overflow = True
                 ready[g] = 0.0  # restart at the next valid sample: the state may hold an absurd value
                 continue
@@ -281,14 +287,14 @@ class LinearReference:
                 flags[j] = int(counters[j] >= self.persistence)
         state[lay["ready"]] = ready
         state[lay["counters"]] = counters
-        bad = overflow or not (np.all(fin_u) and np.all(fin_y))
+        bad = overflow or not (all_u and fin_y.all())
         if bad:
             state[lay["nonfinite"]] += 1.0
-        match = np.flatnonzero(np.all(self.signatures == flags[None, :], axis=1))
+        match = np.flatnonzero((self.signatures == flags[None, :]).all(axis=1))
         return StepOutput(
             r=r,
             J=jv,
-            alarm=int(np.any(flags)),
+            alarm=int(flags.any()),
             isolated=int(match[0]) if match.size else -1,
             status=int(bad),
         )
