@@ -9,7 +9,6 @@ import control
 import fdisyn
 import numpy as np
 import pytest
-from fdisyn.app.cli import main
 from fdisyn.app.plant_file import load_spec
 from fdisyn.runtime.errors import ArgumentError, BuildError, ExistenceError, FileError, GainFileError, ShapeError
 from fdisyn.runtime.gainfile import read_gain_file, write_gain_file
@@ -27,13 +26,10 @@ TS = 0.001
 
 
 @pytest.fixture(scope="module")
-def motor(tmp_path_factory: pytest.TempPathFactory):
-    """The plant file's problem, its default design (the existing design path) and the exported folder."""
-    prob = load_spec(DATA / "dc_motor.toml")
-    gf = prob.design()
-    d = tmp_path_factory.mktemp("api") / "motor"
-    assert fdisyn.export(gf, d) == d
-    return prob, gf, d
+def motor(motor_built):
+    """The plant file's problem, its default design (the existing design path) and the session's folder of it:
+    its ``gains.json`` and what ``fdisyn codegen`` built from it."""
+    return load_spec(DATA / "dc_motor.toml"), motor_built.gain_file, motor_built.directory
 
 
 # --------------------------------------------------------------------------- export and load
@@ -41,18 +37,17 @@ def motor(tmp_path_factory: pytest.TempPathFactory):
 
 def test_export_writes_what_fdisyn_codegen_builds(motor, tmp_path) -> None:
     _, gf, d = motor
-    write_gain_file(gf, tmp_path / "gains.json")
-    assert main(["codegen", str(tmp_path)]) == 0
+    assert fdisyn.export(gf, tmp_path) == tmp_path
 
     def files(root: Path) -> dict[str, bytes]:
         return {str(p.relative_to(root)): p.read_bytes() for p in root.rglob("*") if p.is_file()}
 
-    ours, theirs = files(d), files(tmp_path)
+    ours, theirs = files(tmp_path), files(d)
     assert sorted(ours) == sorted(theirs)
     for rel in ours:  # the same gain file and C sources byte for byte (the binaries are gcc's)
         if rel == "gains.json" or rel.startswith("c/") and rel.endswith((".c", ".h")):
             assert ours[rel] == theirs[rel], rel
-    assert read_gain_file(d / "gains.json").name == gf.name == "dc_motor_kalman_uio"
+    assert read_gain_file(tmp_path / "gains.json").name == gf.name == "dc_motor_kalman_uio"
 
 
 def test_load_runs_the_compiled_library_and_its_verdicts_name_alarm_and_fault(motor) -> None:
