@@ -277,20 +277,35 @@ def _run(argv: list[str], what: str) -> None:
     a failure is one line naming the output, the first error and the log; no
     shell is involved.
     """
-    sources = [Path(a) for a in argv[1:] if a.endswith(".c")]
-    log = (sources[0].parent if sources else Path(what).parent) / "build.log"
+    _finish(_start(argv, what), argv, what)
+
+
+def _start(argv: list[str], what: str) -> subprocess.Popen[str]:
+    """Start one compiler command (:func:`_run`) without waiting for it."""
     try:
-        proc = subprocess.run(argv, capture_output=True, text=True, errors="replace", check=False)
+        return subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, errors="replace")
     except OSError as exc:
         raise BuildError(f"cannot run the C compiler {argv[0]!r} to build {what}: {exc.strerror or exc}") from exc
-    record = f"$ {shlex.join(argv)}\n{proc.stdout}{proc.stderr}exit status {proc.returncode}\n"
+
+
+def _finish(proc: subprocess.Popen[str], argv: list[str], what: str) -> None:
+    """Wait for a compiler command :func:`_start` started; log and judge it as :func:`_run` does."""
+    try:
+        stdout, stderr = proc.communicate()
+    except BaseException:  # interrupted: no compiler is left running
+        proc.kill()
+        proc.wait()
+        raise
+    sources = [Path(a) for a in argv[1:] if a.endswith(".c")]
+    log = (sources[0].parent if sources else Path(what).parent) / "build.log"
+    record = f"$ {shlex.join(argv)}\n{stdout}{stderr}exit status {proc.returncode}\n"
     try:
         fresh_path(log).write_text(record, encoding="utf-8")
         saved = f"the compiler's output is in {log}"
     except OSError as exc:
         saved = f"its output could not be saved to {log} ({exc.strerror or exc})"
     if proc.returncode != 0:
-        lines = (proc.stderr or proc.stdout).splitlines()
+        lines = (stderr or stdout).splitlines()
         first = next((ln for ln in lines if "error" in ln.lower()), lines[0] if lines else "no output")
         raise BuildError(
             f"compiling {what} failed (exit status {proc.returncode}): {first.strip()[:200]}; {saved}"
@@ -302,7 +317,12 @@ def compile_sources(gf: GainFile, c_dir: str | Path, out_dir: str | Path) -> tup
 
     Paths are made absolute, so a folder named like an option (``-o…``)
     never reaches the compiler as one. The library's build manifest (its
-    sha256 and the gain file's) is written next to it.
+    sha256 and the gain file's) is written next to it. The two compiles are
+    independent, so they run side by side (a core each where there are two)
+    and are judged and logged in turn, the library first: a failure of the
+    library is the one reported (the other compile is waited for, not killed,
+    so no half-written program is left), and ``build.log`` holds the same
+    output as when they ran one after the other.
     """
     check_diagnoser_name(gf.name, "name", error=GainFileError)
     c_dir, out_dir = Path(c_dir).absolute(), Path(out_dir).absolute()
@@ -310,9 +330,23 @@ def compile_sources(gf: GainFile, c_dir: str | Path, out_dir: str | Path) -> tup
     lib = out_dir / f"lib{gf.name}.so"
     replay = out_dir / "replay"
     wrapper = str(c_dir / f"{gf.name}.c")
-    _run([*cc, *CFLAGS, "-fPIC", "-shared", wrapper, "-o", str(lib), "-lm"], str(lib))
-    write_manifest(lib, gain_file_sha256(gf))
-    _run([*cc, *CFLAGS, str(c_dir / "replay.c"), wrapper, "-o", str(replay), "-lm"], str(replay))
+    lib_argv = [*cc, *CFLAGS, "-fPIC", "-shared", wrapper, "-o", str(lib), "-lm"]
+    replay_argv = [*cc, *CFLAGS, str(c_dir / "replay.c"), wrapper, "-o", str(replay), "-lm"]
+    started = [_start(lib_argv, str(lib))]
+    try:
+        started.append(_start(replay_argv, str(replay)))
+        _finish(started[0], lib_argv, str(lib))
+        write_manifest(lib, gain_file_sha256(gf))
+    except Exception:  # the first failure is reported; the other compile is waited for, not killed
+        for proc in started:
+            proc.communicate()
+        raise
+    except BaseException:  # interrupted: no compiler is left running
+        for proc in started:
+            proc.kill()
+            proc.wait()
+        raise
+    _finish(started[1], replay_argv, str(replay))
     return lib, replay
 
 
