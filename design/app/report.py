@@ -29,7 +29,7 @@ from fdisyn.runtime.gainfile import write_gain_file
 from fdisyn.synthesis.registry import recovery_samples
 from matplotlib.figure import Figure
 
-__all__ = ["ReportContext", "write_report", "subplots", "table", "fmt"]
+__all__ = ["Claim", "ReportContext", "write_report", "subplots", "table", "fmt", "label"]
 
 _CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;max-width:1150px;margin:2em auto;padding:0 1em;color:#1b1b1b;line-height:1.45}
@@ -55,6 +55,35 @@ def fmt(x: Any, digits: int = 4) -> str:
     if abs(v) >= 1e4 or abs(v) < 1e-3:
         return f"{v:.{digits - 1}e}"
     return f"{v:.{digits}g}"
+
+
+def label(problem: Problem | None, name: str) -> str:
+    """What a reader sees for an internal name: :attr:`Problem.labels` ``[name]``, else the name itself."""
+    labels = getattr(problem, "labels", None) or {}
+    return str(labels.get(name, name))
+
+
+VERDICTS = ("reproduced", "differs")
+
+
+@dataclass(frozen=True)
+class Claim:
+    """One of the paper's claims against ours, a row of the verdict each page opens with.
+
+    ``claim``: the paper's statement, cited; ``paper``: its figure or number; ``ours``: our measured figure
+    (formatted with :func:`fmt`); ``verdict``: ``"reproduced"`` or ``"differs"``; ``why``: one or two sentences,
+    required when it differs.
+    """
+
+    claim: str
+    paper: str
+    ours: str
+    verdict: str
+    why: str = ""
+
+    def __post_init__(self) -> None:
+        if self.verdict not in VERDICTS:
+            raise ValueError(f"a claim's verdict is one of {VERDICTS}; got {self.verdict!r} for {self.claim!r}")
 
 
 def table(header: Sequence[str], rows: Iterable[Sequence[Any]], *, left: int = 1) -> str:
@@ -182,10 +211,21 @@ def _designs_section(variant: Any) -> str:
             out.append(
                 '<p class="small">Smallest constant sensor bias that crosses the threshold on its own at steady state '
                 + ("(<code>sqrt(J_th / gᵀWg)</code>" if all(e.window == 1 for e in gf.evaluators) else "(<code>sqrt(J_th / (N gᵀWg))</code>, N the WSSR window")
-                + ", sensor units; — : sensor not used).</p>"
+                + ", sensor units). \"not used\": the generator does not read that sensor; \"∞ (steady state)\": it reads "
+                "it, but a constant bias on it has no steady-state effect on the residual (e.g. a bias that looks like a "
+                "constant unknown input, which the generator decouples): only the bias's onset transient shows.</p>"
             )
-            out.append(table(["generator", *sensors], [[g, *(row.get(s) for s in sensors)] for g, row in mdb.items()]))
+            cells = [[g, *(_bias_cell(row, s) for s in sensors)] for g, row in mdb.items()]
+            out.append(table(["generator", *sensors], cells))
     return "".join(out)
+
+
+def _bias_cell(row: dict[str, float | None], sensor: str) -> str:
+    """A cell of the smallest-detectable-bias table: the bias, "not used" (no key), "∞ (steady state)" (``None``)."""
+    if sensor not in row:
+        return "not used"
+    value = row[sensor]
+    return "∞ (steady state)" if value is None else fmt(value)
 
 
 def _other_designs_section(variant: Any) -> str:
@@ -475,6 +515,16 @@ def write_report(problem: Problem, variants: Sequence[Any], directory: Path) -> 
     ]
     if problem.notes:
         parts.append("<h2>Modelling choices</h2><ul>" + "".join(f"<li>{html.escape(n)}</li>" for n in problem.notes) + "</ul>")
+    if problem.claims is not None:
+        claims = list(problem.claims(ctx))
+        parts.append(
+            "<h2>The paper's claims against ours</h2>"
+            + table(
+                ["claim", "paper", "fdisyn", "verdict", "why"],
+                [[c.claim, c.paper, c.ours, c.verdict, c.why] for c in claims],
+                left=5,
+            )
+        )
     sections = problem.report(ctx) if problem.report is not None else _run_figures(ctx)
     for title, body in sections:
         parts.append(f"<h2>{html.escape(title)}</h2>{body}")
