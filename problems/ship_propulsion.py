@@ -348,7 +348,7 @@ def _excitation_table(records: Sequence[Mapping[str, Any]], dsg: NafdfDesign) ->
             text = "not isolable" if v == NOT_ISOLABLE else v
             if v == NOT_ISOLABLE:  # the parameter the data say least about, at the end of the runs
                 worst = max(bound, key=lambda q: np.median([sd(r["info"][q][1]) / bound[q] for r in rec["runs"]]))
-                text += f" (σ({worst}̂) {np.median([sd(r['info'][worst][1]) for r in rec['runs']]):.3g})"
+                text += f" (σ({worst}̂) {fmt(np.median([sd(r['info'][worst][1]) for r in rec['runs']]))})"
             parts.append(f"{text} {c}/{n}")
         return "; ".join(parts)
 
@@ -356,16 +356,16 @@ def _excitation_table(records: Sequence[Mapping[str, Any]], dsg: NafdfDesign) ->
         iso = [r["isolation_delay"] for r in rec["runs"] if r["isolation_delay"] is not None]
         det = [r["detection_delay"] for r in rec["runs"] if r["detection_delay"] is not None]
         episodes = max(r["alarm_episodes"] for r in rec["runs"])
-        text = f"{np.median(iso):.0f}" if iso else "–"
-        return f"{text} (detected {np.median(det):.0f}; ≤ {episodes} episode{'s' if episodes > 1 else ''})" if det else text
+        text = fmt(np.median(iso)) if iso else "never isolated"
+        return f"{text} (detected {fmt(np.median(det))}; ≤ {episodes} episode{'s' if episodes > 1 else ''})" if det else text
 
     rows, labels = [], [label for label, _ in EXCITATION_FAULTS]
     keys = list(dict.fromkeys((r["kind"], r["offset"], r["amplitude"]) for r in records))
     for kind, off, amp in keys:
         recs = {r["fault"]: r for r in records if (r["kind"], r["offset"], r["amplitude"]) == (kind, off, amp)}
         first = recs[labels[0]]["runs"]
-        sds = " / ".join(f"{np.median([sd(r['info'][q][0]) for r in first]):.3g}" for q in dsg.fault_names)
-        u = f"{off:g}" if kind == "constant" else f"{off:g} ± {amp:g}"
+        sds = " / ".join(fmt(np.median([sd(r["info"][q][0]) for r in first])) for q in dsg.fault_names)
+        u = fmt(off) if kind == "constant" else f"{fmt(off)} ± {fmt(amp)}"
         row: list[object] = [kind, u, sds]
         for label in labels:
             row += [verdict(recs[label]), delay(recs[label])]

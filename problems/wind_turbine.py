@@ -693,7 +693,7 @@ def _invisible_fault(v: Any, mm: Any, sc: Scenario) -> str:
         delay = mtbfa - length * p_none / (1.0 - p_none)
         text += (
             f". The alarms in its {fmt(length)} s are the false ones (one per {fmt(mtbfa)} s): they leave "
-            f"{fmt(p_none)} of the runs without an alarm, first alarm {fmt(delay)} s after the onset on average, "
+            f"{fmt(100 * p_none)} % of the runs without an alarm, the others' first {fmt(delay)} s after the onset on average, "
             "naming a random sensor — the measured figures"
         )
     return text + "."
