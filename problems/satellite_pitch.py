@@ -709,7 +709,7 @@ def _claims(ctx: Any) -> list[Any]:
             Claim(
                 "The robust decision raises no false alarm under model error and disturbance (He, Zhang & Wu c. 1999)",
                 "none",
-                f"{fmt(ff.false_alarm_rate)} per sample, in {fmt(ff.false_alarm_runs)} of the runs (levels set for "
+                f"{fmt(ff.false_alarm_rate)} per sample, in {fmt(100 * ff.false_alarm_runs)} % of the runs (levels set for "
                 f"P_f = {fmt(ctx.problem.check_options(v.options)['P_f'])})",
                 "reproduced" if ff.false_alarm_runs <= 0.05 else "differs",
                 "" if ff.false_alarm_runs <= 0.05 else "the explicit threshold, learned on 50 runs, is exceeded more often than its P_f",
@@ -734,8 +734,8 @@ def _claims(ctx: Any) -> list[Any]:
                 f"A {LABELS[f]} (κ = {fmt(KAPPA)} from 300 s) turns the residual into its own cone: detected and isolated "
                 "(He, Zhang & Wu c. 1999)",
                 "detected, isolated",
-                f"missed {fmt(mm.missed_detection_rate)}, delay mean {fmt(mm.detection_delay_mean_s)} s, isolated "
-                f"{fmt(mm.isolation_accuracy)}",
+                f"runs missed {fmt(100 * mm.missed_detection_rate)} %, delay mean {fmt(mm.detection_delay_mean_s)} s, isolated in "
+                f"{fmt(100 * (mm.isolation_accuracy or 0.0))} %",
                 "reproduced" if ok else "differs",
                 why,
             )

@@ -660,7 +660,7 @@ def _claims(ctx: ReportContext) -> list[Claim]:
             Claim(
                 "The jump a → a0/2 at t = 701 is detected by the EKF's WSSR (Zhou, Xi & Zhang c. 1991, section 3, fig. 3)",
                 f"at t = {PAPER['detection_time']} ({fmt(PAPER['detection_time'] - tf)} samples)",  # type: ignore[operator]
-                f"missed {fmt(mm.missed_detection_rate)}, delay mean {fmt(mm.detection_delay_mean_s)}, "
+                f"runs missed {fmt(100 * mm.missed_detection_rate)} %, delay mean {fmt(mm.detection_delay_mean_s)}, "
                 f"max {fmt(mm.detection_delay_max_s)} samples",
                 "differs" if late else "reproduced",
                 "some runs detect it later than the paper's single run" if late else "",
@@ -671,7 +671,7 @@ def _claims(ctx: ReportContext) -> list[Claim]:
             Claim(
                 "The Bayes classifier isolates the hull resistance a (Zhou, Xi & Zhang c. 1991, eq. (2.7), fig. 4)",
                 f"a, at t = {PAPER['isolation_time']}",
-                f"a in {fmt(mm.isolation_accuracy)} of the runs, median "
+                f"a in {fmt(100 * (mm.isolation_accuracy or 0.0))} % of the runs, median "
                 f"t = {fmt(tf + (mm.extra.get('isolation delay median (samples)') or 0.0))}",
                 "reproduced" if iso_ok else "differs",
                 "" if iso_ok else "runs whose NF did not converge in time end 'detected, not isolable'",

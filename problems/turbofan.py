@@ -715,7 +715,7 @@ def _claims(ctx: Any) -> list[Any]:
     if p3 is not None and p3.missed_detection_rate is not None:
         ok = p3.missed_detection_rate == 0.0 and (p3.isolation_accuracy or 0.0) >= 0.9
         out.append(Claim("After the P3 open circuit only the UIOs that exclude P3 stay small (Long & Wang 2017, figs. 10–11)",
-                         "P3 isolated", f"missed {fmt(p3.missed_detection_rate)}, isolated as P3 in {fmt(p3.isolation_accuracy)}",
+                         "P3 isolated", f"runs missed {fmt(100 * p3.missed_detection_rate)} %, isolated as P3 in {fmt(100 * (p3.isolation_accuracy or 0.0))} % of them",
                          "reproduced" if ok else "differs", "" if ok else "some runs name another sensor"))
     if "grouped" in m:
         weak = []
@@ -743,7 +743,7 @@ def _claims(ctx: Any) -> list[Any]:
         out.append(Claim(
             "Without grouping the UIOs for T5 and T25 are worse, and T25's residual is large without a fault (Long & Wang 2017, fig. 12)",
             "worse, T25 alarms",
-            f"fault-free runs with an alarm {fmt(ff_u.false_alarm_runs)} (grouped {fmt(ff_g.false_alarm_runs)}); T5/T25 delay "
+            f"fault-free runs with an alarm {fmt(100 * ff_u.false_alarm_runs)} % (grouped {fmt(100 * ff_g.false_alarm_runs)} %); T5/T25 delay "
             f"{fmt(delay['ungrouped'])} s (grouped {fmt(delay['grouped'])} s)",
             "reproduced" if worse else "differs",
             "" if worse else "A minimum-variance UIO loses nothing to linearly dependent outputs when each sensor has its own "

@@ -637,8 +637,8 @@ def _claims(ctx: ReportContext) -> list[Claim]:
                 continue
             sc = SCENARIOS[scen]
             ours = (
-                f"missed {fmt(mm.missed_detection_rate)}, mean delay {fmt(mm.detection_delay_mean_s)} s, "
-                f"isolated {fmt(mm.isolation_accuracy)}"
+                f"runs missed {fmt(100 * mm.missed_detection_rate)} %, mean delay {fmt(mm.detection_delay_mean_s)} s, "
+                f"isolated in {fmt(100 * (mm.isolation_accuracy or 0.0))} %"
             )
             good = mm.missed_detection_rate == 0 and (mm.detection_delay_mean_s or 0.0) < 2.0 and (mm.isolation_accuracy or 0.0) >= 0.9
             why = ""

@@ -346,7 +346,7 @@ def _claims(ctx: ReportContext) -> list[Claim]:
             "A parameter jump is detected by the EKF's WSSR (Zhou, Xi & Zhang c. 1991, eq. (2.4)); here the benchmark's "
             f"efficiency drop η: {fmt(ETA_NOMINAL)} → {fmt(ETA_FAULTY)}",
             "detected",
-            f"missed {fmt(mm.missed_detection_rate)}, delay mean {fmt(mm.detection_delay_mean_s)} s, max "
+            f"runs missed {fmt(100 * mm.missed_detection_rate)} %, delay mean {fmt(mm.detection_delay_mean_s)} s, max "
             f"{fmt(mm.detection_delay_max_s)} s",
             "reproduced" if mm.missed_detection_rate == 0.0 else "differs",
             "" if mm.missed_detection_rate == 0.0 else "some runs end without an alarm during the fault",
@@ -354,7 +354,7 @@ def _claims(ctx: ReportContext) -> list[Claim]:
         Claim(
             "The jumping parameter is isolated by the Bayes classifier (Zhou, Xi & Zhang c. 1991, eq. (2.7))",
             "isolated",
-            f"η in {fmt(iso)} of the runs, median {fmt(mm.extra.get('isolation delay median (samples)'))} samples "
+            f"η in {fmt(100 * iso)} % of the runs, median {fmt(mm.extra.get('isolation delay median (samples)'))} samples "
             "after the onset",
             "reproduced" if iso >= 0.95 else "differs",
             "" if iso >= 0.95 else "runs whose NF had not converged by the end of the run stay unisolated",
