@@ -545,9 +545,9 @@ def _report(ctx: Any) -> list[tuple[str, str]]:
             ax = axes[row][col]
             for jf, g in enumerate(faults):
                 ax.plot(b.t, np.degrees(res.J[:, names.index(f"angle_{g}")]), lw=0.8, color=("tab:blue", "tab:orange")[jf],
-                        label=f"angle to the {LABELS[g]} direction")
+                        label=f"angle to the {g.replace('_', '-')} direction")
                 ax.plot(b.t, np.degrees(res.J[:, names.index(f"cone_{g}")]), lw=0.8, ls="--", color=("tab:blue", "tab:orange")[jf],
-                        label=f"cone half-angle I_th, {LABELS[g]}")
+                        label=f"cone half-angle I_th of the {g.replace('_', '-')}")
             shade(ax, b.t, b.active)
             ax.set_ylim(0, 92)
             ax.set_title(f"{d}: {LABELS[f]} κ = {fmt(KAPPA)}", fontsize=10)
@@ -588,6 +588,7 @@ def _report(ctx: Any) -> list[tuple[str, str]]:
     ax.legend(fontsize=9, loc="lower left", bbox_to_anchor=(0.0, 1.01), frameon=False, markerscale=6)
     ax.set_xlabel("residual along the pitch-wheel direction (orthonormal plane of the two fault directions)", fontsize=10)
     ax.set_ylabel("residual across it, in that plane", fontsize=10)
+    ax.ticklabel_format(style="sci", scilimits=(-2, 2))
     ax.grid(alpha=0.3)
     sections.append(("Figures — the residual in output space", ctx.figure(
         "residual_plane", fig, f"Window-mean residual of run 0 ({d} filter) projected on the plane of the two fault directions: "
@@ -731,7 +732,7 @@ def _claims(ctx: Any) -> list[Any]:
             why = "the fault's window-mean residual does not leave its fault-free level far enough for a narrow cone"
         out.append(
             Claim(
-                f"A {LABELS[f]} (κ = {fmt(KAPPA)} from 300 s) turns the residual into its own cone: detected and isolated "
+                f"{'An' if LABELS[f][0] in 'aeiou' else 'A'} {LABELS[f]} (κ = {fmt(KAPPA)} from 300 s) turns the residual into its own cone: detected and isolated "
                 "(He, Zhang & Wu c. 1999)",
                 "detected, isolated",
                 f"runs missed {fmt(100 * mm.missed_detection_rate)} %, delay mean {fmt(mm.detection_delay_mean_s)} s, isolated in "

@@ -713,8 +713,12 @@ def _claims(ctx: ReportContext) -> list[Claim]:
             Claim(
                 "WSSR threshold β0 (Zhou, Xi & Zhang c. 1991, section 3)",
                 fmt(PAPER["beta0"]),
-                f"χ²₁₋P_f(N)/N = {fmt(thr)} (P_f = {fmt(p_f)}, N = {window}): one alarm episode every "
-                f"{fmt(ff.mean_time_between_false_alarms_s)} samples",
+                f"χ²₁₋P_f(N)/N = {fmt(thr)} (P_f = {fmt(p_f)}, N = {window}): "
+                + (
+                    f"one alarm episode every {fmt(ff.mean_time_between_false_alarms_s)} samples"
+                    if ff.mean_time_between_false_alarms_s
+                    else f"no alarm episode in {fmt(ff.fault_free_samples)} samples"
+                ),
                 "differs",
                 "The WSSR of eq. (2.4) has a fault-free mean of 1, so β0 = 0.01 as printed would alarm at almost every "
                 "sample; fdisyn sets the threshold from a false-alarm probability instead.",
