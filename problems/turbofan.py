@@ -732,8 +732,8 @@ def _claims(ctx: Any) -> list[Any]:
                 if [w[0] for w in weak] == ["T42"]
                 else "the signature table's patterns of these sensors are not separated at this noise level"
             ) + "."
-        out.append(Claim("A bias or drift of any one sensor is isolated by the bank's alarm pattern (Long & Wang 2017, section 3)",
-                         "every sensor", "every sensor" if not weak else "all but " + ", ".join(f"{w[0]} ({fmt(w[1])})" for w in weak),
+        out.append(Claim("A bias or drift of any one sensor is isolated by the bank's alarm pattern (Long & Wang 2017)",
+                         "every sensor", "every sensor" if not weak else "all but " + ", ".join(f"{w[0]} (isolated in {fmt(100 * w[1])} % of runs)" for w in weak),
                          "reproduced" if not weak else "differs", why))
     if {"grouped", "ungrouped"} <= set(m):
         ff_g, ff_u = m["grouped"]["fault_free"], m["ungrouped"]["fault_free"]

@@ -693,8 +693,9 @@ def _invisible_fault(v: Any, mm: Any, sc: Scenario) -> str:
         delay = mtbfa - length * p_none / (1.0 - p_none)
         text += (
             f". The alarms in its {fmt(length)} s are the false ones (one per {fmt(mtbfa)} s): they leave "
-            f"{fmt(100 * p_none)} % of the runs without an alarm, the others' first {fmt(delay)} s after the onset on average, "
-            "naming a random sensor — the measured figures"
+            f"{fmt(100 * p_none)} % of the runs without an alarm and raise the others' first {fmt(delay)} s after the onset "
+            f"on average (measured: {fmt(100 * (mm.missed_detection_rate or 0.0))} % and {fmt(mm.detection_delay_mean_s)} s), "
+            "naming a random sensor"
         )
     return text + "."
 
