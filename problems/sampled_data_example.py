@@ -25,7 +25,7 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
-from fdisyn.app.report import ReportContext, shade, subplots, table
+from fdisyn.app.report import Claim, ReportContext, fmt, shade, subplots, table
 from fdisyn.evaluation.sampled_data_simulation import simulate_sampled_data
 from fdisyn.models.linear import LinearPlant
 from fdisyn.models.problem import Batch, Problem, Scenario
@@ -269,6 +269,39 @@ NOTES = (
     "‖V G_ed‖∞ with the fault side normalised; exact when G_dJ has full row normal rank (as here).",
 )
 
+def _claims(ctx: ReportContext) -> list[Claim]:
+    """Two of Qiu, Wen & Jiang 2010's claims (section 4) against the main designs' Monte Carlo."""
+    m = ctx.variants[0].evaluation.metrics
+    direct, indirect = m["direct"]["paper"], m["indirect"]["paper"]
+    return [
+        Claim(
+            claim="The direct design detects the fault of 10 at 60 s at once (Qiu, Wen & Jiang 2010, fig. 2).",
+            paper="detected at 60 s",
+            ours=f"missed {fmt(direct.missed_detection_rate)} of runs, mean delay {fmt(direct.detection_delay_mean_s)} s",
+            verdict="reproduced" if direct.missed_detection_rate == 0.0 else "differs",
+            why="" if direct.missed_detection_rate == 0.0 else "Some runs never alarmed while the fault was active.",
+        ),
+        Claim(
+            claim="The indirect design (discretise first) cannot detect the fault (Qiu, Wen & Jiang 2010, fig. 3).",
+            paper="not detected",
+            ours=f"missed {fmt(indirect.missed_detection_rate)} of runs, mean delay {fmt(indirect.detection_delay_mean_s)} s",
+            verdict="differs" if indirect.missed_detection_rate == 0.0 else "reproduced",
+            why="With a χ² threshold for its own residual covariance (equal false-alarm probability) the indirect design's "
+            "ratio J is only 8 % worse than the direct one's, so it detects the fault as promptly.",
+        ),
+    ]
+
+
+LABELS = {
+    "y1": "output y1",
+    "y2": "output y2",
+    "f": "fault f",
+    "direct": "direct (Theorem 1)",
+    "indirect": "indirect (ZOH first)",
+    "lmi": "LMI (η = ∞)",
+}
+"""Readable names of the signals, the fault and the designs."""
+
 PROBLEM = Problem(
     name="sampled_data_example",
     title="Optimal diagnostic observer for a sampled-data system",
@@ -290,4 +323,7 @@ PROBLEM = Problem(
     ),
     report=_report,
     notes=NOTES,
+    claims=_claims,
+    labels=LABELS,
+    model=lambda **_: PLANT,
 )

@@ -270,6 +270,9 @@ def _cmd_reproduce(a: argparse.Namespace) -> None:
         with _user_paths("writable directories with room for the reports", ("--reports", a.reports), ("--workdir", a.workdir)):
             out = reproduce_problem(prob, runs=a.runs, reports=Path(a.reports), workdir=Path(a.workdir), variants=a.variants)
         print(f"wrote {out}")
+    from fdisyn.app.report import summary_table
+
+    print(summary_table(Path(a.reports), [p.name for p in problems]))
 
 
 def _cmd_bench(a: argparse.Namespace) -> None:
