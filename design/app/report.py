@@ -191,7 +191,7 @@ def _tidy(fig: Figure, problem: Problem | None) -> None:
         ax.legend(handles, texts, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=MIN_FONT_PT,
                   ncol=ncol, frameon=False)
     for t in fig.findobj(Text):
-        if t.get_text() and t.get_fontsize() < MIN_FONT_PT:
+        if t.get_text() and float(t.get_fontsize()) < MIN_FONT_PT:
             t.set_fontsize(MIN_FONT_PT)
     for _ in range(3):
         renderer = fig.canvas.get_renderer() if hasattr(fig.canvas, "get_renderer") else None
