@@ -179,14 +179,17 @@ def scaled_scenario(scenario: Scenario, k: float) -> Scenario | None:
     if isinstance(params.get("size"), (int, float)):
         params["size"] = params["size"] * k
     elif params.get("sensor_faults"):
-        faults = []
-        for sensor, kind, value in params["sensor_faults"]:
+        faults: list[Any] = []
+        for spec in params["sensor_faults"]:
+            # (sensor, kind, value) tuples, or specs with those fields (plant files)
+            sensor, kind, value = spec if isinstance(spec, (tuple, list)) else (spec.sensor, spec.kind, spec.value)
             if kind == "gain":
-                faults.append((sensor, kind, 1.0 + k * (value - 1.0)))
+                value = 1.0 + k * (value - 1.0)
             elif kind.startswith("offset") or kind.startswith("drift"):
-                faults.append((sensor, kind, k * value))
+                value = k * value
             else:
                 return None
+            faults.append((sensor, kind, value) if isinstance(spec, (tuple, list)) else replace(spec, value=value))
         params["sensor_faults"] = faults
     else:
         return None
