@@ -44,6 +44,7 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 from fdisyn import __version__
+from fdisyn.app import WORKDIR
 from fdisyn.runtime.errors import ArgumentError, FdisynError, FileError, InternalError
 
 __all__ = ["main"]
@@ -106,7 +107,7 @@ def _under(name: str | bytes | int | None, root: Path) -> bool:
 def _user_paths(expected: str, *paths: tuple[str, str | Path]) -> Iterator[None]:
     """Report an ``OSError`` about a path the user named (or a full disk while writing) as one line.
 
-    ``paths`` are ``(option, path)`` pairs, e.g. ``("--out", "build/motor")``;
+    ``paths`` are ``(option, path)`` pairs, e.g. ``("--out", "motor")``;
     the line names the option and path concerned and what was ``expected``.
     An ``OSError`` about any other file is not the user's input and propagates
     unchanged: :func:`main` reports it as a bug (status 3).
@@ -337,8 +338,8 @@ def _parser() -> argparse.ArgumentParser:
         description="Design FDI diagnosers as optimisation problems, export them as C, judge them.",
         epilog=_examples(
             "fdisyn list",
-            "fdisyn design tests/data/dc_motor.toml --out build/motor",
-            "fdisyn codegen build/motor",
+            "fdisyn design tests/data/dc_motor.toml --out motor",
+            "fdisyn codegen motor",
             "fdisyn design wind_turbine --help",
         ),
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -365,15 +366,15 @@ def _parser() -> argparse.ArgumentParser:
         )
 
     def work(p: argparse.ArgumentParser) -> None:
-        p.add_argument("--workdir", default="build", help="where designs are built and compiled (default: build)")
+        p.add_argument("--workdir", default=str(WORKDIR), help=f"where designs are built and compiled (default: {WORKDIR})")
 
     p = command(
         "design",
         "design a diagnoser and write DIR/gains.json",
         "Design a diagnoser of SPEC, verify it against its certificate and write the gain file DIR/gains.json.",
-        "fdisyn design wind_turbine --out build/wt",
-        "fdisyn design wind_turbine --design uio_pole_placement --out build/wt_poles",
-        "fdisyn design tests/data/dc_motor.toml --out build/motor --option P_f=1e-4",
+        "fdisyn design wind_turbine --out wt",
+        "fdisyn design wind_turbine --design uio_pole_placement --out wt_poles",
+        "fdisyn design tests/data/dc_motor.toml --out motor --option P_f=1e-4",
     )
     p.add_argument("spec", metavar="SPEC", help=_SPEC)
     p.add_argument("--out", required=True, metavar="DIR", help="the directory to write gains.json in (created if missing)")
@@ -386,8 +387,8 @@ def _parser() -> argparse.ArgumentParser:
         "generate and compile the C step of DIR/gains.json",
         "Generate the C step of DIR/gains.json (DIR/c/), compile the shared library DIR/lib<name>.so with its build "
         "manifest and the replay program DIR/replay; the C compiler is $CC (default gcc).",
-        "fdisyn codegen build/motor",
-        "CC='gcc -m32' fdisyn codegen build/motor",
+        "fdisyn codegen motor",
+        "CC='gcc -m32' fdisyn codegen motor",
     )
     p.add_argument("dir", metavar="DIR", help="the directory holding gains.json (fdisyn design --out DIR)")
     p.set_defaults(fn=_cmd_codegen)
@@ -397,7 +398,7 @@ def _parser() -> argparse.ArgumentParser:
         "run DIR's compiled diagnoser over a trace CSV",
         "Stream IN.csv through the compiled diagnoser of DIR into OUT.csv (t, alarm, isolated, J0…, r0…), "
         "byte for byte what DIR/replay writes; the README's \"Replay CSV grammar\" is the input format.",
-        "fdisyn replay build/motor trace.csv alarms.csv",
+        "fdisyn replay motor trace.csv alarms.csv",
     )
     p.add_argument("dir", metavar="DIR", help="the directory fdisyn codegen built (gains.json and lib<name>.so)")
     p.add_argument("input", metavar="IN.csv", help="the trace: a header row with t and every input and output of the diagnoser")
@@ -424,7 +425,7 @@ def _parser() -> argparse.ArgumentParser:
         "Design, export and compile one design of SPEC, run it over --runs simulated runs of every scenario and write "
         "the metrics (false-alarm rate, missed detections, detection delay, isolation accuracy) as JSON.",
         "fdisyn evaluate wind_turbine --design kalman_uio --runs 20 --out metrics.json",
-        "fdisyn evaluate tests/data/dc_motor.toml --runs 5 --seed 100 --out motor.json --workdir /tmp/build",
+        "fdisyn evaluate tests/data/dc_motor.toml --runs 5 --seed 100 --out motor.json --workdir /tmp/fdisyn",
     )
     p.add_argument("spec", metavar="SPEC", help=_SPEC)
     p.add_argument("--design", default=None, metavar="NAME", help="which of the problem's designs (default: the problem's default)")

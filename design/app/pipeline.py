@@ -18,6 +18,7 @@ from typing import Any
 
 import casadi as ca
 import numpy as np
+from fdisyn.app import WORKDIR
 from fdisyn.codegen.step import step_function
 from fdisyn.evaluation.evaluate import Built, Evaluation, build, evaluate, progress_printer
 from fdisyn.models.problem import Problem, scaled_scenario
@@ -223,7 +224,7 @@ class VariantResult:
 
 
 def reproduce_problem(
-    problem: Problem, *, runs: int | None = None, reports: Path = Path("reports"), workdir: Path = Path("build"),
+    problem: Problem, *, runs: int | None = None, reports: Path = Path("reports"), workdir: Path = WORKDIR,
     variants: Sequence[str] | None = None,
 ) -> Path:
     """Run the whole pipeline for ``problem`` and write its report; return the page's path.
