@@ -385,7 +385,7 @@ def _parser() -> argparse.ArgumentParser:
     p = command(
         "codegen",
         "generate and compile the C step of DIR/gains.json",
-        "Generate the C step of DIR/gains.json (DIR/c/), compile the shared library DIR/lib<name>.so with its build "
+        "Generate the C step of DIR/gains.json (DIR/c/), compile the shared library DIR/lib<name>.so (.dylib on macOS, .dll on Windows) with its build "
         "manifest and the replay program DIR/replay; the C compiler is $CC (default gcc).",
         "fdisyn codegen motor",
         "CC='gcc -m32' fdisyn codegen motor",

@@ -10,6 +10,7 @@ import fdisyn
 import numpy as np
 import pytest
 from fdisyn.app.plant_file import load_spec
+from fdisyn.runtime.compiled import library_suffix
 from fdisyn.runtime.errors import ArgumentError, BuildError, ExistenceError, FileError, GainFileError, ShapeError
 from fdisyn.runtime.gainfile import read_gain_file, write_gain_file
 from fdisyn.runtime.reference import LinearReference
@@ -71,7 +72,7 @@ def test_load_and_export_refuse_with_the_error_classes(motor, tmp_path) -> None:
     with pytest.raises(FileError, match="no gain file at"):  # a missing file
         fdisyn.load(tmp_path / "nowhere")
     write_gain_file(gf, tmp_path / "only" / "gains.json")
-    with pytest.raises(BuildError, match=r"no compiled diagnoser at .*libdc_motor_kalman_uio.so; run `fdisyn codegen`"):
+    with pytest.raises(BuildError, match=rf"no compiled diagnoser at .*libdc_motor_kalman_uio{library_suffix()}; run `fdisyn codegen`"):
         fdisyn.load(tmp_path / "only")
     assert fdisyn.load(tmp_path / "only", backend="reference").backend == "reference"
     with pytest.raises(ArgumentError, match="backend must be"):
