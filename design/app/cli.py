@@ -284,7 +284,7 @@ def _cmd_bench(a: argparse.Namespace) -> None:
     _output_dir(a.workdir, "--workdir")
     specs = a.specs or problem_names()
     with _user_paths("a writable file and directory with room for the benchmark", ("--out", out), ("--workdir", a.workdir)):
-        path = run_bench([_problem(s) for s in specs], out=out, workdir=Path(a.workdir))
+        path = run_bench([_problem(s) for s in specs], out=out, workdir=Path(a.workdir), sdp=a.sdp or not a.specs)
     print(f"wrote {path}")
 
 
@@ -466,11 +466,15 @@ def _parser() -> argparse.ArgumentParser:
         "bench",
         "time the compiled step against the NumPy reference",
         "Time the compiled step of each SPEC's designs (per sample, per block) against the NumPy reference and write "
-        "the table as Markdown.",
+        "the table as Markdown; the full bench (no SPEC) or --sdp adds the SDP solve times of the LMI toolkit.",
         "fdisyn bench",
         "fdisyn bench ship_propulsion --out /tmp/bench.md",
+        "fdisyn bench wind_turbine --sdp",
     )
     p.add_argument("specs", nargs="*", metavar="SPEC", help=_SPEC + "; none: every built-in problem")
+    p.add_argument(
+        "--sdp", action="store_true", help="also time the SDPs of the LMI toolkit (several seconds; always done without SPEC)"
+    )
     p.add_argument("--out", default="reports/bench.md", help="the Markdown file to write (default: reports/bench.md)")
     work(p)
     p.set_defaults(fn=_cmd_bench)
