@@ -12,6 +12,7 @@
     fdisyn bench [SPEC ...] [--out reports/bench.md]
     fdisyn list
     fdisyn methods
+    fdisyn example [NAME [--out PATH] [--force]]
     fdisyn --version
 
 ``SPEC`` is a built-in problem name (``fdisyn list``) or the path of a TOML
@@ -300,6 +301,21 @@ def _cmd_list(a: argparse.Namespace) -> None:
             print(f"  options:   {', '.join(f'{k}={v!r}' for k, v in p.options.items())}")
 
 
+def _cmd_example(a: argparse.Namespace) -> None:
+    from fdisyn.app.examples import example_names, example_title, write_example
+
+    if a.name is None:
+        if a.out is not None or a.force:
+            raise ArgumentError("--out and --force need the NAME of an example; fdisyn example lists them")
+        for name in example_names():
+            print(f"{name}: {example_title(name)}")
+        return
+    out = _output_file(f"{a.name}.toml" if a.out is None else a.out, "--out")
+    with _user_paths("a writable file name", ("--out", out)):
+        path = write_example(a.name, out, force=a.force)
+    print(f"wrote {path}: the example plant file {a.name!r}; fdisyn design {path} --out DIR designs it")
+
+
 def _cmd_methods(a: argparse.Namespace) -> None:
     from fdisyn.synthesis.registry import REQUIRED, all_methods
 
@@ -338,7 +354,8 @@ def _parser() -> argparse.ArgumentParser:
         description="Design FDI diagnosers as optimisation problems, export them as C, judge them.",
         epilog=_examples(
             "fdisyn list",
-            "fdisyn design tests/data/dc_motor.toml --out motor",
+            "fdisyn example dc_motor",
+            "fdisyn design dc_motor.toml --out motor",
             "fdisyn codegen motor",
             "fdisyn design wind_turbine --help",
         ),
@@ -374,7 +391,7 @@ def _parser() -> argparse.ArgumentParser:
         "Design a diagnoser of SPEC, verify it against its certificate and write the gain file DIR/gains.json.",
         "fdisyn design wind_turbine --out wt",
         "fdisyn design wind_turbine --design uio_pole_placement --out wt_poles",
-        "fdisyn design tests/data/dc_motor.toml --out motor --option P_f=1e-4",
+        "fdisyn design dc_motor.toml --out motor --option P_f=1e-4",
     )
     p.add_argument("spec", metavar="SPEC", help=_SPEC)
     p.add_argument("--out", required=True, metavar="DIR", help="the directory to write gains.json in (created if missing)")
@@ -409,7 +426,7 @@ def _parser() -> argparse.ArgumentParser:
         "simulate",
         "simulate one run of a scenario to a trace CSV",
         "Simulate one run of a scenario of SPEC and write its trace (t, inputs, outputs, the truth, fault_active) as CSV.",
-        "fdisyn simulate tests/data/dc_motor.toml --scenario speed_sensor_offset --seed 1 --out trace.csv",
+        "fdisyn simulate dc_motor.toml --scenario speed_sensor_offset --seed 1 --out trace.csv",
         "fdisyn simulate wind_turbine --scenario fault_free --out trace.csv --option parameters=paper",
     )
     p.add_argument("spec", metavar="SPEC", help=_SPEC)
@@ -425,7 +442,7 @@ def _parser() -> argparse.ArgumentParser:
         "Design, export and compile one design of SPEC, run it over --runs simulated runs of every scenario and write "
         "the metrics (false-alarm rate, missed detections, detection delay, isolation accuracy) as JSON.",
         "fdisyn evaluate wind_turbine --design kalman_uio --runs 20 --out metrics.json",
-        "fdisyn evaluate tests/data/dc_motor.toml --runs 5 --seed 100 --out motor.json --workdir /tmp/fdisyn",
+        "fdisyn evaluate dc_motor.toml --runs 5 --seed 100 --out motor.json --workdir /tmp/fdisyn",
     )
     p.add_argument("spec", metavar="SPEC", help=_SPEC)
     p.add_argument("--design", default=None, metavar="NAME", help="which of the problem's designs (default: the problem's default)")
@@ -443,8 +460,8 @@ def _parser() -> argparse.ArgumentParser:
             ("Run the whole pipeline for each SPEC (default: every built-in problem) and write " if many else "Run the whole pipeline for SPEC and write ")
             + "REPORTS/<problem>/index.html: the designs and their certificates, the agreement of the generated C with "
             "the Python references, Monte Carlo metrics and figures.",
-            *(("fdisyn reproduce", "fdisyn reproduce wind_turbine tests/data/dc_motor.toml --runs 5 --reports /tmp/reports")
-              if many else ("fdisyn report sampled_data_example --runs 10", "fdisyn report tests/data/ship.toml --reports /tmp/reports"))
+            *(("fdisyn reproduce", "fdisyn reproduce wind_turbine dc_motor.toml --runs 5 --reports /tmp/reports")
+              if many else ("fdisyn report sampled_data_example --runs 10", "fdisyn report ship.toml --reports /tmp/reports"))
         )
         if many:
             p.add_argument("specs", nargs="*", metavar="SPEC", help=_SPEC + "; none: every built-in problem")
@@ -491,6 +508,20 @@ def _parser() -> argparse.ArgumentParser:
         "fdisyn methods",
     )
     p.set_defaults(fn=_cmd_methods)
+
+    p = command(
+        "example",
+        "write an example plant file (none: list them)",
+        "Write the example plant file NAME (a TOML file to read, change and design) to --out (default NAME.toml in the "
+        "current directory); without NAME, list the examples. An existing file is replaced only with --force.",
+        "fdisyn example",
+        "fdisyn example dc_motor",
+        "fdisyn example ship --out my_ship.toml",
+    )
+    p.add_argument("name", nargs="?", default=None, metavar="NAME", help="the example to write (fdisyn example lists them)")
+    p.add_argument("--out", default=None, metavar="PATH", help="the file to write (default: NAME.toml)")
+    p.add_argument("--force", action="store_true", help="replace PATH if it exists")
+    p.set_defaults(fn=_cmd_example)
     return ap
 
 

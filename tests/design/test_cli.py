@@ -5,16 +5,16 @@ from __future__ import annotations
 import argparse
 import json
 import subprocess
-from pathlib import Path
 
 import fdisyn
 import numpy as np
 import pytest
 from fdisyn.app.cli import _parser, main
+from fdisyn.app.examples import EXAMPLES
 from fdisyn.runtime.compiled import library_suffix
 from fdisyn.runtime.gainfile import read_gain_file
 
-DATA = Path(__file__).parents[1] / "data"
+DATA = EXAMPLES
 
 
 def test_built_in_problem_design_codegen_simulate_replay(tmp_path, capsys):
