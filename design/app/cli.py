@@ -23,7 +23,9 @@ is wrong and what was expected: every :class:`FdisynError` (see
 :mod:`fdisyn.runtime.errors`), every usage error (argparse's own messages
 included, without the usage block), and an ``OSError`` met while reading or
 writing a path the user named (a file given as a directory, no permission, a
-full disk). Anything else is a bug: an :class:`InternalError` or any other
+full disk), and a design package missing from a runtime-only installation
+(the line names it and the extra, ``fdisyn[design]``, that installs it:
+``replay``, ``example`` and ``--version`` need NumPy alone). Anything else is a bug: an :class:`InternalError` or any other
 exception ends with status 3 and one line, ``fdisyn <command>: internal
 error: … — please report; FDISYN_DEBUG=1 shows the traceback`` (with
 ``FDISYN_DEBUG=1`` in the environment the traceback is printed before it).
@@ -45,7 +47,7 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 from fdisyn import __version__
-from fdisyn.app import WORKDIR
+from fdisyn.app import DESIGN_EXTRA, WORKDIR, missing_design_package
 from fdisyn.runtime.errors import ArgumentError, FdisynError, FileError, InternalError
 
 __all__ = ["main"]
@@ -559,6 +561,16 @@ def main(argv: Sequence[str] | None = None) -> int:
                 print(f"fdisyn {args.command}: error: {_one_line(exc)}", file=sys.stderr)
                 return 2
             return _internal_error(args.command, exc, str(exc))
+        except ModuleNotFoundError as exc:
+            package = missing_design_package(exc)
+            if package is None:
+                return _internal_error(args.command, exc, f"{type(exc).__name__}: {exc}")
+            print(
+                f"fdisyn {args.command}: error: this command needs {package}, which is not installed (a runtime-only "
+                f"installation); expected fdisyn's design packages: python3 -m pip install 'fdisyn[{DESIGN_EXTRA}]'",
+                file=sys.stderr,
+            )
+            return 2
         except Exception as exc:  # a bug: one line, never a bare traceback
             return _internal_error(args.command, exc, f"{type(exc).__name__}: {exc}")
     for text in dict.fromkeys(f"{w.category.__name__}: {_one_line(w.message)}" for w in caught):
