@@ -25,9 +25,10 @@ included, without the usage block), and an ``OSError`` met while reading or
 writing a path the user named (a file given as a directory, no permission, a
 full disk), and a design package missing from a runtime-only installation
 (the line names it and the extra, ``fdisyn[design]``, that installs it:
-``replay``, ``example`` and ``--version`` need NumPy alone). Anything else is a bug: an :class:`InternalError` or any other
-exception ends with status 3 and one line, ``fdisyn <command>: internal
-error: … — please report; FDISYN_DEBUG=1 shows the traceback`` (with
+``replay``, ``example`` and ``--version`` need NumPy alone). Anything else
+is a bug: an :class:`InternalError` or any other exception ends with status
+3 and one line, ``fdisyn <command>: internal error: … — please report;
+FDISYN_DEBUG=1 shows the traceback`` (with
 ``FDISYN_DEBUG=1`` in the environment the traceback is printed before it).
 """
 
@@ -404,8 +405,8 @@ def _parser() -> argparse.ArgumentParser:
     p = command(
         "codegen",
         "generate and compile the C step of DIR/gains.json",
-        "Generate the C step of DIR/gains.json (DIR/c/), compile the shared library DIR/lib<name>.so (.dylib on macOS, .dll on Windows) with its build "
-        "manifest and the replay program DIR/replay; the C compiler is $CC (default gcc).",
+        "Generate the C step of DIR/gains.json (DIR/c/), compile the shared library DIR/lib<name>.so (.dylib on macOS, "
+        ".dll on Windows) with its build manifest and the replay program DIR/replay; the C compiler is $CC (default gcc).",
         "fdisyn codegen motor",
         "CC='gcc -m32' fdisyn codegen motor",
     )
