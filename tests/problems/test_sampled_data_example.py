@@ -3,12 +3,11 @@ designs, the χ² law, detection, C export, the TOML route."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 import scipy.stats
 from fdisyn.app.cli import main
+from fdisyn.app.examples import EXAMPLES
 from fdisyn.app.pipeline import EXPORT_TOL, check_export, export_trace
 from fdisyn.evaluation.evaluate import build
 from fdisyn.evaluation.metrics import binomial_interval
@@ -17,7 +16,7 @@ from fdisyn.runtime.gainfile import read_gain_file
 
 from tests.helpers import check_values, coupling_markov
 
-DATA = Path(__file__).parents[1] / "data"
+DATA = EXAMPLES
 
 
 @pytest.fixture(scope="module")
