@@ -259,7 +259,7 @@ LABELS: Mapping[str, str] = {
     "y2": "output y2 = x2 (–)",
     "x1": "state x1 (–)",
     "x2": "state x2 (–)",
-    "f": "fault f, entering ẋ2 (–)",
+    "f": "fault f (enters ẋ2)",
     "direct": "direct design (Theorem 1)",
     "indirect": "indirect design (ZOH model first)",
     "lmi": "LMI design (eq. (19), η = ∞)",
