@@ -178,6 +178,7 @@ def _tidy(fig: Figure, problem: Problem | None) -> None:
     :data:`FIGURE_WIDTH` (the axes narrow, the type keeps its size)."""
     from matplotlib.text import Text
 
+    legends = []
     for ax in fig.axes:
         ax.set_xlabel(label(problem, ax.get_xlabel()))
         ax.set_ylabel(label(problem, ax.get_ylabel()))
@@ -185,14 +186,19 @@ def _tidy(fig: Figure, problem: Problem | None) -> None:
         if leg is None:
             continue
         handles = list(getattr(leg, "legend_handles", None) or getattr(leg, "legendHandles", []))
-        texts = [label(problem, t.get_text()) for t in leg.get_texts()]
-        ncol = 1 if len(texts) <= 12 else 2
+        legends.append((ax, handles, [label(problem, t.get_text()) for t in leg.get_texts()]))
         leg.remove()
+    if len(legends) > 1 and len({tuple(t) for _, _, t in legends}) == 1:
+        # the same legend on every panel: once, beside the top right panel, not over its neighbours
+        legends = [max(legends, key=lambda e: (e[0].get_position().x1, e[0].get_position().y1))]
+    for ax, handles, texts in legends:
         ax.legend(handles, texts, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=MIN_FONT_PT,
-                  ncol=ncol, frameon=False)
+                  ncol=1 if len(texts) <= 12 else 2, frameon=False)
     for t in fig.findobj(Text):
         if t.get_text() and float(t.get_fontsize()) < MIN_FONT_PT:
             t.set_fontsize(MIN_FONT_PT)
+    if legends and fig.get_layout_engine() is None:
+        fig.tight_layout()  # legends beside inner panels need the room between the panels
     for _ in range(3):
         renderer = fig.canvas.get_renderer() if hasattr(fig.canvas, "get_renderer") else None
         if renderer is None:
