@@ -28,6 +28,7 @@ import math
 import platform
 import re
 import sys
+import textwrap
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -720,11 +721,12 @@ def _law_figures(ctx: ReportContext) -> str:
         shown = list(range(min(len(names), 8)))
         cols = min(4, len(shown))
         rows = -(-len(shown) // cols)
-        fig, axes = subplots(rows, cols, figsize=(2.6 * cols, 2.3 * rows + 0.4), squeeze=False)
+        fig, axes = subplots(rows, cols, figsize=(2.6 * cols, 2.9 * rows + 0.4), squeeze=False)
         thr = np.asarray(gf.thresholds, dtype=float)
         for j, ax in zip(shown, axes.ravel(), strict=False):
             x = J[:, j][np.isfinite(J[:, j])]
             ev = gf.evaluators[j] if j < len(gf.evaluators) else None
+            law = "tail"
             if x.size == 0:
                 continue
             if ev is not None and ev.kind == "chi2":
@@ -734,7 +736,7 @@ def _law_figures(ctx: ReportContext) -> str:
                 ax.plot(grid, scipy.stats.chi2.pdf(grid, ev.dof), "k", lw=1.0)
                 ax.set_yscale("log")
                 ax.set_ylabel("density")
-                ax.set_title(f"χ²({ev.dof})", fontsize=MIN_FONT_PT)
+                law = f"χ²({ev.dof})"
             else:
                 xs = np.sort(x)
                 tail = 1.0 - np.arange(xs.size) / xs.size
@@ -745,7 +747,9 @@ def _law_figures(ctx: ReportContext) -> str:
                     ax.axhline(ev.P_f, color="tab:red", ls=":", lw=1.0)
             if np.isfinite(thr[j]):
                 ax.axvline(thr[j], color="k", ls="--", lw=0.9)
-            ax.set_xlabel(label(problem, names[j]))
+            # the statistic's name above its panel (wrapped), the axis only "J": long names side by side overlap
+            ax.set_title(textwrap.fill(label(problem, names[j]), 30) + f"\n{law}", fontsize=MIN_FONT_PT)
+            ax.set_xlabel("J")
             ax.grid(alpha=0.3)
         for ax in axes.ravel()[len(shown):]:
             ax.set_visible(False)
@@ -780,8 +784,10 @@ def _sweep_figure(ctx: ReportContext) -> str:
             f_, delay, missed = zip(*pts, strict=False)
             axes[i, 0].plot(f_, [np.nan if x is None else x for x in delay], "o-", lw=1.0, ms=3)
             axes[i, 1].plot(f_, missed, "o-", lw=1.0, ms=3, label=label(problem, base))
-        axes[i, 0].set_ylabel(f"{label(problem, d)}\nmean delay (s)")
+        axes[i, 0].set_title(label(problem, d), loc="left", fontsize=MIN_FONT_PT)
+        axes[i, 0].set_ylabel("mean delay (s)")
         axes[i, 1].set_ylabel("missed detection")
+        axes[i, 1].set_ylim(-0.03, 1.03)
         ticks = sorted({1.0, *sweep.factors})
         for ax in axes[i]:
             ax.set_xscale("log")
