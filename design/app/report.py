@@ -177,6 +177,7 @@ def _tidy(fig: Figure, problem: Problem | None) -> None:
     """Make a figure readable on the page: internal names through :func:`label` (legends, axis labels), every
     legend beside its axes (never on the data), no type under :data:`MIN_FONT_PT`, and no wider than
     :data:`FIGURE_WIDTH` (the axes narrow, the type keeps its size)."""
+    from matplotlib.layout_engine import ConstrainedLayoutEngine
     from matplotlib.text import Text
 
     legends = []
@@ -198,7 +199,7 @@ def _tidy(fig: Figure, problem: Problem | None) -> None:
     for t in fig.findobj(Text):
         if t.get_text() and float(t.get_fontsize()) < MIN_FONT_PT:
             t.set_fontsize(MIN_FONT_PT)
-    if legends and fig.get_layout_engine() is None:
+    if legends and not isinstance(fig.get_layout_engine(), ConstrainedLayoutEngine):
         fig.tight_layout()  # legends beside inner panels need the room between the panels
     for _ in range(3):
         renderer = fig.canvas.get_renderer() if hasattr(fig.canvas, "get_renderer") else None
@@ -211,6 +212,8 @@ def _tidy(fig: Figure, problem: Problem | None) -> None:
         if width <= FIGURE_WIDTH + 0.05:
             break
         fig.set_size_inches(max(w - (width - FIGURE_WIDTH), 3.0), h)
+        if legends and not isinstance(fig.get_layout_engine(), ConstrainedLayoutEngine):
+            fig.tight_layout()  # narrower panels, the legends keep their size: lay out again
 
 
 @dataclass
@@ -920,7 +923,7 @@ def _pole_figure(ctx: ReportContext) -> str:
             ax.plot(ev.real, ev.imag, "o", ms=4, fillstyle="none", label=label(problem, gen.name) if len(gf.generators) > 1 else "generator")
             rows.append([label(problem, d), label(problem, gen.name), gen.Ar.shape[0], float(np.max(np.abs(ev))) if ev.size else None])
         ax.set_aspect("equal")
-        ax.set_title(label(problem, d), fontsize=MIN_FONT_PT)
+        ax.set_title(textwrap.fill(label(problem, d), 28), fontsize=MIN_FONT_PT)
         ax.set_xlabel("Re z")
         ax.grid(alpha=0.3)
     for ax in axes[0]:
