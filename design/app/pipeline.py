@@ -20,7 +20,8 @@ from typing import Any
 import casadi as ca
 import numpy as np
 from fdisyn.codegen.step import step_function
-from fdisyn.evaluation.evaluate import Built, Evaluation, build, evaluate, progress_printer
+from fdisyn.evaluation.evaluate import Built, Evaluation, build, evaluate
+from fdisyn.evaluation.progress import tracked
 from fdisyn.models.problem import Problem
 from fdisyn.runtime.errors import ArgumentError, CertificateError
 from fdisyn.runtime.gainfile import SEQUENTIAL_KINDS, GainFile, linear_state_layout
@@ -183,14 +184,14 @@ class VariantResult:
 
 def reproduce_problem(
     problem: Problem, *, runs: int | None = None, reports: Path = Path("reports"), workdir: Path = Path("build"),
-    variants: Sequence[str] | None = None,
+    variants: Sequence[str] | None = None, workers: int | None = None, client: Any = None, source: str | Path | None = None,
 ) -> Path:
     """Run the whole pipeline for ``problem`` and write its report; return the page's path.
 
-    ``variants``: the labels of the report variants to run (``"default"`` the main one; ``None``: all)."""
+    ``variants``: the labels of the report variants to run (``"default"`` the main one; ``None``: all);
+    ``workers``, ``client``, ``source``: where the Monte Carlo runs (:func:`~fdisyn.evaluation.evaluate.evaluate`)."""
     from fdisyn.app.report import write_report
 
-    say = progress_printer(problem.name)
     given = runs
     runs = problem.monte_carlo_runs if runs is None else runs  # 0 is refused by evaluate, not replaced
     if isinstance(runs, bool) or not isinstance(runs, int) or runs < 1:
@@ -209,9 +210,9 @@ def reproduce_problem(
     results = []
     for label, opts, scen, names, n_runs in spec:
         t0 = time.perf_counter()
-        say(f"{label}: designing, verifying, exporting and compiling {len(names)} design(s)")
         tag = "default" if label == "default" else "".join(ch if ch.isalnum() else "_" for ch in label)
-        built = {d: build(problem, d, workdir / problem.name / tag / d, **opts) for d in names}
+        steps = tracked(names, f"{problem.name} {label}: design, verify, export, compile", "design")
+        built = {d: build(problem, d, workdir / problem.name / tag / d, **opts) for d in steps}
         U, Y = export_trace(problem, **opts)
         exports = {}
         for d, b in built.items():
@@ -219,8 +220,7 @@ def reproduce_problem(
             if not chk.passed:
                 raise CertificateError(f"{problem.name}/{d}: the generated C disagrees with the Python references: {chk.to_dict()}")
             exports[d] = chk
-        say(f"{label}: C export agrees with the references; Monte Carlo with {n_runs} runs per scenario")
-        ev = evaluate(problem, built, runs=n_runs, scenarios=scen, progress=say, **opts)
+        ev = evaluate(problem, built, runs=n_runs, scenarios=scen, workers=workers, client=client, source=source, **opts)
         results.append(VariantResult(label=label, options=ev.options, built=built, exports=exports, evaluation=ev, seconds=time.perf_counter() - t0))
     out_dir = reports / problem.name
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -239,5 +239,4 @@ def reproduce_problem(
     }
     (out_dir / "metrics.json").write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
     page = write_report(problem, results, out_dir)
-    say(f"report written to {page}")
     return page
