@@ -279,7 +279,8 @@ def monte_carlo_section(
     prob = get_problem(problem)
     b = build(prob, design, workdir / "bench" / "monte_carlo" / problem / design)
     cores = local_cores()
-    evaluate(prob, {design: b}, runs=2, scenarios=[rss_scenario], workers=cores)  # the worker processes start here
+    # the worker processes start and load the campaign here, a chunk of one run each
+    evaluate(prob, {design: b}, runs=2 * cores, scenarios=[rss_scenario], chunk=1, workers=cores, progress=False)
     rates = []
     for workers in dict.fromkeys((1, cores)):
         t0 = time.perf_counter()

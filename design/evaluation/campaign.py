@@ -411,6 +411,8 @@ def run_tasks(
             result = fut.result()
         except Exception as exc:
             if retried:
+                if isinstance(exc, BrokenProcessPool):
+                    runner.reset()  # the next campaign finds a working pool
                 raise _failure(exc, task) from None
             if isinstance(exc, BrokenProcessPool) and runner.reset():  # a worker died: every chunk in flight again
                 pending = deque((t, runner.submit(t), r) for t, _, r in pending)

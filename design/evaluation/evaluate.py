@@ -140,7 +140,7 @@ def evaluate(
     for sname in names:
         problem.scenario(sname)
     checked = problem.check_options(options)
-    src = str(source) if source is not None else problem_source(problem)
+    src = problem_source(problem) if source is None else str(Path(source).absolute() if Path(source).is_file() else source)
     if src is not None and source is not None and load_source(src).name != problem.name:
         raise ArgumentError(f"source {src!r} is problem {load_source(src).name!r}, not {problem.name!r}")
     spec = None

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import multiprocessing
+import os
 from pathlib import Path
 
 import numpy as np
@@ -225,6 +227,23 @@ def test_a_failing_run_is_retried_then_reported(sde_built, workers: int) -> None
     msg = str(err.value)
     assert msg.startswith("a Monte Carlo run failed twice: ")
     assert f"scenario {first!r}, run {_FAILING_RUN} (seed {run_seed(0, 0, _FAILING_RUN)}): FloatingPointError: the integrator diverged" in msg
+
+
+def _dying_simulate(sc, seeds, **options):  # noqa: ANN001, ANN003, ANN202 - a Problem's simulate
+    if multiprocessing.parent_process() is not None and run_seed(0, list(SDE.scenarios).index(sc.name), 1) in seeds:
+        os._exit(3)  # a worker process killed (out of memory, a signal) while it runs run 1
+    return SDE.simulate(sc, seeds, **options)
+
+
+DYING = dataclasses.replace(SDE, simulate=_dying_simulate)
+
+
+def test_a_worker_process_that_dies_is_replaced_then_reported(sde_built) -> None:
+    with pytest.raises(MonteCarloError, match=r"failed twice: scenario 'fault_free', runs 0–1: BrokenProcessPool"):
+        evaluate(DYING, {SDE.default_design: sde_built}, runs=4, chunk=2, workers=2, progress=False, source=f"{__name__}:DYING")
+    # the next campaign gets a working pool
+    ev = evaluate(SDE, {SDE.default_design: sde_built}, runs=4, chunk=2, workers=2, progress=False)
+    assert ev.metrics[SDE.default_design]["fault_free"].runs == 4
 
 
 def test_a_run_that_fails_once_is_retried(sde_built, serial) -> None:
