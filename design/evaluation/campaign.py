@@ -45,12 +45,20 @@ __all__ = [
     "DesignRuns",
     "ChunkRuns",
     "simulate_and_diagnose",
+    "Campaign",
     "CampaignSpec",
     "ChunkTask",
     "ChunkSummary",
+    "RunFailure",
     "chunk_runs",
     "local_cores",
+    "first_run",
+    "extra_hooks",
+    "load_source",
+    "problem_source",
+    "remote_chunk",
     "run_tasks",
+    "dask_client",
 ]
 
 CHUNK_SAMPLES = 500_000

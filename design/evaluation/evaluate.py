@@ -172,7 +172,7 @@ def evaluate(
     results = run_tasks(tasks, campaign=campaign, spec=spec, workers=local_cores() if workers is None else workers, client=client)
     for sname in names:
         sc = problem.scenario(sname)
-        with bar(runs, f"{problem.name} {sname}", "run") if progress else _no_bar() as shown:
+        with bar(runs, f"{problem.name} {sname}", "run", shown=progress) as shown:
             while done[sname] < runs:
                 res = next(results)
                 assert res.task.scenario == sname, "chunks arrive in task order"
@@ -204,16 +204,3 @@ def evaluate(
         examples=examples,
         batches=batches,
     )
-
-
-class _no_bar:
-    """The bar of a quiet evaluation."""
-
-    def __enter__(self) -> _no_bar:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        return None
-
-    def update(self, n: int) -> None:
-        return None

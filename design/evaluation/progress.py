@@ -30,12 +30,13 @@ def quiet() -> bool:
 
 
 @contextmanager
-def bar(total: int | None, desc: str, unit: str = "it") -> Iterator[Any]:
+def bar(total: int | None, desc: str, unit: str = "it", *, shown: bool = True) -> Iterator[Any]:
     """A progress bar of ``total`` steps named ``desc``; ``.update(n)`` advances it, ``.set_postfix_str(s)`` says
-    what it is at. Quiet (a bar that draws nothing) as :func:`quiet` says."""
+    what it is at. Quiet (a bar that draws nothing) as :func:`quiet` says, or when not ``shown``."""
     from tqdm import tqdm
 
-    with tqdm(total=total, desc=desc, unit=unit, file=sys.stderr, disable=quiet(), dynamic_ncols=True, mininterval=0.5) as b:
+    off = quiet() or not shown
+    with tqdm(total=total, desc=desc, unit=unit, file=sys.stderr, disable=off, dynamic_ncols=True, mininterval=0.5) as b:
         yield b
 
 
