@@ -28,7 +28,7 @@ from collections import deque
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -238,9 +238,11 @@ class CampaignSpec:
     options: tuple[tuple[str, Any], ...]
     built: tuple[tuple[str, str, str], ...]
     """``(design, directory, sha256 of its gains.json)``: a directory built again is loaded again."""
+    scenarios: tuple[Scenario, ...] = ()
+    """The scenarios run, as the parent has them (a problem's scenarios may be replaced, e.g. scaled faults)."""
 
     def key(self) -> bytes:
-        return pickle.dumps((self.source, self.options, self.built))
+        return pickle.dumps((self.source, self.options, self.built, self.scenarios))
 
 
 _CAMPAIGNS: dict[bytes, Campaign] = {}
@@ -277,6 +279,8 @@ def _campaign(spec: CampaignSpec) -> Campaign:
         from fdisyn.evaluation.evaluate import load_built
 
         problem = load_source(spec.source)
+        if spec.scenarios:
+            problem = replace(problem, scenarios={sc.name: sc for sc in spec.scenarios})
         built = {name: load_built(d) for name, d, _ in spec.built}
         _CAMPAIGNS[key] = Campaign(problem, built, dict(spec.options), extra_hooks(problem, built))
     return _CAMPAIGNS[key]

@@ -149,6 +149,7 @@ def evaluate(
             source=src,
             options=tuple(sorted(options.items())),
             built=tuple((d, str(b.directory.absolute()), file_sha256(b.directory / "gains.json")) for d, b in built.items()),
+            scenarios=tuple(problem.scenario(n) for n in names),
         )
     elif workers is not None and workers > 1 or client is not None:
         raise ArgumentError(

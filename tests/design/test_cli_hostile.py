@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from fdisyn.app.cli import main
+from fdisyn.app.examples import EXAMPLES
 from fdisyn.runtime.errors import (
     ArgumentError,
     CertificateError,
@@ -28,7 +29,7 @@ from fdisyn.runtime.errors import (
     SpecError,
 )
 
-DATA = Path(__file__).parents[1] / "data"
+DATA = EXAMPLES
 MOTOR = (DATA / "dc_motor.toml").read_text(encoding="utf-8")
 SAMPLED = (DATA / "sampled_data.toml").read_text(encoding="utf-8")
 SHIP = (DATA / "ship.toml").read_text(encoding="utf-8")
