@@ -12,6 +12,8 @@
 ``ExistenceError``     a condition the method needs does not hold for this plant
 ``SolverError``        a numerical solver failed; ``CertificateError``: a design
                        failed its verification against an independent truth
+``MonteCarloError``    a Monte Carlo run failed twice, or its workers could not
+                       be reached
 ``InternalError``      a bug in fdisyn: an invariant that should hold did not
 =====================  ==============================================================
 
@@ -90,6 +92,11 @@ class SpecError(FileError):
 
 class BuildError(FileError, OSError):
     """Compiling or loading generated C failed."""
+
+
+class MonteCarloError(FdisynError, RuntimeError):
+    """A Monte Carlo run failed again when retried (the message names the scenario, the run, its seed and the
+    error), or the processes or Dask scheduler meant to run it could not be reached."""
 
 
 class NominalValueError(ArgumentError):

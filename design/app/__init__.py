@@ -13,7 +13,7 @@ DESIGN_EXTRA = "design"
 """The optional dependencies (``pip install 'fdisyn[design]'``) that designing, generating C, simulating,
 evaluating and reporting need; the base installation is the runtime: NumPy and the compiled library."""
 
-DESIGN_PACKAGES = ("casadi", "cvxpy", "clarabel", "scipy", "matplotlib", "control", "slycot")
+DESIGN_PACKAGES = ("casadi", "cvxpy", "clarabel", "scipy", "matplotlib", "control", "slycot", "tqdm")
 """The import names of the packages of :data:`DESIGN_EXTRA` (each is also its distribution's name)."""
 
 

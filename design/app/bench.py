@@ -6,11 +6,15 @@ sample and per trace through ctypes, the CasADi function called from Python,
 and (linear diagnosers) the NumPy reference step. Results go to
 ``reports/bench.md`` with the machine and the versions; with ``sdp`` (the
 full built-in bench, or ``--sdp``) also the SDP solve times of the LMI
-toolkit, which take seconds and concern no problem in particular.
+toolkit, which take seconds and concern no problem in particular; with
+``monte_carlo`` (the full built-in bench) the Monte Carlo's throughput (plant
+steps per second, one core and every core) and peak memory
+(:func:`monte_carlo_section`, alone: ``fdisyn bench --monte-carlo``).
 """
 
 from __future__ import annotations
 
+import json
 import os
 import platform
 import subprocess
@@ -26,14 +30,15 @@ import numpy as np
 import scipy.linalg as sla
 from fdisyn.codegen.library import CFLAGS, compile_bench, compiler
 from fdisyn.codegen.step import step_function
-from fdisyn.evaluation.evaluate import build, progress_printer
+from fdisyn.evaluation.evaluate import build
+from fdisyn.evaluation.progress import tracked
 from fdisyn.models.problem import Problem
 from fdisyn.models.sampled_data import SampledDataPlant
 from fdisyn.numerics.lmi_norms import h2_norm_lmi, hinf_norm_lmi, hminus_index_lmi
 from fdisyn.runtime.reference import LinearReference
 from fdisyn.synthesis.lmi_observer import lmi_diagnostic_observer
 
-__all__ = ["run_bench", "machine_description"]
+__all__ = ["run_bench", "run_monte_carlo_bench", "monte_carlo_section", "machine_description"]
 
 
 def machine_description() -> dict[str, str]:
@@ -67,16 +72,15 @@ def _per_call(fn, n: int) -> float:  # noqa: ANN001 - any callable of the sample
     return best * 1e9
 
 
-def run_bench(problems: list[Problem], *, out: Path, workdir: Path, sdp: bool = False) -> Path:
-    """Measure and write the benchmark table, and with ``sdp`` the SDP solve times (:func:`sdp_timings`); return its path."""
+def run_bench(problems: list[Problem], *, out: Path, workdir: Path, sdp: bool = False, monte_carlo: bool = False) -> Path:
+    """Measure and write the benchmark table, with ``sdp`` the SDP solve times (:func:`sdp_timings`) and with
+    ``monte_carlo`` the Monte Carlo's throughput (:func:`monte_carlo_section`); return its path."""
     rows = []
     for prob in problems:
-        say = progress_printer(f"bench/{prob.name}")
         batch = prob.run("fault_free", [0])
         reps = -(-10_000 // len(batch.t))  # short runs are repeated up to 10⁴ samples
         U, Y = np.tile(batch.U[0], (reps, 1))[:10_000], np.tile(batch.Y[0], (reps, 1))[:10_000]
-        for d in prob.designs:
-            say(f"{d}: building")
+        for d in tracked(prob.designs, f"bench {prob.name}: build and time", "design"):
             b = build(prob, d, workdir / "bench" / prob.name / d)
             gf = b.gain_file
             samples = workdir / "bench" / prob.name / d / "samples.bin"
@@ -84,7 +88,6 @@ def run_bench(problems: list[Problem], *, out: Path, workdir: Path, sdp: bool = 
             exe = compile_bench(gf, b.artifacts.c_dir, workdir / "bench" / prob.name / d / "bench")
             proc = subprocess.run([str(exe), str(samples), "20"], capture_output=True, text=True, check=True)
             c_ns = float(proc.stdout.split()[1])
-            say(f"{d}: C loop {c_ns:.1f} ns/step; timing the Python-side calls")
             cd = b.diagnoser
             st = cd.init_state()
             ctypes_ns = _per_call(lambda k, cd=cd, st=st, U=U, Y=Y: cd.step(st, U[k], Y[k]), 2000)
@@ -127,6 +130,8 @@ def run_bench(problems: list[Problem], *, out: Path, workdir: Path, sdp: bool = 
         np_s = f"{np_ns:,.0f}" if np_ns is not None else "—"
         ratio = f"{np_ns / c_ns:,.0f}×" if np_ns is not None else "—"
         lines.append(f"| {name} | {d} | {dims} | {c_ns:,.1f} | {run_ns:,.1f} | {ct_ns:,.0f} | {cas_ns:,.0f} | {np_s} | {ratio} |")
+    if monte_carlo:
+        lines += monte_carlo_section(workdir=workdir)
     if sdp:
         lines += _sdp_section()
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -248,3 +253,88 @@ def random_sampled_data_plant(
         C=rng.standard_normal((p, n)),
         Ts=Ts,
     )
+
+
+# --------------------------------------------------------------------------- Monte Carlo throughput
+
+_RSS_CHILD = """
+import json, resource, sys, time
+from fdisyn.evaluation.evaluate import evaluate, load_built
+from fdisyn.models.problem import get_problem
+name, design, directory, scenario, runs = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4], int(sys.argv[5])
+prob = get_problem(name)
+t0 = time.perf_counter()
+ev = evaluate(prob, {design: load_built(directory)}, runs=runs, scenarios=[scenario], workers=1, progress=False)
+m = ev.metrics[design][scenario]
+print(json.dumps({"seconds": time.perf_counter() - t0, "steps": m.runs * m.samples_per_run,
+                  "maxrss_kib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss}))
+"""
+
+
+def monte_carlo_section(
+    *, workdir: Path, runs: int = 100, rss_runs: Sequence[int] = (100, 10_000), problem: str = "wind_turbine",
+    design: str = "kalman_uio", rss_scenario: str = "fault_free",
+) -> list[str]:
+    """Plant-steps per second of ``problem``/``design``'s Monte Carlo (simulation, compiled diagnoser and streaming
+    metrics) over every scenario, on one core and on every core; and the peak resident memory of a campaign of each
+    of ``rss_runs`` runs of ``rss_scenario`` on one core, measured in a child process of its own."""
+    from fdisyn.evaluation.campaign import local_cores
+    from fdisyn.evaluation.evaluate import evaluate
+    from fdisyn.models.problem import get_problem
+
+    prob = get_problem(problem)
+    b = build(prob, design, workdir / "bench" / "monte_carlo" / problem / design)
+    cores = local_cores()
+    # the worker processes start and load the campaign here, a chunk of one run each
+    evaluate(prob, {design: b}, runs=2 * cores, scenarios=[rss_scenario], chunk=1, workers=cores, progress=False)
+    rates = []
+    for workers in dict.fromkeys((1, cores)):
+        t0 = time.perf_counter()
+        ev = evaluate(prob, {design: b}, runs=runs, workers=workers)
+        seconds = time.perf_counter() - t0
+        steps = sum(m.runs * m.samples_per_run for m in ev.metrics[design].values())
+        rates.append((workers, steps, seconds))
+    rss = []
+    for n in rss_runs:
+        proc = subprocess.run(
+            [sys.executable, "-c", _RSS_CHILD, problem, design, str(b.directory.absolute()), rss_scenario, str(n)],
+            capture_output=True, text=True, check=True,
+        )
+        rss.append((n, json.loads(proc.stdout.strip().splitlines()[-1])))
+    lines = [
+        "",
+        "## Monte Carlo throughput",
+        "",
+        f"`{problem}` / `{design}`, {runs} runs of each of its {len(prob.scenarios)} scenarios: simulation, the compiled "
+        "diagnoser and the streaming metrics, per plant step (one sample of one run); the worker processes were started "
+        "before the clock.",
+        "",
+        "| processes | plant steps | seconds | plant steps / s |",
+        "|---:|---:|---:|---:|",
+        *(f"| {w} | {s:,} | {sec:,.1f} | {s / sec:,.0f} |" for w, s, sec in rates),
+        "",
+        f"Peak resident memory of a campaign of `{rss_scenario}` alone on one core, in a process of its own "
+        "(`getrusage` `ru_maxrss`, imports and the compiled library included).",
+        "",
+        "| runs | plant steps | seconds | peak RSS (MiB) |",
+        "|---:|---:|---:|---:|",
+        *(f"| {n:,} | {r['steps']:,} | {r['seconds']:,.1f} | {r['maxrss_kib'] / 1024:,.0f} |" for n, r in rss),
+    ]
+    return lines
+
+
+def run_monte_carlo_bench(*, out: Path, workdir: Path, runs: int = 100, rss_runs: Sequence[int] = (100, 10_000)) -> Path:
+    """``fdisyn bench --monte-carlo``: the machine and the Monte Carlo throughput section alone; return the path."""
+    lines = [
+        "# fdisyn benchmark: Monte Carlo throughput",
+        "",
+        f"Measured by `fdisyn bench --monte-carlo` on {datetime.now(timezone.utc).strftime('%Y-%m-%d %H:%M UTC')}.",
+        "",
+        "| machine | |",
+        "|---|---|",
+        *(f"| {k} | {v} |" for k, v in machine_description().items()),
+        *monte_carlo_section(workdir=workdir, runs=runs, rss_runs=rss_runs),
+    ]
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return out

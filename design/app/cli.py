@@ -6,14 +6,20 @@
     fdisyn codegen DIR
     fdisyn replay DIR IN.csv OUT.csv
     fdisyn simulate SPEC --scenario NAME --seed N --out TRACE.csv [--option KEY=VALUE ...]
-    fdisyn evaluate SPEC --design NAME --runs N --out METRICS.json [--option KEY=VALUE ...]
-    fdisyn report SPEC [--runs N]
-    fdisyn reproduce [SPEC ...] [--runs N]
-    fdisyn bench [SPEC ...] [--out reports/bench.md]
+    fdisyn evaluate SPEC --design NAME --runs N --out METRICS.json [--option KEY=VALUE ...] [MONTE CARLO]
+    fdisyn report SPEC [--runs N] [MONTE CARLO]
+    fdisyn reproduce [SPEC ...] [--runs N] [MONTE CARLO]
+    fdisyn bench [SPEC ...] [--sdp] [--out reports/bench.md] [--monte-carlo [--mc-runs N] [--rss-runs N,…]]
     fdisyn list
     fdisyn methods
     fdisyn example [NAME [--out PATH] [--force]]
     fdisyn --version
+
+``MONTE CARLO`` is ``[--workers N] [--scheduler local|dask] [--address
+tcp://HOST:PORT]``: the runs spread over N local processes (default: every
+core), or over a Dask cluster (the scheduler at ``--address``, else a local
+one of N processes). ``fdisyn --quiet <command>`` shows no progress bar (there
+is none either when stderr is not a terminal).
 
 ``SPEC`` is a built-in problem name (``fdisyn list``) or the path of a TOML
 plant file (see the README); ``fdisyn <command> --help`` describes every
@@ -93,6 +99,16 @@ def _whole(text: str, least: int, what: str) -> int:
 def _runs(text: str) -> int:
     """``--runs``: Monte Carlo runs per scenario, a whole number ≥ 1 (0 is not "the default")."""
     return _whole(text, 1, "a whole number of runs ≥ 1")
+
+
+def _run_list(text: str) -> list[int]:
+    """``--rss-runs``: comma-separated run counts, each ≥ 1."""
+    return [_runs(x.strip()) for x in text.split(",")]
+
+
+def _workers(text: str) -> int:
+    """``--workers``: processes running the Monte Carlo, a whole number ≥ 1."""
+    return _whole(text, 1, "a whole number of worker processes ≥ 1")
 
 
 def _seed(text: str) -> int:
@@ -227,12 +243,33 @@ def _cmd_simulate(a: argparse.Namespace) -> None:
     print(f"wrote {a.out}: {len(tr.t)} samples of scenario {a.scenario!r}, seed {a.seed}")
 
 
+@contextmanager
+def _monte_carlo(a: argparse.Namespace) -> Iterator[dict[str, Any]]:
+    """The ``evaluate`` keywords of ``--workers``, ``--scheduler`` and ``--address``; a Dask client is closed after."""
+    from fdisyn.evaluation.campaign import dask_client, local_cores
+
+    if a.address is not None and a.scheduler != "dask":
+        raise ArgumentError(f"--address {a.address} needs --scheduler dask")
+    if a.scheduler != "dask":
+        yield {"workers": a.workers}
+        return
+    client = dask_client(a.address, a.workers or local_cores())()
+    try:
+        yield {"client": client}
+    finally:
+        cluster = client.cluster if a.address is None else None
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
 def _workdir(a: argparse.Namespace, problem: str, design: str) -> Path:
     return Path(a.workdir) / problem / design
 
 
 def _cmd_evaluate(a: argparse.Namespace) -> None:
-    from fdisyn.evaluation.evaluate import build, evaluate, progress_printer
+    from fdisyn.evaluation.evaluate import build, evaluate
+    from fdisyn.evaluation.progress import bar
 
     opts = _options(a.option)
     out = _output_file(a.out, "--out")
@@ -240,11 +277,12 @@ def _cmd_evaluate(a: argparse.Namespace) -> None:
     prob = _problem(a.spec)
     prob.check_options(opts)  # refuse a bad option before designing and compiling
     design = a.design or prob.default_design
-    say = progress_printer(f"{prob.name}/{design}")
-    say("designing, exporting and compiling")
-    with _user_paths("a writable directory with room for the build", ("--workdir", a.workdir)):
-        built = {design: build(prob, design, _workdir(a, prob.name, design), **opts)}
-    ev = evaluate(prob, built, runs=a.runs, seed0=a.seed, progress=say, **opts)
+    with _monte_carlo(a) as where:
+        with bar(1, f"{prob.name} {design}: design, export, compile", "design") as shown:
+            with _user_paths("a writable directory with room for the build", ("--workdir", a.workdir)):
+                built = {design: build(prob, design, _workdir(a, prob.name, design), **opts)}
+            shown.update(1)
+        ev = evaluate(prob, built, runs=a.runs, seed0=a.seed, source=a.spec, **where, **opts)
     doc = ev.to_dict()
     doc["gain_file"] = built[design].gain_file.name
     with _user_paths("a writable file with room for the metrics", ("--out", out)):
@@ -259,8 +297,12 @@ def _cmd_report(a: argparse.Namespace) -> None:
     _output_dir(a.reports, "--reports")
     _output_dir(a.workdir, "--workdir")
     prob = _problem(a.spec)
-    with _user_paths("writable directories with room for the report", ("--reports", a.reports), ("--workdir", a.workdir)):
-        out = reproduce_problem(prob, runs=a.runs, reports=Path(a.reports), workdir=Path(a.workdir), variants=a.variants)
+    with _monte_carlo(a) as where, _user_paths(
+        "writable directories with room for the report", ("--reports", a.reports), ("--workdir", a.workdir)
+    ):
+        out = reproduce_problem(
+            prob, runs=a.runs, reports=Path(a.reports), workdir=Path(a.workdir), variants=a.variants, source=a.spec, **where
+        )
     print(f"wrote {out}")
 
 
@@ -270,25 +312,36 @@ def _cmd_reproduce(a: argparse.Namespace) -> None:
 
     _output_dir(a.reports, "--reports")
     _output_dir(a.workdir, "--workdir")
-    problems = [_problem(spec) for spec in a.specs or problem_names()]  # every SPEC is checked before the long run
-    for prob in problems:
-        with _user_paths("writable directories with room for the reports", ("--reports", a.reports), ("--workdir", a.workdir)):
-            out = reproduce_problem(prob, runs=a.runs, reports=Path(a.reports), workdir=Path(a.workdir), variants=a.variants)
-        print(f"wrote {out}")
+    specs = a.specs or problem_names()
+    problems = [_problem(spec) for spec in specs]  # every SPEC is checked before the long run
+    with _monte_carlo(a) as where:
+        for spec, prob in zip(specs, problems, strict=True):
+            with _user_paths("writable directories with room for the reports", ("--reports", a.reports), ("--workdir", a.workdir)):
+                out = reproduce_problem(
+                    prob, runs=a.runs, reports=Path(a.reports), workdir=Path(a.workdir), variants=a.variants, source=spec, **where
+                )
+            print(f"wrote {out}")
     from fdisyn.app.report import summary_table
 
     print(summary_table(Path(a.reports), [p.name for p in problems]))
 
 
 def _cmd_bench(a: argparse.Namespace) -> None:
-    from fdisyn.app.bench import run_bench
+    from fdisyn.app.bench import run_bench, run_monte_carlo_bench
     from fdisyn.models.problem import problem_names
 
     out = _output_file(a.out, "--out")
     _output_dir(a.workdir, "--workdir")
+    if a.monte_carlo:
+        if a.specs:
+            raise ArgumentError("--monte-carlo measures wind_turbine/kalman_uio alone; give no SPEC with it")
+        with _user_paths("a writable file and directory with room for the benchmark", ("--out", out), ("--workdir", a.workdir)):
+            path = run_monte_carlo_bench(out=out, workdir=Path(a.workdir), runs=a.mc_runs, rss_runs=a.rss_runs)
+        print(f"wrote {path}")
+        return
     specs = a.specs or problem_names()
     with _user_paths("a writable file and directory with room for the benchmark", ("--out", out), ("--workdir", a.workdir)):
-        path = run_bench([_problem(s) for s in specs], out=out, workdir=Path(a.workdir), sdp=a.sdp or not a.specs)
+        path = run_bench([_problem(s) for s in specs], out=out, workdir=Path(a.workdir), sdp=a.sdp or not a.specs, monte_carlo=not a.specs)
     print(f"wrote {path}")
 
 
@@ -365,6 +418,7 @@ def _parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     ap.add_argument("--version", action="version", version=f"fdisyn {__version__}", help="print the version of fdisyn and exit")
+    ap.add_argument("--quiet", action="store_true", help="no progress bars (there are none either when stderr is not a terminal)")
     sub = ap.add_subparsers(dest="command", required=True, metavar="command", help="the command to run; fdisyn <command> --help describes it")
 
     def command(name: str, summary: str, description: str, *examples: str) -> argparse.ArgumentParser:
@@ -387,6 +441,18 @@ def _parser() -> argparse.ArgumentParser:
 
     def work(p: argparse.ArgumentParser) -> None:
         p.add_argument("--workdir", default=str(WORKDIR), help=f"where designs are built and compiled (default: {WORKDIR})")
+
+    def monte_carlo(p: argparse.ArgumentParser) -> None:
+        p.add_argument(
+            "--workers", type=_workers, default=None, metavar="N",
+            help="local processes running the Monte Carlo, ≥ 1 (default: every core; 1: this process only); for a Dask "
+            "scheduler without an address, the processes of a local Dask cluster",
+        )
+        p.add_argument(
+            "--scheduler", choices=("local", "dask"), default="local",
+            help="where the runs go: local processes (default) or a Dask cluster (pip install 'fdisyn[dask]')",
+        )
+        p.add_argument("--address", default=None, metavar="tcp://HOST:PORT", help="the Dask scheduler to use (with --scheduler dask)")
 
     p = command(
         "design",
@@ -446,14 +512,20 @@ def _parser() -> argparse.ArgumentParser:
         "the metrics (false-alarm rate, missed detections, detection delay, isolation accuracy) as JSON.",
         "fdisyn evaluate wind_turbine --design kalman_uio --runs 20 --out metrics.json",
         "fdisyn evaluate dc_motor.toml --runs 5 --seed 100 --out motor.json --workdir /tmp/fdisyn",
+        "fdisyn evaluate wind_turbine --runs 10000 --workers 2 --out metrics.json",
+        "fdisyn evaluate wind_turbine --runs 10000 --scheduler dask --address tcp://10.0.0.5:8786 --out metrics.json",
     )
     p.add_argument("spec", metavar="SPEC", help=_SPEC)
     p.add_argument("--design", default=None, metavar="NAME", help="which of the problem's designs (default: the problem's default)")
     p.add_argument("--runs", type=_runs, default=100, help="Monte Carlo runs per scenario, ≥ 1 (default 100)")
-    p.add_argument("--seed", type=_seed, default=0, help="seed of the first run, ≥ 0 (default 0)")
+    p.add_argument(
+        "--seed", type=_seed, default=0,
+        help="the campaign's seed, ≥ 0 (default 0): run i of the s-th scenario is seeded by SeedSequence([seed, s, i])",
+    )
     p.add_argument("--out", required=True, metavar="METRICS.json", help="the JSON file to write")
     opt(p)
     work(p)
+    monte_carlo(p)
     p.set_defaults(fn=_cmd_evaluate)
 
     for name, fn, many in (("report", _cmd_report, False), ("reproduce", _cmd_reproduce, True)):
@@ -480,6 +552,7 @@ def _parser() -> argparse.ArgumentParser:
             help="only these report variants, by label ('default' is the main one; default: all)",
         )
         work(p)
+        monte_carlo(p)
         p.set_defaults(fn=fn)
 
     p = command(
@@ -490,12 +563,23 @@ def _parser() -> argparse.ArgumentParser:
         "fdisyn bench",
         "fdisyn bench ship_propulsion --out /tmp/bench.md",
         "fdisyn bench wind_turbine --sdp",
+        "fdisyn bench --monte-carlo --out reports/bench_monte_carlo.md",
     )
     p.add_argument("specs", nargs="*", metavar="SPEC", help=_SPEC + "; none: every built-in problem")
     p.add_argument(
         "--sdp", action="store_true", help="also time the SDPs of the LMI toolkit (several seconds; always done without SPEC)"
     )
     p.add_argument("--out", default="reports/bench.md", help="the Markdown file to write (default: reports/bench.md)")
+    p.add_argument(
+        "--monte-carlo", action="store_true",
+        help="only the Monte Carlo throughput section: plant steps per second of the wind turbine's kalman_uio bank on "
+        "one core and on every core, and the peak memory of campaigns of so many runs (see below)",
+    )
+    p.add_argument("--mc-runs", type=_runs, default=100, metavar="N", help="runs per scenario of the throughput figures (default 100)")
+    p.add_argument(
+        "--rss-runs", type=_run_list, default=[100, 10_000], metavar="N,…",
+        help="runs of the campaigns whose peak memory is measured (default 100,10000)",
+    )
     work(p)
     p.set_defaults(fn=_cmd_bench)
 
@@ -553,6 +637,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         args = _parser().parse_args(argv)
     except SystemExit as exc:  # a usage error (already printed as one line) or --help
         return exc.code if isinstance(exc.code, int) else 2
+    from fdisyn.evaluation.progress import set_quiet
+
+    set_quiet(args.quiet)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("default")
         try:

@@ -20,7 +20,9 @@ import casadi as ca
 import numpy as np
 from fdisyn.app import WORKDIR
 from fdisyn.codegen.step import step_function
-from fdisyn.evaluation.evaluate import Built, Evaluation, build, evaluate, progress_printer
+from fdisyn.evaluation.campaign import problem_source
+from fdisyn.evaluation.evaluate import Built, Evaluation, build, evaluate
+from fdisyn.evaluation.progress import tracked
 from fdisyn.models.problem import Problem, scaled_scenario
 from fdisyn.runtime.errors import ArgumentError, CertificateError
 from fdisyn.runtime.gainfile import SEQUENTIAL_KINDS, GainFile, linear_state_layout
@@ -187,10 +189,12 @@ class FaultSizeSweep:
 
 
 def fault_size_sweep(
-    problem: Problem, built: Mapping[str, Built], *, runs: int, scenarios: Sequence[str] | None = None, progress: Any = None, **options: Any
+    problem: Problem, built: Mapping[str, Built], *, runs: int, scenarios: Sequence[str] | None = None, workers: int | None = None,
+    client: Any = None, source: str | Path | None = None, **options: Any
 ) -> FaultSizeSweep | None:
     """Monte Carlo of each faulty scenario scaled by :data:`SWEEP_FACTORS` (``Problem.scaled``, else
-    :func:`~fdisyn.models.problem.scaled_scenario`); ``None`` when no scenario's fault has a size."""
+    :func:`~fdisyn.models.problem.scaled_scenario`); ``None`` when no scenario's fault has a size. ``workers``,
+    ``client``, ``source``: where it runs (:func:`~fdisyn.evaluation.evaluate.evaluate`)."""
     scale = problem.scaled or scaled_scenario
     copies: dict[str, Any] = {}
     by_base: dict[str, dict[float, str]] = {}
@@ -204,8 +208,8 @@ def fault_size_sweep(
             by_base.setdefault(name, {})[k] = scaled.name
     if not copies:
         return None
-    kw = {} if progress is None else {"progress": progress}
-    ev = evaluate(replace(problem, scenarios=copies), built, runs=runs, **kw, **options)
+    src = problem_source(problem) if source is None else source  # the workers rebuild the scaled scenarios from the spec
+    ev = evaluate(replace(problem, scenarios=copies), built, runs=runs, workers=workers, client=client, source=src, **options)
     return FaultSizeSweep(factors=SWEEP_FACTORS, scenarios=by_base, evaluation=ev)
 
 
@@ -225,14 +229,14 @@ class VariantResult:
 
 def reproduce_problem(
     problem: Problem, *, runs: int | None = None, reports: Path = Path("reports"), workdir: Path = WORKDIR,
-    variants: Sequence[str] | None = None,
+    variants: Sequence[str] | None = None, workers: int | None = None, client: Any = None, source: str | Path | None = None,
 ) -> Path:
     """Run the whole pipeline for ``problem`` and write its report; return the page's path.
 
-    ``variants``: the labels of the report variants to run (``"default"`` the main one; ``None``: all)."""
+    ``variants``: the labels of the report variants to run (``"default"`` the main one; ``None``: all);
+    ``workers``, ``client``, ``source``: where the Monte Carlo runs (:func:`~fdisyn.evaluation.evaluate.evaluate`)."""
     from fdisyn.app.report import write_index, write_report
 
-    say = progress_printer(problem.name)
     given = runs
     runs = problem.monte_carlo_runs if runs is None else runs  # 0 is refused by evaluate, not replaced
     if isinstance(runs, bool) or not isinstance(runs, int) or runs < 1:
@@ -251,9 +255,9 @@ def reproduce_problem(
     results = []
     for label, opts, scen, names, n_runs in spec:
         t0 = time.perf_counter()
-        say(f"{label}: designing, verifying, exporting and compiling {len(names)} design(s)")
         tag = "default" if label == "default" else "".join(ch if ch.isalnum() else "_" for ch in label)
-        built = {d: build(problem, d, workdir / problem.name / tag / d, **opts) for d in names}
+        steps = tracked(names, f"{problem.name} {label}: design, verify, export, compile", "design")
+        built = {d: build(problem, d, workdir / problem.name / tag / d, **opts) for d in steps}
         U, Y = export_trace(problem, **opts)
         exports = {}
         for d, b in built.items():
@@ -261,18 +265,15 @@ def reproduce_problem(
             if not chk.passed:
                 raise CertificateError(f"{problem.name}/{d}: the generated C disagrees with the Python references: {chk.to_dict()}")
             exports[d] = chk
-        say(f"{label}: C export agrees with the references; Monte Carlo with {n_runs} runs per scenario")
-        ev = evaluate(problem, built, runs=n_runs, scenarios=scen, progress=say, **opts)
+        where = {"workers": workers, "client": client, "source": source}
+        ev = evaluate(problem, built, runs=n_runs, scenarios=scen, **where, **opts)
         sweep = None
         if label == "default":
-            say(f"fault-size sweep with {min(n_runs, SWEEP_RUNS)} runs per size")
-            sweep = fault_size_sweep(problem, built, runs=min(n_runs, SWEEP_RUNS), scenarios=scen, progress=say, **opts)
+            sweep = fault_size_sweep(problem, built, runs=min(n_runs, SWEEP_RUNS), scenarios=scen, **where, **opts)
         seconds = time.perf_counter() - t0
-        say(f"{label}: done in {seconds:.1f} s")
         results.append(
             VariantResult(label=label, options=ev.options, built=built, exports=exports, evaluation=ev, seconds=seconds, sweep=sweep)
         )
     page = write_report(problem, results, reports / problem.name)
     write_index(reports)
-    say(f"report written to {page}")
     return page

@@ -462,7 +462,7 @@ def _metrics_details(problem: Problem, variant: Any) -> str:
     ev = variant.evaluation
     designs = list(ev.metrics)
     scen = list(next(iter(ev.metrics.values())))
-    out = [f'<p class="small">{fmt(ev.runs)} runs per scenario, seeds {ev.seed0}–{ev.seed0 + ev.runs - 1}; every design sees the same runs.</p>']
+    out = [f'<p class="small">{fmt(ev.runs)} runs per scenario, run i of the s-th scenario seeded by SeedSequence([{ev.seed0}, s, i]); every design sees the same runs.</p>']
     rows = []
     for s in scen:
         for d in designs:

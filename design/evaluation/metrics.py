@@ -2,6 +2,12 @@
 
 Definitions (per scenario, over ``R`` runs of ``N`` samples): :data:`DEFINITIONS`,
 appended below, which the reports render in their "Definitions" section.
+
+The Monte Carlo never holds every run: :func:`summarise_runs` reduces a chunk
+of runs to a few numbers per run (:class:`RunSummaries`) where they were
+simulated, and :class:`MetricsAccumulator` merges them in run order into the
+same :class:`ScenarioMetrics` that :func:`scenario_metrics` computes from the
+stacked runs (the reference: equal to the last bit).
 """
 
 from __future__ import annotations
@@ -13,7 +19,22 @@ from typing import Any
 import numpy as np
 import scipy.stats
 
-__all__ = ["DEFINITIONS", "ScenarioMetrics", "scenario_metrics", "binomial_interval", "poisson_time_interval"]
+__all__ = [
+    "DEFINITIONS",
+    "ScenarioMetrics",
+    "scenario_metrics",
+    "binomial_interval",
+    "poisson_time_interval",
+    "HISTOGRAM_EDGES",
+    "fault_free_histogram",
+    "MetricsPlan",
+    "RunSummaries",
+    "summarise_runs",
+    "MetricsAccumulator",
+]
+
+HISTOGRAM_EDGES = np.linspace(0.0, 3.0, 61)
+"""Bin edges of the fault-free histograms, in multiples of each statistic's threshold (0 to 3 h by h/20)."""
 
 
 DEFINITIONS: dict[str, str] = {
@@ -61,6 +82,10 @@ DEFINITIONS: dict[str, str] = {
     ),
     "delay ratio": "the measured mean detection delay over the Lorden bound (the goal is ≤ 1.2).",
     "non-finite samples": "samples whose inputs or outputs held NaN or ±inf; the diagnoser skips them and counts them.",
+    "fault-free histogram": (
+        "per statistic with a finite positive threshold h, the counts of its fault-free samples in the bins "
+        "HISTOGRAM_EDGES × h (0 to 3 h by h/20): the first count is below 0, the last at or above 3 h (or not a number)."
+    ),
 }
 """The metrics' definitions, by the name the reports' column headers link to (one source: this module's docstring
 and the reports' "Definitions" section both render it)."""
@@ -107,6 +132,9 @@ class ScenarioMetrics:
     lorden_bound_samples: float | None = None
     delay_bound_ratio: float | None = None
     false_isolation_rate: float | None = None
+    fault_free_histogram: list[list[int]] = field(default_factory=list)
+    """Per statistic, its fault-free samples counted in the bins :data:`HISTOGRAM_EDGES` ``× threshold`` (below the
+    first edge, each bin, at or above the last); empty for a statistic without a finite positive threshold."""
     extra: Mapping[str, Any] = field(default_factory=dict)
     """Figures beyond detection (``Problem.extra_metrics``, else the diagnoser kind's)."""
 
@@ -185,6 +213,7 @@ def scenario_metrics(
     ratio = None
     if lorden is not None and ds_mean is not None and lorden[1] > 0:
         ratio = ds_mean / lorden[1]
+    hist = [c.tolist() for c in fault_free_histogram(np.asarray(J)[:, quiet, :].reshape(-1, len(thresholds)), thresholds)]
     return ScenarioMetrics(
         scenario=scenario,
         fault=fault,
@@ -215,7 +244,21 @@ def scenario_metrics(
         lorden_bound_samples=None if lorden is None else lorden[1],
         delay_bound_ratio=ratio,
         false_isolation_rate=false_iso,
+        fault_free_histogram=hist,
     )
+
+
+def fault_free_histogram(J: np.ndarray, thresholds: Sequence[float]) -> list[np.ndarray]:
+    """Per statistic, the counts of the samples ``J`` (``samples × nj``) in the bins :data:`HISTOGRAM_EDGES` ``× h``
+    (see :attr:`ScenarioMetrics.fault_free_histogram`)."""
+    out = []
+    for j, h in enumerate(thresholds):
+        if not (np.isfinite(h) and h > 0):
+            out.append(np.zeros(0, dtype=np.int64))
+            continue
+        bins = np.searchsorted(HISTOGRAM_EDGES * float(h), J[:, j], side="right")  # NaN sorts last: the top bin
+        out.append(np.bincount(bins, minlength=len(HISTOGRAM_EDGES) + 1).astype(np.int64))
+    return out
 
 
 def poisson_time_interval(count: int, exposure: float, *, level: float = 0.95) -> tuple[float, float | None]:
@@ -228,3 +271,263 @@ def poisson_time_interval(count: int, exposure: float, *, level: float = 0.95) -
         return lo, None
     lo_count = float(scipy.stats.chi2.ppf(a / 2, 2 * count)) / 2.0
     return lo, exposure / lo_count
+
+
+# --------------------------------------------------------------------------- streaming: per-run summaries, merged
+
+
+@dataclass(frozen=True, eq=False)
+class MetricsPlan:
+    """What the per-run summaries of one design in one scenario are taken over (same for every run).
+
+    ``active``: the fault's samples; ``quiet``: the fault-free ones (outside the
+    fault and its recovery window); ``on``: the samples whose residual mean
+    measures the fault's shift (Lorden bound; ``None``: fault-free scenario);
+    ``fault_index``: the true fault's class in the gain file (``None``: none of
+    its classes). ``extra``: the extra figures' per-run part and reduction.
+    """
+
+    active: np.ndarray
+    quiet: np.ndarray
+    on: np.ndarray | None
+    fault_index: int | None
+    thresholds: tuple[float, ...]
+    extra: Any = None
+
+    @classmethod
+    def of(cls, scenario: Any, gf: Any, t: np.ndarray, extra: Any = None) -> MetricsPlan:
+        """The plan of ``gf``'s diagnoser in ``scenario`` (a :class:`~fdisyn.models.problem.Scenario`) at times ``t``."""
+        from fdisyn.synthesis.registry import lorden_window, recovery_samples
+
+        active = scenario.active(np.asarray(t))
+        quiet = ~active
+        if active.any():
+            last = int(np.flatnonzero(active)[-1])
+            quiet[last + 1 : min(len(t), last + 1 + recovery_samples(gf))] = False
+        on = None
+        if scenario.fault is not None:
+            window = lorden_window(gf) or np.iinfo(np.int64).max
+            on = active & (np.cumsum(active) <= window)
+        fidx = gf.faults.index(scenario.fault) if scenario.fault in gf.faults else None
+        return cls(active=active, quiet=quiet, on=on, fault_index=fidx, thresholds=tuple(float(h) for h in gf.thresholds), extra=extra)
+
+
+@dataclass(frozen=True, eq=False)
+class RunSummaries:
+    """A chunk of ``R`` runs of one design in one scenario, a few numbers per run (arrays over the runs).
+
+    ``quiet_alarms``: alarmed fault-free samples; ``episodes``: false-alarm
+    episodes; ``exceed``: fault-free samples above each threshold (``R × nj``);
+    ``first_alarm``: position of the first alarm among the fault's samples
+    (−1: none); ``alarmed_fault``: alarmed fault samples; ``first_isolation``:
+    the first isolation decision in the fault (−1: none); ``mode_isolation``:
+    the class isolated most often in the fault (the lowest of a tie; −1: none);
+    ``correct_isolated``: alarmed fault samples with the true fault isolated;
+    ``r_on``, ``r_off``: residual sums with the fault's shift and without
+    (``R × nr``), ``rr_off``: the outer products without (``R × nr × nr``);
+    ``nonfinite``: samples with a non-finite input; ``histogram``: the chunk's
+    fault-free histogram (:func:`fault_free_histogram`); ``extra``: each run's
+    value of the extra figures (``None`` without them).
+    """
+
+    quiet_alarms: np.ndarray
+    episodes: np.ndarray
+    exceed: np.ndarray
+    first_alarm: np.ndarray
+    alarmed_fault: np.ndarray
+    first_isolation: np.ndarray
+    mode_isolation: np.ndarray
+    correct_isolated: np.ndarray
+    r_on: np.ndarray
+    r_off: np.ndarray
+    rr_off: np.ndarray
+    nonfinite: np.ndarray
+    histogram: list[np.ndarray]
+    extra: list[Any] | None = None
+
+    @property
+    def runs(self) -> int:
+        return len(self.quiet_alarms)
+
+
+def summarise_runs(plan: MetricsPlan, runs: Any, scenario: Any = None, gf: Any = None) -> RunSummaries:
+    """The summaries of a chunk of runs (``runs``: a :class:`~fdisyn.evaluation.campaign.DesignRuns`, or anything
+    with its ``r``, ``J``, ``alarm``, ``isolated``, ``status``); ``scenario`` and ``gf`` for the extra figures."""
+    alarm = np.asarray(runs.alarm, dtype=bool)
+    isolated = np.asarray(runs.isolated, dtype=np.int64)
+    J = np.asarray(runs.J, dtype=float)
+    r = np.asarray(runs.r, dtype=float)
+    R, n = alarm.shape
+    quiet, active = plan.quiet, plan.active
+    rising = alarm & ~np.concatenate([np.zeros((R, 1), dtype=bool), alarm[:, :-1]], axis=1)
+    exceed = np.sum(J[:, quiet, :] > np.asarray(plan.thresholds)[None, None, :], axis=1).astype(np.int64)
+    idx = np.flatnonzero(active)
+    hit = alarm[:, idx]
+    first_alarm = np.where(hit.any(axis=1), np.argmax(hit, axis=1), -1).astype(np.int64) if idx.size else np.full(R, -1, dtype=np.int64)
+    first_iso = np.full(R, -1, dtype=np.int64)
+    mode_iso = np.full(R, -1, dtype=np.int64)
+    correct = np.zeros(R, dtype=np.int64)
+    if plan.fault_index is not None and idx.size:
+        iso_win = isolated[:, idx]
+        decided = iso_win >= 0
+        first_iso = np.where(decided.any(axis=1), iso_win[np.arange(R), np.argmax(decided, axis=1)], -1).astype(np.int64)
+        mode_iso = np.array([int(np.bincount(row[row >= 0]).argmax()) if np.any(row >= 0) else -1 for row in iso_win], dtype=np.int64)
+        correct = np.sum((iso_win == plan.fault_index) & hit, axis=1).astype(np.int64)
+    nr = r.shape[2]
+    r_on, r_off, rr_off = np.zeros((R, nr)), np.zeros((R, nr)), np.zeros((R, nr, nr))
+    if plan.on is not None:
+        on = plan.on
+        for i in range(R):  # as the reference sums them: each run's own sum, its rows in sample order
+            r_on[i] = np.sum(r[i][on], axis=0)
+            off = r[i][~on]
+            r_off[i] = np.sum(off, axis=0)
+            rr_off[i] = off.T @ off
+    extra = None
+    if plan.extra is not None:
+        rows = {"alarm": alarm.astype(np.int64), "isolated": isolated, "J": J, "r": r}
+        extra = [plan.extra.per_run(scenario, gf, {k: v[i] for k, v in rows.items()}) for i in range(R)]
+    return RunSummaries(
+        quiet_alarms=np.sum(alarm[:, quiet], axis=1).astype(np.int64),
+        episodes=np.sum(rising[:, quiet], axis=1).astype(np.int64),
+        exceed=exceed,
+        first_alarm=first_alarm,
+        alarmed_fault=np.sum(hit, axis=1).astype(np.int64),
+        first_isolation=first_iso,
+        mode_isolation=mode_iso,
+        correct_isolated=correct,
+        r_on=r_on,
+        r_off=r_off,
+        rr_off=rr_off,
+        nonfinite=np.sum(np.asarray(runs.status) == 1, axis=1).astype(np.int64),
+        histogram=fault_free_histogram(J[:, quiet, :].reshape(-1, J.shape[2]), plan.thresholds),
+        extra=extra,
+    )
+
+
+class MetricsAccumulator:
+    """The metrics of one design in one scenario, merged chunk by chunk in run order (:meth:`add`, :meth:`result`).
+
+    It holds counts, the residual sums and, per run, the detection delay and the
+    extra figures' value: its size does not grow with the samples, and by a few
+    numbers per run with the runs. Sums of floating-point numbers are added run
+    by run in run order, so the result does not depend on how the runs were
+    chunked or where they ran.
+    """
+
+    def __init__(self, plan: MetricsPlan, samples: int) -> None:
+        self.plan = plan
+        self.samples = samples
+        self.runs = 0
+        nj = len(plan.thresholds)
+        self.quiet_alarms = self.quiet_runs = self.episodes = 0
+        self.exceed = np.zeros(nj, dtype=np.int64)
+        self.detected = self.alarmed_fault = self.first_correct = self.mode_correct = self.mode_wrong = self.correct_isolated = 0
+        self.delays: list[int] = []
+        self.sums: list[Any] | None = None
+        self.nonfinite = 0
+        self.histogram: list[np.ndarray] | None = None
+        self.extra: list[Any] = []
+
+    def add(self, s: RunSummaries) -> None:
+        """Merge the next chunk's summaries (the chunks in run order)."""
+        p = self.plan
+        self.runs += s.runs
+        self.quiet_alarms += int(s.quiet_alarms.sum())
+        self.quiet_runs += int(np.sum(s.quiet_alarms > 0))
+        self.episodes += int(s.episodes.sum())
+        self.exceed += s.exceed.sum(axis=0)
+        self.detected += int(np.sum(s.first_alarm >= 0))
+        self.alarmed_fault += int(s.alarmed_fault.sum())
+        idx = np.flatnonzero(p.active)
+        if idx.size:
+            self.delays += [int(x) for x in idx[s.first_alarm[s.first_alarm >= 0]] - idx[0]]
+        if p.fault_index is not None:
+            self.first_correct += int(np.sum(s.first_isolation == p.fault_index))
+            self.mode_correct += int(np.sum(s.mode_isolation == p.fault_index))
+            self.mode_wrong += int(np.sum((s.mode_isolation >= 0) & (s.mode_isolation != p.fault_index)))
+            self.correct_isolated += int(s.correct_isolated.sum())
+        if p.on is not None:
+            if self.sums is None:
+                nr = s.r_on.shape[1]
+                self.sums = [np.zeros(nr), np.zeros(nr), 0, 0, np.zeros((nr, nr))]
+            n_on = int(p.on.sum())
+            for i in range(s.runs):
+                self.sums[0] += s.r_on[i]
+                self.sums[1] += s.r_off[i]
+                self.sums[2] += n_on
+                self.sums[3] += len(p.on) - n_on
+                self.sums[4] += s.rr_off[i]
+        self.nonfinite += int(s.nonfinite.sum())
+        self.histogram = list(s.histogram) if self.histogram is None else [a + b for a, b in zip(self.histogram, s.histogram, strict=True)]
+        if s.extra is not None:
+            self.extra += s.extra
+
+    def result(
+        self, *, scenario: str, fault: str | None, P_f: Sequence[float], Ts: float, budget_s: float | None = None,
+        lorden: tuple[float, float] | None = None,
+    ) -> ScenarioMetrics:
+        """The merged :class:`ScenarioMetrics` (``lorden``: ``(I, bound)`` from :attr:`sums`; the rest as
+        :func:`scenario_metrics` takes them)."""
+        p, runs, n = self.plan, self.runs, self.samples
+        n_quiet = int(p.quiet.sum())
+        far = self.quiet_alarms / (runs * n_quiet) if n_quiet else 0.0
+        far_runs = self.quiet_runs / runs if n_quiet else 0.0
+        exc_rate = [int(c) / (runs * n_quiet) if n_quiet else 0.0 for c in self.exceed]
+        intervals = []
+        for pf in P_f:
+            lo, hi = binomial_interval(runs * n_quiet, float(pf))
+            total = max(runs * n_quiet, 1)
+            intervals.append((lo / total, hi / total))
+        md = maf = d_mean = d_med = d_max = ds_mean = iso_acc = first_acc = siso = false_iso = None
+        ds_max: int | None = None
+        n_active = int(p.active.sum())
+        if n_active:
+            md = 1.0 - self.detected / runs
+            maf = 1.0 - self.alarmed_fault / (runs * n_active)
+            if self.delays:
+                delays = np.asarray(self.delays)
+                ds_mean = float(delays.mean())
+                ds_max = int(delays.max())
+                d_mean, d_med, d_max = ds_mean * Ts, float(np.median(delays)) * Ts, ds_max * Ts
+            if p.fault_index is not None:
+                first_acc = self.first_correct / runs
+                iso_acc = self.mode_correct / runs
+                false_iso = self.mode_wrong / runs
+                siso = self.correct_isolated / self.alarmed_fault if self.alarmed_fault else 0.0
+        exposure = runs * n_quiet * Ts
+        mtbfa_lo, mtbfa_hi = poisson_time_interval(self.episodes, exposure)
+        ratio = None
+        if lorden is not None and ds_mean is not None and lorden[1] > 0:
+            ratio = ds_mean / lorden[1]
+        return ScenarioMetrics(
+            scenario=scenario,
+            fault=fault,
+            runs=runs,
+            samples_per_run=n,
+            Ts=Ts,
+            false_alarm_rate=far,
+            false_alarm_runs=far_runs,
+            missed_detection_rate=md,
+            missed_alarm_fraction=maf,
+            detection_delay_mean_s=d_mean,
+            detection_delay_median_s=d_med,
+            detection_delay_max_s=d_max,
+            detection_delay_mean_samples=ds_mean,
+            detection_delay_max_samples=ds_max,
+            isolation_accuracy=iso_acc,
+            first_isolation_accuracy=first_acc,
+            sample_isolation_accuracy=siso,
+            statistic_exceedance=exc_rate,
+            statistic_exceedance_interval=intervals,
+            fault_free_samples=n_quiet * runs,
+            nonfinite_samples=self.nonfinite,
+            false_alarm_episodes=self.episodes,
+            mean_time_between_false_alarms_s=exposure / self.episodes if self.episodes else None,
+            mean_time_between_false_alarms_interval_s=(mtbfa_lo, mtbfa_hi),
+            arl0_budget_s=budget_s,
+            fault_information=None if lorden is None else lorden[0],
+            lorden_bound_samples=None if lorden is None else lorden[1],
+            delay_bound_ratio=ratio,
+            false_isolation_rate=false_iso,
+            fault_free_histogram=[c.tolist() for c in self.histogram or []],
+        )

@@ -117,9 +117,9 @@ class Problem:
     """Modelling choices the sources left open, stated in the report."""
     extra_metrics: Callable[..., Mapping[str, Any]] | None = None
     """Problem-specific Monte Carlo figures of one scenario (default: those of the
-    gain file's diagnoser kind, :func:`fdisyn.synthesis.registry.extra_metrics`):
-    ``extra_metrics(scenario, gain_file, runs)`` with ``runs`` holding the stacked
-    per-run outputs (``alarm``, ``isolated``: runs × N; ``J``: runs × N × nj)."""
+    gain file's diagnoser kind, :func:`fdisyn.synthesis.registry.extra_metrics`): an
+    :class:`~fdisyn.synthesis.registry.ExtraMetrics`, a few values per run and their
+    reduction over the runs (the Monte Carlo never holds every run)."""
     claims: Callable[..., Sequence[Any]] | None = None
     """The paper's claims against ours, the table each report page opens with: ``claims(ctx)`` with ``ctx`` the
     :class:`fdisyn.app.report.ReportContext`, returning :class:`fdisyn.app.report.Claim` rows."""

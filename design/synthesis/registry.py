@@ -42,6 +42,7 @@ __all__ = [
     "step_builder",
     "recovery_samples",
     "extra_metrics",
+    "ExtraMetrics",
     "check_plant",
     "check_options",
     "check_option",
@@ -130,6 +131,27 @@ class Option:
 
 
 @dataclass(frozen=True, eq=False)
+class ExtraMetrics:
+    """Monte Carlo figures of one scenario beyond detection, computed run by run and then reduced.
+
+    ``per_run(scenario, gain_file, run)`` summarises one run (``run``: ``alarm``,
+    ``isolated``: ``N``; ``J``: ``N × nj``) by a few numbers (anything picklable);
+    ``reduce(scenario, gain_file, values)`` turns the runs' values, in run order,
+    into ``{name: figure}``. The Monte Carlo keeps only the values, never the
+    runs. Called on stacked runs (``runs × N`` arrays) it gives the same figures
+    at once.
+    """
+
+    per_run: Callable[[Any, GainFile, Mapping[str, np.ndarray]], Any]
+    reduce: Callable[[Any, GainFile, list[Any]], Mapping[str, Any]]
+
+    def __call__(self, scenario: Any, gf: GainFile, runs: Mapping[str, np.ndarray]) -> Mapping[str, Any]:
+        n = len(runs["alarm"])
+        values = [self.per_run(scenario, gf, {k: np.asarray(v)[i] for k, v in runs.items()}) for i in range(n)]
+        return self.reduce(scenario, gf, values)
+
+
+@dataclass(frozen=True, eq=False)
 class Method:
     """A design method: what it designs for, its options, and what its gain files need downstream.
 
@@ -150,8 +172,8 @@ class Method:
     """``GainFile -> casadi.Function`` with the step contract of :mod:`fdisyn.codegen.step`."""
     recovery_samples: Callable[[GainFile], int] = lambda gf: 0
     """Samples after a fault's end during which alarms are not false alarms (Monte Carlo metrics)."""
-    extra_metrics: Callable[..., Mapping[str, Any]] | None = None
-    """Monte Carlo figures of one scenario beyond detection: ``(scenario, gain_file, runs) -> {name: value}``."""
+    extra_metrics: ExtraMetrics | None = None
+    """Monte Carlo figures of one scenario beyond detection, run by run and reduced (:class:`ExtraMetrics`)."""
     false_alarm_budget: Callable[[GainFile], float] | None = None
     """The diagnoser's designed mean time between false alarms (s), ``gain_file -> seconds``."""
     lorden_bound: Callable[[GainFile, np.ndarray, np.ndarray], tuple[float, float] | None] | None = None
@@ -279,7 +301,7 @@ def lorden_window(gf: GainFile) -> int | None:
     return None if m is None or m.lorden_window is None else int(m.lorden_window(gf))
 
 
-def extra_metrics(kind: str) -> Callable[..., Mapping[str, Any]] | None:
+def extra_metrics(kind: str) -> ExtraMetrics | None:
     """The extra Monte Carlo figures of diagnoser kind ``kind`` (None: none)."""
     m = _kind(kind)
     return None if m is None else m.extra_metrics

@@ -287,6 +287,7 @@ from fdisyn.runtime.layout import StateLayout
 from fdisyn.runtime.names import shown
 from fdisyn.synthesis.nafdf.settings import _IDENT, _MAX_NAME, NafdfSettings, _settings
 from fdisyn.synthesis.nafdf.step import _build_step, _check_step_size
+from fdisyn.synthesis.registry import ExtraMetrics
 
 __all__ = ['NOT_ISOLABLE', 'NafdfDesign', 'nafdf', 'nafdf_diagnosis', 'nafdf_extra_metrics']
 
@@ -679,39 +680,63 @@ def nafdf_diagnosis(
     }
 
 
-def nafdf_extra_metrics(scenario: Any, gf: GainFile, runs: Mapping[str, np.ndarray]) -> dict[str, float | None]:
-    """Monte Carlo figures of a NAFDF beyond detection (a problem's ``extra_metrics``).
+def _fault_sizes(scenario: Any) -> dict[str, float]:
+    return {str(q): float(v) for q, v in dict(scenario.params.get("fault_size") or {}).items()}
 
-    ``scenario.params["fault_size"]`` maps each jumping parameter to its true
-    jump ``θ_faulty − θ_0`` (absent or empty: fault-free). Fault-free: the
-    fraction of runs with an isolation and alarm episodes per 10⁴ samples.
-    Faulty: the fraction of runs whose latched parameter classes are exactly
-    the jumping parameters, the median isolation delay in samples, and per
-    jumping parameter the mean and standard deviation of the latched size
-    estimate (2.8) minus the true jump, over the runs that classed it faulty; and the fraction of runs
-    ending :data:`NOT_ISOLABLE`.
-    """
+
+def _nafdf_run(scenario: Any, gf: GainFile, run: Mapping[str, np.ndarray]) -> dict[str, Any]:
+    """One run's share of :data:`nafdf_extra_metrics`: its isolations, alarm onsets, and the last sample's latched
+    classes, sizes and excitation flag."""
     names = list(gf.step.statistic_names)
-    iso, alarm = runs["isolated"], runs["alarm"]
-    last = runs["J"][:, -1, :]
-    sizes = {str(q): float(v) for q, v in dict(scenario.params.get("fault_size") or {}).items()}
+    iso, alarm = np.asarray(run["isolated"]), np.asarray(run["alarm"]).astype(np.int64)
+    last = np.asarray(run["J"])[-1, :]
+    sizes = _fault_sizes(scenario)
     if scenario.fault is None or not sizes:
-        onsets = np.sum(np.diff(alarm, axis=1, prepend=0) > 0)
-        return {
-            "runs with an isolation": float(np.mean(np.any(iso >= 0, axis=1))),
-            "alarm episodes per 10k samples": float(1e4 * onsets / alarm.size),
-        }
-    classes = np.stack([last[:, names.index(f"fault_class_{q}")] for q in gf.faults], axis=1)
-    exact = np.all((classes > 0) == np.array([q in sizes for q in gf.faults])[None, :], axis=1)
-    out: dict[str, float | None] = {"all parameter classes correct": float(np.mean(exact))}
+        return {"isolated": bool(np.any(iso >= 0)), "onsets": int(np.sum(np.diff(alarm, prepend=0) > 0)), "samples": int(alarm.size)}
+    classes = np.array([last[names.index(f"fault_class_{q}")] for q in gf.faults])
     onset = int(round(float(scenario.onset or 0.0) / gf.Ts))
-    found = [int(np.argmax(row[onset:] >= 0)) for row in iso if np.any(row[onset:] >= 0)]
+    after = iso[onset:] >= 0
+    return {
+        "exact": bool(np.all((classes > 0) == np.array([q in sizes for q in gf.faults]))),
+        "delay": int(np.argmax(after)) if np.any(after) else None,
+        "not_isolable": bool(last[names.index("insufficient_excitation")] > 0),
+        "errors": {
+            q: float(last[names.index(f"fault_size_{q}")] - true) if last[names.index(f"fault_class_{q}")] > 0 else None
+            for q, true in sizes.items()
+        },
+    }
+
+
+def _nafdf_reduce(scenario: Any, gf: GainFile, runs: list[dict[str, Any]]) -> dict[str, float | None]:
+    """The figures of :data:`nafdf_extra_metrics` from every run's :func:`_nafdf_run`, in run order."""
+    sizes = _fault_sizes(scenario)
+    if scenario.fault is None or not sizes:
+        onsets = sum(r["onsets"] for r in runs)
+        return {
+            "runs with an isolation": float(np.mean([r["isolated"] for r in runs])),
+            "alarm episodes per 10k samples": float(1e4 * onsets / sum(r["samples"] for r in runs)),
+        }
+    out: dict[str, float | None] = {"all parameter classes correct": float(np.mean([r["exact"] for r in runs]))}
+    found = [r["delay"] for r in runs if r["delay"] is not None]
     out["isolation delay median (samples)"] = float(np.median(found)) if found else None
-    out["runs detected, not isolable (insufficient excitation)"] = float(np.mean(last[:, names.index("insufficient_excitation")] > 0))
-    for q, true in sizes.items():
-        sel = last[:, names.index(f"fault_class_{q}")] > 0
-        err = last[sel, names.index(f"fault_size_{q}")] - true
+    out["runs detected, not isolable (insufficient excitation)"] = float(np.mean([r["not_isolable"] for r in runs]))
+    for q in sizes:
+        err = np.array([r["errors"][q] for r in runs if r["errors"][q] is not None], dtype=float)
         out[f"size error {q}: mean"] = float(err.mean()) if err.size else None
         out[f"size error {q}: sd"] = float(err.std(ddof=1)) if err.size > 1 else None
     return out
+
+
+nafdf_extra_metrics = ExtraMetrics(per_run=_nafdf_run, reduce=_nafdf_reduce)
+"""Monte Carlo figures of a NAFDF beyond detection (the ``nafdf`` kind's :attr:`Method.extra_metrics`).
+
+``scenario.params["fault_size"]`` maps each jumping parameter to its true
+jump ``θ_faulty − θ_0`` (absent or empty: fault-free). Fault-free: the
+fraction of runs with an isolation and alarm episodes per 10⁴ samples.
+Faulty: the fraction of runs whose latched parameter classes are exactly
+the jumping parameters, the median isolation delay in samples, and per
+jumping parameter the mean and standard deviation of the latched size
+estimate (2.8) minus the true jump, over the runs that classed it faulty; and the fraction of runs
+ending :data:`NOT_ISOLABLE`.
+"""
 

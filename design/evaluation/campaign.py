@@ -1,0 +1,470 @@
+"""A Monte Carlo campaign: per-run seeds, chunks of runs simulated and diagnosed, and where the chunks run.
+
+Run ``i`` of scenario ``s`` (the scenario's position in ``problem.scenarios``)
+gets the seed :func:`run_seed` ``(seed0, s, i)``, whatever the design, the
+chunk it falls in or the process that runs it: every design of a comparison
+sees the same runs (common random numbers), and a run is the same run on one
+core, on many and on a Dask cluster. The runs of a scenario are simulated and
+diagnosed in chunks of bounded size (:func:`simulate_and_diagnose`, a
+:class:`ChunkRuns`); each chunk is reduced where it ran to a few numbers per
+run (:func:`fdisyn.evaluation.metrics.summarise_runs`) and the parent merges
+them in run order, so memory does not grow with the samples of the campaign
+and the metrics are identical to the last bit however the runs were spread.
+
+Chunks run here (``workers=1``), over local processes (each given a
+:class:`CampaignSpec` that rebuilds the problem and loads the compiled
+diagnosers once per process) or on a ``dask.distributed.Client``. A chunk that
+raises is run again once; a second failure names the scenario, the run, its
+seed and the error (:class:`~fdisyn.runtime.errors.MonteCarloError`).
+"""
+
+from __future__ import annotations
+
+import importlib
+import multiprocessing
+import os
+import pickle
+from collections import deque
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from fdisyn.evaluation.metrics import MetricsPlan, RunSummaries, summarise_runs
+from fdisyn.models.problem import Batch, Problem, Scenario
+from fdisyn.runtime.errors import ArgumentError, FdisynError, MonteCarloError
+
+if TYPE_CHECKING:
+    from fdisyn.evaluation.evaluate import Built
+
+__all__ = [
+    "run_seed",
+    "DesignRuns",
+    "ChunkRuns",
+    "simulate_and_diagnose",
+    "Campaign",
+    "CampaignSpec",
+    "ChunkTask",
+    "ChunkSummary",
+    "RunFailure",
+    "chunk_runs",
+    "local_cores",
+    "first_run",
+    "extra_hooks",
+    "load_source",
+    "problem_source",
+    "remote_chunk",
+    "run_tasks",
+    "dask_client",
+]
+
+CHUNK_SAMPLES = 500_000
+"""Samples (runs × samples per run) simulated in one chunk at most: a chunk keeps every signal of its runs, so
+this bounds the memory of a campaign whatever its number of runs (about 8 bytes × signals per sample)."""
+
+CHUNK_RUNS = 25
+"""Runs in one chunk at most (short runs): enough chunks per scenario to spread over the workers."""
+
+
+def run_seed(seed0: int, scenario_index: int, run: int) -> int:
+    """The seed of run ``run`` of the scenario at position ``scenario_index`` in a campaign started from ``seed0``:
+    the first word of ``SeedSequence([seed0, scenario_index, run])``, halved into ``[0, 2⁶³)``."""
+    return int(np.random.SeedSequence([seed0, scenario_index, run]).generate_state(2, np.uint64)[0] >> np.uint64(1))
+
+
+@dataclass(frozen=True, eq=False)
+class DesignRuns:
+    """One design's outputs over a chunk of ``R`` runs of ``N`` samples."""
+
+    r: np.ndarray
+    """``(R, N, nr)`` float64."""
+    J: np.ndarray
+    """``(R, N, nj)`` float64."""
+    alarm: np.ndarray
+    """``(R, N)`` bool: the step's alarm output (any statistic)."""
+    isolated: np.ndarray
+    """``(R, N)`` int32, −1: none."""
+    status: np.ndarray
+    """``(R, N)`` int8, 1: a sample with a non-finite input."""
+
+
+@dataclass(frozen=True, eq=False)
+class ChunkRuns:
+    """A chunk of runs of one scenario: their seeds, the sample times and every design's outputs."""
+
+    seeds: tuple[int, ...]
+    t: np.ndarray
+    designs: Mapping[str, DesignRuns]
+    batch: Batch | None
+    """The simulated ``U``, ``Y`` and extra signals of these runs, when asked for (figures, examples)."""
+
+
+def simulate_and_diagnose(
+    problem: Problem, built: Mapping[str, Built], scenario: str | Scenario, seeds: Sequence[int], *, keep_batch: bool = False,
+    **options: Any,
+) -> ChunkRuns:
+    """Simulate ``scenario`` once per seed (:meth:`Problem.run`) and run every built diagnoser's C step over each run."""
+    batch = problem.run(scenario, seeds, **options)
+    designs = {}
+    for name, b in built.items():
+        res = [b.diagnoser.run(batch.U[i], batch.Y[i]) for i in range(len(batch.seeds))]
+        designs[name] = DesignRuns(
+            r=np.stack([x.r for x in res]),
+            J=np.stack([x.J for x in res]),
+            alarm=np.stack([x.alarm for x in res]).astype(bool),
+            isolated=np.stack([x.isolated for x in res]).astype(np.int32),
+            status=np.stack([x.status for x in res]).astype(np.int8),
+        )
+    return ChunkRuns(seeds=batch.seeds, t=batch.t, designs=designs, batch=batch if keep_batch else None)
+
+
+def chunk_runs(samples_per_run: int) -> int:
+    """Runs per chunk for runs of ``samples_per_run`` samples (:data:`CHUNK_SAMPLES`, :data:`CHUNK_RUNS`); it
+    depends on the runs' length only, never on the workers."""
+    return max(1, min(CHUNK_RUNS, CHUNK_SAMPLES // max(samples_per_run, 1)))
+
+
+def local_cores() -> int:
+    """The cores this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not Linux
+        return os.cpu_count() or 1
+
+
+# --------------------------------------------------------------------------- one chunk
+
+
+@dataclass(frozen=True)
+class ChunkTask:
+    """Runs ``start … start + len(seeds) − 1`` of scenario ``scenario`` (its position ``scenario_index``)."""
+
+    scenario: str
+    scenario_index: int
+    start: int
+    seeds: tuple[int, ...]
+    keep_batch: bool = False
+
+
+@dataclass(frozen=True, eq=False)
+class ChunkSummary:
+    """What a chunk sends back: each design's per-run summaries, and run 0's simulation when it was asked for."""
+
+    task: ChunkTask
+    t: np.ndarray
+    summaries: Mapping[str, RunSummaries]
+    batch: Batch | None = None
+
+
+@dataclass(eq=False)
+class Campaign:
+    """A problem, its options and its built diagnosers, ready to run chunks."""
+
+    problem: Problem
+    built: Mapping[str, Built]
+    options: Mapping[str, Any]
+    extra: Mapping[str, Any] = field(default_factory=dict)
+
+    def run(self, task: ChunkTask) -> ChunkSummary:
+        sc = self.problem.scenario(task.scenario)
+        chunk = simulate_and_diagnose(self.problem, self.built, sc, task.seeds, keep_batch=task.keep_batch, **self.options)
+        out = {}
+        for name, b in self.built.items():
+            plan = MetricsPlan.of(sc, b.gain_file, chunk.t, self.extra.get(name))
+            out[name] = summarise_runs(plan, chunk.designs[name], sc, b.gain_file)
+        return ChunkSummary(task=task, t=chunk.t, summaries=out, batch=None if chunk.batch is None else first_run(chunk.batch))
+
+    def run_or_locate(self, task: ChunkTask) -> ChunkSummary:
+        """:meth:`run`; when the chunk raises, the first of its runs that raises alone is named (:class:`RunFailure`)."""
+        try:
+            return self.run(task)
+        except Exception as exc:
+            for k, seed in enumerate(task.seeds):
+                try:
+                    self.run(ChunkTask(task.scenario, task.scenario_index, task.start + k, (seed,)))
+                except Exception as one:
+                    raise RunFailure(task.scenario, task.start + k, seed, _describe(one)) from one
+            last = task.start + len(task.seeds) - 1
+            raise RunFailure(task.scenario, task.start, task.seeds[0], f"runs {task.start}–{last} together: {_describe(exc)}") from exc
+
+
+def _describe(exc: BaseException) -> str:
+    text = " ".join(str(exc).split())
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+
+
+class RunFailure(Exception):
+    """A run of a chunk raised (picklable: it crosses from a worker process or a Dask worker)."""
+
+    def __init__(self, scenario: str, run: int, seed: int, error: str) -> None:
+        super().__init__(scenario, run, seed, error)
+        self.scenario, self.run, self.seed, self.error = scenario, run, seed, error
+
+    def __str__(self) -> str:
+        return f"scenario {self.scenario!r}, run {self.run} (seed {self.seed}): {self.error}"
+
+
+def first_run(batch: Batch) -> Batch:
+    """Run 0 of ``batch`` alone (the example run of the figures)."""
+    return Batch(
+        scenario=batch.scenario,
+        seeds=batch.seeds[:1],
+        t=batch.t,
+        inputs=batch.inputs,
+        outputs=batch.outputs,
+        U=batch.U[:1],
+        Y=batch.Y[:1],
+        extra={k: v[:1] for k, v in batch.extra.items()},
+    )
+
+
+# --------------------------------------------------------------------------- rebuilding a campaign in a worker
+
+
+@dataclass(frozen=True)
+class CampaignSpec:
+    """Everything a worker process needs to rebuild a campaign: picklable, no library handle.
+
+    ``source``: a built-in problem's name, a plant file's path, or
+    ``module:attribute`` naming a :class:`Problem`; ``options``: the problem's
+    options; ``built``: each design's built directory (``gains.json`` and the
+    compiled library; a remote worker must see the same path).
+    """
+
+    source: str
+    options: tuple[tuple[str, Any], ...]
+    built: tuple[tuple[str, str, str], ...]
+    """``(design, directory, sha256 of its gains.json)``: a directory built again is loaded again."""
+    scenarios: tuple[Scenario, ...] = ()
+    """The scenarios run, as the parent has them (a problem's scenarios may be replaced, e.g. scaled faults)."""
+
+    def key(self) -> bytes:
+        return pickle.dumps((self.source, self.options, self.built, self.scenarios))
+
+
+_CAMPAIGNS: dict[bytes, Campaign] = {}
+"""The campaigns this process rebuilt, by :meth:`CampaignSpec.key` (a worker loads each library once)."""
+
+
+def load_source(source: str) -> Problem:
+    """The problem ``source`` names (see :class:`CampaignSpec`)."""
+    from fdisyn.app.plant_file import load_spec
+
+    if ":" in source and not Path(source).exists():
+        module, _, attr = source.partition(":")
+        prob = getattr(importlib.import_module(module), attr, None)
+        if not isinstance(prob, Problem):
+            raise ArgumentError(f"{source!r} does not name a Problem (module:attribute)")
+        return prob
+    return load_spec(source)
+
+
+def problem_source(problem: Problem) -> str | None:
+    """The source that rebuilds ``problem`` in another process: its name when it is the built-in problem of that
+    name, else ``None`` (a plant file's problem needs its path)."""
+    from fdisyn.models.problem import get_problem
+
+    try:
+        return problem.name if get_problem(problem.name) is problem else None
+    except FdisynError:
+        return None
+
+
+def _campaign(spec: CampaignSpec) -> Campaign:
+    key = spec.key()
+    if key not in _CAMPAIGNS:
+        from fdisyn.evaluation.evaluate import load_built
+
+        problem = load_source(spec.source)
+        if spec.scenarios:
+            problem = replace(problem, scenarios={sc.name: sc for sc in spec.scenarios})
+        built = {name: load_built(d) for name, d, _ in spec.built}
+        _CAMPAIGNS[key] = Campaign(problem, built, dict(spec.options), extra_hooks(problem, built))
+    return _CAMPAIGNS[key]
+
+
+def remote_chunk(spec: CampaignSpec, task: ChunkTask) -> ChunkSummary:
+    """Run ``task`` in a worker (the campaign rebuilt from ``spec`` once per process)."""
+    return _campaign(spec).run_or_locate(task)
+
+
+def extra_hooks(problem: Problem, built: Mapping[str, Built]) -> dict[str, Any]:
+    """Each design's extra figures (:class:`~fdisyn.synthesis.registry.ExtraMetrics`): the problem's, else its
+    diagnoser kind's; designs without any are left out."""
+    from fdisyn.synthesis.registry import ExtraMetrics, extra_metrics
+
+    out = {}
+    for name, b in built.items():
+        hook = problem.extra_metrics or extra_metrics(b.gain_file.kind)
+        if hook is None:
+            continue
+        if not isinstance(hook, ExtraMetrics):
+            raise ArgumentError(
+                f"problem {problem.name!r}: extra_metrics must be an ExtraMetrics (per-run values and their reduction); "
+                f"got {type(hook).__name__}"
+            )
+        out[name] = hook
+    return out
+
+
+# --------------------------------------------------------------------------- where chunks run
+
+
+class _Serial:
+    """Chunks run here, one after the other."""
+
+    slots = 1
+
+    def __init__(self, campaign: Campaign) -> None:
+        self.campaign = campaign
+
+    def submit(self, task: ChunkTask) -> Future[ChunkSummary]:
+        fut: Future[ChunkSummary] = Future()
+        try:
+            fut.set_result(self.campaign.run_or_locate(task))
+        except RunFailure as exc:
+            fut.set_exception(exc)
+        return fut
+
+    def reset(self) -> bool:
+        return False
+
+
+_POOLS: dict[int, ProcessPoolExecutor] = {}
+"""The process pools of this process, by size: kept between campaigns, so each worker loads a campaign once."""
+
+
+def _context() -> Any:
+    """Worker processes start from a fork server that has imported fdisyn (no fork of a threaded parent), else
+    spawned."""
+    if "forkserver" in multiprocessing.get_all_start_methods():
+        ctx = multiprocessing.get_context("forkserver")
+        ctx.set_forkserver_preload(["fdisyn.evaluation.campaign", "fdisyn.evaluation.evaluate"])
+        return ctx
+    return multiprocessing.get_context("spawn")  # pragma: no cover - not POSIX
+
+
+class _Processes:
+    """Chunks run over local worker processes."""
+
+    def __init__(self, spec: CampaignSpec, workers: int) -> None:
+        self.spec, self.slots = spec, 2 * workers
+        self.workers = workers
+        self.pool = self._pool()
+
+    def _pool(self) -> ProcessPoolExecutor:
+        pool = _POOLS.get(self.workers)
+        if pool is None:
+            pool = _POOLS[self.workers] = ProcessPoolExecutor(self.workers, mp_context=_context())
+        return pool
+
+    def submit(self, task: ChunkTask) -> Future[ChunkSummary]:
+        return self.pool.submit(remote_chunk, self.spec, task)
+
+    def reset(self) -> bool:
+        """After a worker process died: a new pool (the lost chunks are submitted again)."""
+        _POOLS.pop(self.workers, None)
+        self.pool.shutdown(wait=False, cancel_futures=True)
+        self.pool = self._pool()
+        return True
+
+
+class _Dask:
+    """Chunks run on a Dask cluster."""
+
+    def __init__(self, spec: CampaignSpec, client: Any) -> None:
+        self.spec, self.client = spec, client
+        self.slots = 2 * max(1, sum(client.nthreads().values()))
+
+    def submit(self, task: ChunkTask) -> Any:
+        return self.client.submit(remote_chunk, self.spec, task, pure=False)
+
+    def reset(self) -> bool:
+        return False
+
+
+def run_tasks(
+    tasks: Sequence[ChunkTask],
+    *,
+    campaign: Campaign,
+    spec: CampaignSpec | None,
+    workers: int,
+    client: Any = None,
+) -> Iterator[ChunkSummary]:
+    """The chunks' summaries in task order, run here (``workers == 1`` or no ``spec``), over ``workers`` local
+    processes, or on ``client``. At most a few chunks per worker are in flight (memory stays bounded); a chunk that
+    fails is run once more, and a second failure is a :class:`MonteCarloError` naming its run."""
+    runner: Any
+    if client is not None:
+        if spec is None:
+            raise ArgumentError(_NO_SOURCE)
+        runner = _Dask(spec, client)
+    elif workers > 1 and spec is not None and len(tasks) > 1:
+        runner = _Processes(spec, min(workers, len(tasks)))
+    else:
+        runner = _Serial(campaign)
+    pending: deque[tuple[ChunkTask, Any, bool]] = deque()
+    queue = iter(tasks)
+
+    def fill() -> None:
+        while len(pending) < runner.slots:
+            task = next(queue, None)
+            if task is None:
+                return
+            pending.append((task, runner.submit(task), False))
+
+    fill()
+    while pending:
+        task, fut, retried = pending.popleft()
+        try:
+            result = fut.result()
+        except Exception as exc:
+            if retried:
+                if isinstance(exc, BrokenProcessPool):
+                    runner.reset()  # the next campaign finds a working pool
+                raise _failure(exc, task) from None
+            if isinstance(exc, BrokenProcessPool) and runner.reset():  # a worker died: every chunk in flight again
+                pending = deque((t, runner.submit(t), r) for t, _, r in pending)
+            pending.appendleft((task, runner.submit(task), True))
+            continue
+        yield result
+        fill()
+
+
+_NO_SOURCE = (
+    "this problem cannot be rebuilt in another process: give evaluate source= (its plant file, or module:attribute), "
+    "or workers=1"
+)
+
+
+def _failure(exc: BaseException, task: ChunkTask) -> MonteCarloError:
+    last = task.start + len(task.seeds) - 1
+    if isinstance(exc, RunFailure):
+        what = str(exc)
+    else:
+        what = f"scenario {task.scenario!r}, runs {task.start}–{last}: {_describe(exc)}"
+    return MonteCarloError(f"a Monte Carlo run failed twice: {what}")
+
+
+def dask_client(address: str | None, workers: int) -> Callable[[], Any]:
+    """A factory of the Dask client of ``fdisyn … --scheduler dask``: the scheduler at ``address``, else a local
+    cluster of ``workers`` processes of one thread. Dask missing or the scheduler unreachable: a
+    :class:`MonteCarloError` in one line."""
+
+    def connect() -> Any:
+        try:
+            from dask.distributed import Client, LocalCluster
+        except ImportError:
+            raise MonteCarloError("--scheduler dask needs Dask: pip install 'fdisyn[dask]'") from None
+        if address is None:
+            return Client(LocalCluster(n_workers=workers, threads_per_worker=1, dashboard_address=None))
+        try:
+            return Client(address, timeout=10)
+        except (OSError, TimeoutError, ValueError) as exc:
+            raise MonteCarloError(f"--address {address}: cannot reach a Dask scheduler there ({_describe(exc)}); "
+                                  "expected tcp://HOST:PORT of a running dask scheduler") from None
+
+    return connect

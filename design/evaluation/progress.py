@@ -1,0 +1,50 @@
+"""Progress bars of the long steps (designing, compiling, the Monte Carlo): one helper, in one place.
+
+A bar (tqdm) shows the count, the rate and the time left on stderr. It stays
+quiet when stderr is not a terminal (a log file, a test, CI) and everywhere
+after :func:`set_quiet` (``fdisyn --quiet``).
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
+from typing import Any, TypeVar
+
+T = TypeVar("T")
+
+__all__ = ["bar", "tracked", "set_quiet", "quiet"]
+
+_QUIET = [False]
+
+
+def set_quiet(value: bool = True) -> None:
+    """No progress bar from now on (``value=False``: bars again where stderr is a terminal)."""
+    _QUIET[0] = bool(value)
+
+
+def quiet() -> bool:
+    """Whether bars are off: :func:`set_quiet`, or stderr is not a terminal."""
+    return _QUIET[0] or not (hasattr(sys.stderr, "isatty") and sys.stderr.isatty())
+
+
+@contextmanager
+def bar(total: int | None, desc: str, unit: str = "it", *, shown: bool = True) -> Iterator[Any]:
+    """A progress bar of ``total`` steps named ``desc``; ``.update(n)`` advances it, ``.set_postfix_str(s)`` says
+    what it is at. Quiet (a bar that draws nothing) as :func:`quiet` says, or when not ``shown``."""
+    from tqdm import tqdm
+
+    off = quiet() or not shown
+    with tqdm(total=total, desc=desc, unit=unit, file=sys.stderr, disable=off, dynamic_ncols=True, mininterval=0.5) as b:
+        yield b
+
+
+def tracked(items: Iterable[T], desc: str, unit: str = "it") -> Iterator[T]:
+    """``items`` one by one, behind a bar named ``desc`` (quiet as :func:`quiet` says)."""
+    seq = list(items)
+    with bar(len(seq), desc, unit) as b:
+        for item in seq:
+            b.set_postfix_str(str(item))
+            yield item
+            b.update(1)
