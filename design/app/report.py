@@ -694,62 +694,63 @@ def _detectors_section(variants: Sequence[Any]) -> str:
     return _budget_table(pairs, scen, by_variant=True)
 
 
-def _fault_free_J(variant: Any, design: str) -> tuple[np.ndarray, str] | None:
-    """Fault-free samples of a design's statistics from the example runs: the fault-free scenario's run 0, else
-    the samples before the first faulty scenario's onset."""
-    ex, bt = variant.evaluation.examples.get(design, {}), variant.evaluation.batches
-    for s, res in ex.items():
-        if bt[s].scenario.fault is None:
-            return res.J, s
-    for s, res in ex.items():
-        quiet = ~bt[s].active & (bt[s].t < (bt[s].scenario.onset or np.inf))
-        if quiet.sum() > 10:
-            return res.J[quiet], s
-    return None
+def _fault_free_counts(variant: Any, design: str, nj: int) -> list[np.ndarray]:
+    """Per statistic, its fault-free samples of every run and scenario counted in the bins
+    :data:`~fdisyn.evaluation.metrics.HISTOGRAM_EDGES` ``× threshold`` (empty: the statistic has no threshold)."""
+    total: list[np.ndarray] = [np.zeros(0, dtype=np.int64)] * nj
+    for m in variant.evaluation.metrics.get(design, {}).values():
+        for j, c in enumerate(m.fault_free_histogram[:nj]):
+            c = np.asarray(c, dtype=np.int64)
+            if c.size:
+                total[j] = c if total[j].size == 0 else total[j] + c
+    return total
 
 
 def _law_figures(ctx: ReportContext) -> str:
-    """Per design, each statistic's fault-free histogram against its law: χ²(dof) for a χ² statistic; for the
-    others (WSSR, CUSUM, GLR, …) the empirical tail P(J > x) against the threshold and the design's P_f."""
+    """Per design, each statistic's fault-free histogram over every run against its law: χ²(dof) for a χ² statistic;
+    for the others (WSSR, CUSUM, GLR, …) the empirical tail P(J ≥ x) against the threshold and the design's P_f."""
     import scipy.stats
+    from fdisyn.evaluation.metrics import HISTOGRAM_EDGES
 
     v, problem, out = ctx.variants[0], ctx.problem, []
     for k, (d, b) in enumerate(v.built.items()):
-        got = _fault_free_J(v, d)
-        if got is None:
-            continue
-        J, scen = got
         gf = b.gain_file
         names = list(gf.step.statistic_names)
-        shown = list(range(min(len(names), 8)))
+        counts = _fault_free_counts(v, d, len(names))
+        shown = [j for j, c in enumerate(counts) if c.size and c.sum() > 0][:8]
+        if not shown:
+            continue
+        with_threshold = sum(1 for c in counts if c.size)
         cols = min(4, len(shown))
         rows = -(-len(shown) // cols)
         fig, axes = subplots(rows, cols, figsize=(2.6 * cols, 2.9 * rows + 0.4), squeeze=False)
         thr = np.asarray(gf.thresholds, dtype=float)
+        samples = 0
         for j, ax in zip(shown, axes.ravel(), strict=False):
-            x = J[:, j][np.isfinite(J[:, j])]
+            c, h = counts[j], float(thr[j])
+            n = int(c.sum())
+            samples = max(samples, n)
+            edges = HISTOGRAM_EDGES * h
             ev = gf.evaluators[j] if j < len(gf.evaluators) else None
-            law = "tail"
-            if x.size == 0:
-                continue
             if ev is not None and ev.kind == "chi2":
-                top = max(float(np.max(x)), float(thr[j]) if np.isfinite(thr[j]) else 0.0)
-                ax.hist(x, bins=40, range=(0.0, top), density=True, color="tab:blue", alpha=0.6)
-                grid = np.linspace(top / 400, top, 400)
+                dens = c[1:-1] / (n * np.diff(edges))
+                ax.stairs(np.where(dens > 0, dens, np.nan), edges, fill=True, color="tab:blue", alpha=0.6)
+                grid = np.linspace(edges[-1] / 400, edges[-1], 400)
                 ax.plot(grid, scipy.stats.chi2.pdf(grid, ev.dof), "k", lw=1.0)
-                ax.set_yscale("log")
                 ax.set_ylabel("density")
+                ax.set_ylim(bottom=0.3 / (n * (edges[1] - edges[0])))  # below one sample per bin the law is not seen
                 law = f"χ²({ev.dof})"
             else:
-                xs = np.sort(x)
-                tail = 1.0 - np.arange(xs.size) / xs.size
-                ax.step(xs, tail, where="post", color="tab:blue")
-                ax.set_yscale("log")
-                ax.set_ylabel("P(J > x)")
-                if ev is not None:
+                # P(J ≥ edge): the samples in the bins from that edge up, over all
+                tail = np.cumsum(c[::-1])[::-1][1:] / n
+                ax.step(edges, np.where(tail > 0, tail, np.nan), where="post", color="tab:blue")
+                ax.set_ylabel("P(J ≥ x)")
+                ax.set_ylim(bottom=0.3 / n)
+                if ev is not None and ev.P_f is not None and ev.P_f > 0:
                     ax.axhline(ev.P_f, color="tab:red", ls=":", lw=1.0)
-            if np.isfinite(thr[j]):
-                ax.axvline(thr[j], color="k", ls="--", lw=0.9)
+                law = "empirical tail"
+            ax.set_yscale("log")
+            ax.axvline(h, color="k", ls="--", lw=0.9)
             # the statistic's name above its panel (wrapped), the axis only "J": long names side by side overlap
             ax.set_title(textwrap.fill(label(problem, names[j]), 30) + f"\n{law}", fontsize=MIN_FONT_PT)
             ax.set_xlabel("J")
@@ -758,10 +759,11 @@ def _law_figures(ctx: ReportContext) -> str:
             ax.set_visible(False)
         fig.tight_layout()
         caption = (
-            f"{label(problem, d)}: fault-free samples of run 0 ({label(problem, scen)}), {fmt(int(J.shape[0]))} samples. χ² statistics: "
-            "histogram (density) against the χ² density with the statistic's degrees of freedom (black); other statistics: the "
-            "empirical tail P(J > x) against the design's P_f (red, dotted). Dashed: the threshold."
-            + (f" The first {len(shown)} of {len(names)} statistics." if len(shown) < len(names) else "")
+            f"{label(problem, d)}: the fault-free samples of every run and scenario ({fmt(samples)} per statistic), binned from "
+            "0 to 3 thresholds in steps of a twentieth. χ² statistics: histogram (density) against the χ² density with the "
+            "statistic's degrees of freedom (black); other statistics: the empirical tail P(J ≥ x) against the design's P_f "
+            "(red, dotted). Dashed: the threshold."
+            + (f" The first {len(shown)} of the {with_threshold} statistics with a threshold." if len(shown) < with_threshold else "")
         )
         body = ctx.figure(f"law_{d}", fig, caption)
         out.append(body if k == 0 else f"<details><summary>{html.escape(label(problem, d))}</summary>{body}</details>")
