@@ -120,6 +120,12 @@ class Problem:
     gain file's diagnoser kind, :func:`fdisyn.synthesis.registry.extra_metrics`):
     ``extra_metrics(scenario, gain_file, runs)`` with ``runs`` holding the stacked
     per-run outputs (``alarm``, ``isolated``: runs × N; ``J``: runs × N × nj)."""
+    sample_model: Callable[..., Any] | None = None
+    """The simulator one sample at a time, for the compiled Monte Carlo:
+    ``sample_model(**options)`` returns a
+    :class:`~fdisyn.evaluation.compiled_simulation.SampleModel` whose runs match
+    :attr:`simulate`'s given the same standard-normal draws; ``None``: the runs
+    stay on the Python path."""
 
     def design(self, name: str | None = None, **options: Any) -> GainFile:
         key = name or self.default_design

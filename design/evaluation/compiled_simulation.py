@@ -1,0 +1,534 @@
+"""Compiled Monte Carlo: the plant's simulation and every design's step, fused in one C call per chunk of runs.
+
+A problem opts in with :attr:`fdisyn.models.problem.Problem.sample_model`: its
+simulator described one sample at a time (:class:`SampleModel`), a CasADi
+function
+
+    ``(x, z, k, p) ↦ (x⁺, u, y, e)``
+
+of the simulation's state ``x``, the sample's standard-normal draws ``z``, the
+sample index ``k`` and the scenario's parameters ``p`` (fault window and
+sizes), giving the next state, the known inputs, the measurements and the
+signals kept beside them (true states, unknown inputs). The generated C driver
+(``campaign.c.in``) runs it for every run of a chunk with the run's own
+xoshiro256** generator (Blackman & Vigna 2018) seeded from
+``SeedSequence(seed).generate_state(4, np.uint64)``, Gaussians by the ziggurat
+method (Marsaglia & Tsang 2000, Journal of Statistical Software 5(8)), and
+feeds each sample to every design's C step, the one ``fdisyn codegen``
+compiles: the designs see the same runs (common random numbers), and run ``i``
+is the same whatever chunk it is in.
+
+The library is built once per problem options and set of designs (the
+scenario only changes ``p`` and the number of samples) in
+``<work>/campaign/<key>/`` beside the designs' folders, with a build manifest
+checked before it is loaded (:mod:`fdisyn.runtime.compiled`).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import hashlib
+import math
+import os
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import casadi as ca
+import numpy as np
+from fdisyn.codegen.library import CFLAGS, _c_double, _finish, _start, c_string_literal, compiler, fill_template, fresh_path
+from fdisyn.evaluation.campaign import ChunkRuns, DesignRuns
+from fdisyn.evaluation.simulate import SensorFaultSpec, Signal
+from fdisyn.models.linear import LinearPlant
+from fdisyn.models.problem import Batch, Problem, Scenario
+from fdisyn.numerics.linalg import psd_factor
+from fdisyn.runtime.compiled import _check_before_loading, write_manifest
+from fdisyn.runtime.errors import ArgumentError, BuildError, ShapeError
+from fdisyn.runtime.gainfile import gain_file_sha256
+from fdisyn.runtime.names import check_diagnoser_name
+
+if TYPE_CHECKING:
+    from fdisyn.evaluation.evaluate import Built
+
+__all__ = [
+    "SampleModel",
+    "linear_sample_model",
+    "ziggurat_tables",
+    "generator_state",
+    "CompiledCampaign",
+    "compiled_campaign",
+]
+
+TEMPLATE = Path(__file__).with_name("campaign.c.in")
+
+# ----------------------------------------------------------------------------- the generator
+
+ZIGGURAT_R = 3.6541528853610088
+"""Right edge of the base layer of the 256-layer ziggurat (Marsaglia & Tsang 2000, section 4)."""
+ZIGGURAT_V = 4.92867323399e-3
+"""Area of each of its layers (same source)."""
+
+
+def ziggurat_tables() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``k`` (uint64), ``w``, ``f`` of the 256-layer ziggurat for 52-bit magnitudes.
+
+    The recursion of Marsaglia & Tsang 2000 (their ``zigset``, ``m1 = 2⁵²``):
+    ``x_{i}`` from ``x_{i+1}`` by ``x_i = √(−2 log(v/x_{i+1} + f(x_{i+1})))``;
+    layer ``i`` draws ``x = rabs·w[i]`` and accepts it at once when
+    ``rabs < k[i]`` (the part of the layer under the density); layer 0 is the
+    base strip with the tail.
+    """
+    m1 = 2.0**52
+    r, v = ZIGGURAT_R, ZIGGURAT_V
+    q = v / math.exp(-0.5 * r * r)
+    k = np.zeros(256, dtype=np.uint64)
+    w = np.zeros(256)
+    f = np.zeros(256)
+    k[0] = int(r / q * m1)
+    w[0], w[255] = q / m1, r / m1
+    f[0], f[255] = 1.0, math.exp(-0.5 * r * r)
+    dn = tn = r
+    for i in range(254, 0, -1):
+        dn = math.sqrt(-2.0 * math.log(v / dn + math.exp(-0.5 * dn * dn)))
+        k[i + 1] = int(dn / tn * m1)
+        tn = dn
+        f[i] = math.exp(-0.5 * dn * dn)
+        w[i] = dn / m1
+    return k, w, f
+
+
+def generator_state(seed: int) -> np.ndarray:
+    """The four xoshiro256** words of run seed ``seed``: ``SeedSequence(seed).generate_state(4, np.uint64)``."""
+    return np.random.SeedSequence(int(seed)).generate_state(4, np.uint64)
+
+
+# ----------------------------------------------------------------------------- sample models
+
+
+@dataclass(frozen=True, eq=False)
+class SampleModel:
+    """A simulator one sample at a time (module docstring).
+
+    ``step(x, z, k, p) → (x⁺, u, y, e)``; ``x0`` the state at ``k = 0``;
+    ``parameters(scenario)`` the scenario's ``p``; ``Ts`` the sample time
+    (a scenario has ``round(duration / Ts)`` samples); ``inputs``, ``outputs``
+    name ``u`` and ``y`` (a design's gain file must name the same),
+    ``extra`` the entries of ``e`` (the batch's extra signals).
+    """
+
+    step: ca.Function
+    x0: np.ndarray
+    parameters: Callable[[Scenario], np.ndarray]
+    Ts: float
+    inputs: tuple[str, ...]
+    outputs: tuple[str, ...]
+    extra: tuple[str, ...] = ()
+    nz: int = field(init=False)
+
+    def __post_init__(self) -> None:
+        fn = self.step
+        if fn.n_in() != 4 or fn.n_out() != 4:
+            raise ShapeError(f"a sample model's step maps (x, z, k, p) to (x⁺, u, y, e); got {fn.n_in()} inputs and {fn.n_out()} outputs")
+        nx = fn.size1_in(0)
+        want = {"x⁺": (fn.size1_out(0), nx), "u": (fn.size1_out(1), len(self.inputs)), "y": (fn.size1_out(2), len(self.outputs)),
+                "e": (fn.size1_out(3), len(self.extra)), "k": (fn.size1_in(2), 1), "x0": (np.size(self.x0), nx)}
+        for what, (have, need) in want.items():
+            if have != need:
+                raise ShapeError(f"a sample model's {what} has {have} entries; expected {need}")
+        x0 = np.asarray(self.x0, dtype=float).reshape(-1)
+        if not np.all(np.isfinite(x0)):
+            raise ArgumentError("a sample model's initial state must be finite")
+        object.__setattr__(self, "x0", x0)
+        object.__setattr__(self, "nz", int(fn.size1_in(1)))
+
+    def samples(self, scenario: Scenario) -> int:
+        return int(round(scenario.duration / self.Ts))
+
+
+def _finite(values: Any, what: str) -> np.ndarray:
+    a = np.asarray(values, dtype=float)
+    if not np.all(np.isfinite(a)):
+        raise ArgumentError(f"{what} must be finite to be compiled; got {a.reshape(-1).tolist()}")
+    return a
+
+
+def _signal_sx(sig: Signal, t: ca.SX, k: ca.SX, ts: float, z: ca.SX | None, memory: ca.SX | None) -> tuple[ca.SX, ca.SX | None]:
+    """One sample of ``sig`` (:meth:`fdisyn.evaluation.simulate.Signal.sample` with given draws), and its next memory."""
+    _finite([sig.offset, sig.amplitude, sig.period, sig.start], f"the numbers of a {sig.kind} signal")
+    if sig.kind == "constant":
+        return ca.SX(sig.offset), None
+    if sig.kind == "step":
+        return sig.offset + sig.amplitude * (t >= sig.start), None
+    if sig.kind == "sine":
+        return sig.offset + sig.amplitude * ca.sin(2 * np.pi * t / sig.period), None
+    if sig.kind == "square":
+        half = ca.floor(2.0 * t / sig.period + 1e-9)
+        return sig.offset + sig.amplitude * ca.if_else(ca.fmod(half, 2) == 0, 1.0, -1.0), None
+    assert z is not None and memory is not None
+    if sig.kind == "prbs":
+        hold = max(1, int(round(sig.period / ts)))
+        level = ca.if_else(ca.fmod(k, hold) == 0, ca.if_else(z >= 0, 1.0, -1.0), memory)
+        return sig.offset + sig.amplitude * level, level
+    a = float(np.exp(-ts / sig.period))
+    s = float(np.sqrt(1.0 - a * a))
+    zeta = ca.if_else(k == 0, z, s * z + a * memory)
+    return sig.offset + sig.amplitude * zeta, zeta
+
+
+def linear_parameters(plant: LinearPlant, scenario: Scenario) -> np.ndarray:
+    """``p`` of :func:`linear_sample_model` for ``scenario``: ``[k_on, k_end, onset, stuck, value, gain, offset, drift, Fx f]``.
+
+    The fault is active for ``k_on ≤ k < k_end`` (``scenario.active`` on the sample
+    grid); per output, the scenario's sensor faults composed in order into
+    ``y ↦ (stuck ? value : gain·y) + offset + drift·(t − onset)``; the
+    component faults' ``Fx f`` added to the state while active.
+    """
+    ts = float(plant.Ts)  # type: ignore[arg-type]
+    n = int(round(scenario.duration / ts))
+    on = np.flatnonzero(scenario.active(np.arange(n) * ts))
+    k_on, k_end = (int(on[0]), int(on[-1]) + 1) if on.size else (0, 0)
+    p = plant.p
+    stuck, value, gain, offset, drift = np.zeros(p), np.zeros(p), np.ones(p), np.zeros(p), np.zeros(p)
+    for f in scenario.params.get("sensor_faults", []):
+        f = f if isinstance(f, SensorFaultSpec) else SensorFaultSpec(*f)
+        if f.sensor not in plant.outputs:
+            raise ArgumentError(f"sensor fault on {f.sensor!r}: no such output; outputs are {list(plant.outputs)}")
+        j = plant.outputs.index(f.sensor)
+        v = float(_finite(f.value, f"the size of the {f.kind} fault on {f.sensor!r}"))
+        if f.kind == "stuck":
+            stuck[j], value[j], gain[j], offset[j], drift[j] = 1.0, v, 1.0, 0.0, 0.0
+        elif f.kind == "gain":
+            value[j], gain[j], offset[j], drift[j] = value[j] * v, gain[j] * v, offset[j] * v, drift[j] * v
+        elif f.kind == "offset":
+            offset[j] += v
+        else:
+            drift[j] += v
+    fvec = np.zeros(plant.n)
+    for cname, size in scenario.params.get("component_faults", []):
+        if cname not in plant.component_faults:
+            raise ArgumentError(f"component fault {cname!r}: the plant has {list(plant.component_faults)}")
+        fvec = fvec + np.asarray(plant.Fx)[:, plant.component_faults.index(cname)] * float(size)
+    onset = float(scenario.onset or 0.0)
+    return _finite(np.concatenate([[k_on, k_end, onset], stuck, value, gain, offset, drift, fvec]), "the scenario's fault")
+
+
+def linear_sample_model(
+    plant: LinearPlant,
+    *,
+    x0: np.ndarray,
+    inputs: Sequence[Signal],
+    unknown_inputs: Sequence[Signal],
+    feedback: Callable[[ca.SX, ca.SX], ca.SX] | None = None,
+    scenario_map: Callable[[Scenario], Scenario] | None = None,
+) -> SampleModel:
+    """:func:`fdisyn.evaluation.simulate.simulate_linear` one sample at a time.
+
+    Same arguments, except ``feedback(y, k)``: the controller on one sample's
+    (possibly faulty) measurements as CasADi expressions (``y``: a 1 × ny SX,
+    one run of ``simulate_linear``'s runs × ny) giving ``u`` (1 × nu). ``scenario_map`` turns a scenario into the one
+    ``simulate_linear`` receives (e.g. a fault given in noise standard
+    deviations). The draws of a sample are laid out ``[w (rank Q), v (rank R),
+    one per prbs or gauss_markov signal, inputs first]``: the layout of
+    ``simulate_linear``'s ``draws``.
+    """
+    if not plant.is_discrete:
+        raise ArgumentError("a linear sample model needs the discrete plant")
+    if len(inputs) != plant.m or len(unknown_inputs) != plant.q:
+        raise ShapeError(f"simulation needs {plant.m} input and {plant.q} unknown-input signals")
+    a, b, c, d, e = (_finite(getattr(plant, k), f"the plant's {k}") for k in ("A", "B", "C", "D", "E"))
+    if feedback is not None and np.any(d):
+        raise ArgumentError("a feedback input needs D = 0 (otherwise u and y form an algebraic loop)")
+    ts = float(plant.Ts)  # type: ignore[arg-type]
+    lq, lr = psd_factor(plant.Q, "Q"), psd_factor(plant.R, "R")
+    nq, nv, n, p = lq.shape[1], lr.shape[1], plant.n, plant.p
+    signals = list(inputs) + list(unknown_inputs)
+    random = [j for j, s in enumerate(signals) if s.kind in ("prbs", "gauss_markov")]
+    x = ca.SX.sym("x", n + len(random))
+    z = ca.SX.sym("z", nq + nv + len(random))
+    k = ca.SX.sym("k")
+    par = ca.SX.sym("p", 3 + 5 * p + n)
+    t = k * ts
+    values: list[ca.SX] = []
+    memory: list[ca.SX] = []
+    for j, sig in enumerate(signals):
+        slot = random.index(j) if j in random else None
+        v, mem = _signal_sx(sig, t, k, ts, None if slot is None else z[nq + nv + slot], None if slot is None else x[n + slot])
+        values.append(v)
+        if mem is not None:
+            memory.append(mem)
+    xs = x[:n]
+    active = ca.logic_and(k >= par[0], k < par[1])
+    y = ca.mtimes(ca.DM(c), xs) + ca.mtimes(ca.DM(lr), z[nq : nq + nv])
+    dd = ca.vertcat(*values[plant.m :]) if plant.q else ca.SX(0, 1)
+    if feedback is None:
+        u = ca.vertcat(*values[: plant.m]) if plant.m else ca.SX(0, 1)
+        if plant.m:
+            y = y + ca.mtimes(ca.DM(d), u)
+    stuck, value, gain, offset, drift = (par[3 + i * p : 3 + (i + 1) * p] for i in range(5))
+    faulty = ca.if_else(stuck > 0.5, value, y * gain) + offset + drift * (t - par[2])
+    y = ca.vertcat(*[ca.if_else(active, faulty[j], y[j]) for j in range(p)]) if p else y
+    if feedback is not None:
+        u = ca.SX(feedback(y.T, k)).T
+        if u.shape != (plant.m, 1):
+            raise ShapeError(f"the feedback gives {u.shape[1]}×{u.shape[0]}; expected 1×{plant.m}")
+    nxt = ca.mtimes(ca.DM(a), xs) + ca.mtimes(ca.DM(b), u) + ca.mtimes(ca.DM(e), dd) + ca.mtimes(ca.DM(lq), z[:nq])
+    fvec = par[3 + 5 * p :]
+    nxt = ca.vertcat(*[ca.if_else(active, nxt[i] + fvec[i], nxt[i]) for i in range(n)])
+    step = ca.Function("sample", [x, z, k, par], [ca.vertcat(nxt, *memory), u, y, ca.vertcat(xs, dd)], ["x", "z", "k", "p"], ["x_next", "u", "y", "e"])
+    mapped = scenario_map or (lambda sc: sc)
+    return SampleModel(
+        step=step,
+        x0=np.concatenate([_finite(x0, "x0").reshape(-1), np.zeros(len(random))]),
+        parameters=lambda sc: linear_parameters(plant, mapped(sc)),
+        Ts=ts,
+        inputs=plant.inputs,
+        outputs=plant.outputs,
+        extra=plant.states + plant.unknown_inputs,
+    )
+
+
+# ----------------------------------------------------------------------------- the fused library
+
+_U64 = ctypes.POINTER(ctypes.c_uint64)
+_D = ctypes.POINTER(ctypes.c_double)
+_P = ctypes.POINTER(ctypes.c_void_p)
+
+
+def _design_code(prefixes: Sequence[str]) -> dict[str, str]:
+    """The per-design lines of ``campaign.c.in`` (prefixes are checked diagnoser names: they form identifiers)."""
+    inc, decl, init, step = [], [], [], []
+    for i, pre in enumerate(prefixes):
+        check_diagnoser_name(pre, "name", error=BuildError)
+        P = pre.upper()
+        inc.append(f'#include "{pre}.h"')
+        decl.append(f"    double st{i}[CAMPAIGN_SZ({P}_NSTATE)], rb{i}[CAMPAIGN_SZ({P}_NR)], jb{i}[CAMPAIGN_SZ({P}_NJ)];\n"
+                    f"    int a{i}, iso{i}, rc{i};")
+        init.append(f"        {pre}_init(st{i});")
+        step.append(
+            f"            rc{i} = {pre}_step(st{i}, u, y, {P}_NR ? r[{i}] + at * {P}_NR : rb{i}, {P}_NJ ? J[{i}] + at * {P}_NJ : jb{i}, &a{i}, &iso{i});\n"
+            f"            if (rc{i} < 0) return -1;\n"
+            f"            alarm[{i}][at] = (unsigned char)(a{i} != 0);\n"
+            f"            isolated[{i}][at] = (int32_t)iso{i};\n"
+            f"            status[{i}][at] = (signed char)rc{i};"
+        )
+    return {"DESIGN_INCLUDES": "\n".join(inc), "DESIGN_DECLS": "\n".join(decl), "DESIGN_INITS": "\n".join(init), "DESIGN_STEPS": "\n".join(step)}
+
+
+def _sim_source(step: ca.Function, c_dir: Path) -> None:
+    ins = step.sx_in()
+    named = ca.Function("fdisyn_sim", ins, step.call(ins), list(step.name_in()), list(step.name_out()))
+    for generated in ("fdisyn_sim.c", "fdisyn_sim.h"):
+        fresh_path(c_dir / generated)
+    cg = ca.CodeGenerator("fdisyn_sim.c", {"with_header": True, "with_export": False, "verbose": False})
+    cg.add(named)
+    cg.generate(str(c_dir) + os.sep)
+
+
+@dataclass(frozen=True, eq=False)
+class CampaignSpec:
+    """Everything a process needs to load a built campaign library and run a scenario (plain data: picklable)."""
+
+    library: Path
+    key: str
+    scenario: Scenario
+    designs: tuple[tuple[str, int, int], ...]
+    """(design, nr, nj) in the library's order."""
+    x0: np.ndarray
+    parameters: np.ndarray
+    samples: int
+    Ts: float
+    nz: int
+    inputs: tuple[str, ...]
+    outputs: tuple[str, ...]
+    extra: tuple[str, ...]
+
+
+class CompiledCampaign:
+    """A scenario's runs through the fused library: :meth:`run` gives a chunk's :class:`ChunkRuns`.
+
+    Pickled as its :class:`CampaignSpec`: a worker process loads the library
+    again from its path (after the manifest checks), never a ctypes handle.
+    """
+
+    def __init__(self, spec: CampaignSpec) -> None:
+        _check_before_loading(spec.library, spec.key)
+        try:
+            lib = ctypes.CDLL(str(spec.library.resolve()))
+        except OSError as exc:
+            raise BuildError(f"cannot load {spec.library}: {exc}") from exc
+        key_fn = lib.fdisyn_campaign_key
+        key_fn.argtypes, key_fn.restype = [], ctypes.c_char_p
+        if (key_fn() or b"").decode("ascii", "replace") != spec.key:
+            raise BuildError(f"this process already runs another build of {spec.library}; start a new process")
+        self._run = lib.fdisyn_campaign_run
+        self._run.argtypes = [ctypes.c_long, ctypes.c_long, _U64, _D, _D, _D, _D, _D, _P, _P, _P, _P, _P]
+        self._run.restype = ctypes.c_int
+        self._draws = lib.fdisyn_campaign_draws
+        self._draws.argtypes = [ctypes.c_long, ctypes.c_long, _U64, _D]
+        self._draws.restype = None
+        self._normals = lib.fdisyn_campaign_normals
+        self._normals.argtypes = [_U64, ctypes.c_long, _D]
+        self._normals.restype = None
+        self.spec = spec
+        self._lib = lib
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (CompiledCampaign, (self.spec,))
+
+    @staticmethod
+    def _states(seeds: Sequence[int]) -> np.ndarray:
+        bad = [s for s in seeds if isinstance(s, bool) or not isinstance(s, (int, np.integer)) or s < 0]
+        if bad:
+            raise ArgumentError(f"seeds must be whole numbers ≥ 0; got {bad[:5]}")
+        return np.ascontiguousarray(np.stack([generator_state(int(s)) for s in seeds]) if seeds else np.zeros((0, 4), np.uint64))
+
+    def normals(self, seed: int, count: int) -> np.ndarray:
+        """``count`` standard normals of run seed ``seed``'s generator (the kernel's law, for tests)."""
+        out = np.zeros(max(int(count), 1))
+        self._normals(self._states([seed])[0].ctypes.data_as(_U64), int(count), out.ctypes.data_as(_D))
+        return out[: int(count)]
+
+    def draws(self, seeds: Sequence[int]) -> np.ndarray:
+        """The standard-normal draws the simulation of each run reads: runs × N × nz (the Python simulator's ``draws``)."""
+        sp = self.spec
+        out = np.zeros((len(seeds), sp.samples, sp.nz))
+        if out.size:
+            self._draws(len(seeds), sp.samples, self._states(seeds).ctypes.data_as(_U64), out.ctypes.data_as(_D))
+        return out
+
+    def run(self, seeds: Sequence[int], *, keep_batch: bool = False) -> ChunkRuns:
+        """Simulate run seed ``seeds[i]`` for every ``i`` and diagnose it with every design, in one C call."""
+        sp = self.spec
+        seeds = tuple(int(s) for s in seeds)
+        states = self._states(seeds)
+        runs, n = len(seeds), sp.samples
+        outs = {d: DesignRuns(
+            r=np.zeros((runs, n, nr)), J=np.zeros((runs, n, nj)), alarm=np.zeros((runs, n), bool),
+            isolated=np.full((runs, n), -1, np.int32), status=np.zeros((runs, n), np.int8),
+        ) for d, nr, nj in sp.designs}
+        keep = [np.zeros((runs, n, m)) for m in (len(sp.inputs), len(sp.outputs), len(sp.extra))] if keep_batch else None
+
+        def ptrs(field_name: str) -> Any:
+            return (ctypes.c_void_p * len(outs))(*[getattr(o, field_name).ctypes.data for o in outs.values()])
+
+        def opt(a: np.ndarray | None) -> Any:
+            return None if a is None or a.size == 0 else a.ctypes.data_as(_D)
+
+        if runs and n:
+            rc = self._run(
+                runs, n, states.ctypes.data_as(_U64), sp.x0.ctypes.data_as(_D), sp.parameters.ctypes.data_as(_D),
+                *(opt(None if keep is None else a) for a in keep or (None, None, None)),
+                ptrs("r"), ptrs("J"), ptrs("alarm"), ptrs("isolated"), ptrs("status"),
+            )
+            if rc != 0:
+                raise BuildError(f"the compiled campaign {sp.library} reported an internal error ({rc})")
+        t = np.arange(n) * sp.Ts
+        batch = None
+        if keep is not None:
+            U, Y, E = keep
+            batch = Batch(scenario=sp.scenario, seeds=seeds, t=t, inputs=sp.inputs, outputs=sp.outputs, U=U, Y=Y,
+                          extra={name: E[:, :, i] for i, name in enumerate(sp.extra)})
+        return ChunkRuns(seeds=seeds, t=t, designs=outs, batch=batch)
+
+
+def _key(texts: Sequence[bytes]) -> str:
+    h = hashlib.sha256()
+    for b in texts:
+        h.update(hashlib.sha256(b).digest())
+    return h.hexdigest()
+
+
+def build_library(model: SampleModel, built: Mapping[str, Built], directory: Path) -> tuple[Path, str]:
+    """Generate and compile (unless already built) the fused library of ``model`` and ``built``; its path and key."""
+    if not built:
+        raise ArgumentError("a compiled campaign needs at least one built design")
+    prefixes = []
+    for name, b in built.items():
+        gf = b.gain_file
+        if tuple(gf.inputs) != tuple(model.inputs) or tuple(gf.outputs) != tuple(model.outputs):
+            raise ArgumentError(
+                f"design {name!r} reads inputs {list(gf.inputs)} and outputs {list(gf.outputs)}; "
+                f"the simulation gives {list(model.inputs)} and {list(model.outputs)}"
+            )
+        prefixes.append(gf.name)
+    if len(set(prefixes)) != len(prefixes):
+        raise ArgumentError(f"two designs share a diagnoser name: {prefixes}")
+    staging = directory / "staging"
+    staging.mkdir(parents=True, exist_ok=True)
+    _sim_source(model.step, staging)
+    sim_c = (staging / "fdisyn_sim.c").read_bytes()
+    design_files = []
+    for b in built.values():
+        c_dir = Path(b.artifacts.c_dir)
+        design_files += [c_dir / f"{b.gain_file.name}{s}" for s in (".c", ".h", "_casadi.c", "_casadi.h")]
+    key = _key([sim_c, TEMPLATE.read_bytes(), " ".join([*compiler(), *CFLAGS]).encode()]
+               + [gain_file_sha256(b.gain_file).encode() for b in built.values()] + [p.read_bytes() for p in design_files])
+    out = directory / key[:16]
+    lib = out / "libfdisyn_campaign.so"
+    try:
+        _check_before_loading(lib, key)
+        return lib, key
+    except BuildError:
+        pass
+    c_dir = out / "c"
+    c_dir.mkdir(parents=True, exist_ok=True)
+    _sim_source(model.step, c_dir)
+    zk, zw, zf = ziggurat_tables()
+    fn = model.step
+    subs = {
+        "NX": str(fn.size1_in(0)), "NZ": str(model.nz), "NU": str(len(model.inputs)), "NY": str(len(model.outputs)),
+        "NE": str(len(model.extra)), "NP": str(fn.size1_in(3)),
+        "ZIG_R": _c_double(ZIGGURAT_R),
+        "ZIG_K": ", ".join(f"UINT64_C({int(v)})" for v in zk),
+        "ZIG_W": ", ".join(_c_double(v) for v in zw),
+        "ZIG_F": ", ".join(_c_double(v) for v in zf),
+        "KEY": c_string_literal(key),
+        **_design_code(prefixes),
+    }
+    source = fresh_path(c_dir / "fdisyn_campaign.c")
+    source.write_text(fill_template(TEMPLATE.read_text(encoding="utf-8"), subs, TEMPLATE.name), encoding="utf-8")
+    includes = sorted({f"-I{Path(b.artifacts.c_dir).absolute()}" for b in built.values()})
+    wrappers = [str(Path(b.artifacts.c_dir).absolute() / f"{b.gain_file.name}.c") for b in built.values()]
+    tmp = fresh_path(out / "libfdisyn_campaign.so.part")
+    argv = [*compiler(), *CFLAGS, "-fPIC", "-shared", f"-I{c_dir.absolute()}", *includes, str(source.absolute()), *wrappers,
+            "-o", str(tmp.absolute()), "-lm"]
+    _finish(_start(argv, str(lib)), argv, str(lib))
+    os.replace(tmp, fresh_path(lib))
+    write_manifest(lib, key)
+    return lib, key
+
+
+def compiled_campaign(
+    problem: Problem, built: Mapping[str, Built], scenario: str | Scenario, *, directory: str | Path | None = None, **options: Any
+) -> CompiledCampaign | None:
+    """The fused simulation and diagnosis of ``scenario`` for ``built``'s designs, or ``None`` when ``problem``
+    has no sample model (its runs stay on the Python path).
+
+    ``options`` are the problem's options (as for ``problem.run``); the
+    library goes in ``directory`` (default: ``campaign/`` beside the first
+    design's folder) under its content hash, and is reused when already built.
+    """
+    if problem.sample_model is None:
+        return None
+    sc = problem.scenario(scenario) if isinstance(scenario, str) else scenario
+    model = problem.sample_model(**problem.check_options(options))
+    if not built:
+        raise ArgumentError("a compiled campaign needs at least one built design")
+    where = Path(directory) if directory is not None else Path(next(iter(built.values())).directory).parent / "campaign"
+    lib, key = build_library(model, built, where)
+    spec = CampaignSpec(
+        library=lib,
+        key=key,
+        scenario=sc,
+        designs=tuple((d, b.gain_file.step.nr, b.gain_file.step.nj) for d, b in built.items()),
+        x0=np.ascontiguousarray(model.x0, dtype=float),
+        parameters=np.ascontiguousarray(model.parameters(sc), dtype=float),
+        samples=model.samples(sc),
+        Ts=model.Ts,
+        nz=model.nz,
+        inputs=tuple(model.inputs),
+        outputs=tuple(model.outputs),
+        extra=tuple(model.extra),
+    )
+    return CompiledCampaign(spec)
