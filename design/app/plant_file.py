@@ -128,6 +128,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from fdisyn.evaluation.compiled_simulation import SampleModel, linear_sample_model
 from fdisyn.evaluation.simulate import SENSOR_FAULT_KINDS, SensorFaultSpec, Signal, simulate_linear
 from fdisyn.models.linear import LinearPlant
 from fdisyn.models.problem import Batch, Problem, Scenario, get_problem
@@ -468,8 +469,11 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
     else:
         sim_plant = physical
 
-    def simulate(scenario: Scenario, seeds: tuple[int, ...]) -> Batch:
-        return simulate_linear(sim_plant, scenario, seeds, x0=x0, inputs=u_sigs, unknown_inputs=d_sigs)
+    def simulate(scenario: Scenario, seeds: tuple[int, ...], draws: np.ndarray | None = None) -> Batch:
+        return simulate_linear(sim_plant, scenario, seeds, x0=x0, inputs=u_sigs, unknown_inputs=d_sigs, draws=draws)
+
+    def sample_model() -> SampleModel:
+        return linear_sample_model(sim_plant, x0=x0, inputs=u_sigs, unknown_inputs=d_sigs)
 
     return Problem(
         name=name,
@@ -479,6 +483,7 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
         default_design=method.name,
         scenarios=scenarios,
         simulate=simulate,
+        sample_model=sample_model,
         monte_carlo_runs=50,
     )
 
