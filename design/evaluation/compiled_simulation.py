@@ -4,12 +4,14 @@ A problem opts in with :attr:`fdisyn.models.problem.Problem.sample_model`: its
 simulator described one sample at a time (:class:`SampleModel`), a CasADi
 function
 
-    ``(x, z, k, p) ↦ (x⁺, u, y, e)``
+    ``(x, z, k, p, d) ↦ (x⁺, u, y, e)``
 
 of the simulation's state ``x``, the sample's standard-normal draws ``z``, the
-sample index ``k`` and the scenario's parameters ``p`` (fault window and
-sizes), giving the next state, the known inputs, the measurements and the
-signals kept beside them (true states, unknown inputs). The generated C driver
+sample index ``k``, the scenario's parameters ``p`` (fault window and sizes)
+and the sample's row ``d`` of the scenario's drive table (inputs and
+parameters known in advance, the same for every run), giving the next state,
+the known inputs, the measurements and the signals kept beside them (true
+states, unknown inputs, true parameters). The generated C driver
 (``campaign.c.in``) runs it for every run of a chunk with the run's own
 xoshiro256** generator (Blackman & Vigna 2018) seeded from
 ``SeedSequence(seed).generate_state(4, np.uint64)``, Gaussians by the ziggurat
@@ -39,9 +41,12 @@ import casadi as ca
 import numpy as np
 from fdisyn.codegen.library import CFLAGS, _c_double, _finish, _start, c_string_literal, compiler, fill_template, fresh_path
 from fdisyn.evaluation.campaign import ChunkRuns, DesignRuns
+from fdisyn.evaluation.sampled_data_simulation import disturbance_factor
 from fdisyn.evaluation.simulate import SensorFaultSpec, Signal
 from fdisyn.models.linear import LinearPlant
+from fdisyn.models.nonlinear import NonlinearPlant, noise_factor
 from fdisyn.models.problem import Batch, Problem, Scenario
+from fdisyn.models.sampled_data import SampledDataPlant
 from fdisyn.numerics.linalg import psd_factor
 from fdisyn.runtime.compiled import _check_before_loading, write_manifest
 from fdisyn.runtime.errors import ArgumentError, BuildError, ShapeError
@@ -54,6 +59,8 @@ if TYPE_CHECKING:
 __all__ = [
     "SampleModel",
     "linear_sample_model",
+    "nonlinear_sample_model",
+    "sampled_data_sample_model",
     "ziggurat_tables",
     "generator_state",
     "CompiledCampaign",
@@ -61,6 +68,8 @@ __all__ = [
 ]
 
 TEMPLATE = Path(__file__).with_name("campaign.c.in")
+NAMES_IN = ["x", "z", "k", "p", "d"]
+NAMES_OUT = ["x_next", "u", "y", "e"]
 
 # ----------------------------------------------------------------------------- the generator
 
@@ -110,9 +119,10 @@ def generator_state(seed: int) -> np.ndarray:
 class SampleModel:
     """A simulator one sample at a time (module docstring).
 
-    ``step(x, z, k, p) → (x⁺, u, y, e)``; ``x0`` the state at ``k = 0``;
-    ``parameters(scenario)`` the scenario's ``p``; ``Ts`` the sample time
-    (a scenario has ``round(duration / Ts)`` samples); ``inputs``, ``outputs``
+    ``step(x, z, k, p, d) → (x⁺, u, y, e)``; ``x0`` the state at ``k = 0``;
+    ``parameters(scenario)`` the scenario's ``p``; ``drive(scenario)`` its
+    drive table (N × nd; ``None``: nd = 0); ``Ts`` the sample time (a
+    scenario has ``round(duration / Ts)`` samples); ``inputs``, ``outputs``
     name ``u`` and ``y`` (a design's gain file must name the same),
     ``extra`` the entries of ``e`` (the batch's extra signals).
     """
@@ -124,12 +134,13 @@ class SampleModel:
     inputs: tuple[str, ...]
     outputs: tuple[str, ...]
     extra: tuple[str, ...] = ()
+    drive: Callable[[Scenario], np.ndarray] | None = None
     nz: int = field(init=False)
 
     def __post_init__(self) -> None:
         fn = self.step
-        if fn.n_in() != 4 or fn.n_out() != 4:
-            raise ShapeError(f"a sample model's step maps (x, z, k, p) to (x⁺, u, y, e); got {fn.n_in()} inputs and {fn.n_out()} outputs")
+        if fn.n_in() != 5 or fn.n_out() != 4:
+            raise ShapeError(f"a sample model's step maps (x, z, k, p, d) to (x⁺, u, y, e); got {fn.n_in()} inputs and {fn.n_out()} outputs")
         nx = fn.size1_in(0)
         want = {"x⁺": (fn.size1_out(0), nx), "u": (fn.size1_out(1), len(self.inputs)), "y": (fn.size1_out(2), len(self.outputs)),
                 "e": (fn.size1_out(3), len(self.extra)), "k": (fn.size1_in(2), 1), "x0": (np.size(self.x0), nx)}
@@ -144,6 +155,14 @@ class SampleModel:
 
     def samples(self, scenario: Scenario) -> int:
         return int(round(scenario.duration / self.Ts))
+
+    def drive_table(self, scenario: Scenario) -> np.ndarray:
+        """The scenario's drive table, checked: N × nd, finite."""
+        shape = (self.samples(scenario), int(self.step.size1_in(4)))
+        table = np.zeros(shape) if self.drive is None else _finite(self.drive(scenario), "the drive table")
+        if table.shape != shape:
+            raise ShapeError(f"the drive table of scenario {scenario.name!r} has shape {table.shape}; expected {shape}")
+        return np.ascontiguousarray(table, dtype=float)
 
 
 def _finite(values: Any, what: str) -> np.ndarray:
@@ -275,7 +294,7 @@ def linear_sample_model(
     nxt = ca.mtimes(ca.DM(a), xs) + ca.mtimes(ca.DM(b), u) + ca.mtimes(ca.DM(e), dd) + ca.mtimes(ca.DM(lq), z[:nq])
     fvec = par[3 + 5 * p :]
     nxt = ca.vertcat(*[ca.if_else(active, nxt[i] + fvec[i], nxt[i]) for i in range(n)])
-    step = ca.Function("sample", [x, z, k, par], [ca.vertcat(nxt, *memory), u, y, ca.vertcat(xs, dd)], ["x", "z", "k", "p"], ["x_next", "u", "y", "e"])
+    step = ca.Function("sample", [x, z, k, par, ca.SX(0, 1)], [ca.vertcat(nxt, *memory), u, y, ca.vertcat(xs, dd)], NAMES_IN, NAMES_OUT)
     mapped = scenario_map or (lambda sc: sc)
     return SampleModel(
         step=step,
@@ -285,6 +304,79 @@ def linear_sample_model(
         inputs=plant.inputs,
         outputs=plant.outputs,
         extra=plant.states + plant.unknown_inputs,
+    )
+
+
+def nonlinear_sample_model(
+    plant: NonlinearPlant,
+    *,
+    x0: Any,
+    drive: Callable[[Scenario], tuple[np.ndarray, np.ndarray]],
+    Ts: float,
+    extra: Mapping[str, str] | None = None,
+) -> SampleModel:
+    """:meth:`fdisyn.models.nonlinear.NonlinearPlant.simulate` one sample at a time.
+
+    ``drive(scenario)`` gives the scenario's inputs ``u`` (N × m) and
+    parameters ``θ`` (N × l; row ``k`` drives ``x(k) → x(k+1)``), the same for
+    every run; ``extra`` maps each kept signal's name to a state or parameter
+    of the plant. The draws of a sample are ``[v (n), e (p)]``, the layout of
+    ``simulate``'s ``draws``.
+    """
+    n, m, l, p = plant.n, plant.m, plant.l, plant.p
+    keep = dict(extra or {})
+    unknown = sorted(set(keep.values()) - set(plant.states) - set(plant.parameters))
+    if unknown:
+        raise ArgumentError(f"kept signals {unknown} are neither states {list(plant.states)} nor parameters {list(plant.parameters)}")
+    fq, fr = noise_factor(_finite(plant.Q, "Q")), noise_factor(_finite(plant.R, "R"))
+    x, z, k, d = ca.SX.sym("x", n), ca.SX.sym("z", n + p), ca.SX.sym("k"), ca.SX.sym("d", m + l)
+    u, theta = d[:m], d[m:]
+    nxt = plant.f(x, u, theta) + ca.mtimes(ca.DM(fq), z[:n])
+    y = plant.h(x, theta) + ca.mtimes(ca.DM(fr), z[n:])
+    kept = [x[plant.states.index(v)] if v in plant.states else theta[plant.parameters.index(v)] for v in keep.values()]
+    step = ca.Function("sample", [x, z, k, ca.SX(0, 1), d], [nxt, u, y, ca.vertcat(*kept) if kept else ca.SX(0, 1)], NAMES_IN, NAMES_OUT)
+
+    def table(sc: Scenario) -> np.ndarray:
+        uu, th = drive(sc)
+        return np.hstack([np.asarray(uu, dtype=float).reshape(-1, m), np.asarray(th, dtype=float).reshape(-1, l)])
+
+    return SampleModel(
+        step=step, x0=_finite(x0, "x0"), parameters=lambda sc: np.zeros(0), Ts=float(Ts), inputs=plant.inputs,
+        outputs=plant.outputs, extra=tuple(keep), drive=table,
+    )
+
+
+def sampled_data_sample_model(
+    plant: SampledDataPlant,
+    *,
+    drive: Callable[[Scenario], tuple[np.ndarray, np.ndarray]],
+    inputs: Sequence[str],
+    outputs: Sequence[str],
+    states: Sequence[str],
+    x0: Any | None = None,
+    intensity: Any | None = None,
+) -> SampleModel:
+    """:func:`fdisyn.evaluation.sampled_data_simulation.simulate_sampled_data` one sample at a time.
+
+    ``drive(scenario)`` gives ``v`` (N × m, held) and ``f`` (N × n_f), the same
+    for every run; ``y = ψ = C x``; the states are kept as ``states``. The draws
+    of a sample are the disturbance's (its covariance's rank), the layout of
+    ``simulate_sampled_data``'s ``draws``.
+    """
+    fac = disturbance_factor(plant, intensity)
+    n, m, nf = plant.n, plant.m, plant.Fx.shape[1]
+    x, z, k, d = ca.SX.sym("x", n), ca.SX.sym("z", fac.shape[1]), ca.SX.sym("k"), ca.SX.sym("d", m + nf)
+    a_d, b_d, fx_d, c = (_finite(getattr(plant, name), name) for name in ("A_D", "B_D", "Fx_D", "C"))
+    nxt = ca.mtimes(ca.DM(a_d), x) + ca.mtimes(ca.DM(b_d), d[:m]) + ca.mtimes(ca.DM(fx_d), d[m:]) + ca.mtimes(ca.DM(fac), z)
+    step = ca.Function("sample", [x, z, k, ca.SX(0, 1), d], [nxt, d[:m], ca.mtimes(ca.DM(c), x), x], NAMES_IN, NAMES_OUT)
+
+    def table(sc: Scenario) -> np.ndarray:
+        v, f = drive(sc)
+        return np.hstack([np.asarray(v, dtype=float).reshape(-1, m), np.asarray(f, dtype=float).reshape(-1, nf)])
+
+    return SampleModel(
+        step=step, x0=np.zeros(n) if x0 is None else _finite(x0, "x0"), parameters=lambda sc: np.zeros(0), Ts=float(plant.Ts),
+        inputs=tuple(inputs), outputs=tuple(outputs), extra=tuple(states), drive=table,
     )
 
 
@@ -336,6 +428,7 @@ class CampaignSpec:
     """(design, nr, nj) in the library's order."""
     x0: np.ndarray
     parameters: np.ndarray
+    drive: np.ndarray
     samples: int
     Ts: float
     nz: int
@@ -362,7 +455,7 @@ class CompiledCampaign:
         if (key_fn() or b"").decode("ascii", "replace") != spec.key:
             raise BuildError(f"this process already runs another build of {spec.library}; start a new process")
         self._run = lib.fdisyn_campaign_run
-        self._run.argtypes = [ctypes.c_long, ctypes.c_long, _U64, _D, _D, _D, _D, _D, _P, _P, _P, _P, _P]
+        self._run.argtypes = [ctypes.c_long, ctypes.c_long, _U64, _D, _D, _D, _D, _D, _D, _P, _P, _P, _P, _P]
         self._run.restype = ctypes.c_int
         self._draws = lib.fdisyn_campaign_draws
         self._draws.argtypes = [ctypes.c_long, ctypes.c_long, _U64, _D]
@@ -417,7 +510,7 @@ class CompiledCampaign:
 
         if runs and n:
             rc = self._run(
-                runs, n, states.ctypes.data_as(_U64), sp.x0.ctypes.data_as(_D), sp.parameters.ctypes.data_as(_D),
+                runs, n, states.ctypes.data_as(_U64), sp.x0.ctypes.data_as(_D), sp.parameters.ctypes.data_as(_D), opt(sp.drive),
                 *(opt(None if keep is None else a) for a in keep or (None, None, None)),
                 ptrs("r"), ptrs("J"), ptrs("alarm"), ptrs("isolated"), ptrs("status"),
             )
@@ -441,8 +534,6 @@ def _key(texts: Sequence[bytes]) -> str:
 
 def build_library(model: SampleModel, built: Mapping[str, Built], directory: Path) -> tuple[Path, str]:
     """Generate and compile (unless already built) the fused library of ``model`` and ``built``; its path and key."""
-    if not built:
-        raise ArgumentError("a compiled campaign needs at least one built design")
     prefixes = []
     for name, b in built.items():
         gf = b.gain_file
@@ -478,7 +569,7 @@ def build_library(model: SampleModel, built: Mapping[str, Built], directory: Pat
     fn = model.step
     subs = {
         "NX": str(fn.size1_in(0)), "NZ": str(model.nz), "NU": str(len(model.inputs)), "NY": str(len(model.outputs)),
-        "NE": str(len(model.extra)), "NP": str(fn.size1_in(3)),
+        "NE": str(len(model.extra)), "NP": str(fn.size1_in(3)), "ND": str(fn.size1_in(4)),
         "ZIG_R": _c_double(ZIGGURAT_R),
         "ZIG_K": ", ".join(f"UINT64_C({int(v)})" for v in zk),
         "ZIG_W": ", ".join(_c_double(v) for v in zw),
@@ -508,13 +599,14 @@ def compiled_campaign(
     ``options`` are the problem's options (as for ``problem.run``); the
     library goes in ``directory`` (default: ``campaign/`` beside the first
     design's folder) under its content hash, and is reused when already built.
+    With no design (``built`` empty) it only simulates (``directory`` needed).
     """
     if problem.sample_model is None:
         return None
     sc = problem.scenario(scenario) if isinstance(scenario, str) else scenario
     model = problem.sample_model(**problem.check_options(options))
-    if not built:
-        raise ArgumentError("a compiled campaign needs at least one built design")
+    if directory is None and not built:
+        raise ArgumentError("a compiled campaign without designs (simulation only) needs a directory for its library")
     where = Path(directory) if directory is not None else Path(next(iter(built.values())).directory).parent / "campaign"
     lib, key = build_library(model, built, where)
     spec = CampaignSpec(
@@ -524,6 +616,7 @@ def compiled_campaign(
         designs=tuple((d, b.gain_file.step.nr, b.gain_file.step.nj) for d, b in built.items()),
         x0=np.ascontiguousarray(model.x0, dtype=float),
         parameters=np.ascontiguousarray(model.parameters(sc), dtype=float),
+        drive=model.drive_table(sc),
         samples=model.samples(sc),
         Ts=model.Ts,
         nz=model.nz,

@@ -14,7 +14,7 @@ from fdisyn.app.plant_file import load_spec
 from fdisyn.evaluation.compiled_simulation import CompiledCampaign, SampleModel, compiled_campaign, linear_sample_model
 from fdisyn.evaluation.simulate import SensorFaultSpec, Signal, simulate_linear
 from fdisyn.models.linear import LinearPlant
-from fdisyn.models.problem import Scenario
+from fdisyn.models.problem import Scenario, get_problem
 from fdisyn.problems.wind_turbine import PROBLEM as WT
 from fdisyn.runtime.errors import ArgumentError, ShapeError
 
@@ -229,3 +229,22 @@ def test_non_finite_numbers_never_reach_the_c() -> None:
 def test_a_design_reading_other_signals_is_refused(wt_built, motor_built) -> None:
     with pytest.raises(ArgumentError, match="reads inputs"):
         compiled_campaign(WT, {"motor": motor_built}, "fault_free")
+
+
+# ----------------------------------------------------------------------------- nonlinear and sampled-data plants
+
+
+@pytest.mark.parametrize("name", ["ship_propulsion", "wind_turbine_efficiency", "sampled_data_example"])
+def test_nonlinear_and_sampled_data_simulations_match_python(name: str, tmp_path: Path) -> None:
+    """Simulation only (no design): U, Y and the kept truths of every scenario against the problem's simulator."""
+    prob = get_problem(name)
+    for sname in prob.scenarios:
+        cc = compiled_campaign(prob, {}, sname, directory=tmp_path)
+        seeds = (1, 2)
+        got = cc.run(seeds, keep_batch=True)
+        py = prob.simulate(prob.scenario(sname), seeds, draws=cc.draws(seeds))
+        assert got.designs == {}
+        _close(got.batch.U, py.U)
+        _close(got.batch.Y, py.Y)
+        for key, signal in py.extra.items():
+            _close(got.batch.extra[key], signal)
