@@ -311,38 +311,58 @@ def nonlinear_sample_model(
     plant: NonlinearPlant,
     *,
     x0: Any,
-    drive: Callable[[Scenario], tuple[np.ndarray, np.ndarray]],
+    drive: Callable[[Scenario], tuple[np.ndarray | None, np.ndarray]],
     Ts: float,
     extra: Mapping[str, str] | None = None,
+    signals: Sequence[Signal] | None = None,
 ) -> SampleModel:
     """:meth:`fdisyn.models.nonlinear.NonlinearPlant.simulate` one sample at a time.
 
-    ``drive(scenario)`` gives the scenario's inputs ``u`` (N × m) and
-    parameters ``θ`` (N × l; row ``k`` drives ``x(k) → x(k+1)``), the same for
-    every run; ``extra`` maps each kept signal's name to a state or parameter
-    of the plant. The draws of a sample are ``[v (n), e (p)]``, the layout of
-    ``simulate``'s ``draws``.
+    ``drive(scenario)`` gives the scenario's inputs ``u`` (N × m; ``None``
+    with ``signals``) and parameters ``θ`` (N × l; row ``k`` drives
+    ``x(k) → x(k+1)``), the same for every run; ``signals`` (one per input)
+    draws the inputs per run instead, as a nonlinear plant file does;
+    ``extra`` maps each kept signal's name to a state or parameter of the
+    plant. The draws of a sample are ``[v (n), e (p), one per prbs or
+    gauss_markov signal]``, the layout of ``simulate``'s ``draws``.
     """
     n, m, l, p = plant.n, plant.m, plant.l, plant.p
     keep = dict(extra or {})
     unknown = sorted(set(keep.values()) - set(plant.states) - set(plant.parameters))
     if unknown:
         raise ArgumentError(f"kept signals {unknown} are neither states {list(plant.states)} nor parameters {list(plant.parameters)}")
+    if signals is not None and len(signals) != m:
+        raise ShapeError(f"simulation needs {m} input signals, got {len(signals)}")
+    random = [j for j, sg in enumerate(signals or ()) if sg.kind in ("prbs", "gauss_markov")]
     fq, fr = noise_factor(_finite(plant.Q, "Q")), noise_factor(_finite(plant.R, "R"))
-    x, z, k, d = ca.SX.sym("x", n), ca.SX.sym("z", n + p), ca.SX.sym("k"), ca.SX.sym("d", m + l)
-    u, theta = d[:m], d[m:]
-    nxt = plant.f(x, u, theta) + ca.mtimes(ca.DM(fq), z[:n])
-    y = plant.h(x, theta) + ca.mtimes(ca.DM(fr), z[n:])
-    kept = [x[plant.states.index(v)] if v in plant.states else theta[plant.parameters.index(v)] for v in keep.values()]
-    step = ca.Function("sample", [x, z, k, ca.SX(0, 1), d], [nxt, u, y, ca.vertcat(*kept) if kept else ca.SX(0, 1)], NAMES_IN, NAMES_OUT)
+    x, z, k = ca.SX.sym("x", n + len(random)), ca.SX.sym("z", n + p + len(random)), ca.SX.sym("k")
+    d = ca.SX.sym("d", l if signals is not None else m + l)
+    xs, memory = x[:n], []
+    if signals is not None:
+        values = []
+        for j, sg in enumerate(signals):
+            slot = random.index(j) if j in random else None
+            v, mem = _signal_sx(sg, k * Ts, k, Ts, None if slot is None else z[n + p + slot], None if slot is None else x[n + slot])
+            values.append(v)
+            if mem is not None:
+                memory.append(mem)
+        u, theta = (ca.vertcat(*values) if m else ca.SX(0, 1)), d
+    else:
+        u, theta = d[:m], d[m:]
+    nxt = plant.f(xs, u, theta) + ca.mtimes(ca.DM(fq), z[:n])
+    y = plant.h(xs, theta) + ca.mtimes(ca.DM(fr), z[n : n + p])
+    kept = [xs[plant.states.index(v)] if v in plant.states else theta[plant.parameters.index(v)] for v in keep.values()]
+    step = ca.Function("sample", [x, z, k, ca.SX(0, 1), d], [ca.vertcat(nxt, *memory), u, y, ca.vertcat(*kept) if kept else ca.SX(0, 1)],
+                       NAMES_IN, NAMES_OUT)
 
     def table(sc: Scenario) -> np.ndarray:
         uu, th = drive(sc)
-        return np.hstack([np.asarray(uu, dtype=float).reshape(-1, m), np.asarray(th, dtype=float).reshape(-1, l)])
+        th = np.asarray(th, dtype=float).reshape(-1, l)
+        return th if signals is not None else np.hstack([np.asarray(uu, dtype=float).reshape(-1, m), th])
 
     return SampleModel(
-        step=step, x0=_finite(x0, "x0"), parameters=lambda sc: np.zeros(0), Ts=float(Ts), inputs=plant.inputs,
-        outputs=plant.outputs, extra=tuple(keep), drive=table,
+        step=step, x0=np.concatenate([_finite(x0, "x0").reshape(-1), np.zeros(len(random))]), parameters=lambda sc: np.zeros(0),
+        Ts=float(Ts), inputs=plant.inputs, outputs=plant.outputs, extra=tuple(keep), drive=table,
     )
 
 

@@ -4,13 +4,14 @@ the law of its Gaussian generator, the Python simulators on the same draws, and 
 from __future__ import annotations
 
 import pickle
+import tomllib
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 import scipy.stats
-from fdisyn.app.plant_file import load_spec
+from fdisyn.app.plant_file import load_spec, problem_from_document
 from fdisyn.evaluation.compiled_simulation import CompiledCampaign, SampleModel, compiled_campaign, linear_sample_model
 from fdisyn.evaluation.simulate import SensorFaultSpec, Signal, simulate_linear
 from fdisyn.models.linear import LinearPlant
@@ -248,3 +249,23 @@ def test_nonlinear_and_sampled_data_simulations_match_python(name: str, tmp_path
         _close(got.batch.Y, py.Y)
         for key, signal in py.extra.items():
             _close(got.batch.extra[key], signal)
+
+
+@pytest.mark.parametrize("signal", [
+    {"kind": "square", "offset": 5.0, "amplitude": 4.0, "period": 50},
+    {"kind": "prbs", "offset": 5.0, "amplitude": 2.0, "period": 7},
+    {"kind": "gauss_markov", "offset": 5.0, "amplitude": 1.0, "period": 30},
+])
+def test_a_nonlinear_plant_file_matches_its_python_simulation(signal: dict, tmp_path: Path) -> None:
+    doc = tomllib.loads((DATA / "ship.toml").read_text(encoding="utf-8"))
+    doc["simulation"]["inputs"] = [signal]
+    prob = problem_from_document(doc, DATA / "ship.toml")
+    for sname in prob.scenarios:
+        cc = compiled_campaign(prob, {}, sname, directory=tmp_path)
+        seeds = (4, 8)
+        got = cc.run(seeds, keep_batch=True)
+        py = prob.simulate(prob.scenario(sname), seeds, draws=cc.draws(seeds))
+        _close(got.batch.U, py.U)
+        _close(got.batch.Y, py.Y)
+        for key, values in py.extra.items():
+            _close(got.batch.extra[key], values)
