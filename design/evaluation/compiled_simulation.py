@@ -29,9 +29,11 @@ checked before it is loaded (:mod:`fdisyn.runtime.compiled`).
 from __future__ import annotations
 
 import ctypes
+import fcntl
 import hashlib
 import math
 import os
+import tempfile
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -565,10 +567,10 @@ def build_library(model: SampleModel, built: Mapping[str, Built], directory: Pat
         prefixes.append(gf.name)
     if len(set(prefixes)) != len(prefixes):
         raise ArgumentError(f"two designs share a diagnoser name: {prefixes}")
-    staging = directory / "staging"
-    staging.mkdir(parents=True, exist_ok=True)
-    _sim_source(model.step, staging)
-    sim_c = (staging / "fdisyn_sim.c").read_bytes()
+    directory.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=directory, prefix=".staging-") as staging:
+        _sim_source(model.step, Path(staging))
+        sim_c = (Path(staging) / "fdisyn_sim.c").read_bytes()
     design_files = []
     for b in built.values():
         c_dir = Path(b.artifacts.c_dir)
@@ -577,11 +579,18 @@ def build_library(model: SampleModel, built: Mapping[str, Built], directory: Pat
                + [gain_file_sha256(b.gain_file).encode() for b in built.values()] + [p.read_bytes() for p in design_files])
     out = directory / key[:16]
     lib = out / "libfdisyn_campaign.so"
-    try:
-        _check_before_loading(lib, key)
-        return lib, key
-    except BuildError:
-        pass
+    out.mkdir(exist_ok=True)
+    with (out / ".lock").open("a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # processes building the same library wait for the first one's
+        try:
+            _check_before_loading(lib, key)
+        except BuildError:
+            _compile(model, built, prefixes, out, key)
+    return lib, key
+
+
+def _compile(model: SampleModel, built: Mapping[str, Built], prefixes: Sequence[str], out: Path, key: str) -> None:
+    lib = out / "libfdisyn_campaign.so"
     c_dir = out / "c"
     c_dir.mkdir(parents=True, exist_ok=True)
     _sim_source(model.step, c_dir)
@@ -607,7 +616,6 @@ def build_library(model: SampleModel, built: Mapping[str, Built], directory: Pat
     _finish(_start(argv, str(lib)), argv, str(lib))
     os.replace(tmp, fresh_path(lib))
     write_manifest(lib, key)
-    return lib, key
 
 
 def compiled_campaign(

@@ -3,8 +3,10 @@ the law of its Gaussian generator, the Python simulators on the same draws, and 
 
 from __future__ import annotations
 
+import multiprocessing
 import pickle
 import tomllib
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
 from pathlib import Path
 
@@ -133,7 +135,11 @@ def test_a_non_finite_measurement_is_status_1_and_no_alarm(wt_built, wt_campaign
 def test_a_campaign_travels_to_another_process_as_its_library_path(wt_campaign) -> None:
     again = pickle.loads(pickle.dumps(wt_campaign))
     assert again.spec.library == wt_campaign.spec.library
-    assert np.array_equal(again.run([1]).designs["kalman_uio"].J, wt_campaign.run([1]).designs["kalman_uio"].J)
+    here = wt_campaign.run([1]).designs["kalman_uio"].J
+    assert np.array_equal(again.run([1]).designs["kalman_uio"].J, here)
+    with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
+        there = pool.submit(wt_campaign.run, [1]).result()
+    assert np.array_equal(there.designs["kalman_uio"].J, here)
 
 
 def test_a_changed_library_is_rebuilt_not_loaded(wt_built, wt_campaign, tmp_path: Path) -> None:
