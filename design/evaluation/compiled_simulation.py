@@ -121,7 +121,9 @@ def generator_state(seed: int) -> np.ndarray:
 class SampleModel:
     """A simulator one sample at a time (module docstring).
 
-    ``step(x, z, k, p, d) → (x⁺, u, y, e)``; ``x0`` the state at ``k = 0``;
+    ``step(x, z, k, p, d) → (x⁺, u, y, e)``, and ``faulty`` the same while
+    the scenario's fault is active (default: ``step``; two functions, so that
+    the samples outside the fault's window skip its arithmetic); ``x0`` the state at ``k = 0``;
     ``parameters(scenario)`` the scenario's ``p``; ``drive(scenario)`` its
     drive table (N × nd; ``None``: nd = 0); ``Ts`` the sample time (a
     scenario has ``round(duration / Ts)`` samples); ``inputs``, ``outputs``
@@ -137,12 +139,18 @@ class SampleModel:
     outputs: tuple[str, ...]
     extra: tuple[str, ...] = ()
     drive: Callable[[Scenario], np.ndarray] | None = None
+    faulty: ca.Function | None = None
     nz: int = field(init=False)
 
     def __post_init__(self) -> None:
         fn = self.step
         if fn.n_in() != 5 or fn.n_out() != 4:
             raise ShapeError(f"a sample model's step maps (x, z, k, p, d) to (x⁺, u, y, e); got {fn.n_in()} inputs and {fn.n_out()} outputs")
+        if self.faulty is None:
+            object.__setattr__(self, "faulty", fn)
+        sizes = [(fn.size_in(i), self.faulty.size_in(i)) for i in range(5)] + [(fn.size_out(i), self.faulty.size_out(i)) for i in range(4)]
+        if self.faulty.n_in() != 5 or self.faulty.n_out() != 4 or any(a != b for a, b in sizes):
+            raise ShapeError("a sample model's faulty step must have the ports of its step")
         nx = fn.size1_in(0)
         want = {"x⁺": (fn.size1_out(0), nx), "u": (fn.size1_out(1), len(self.inputs)), "y": (fn.size1_out(2), len(self.outputs)),
                 "e": (fn.size1_out(3), len(self.extra)), "k": (fn.size1_in(2), 1), "x0": (np.size(self.x0), nx)}
@@ -157,6 +165,13 @@ class SampleModel:
 
     def samples(self, scenario: Scenario) -> int:
         return int(round(scenario.duration / self.Ts))
+
+    def window(self, scenario: Scenario) -> tuple[int, int]:
+        """``(k_on, k_end)``: the fault is active for ``k_on ≤ k < k_end`` (``scenario.active`` on the sample grid)."""
+        on = np.flatnonzero(scenario.active(np.arange(self.samples(scenario)) * self.Ts))
+        if on.size and on[-1] - on[0] + 1 != on.size:
+            raise ArgumentError(f"scenario {scenario.name!r}: the fault must be active over one interval")
+        return (int(on[0]), int(on[-1]) + 1) if on.size else (0, 0)
 
     def drive_table(self, scenario: Scenario) -> np.ndarray:
         """The scenario's drive table, checked: N × nd, finite."""
@@ -198,17 +213,13 @@ def _signal_sx(sig: Signal, t: ca.SX, k: ca.SX, ts: float, z: ca.SX | None, memo
 
 
 def linear_parameters(plant: LinearPlant, scenario: Scenario) -> np.ndarray:
-    """``p`` of :func:`linear_sample_model` for ``scenario``: ``[k_on, k_end, onset, stuck, value, gain, offset, drift, Fx f]``.
+    """``p`` of :func:`linear_sample_model` for ``scenario``: ``[onset, stuck, value, gain, offset, drift, Fx f]``.
 
-    The fault is active for ``k_on ≤ k < k_end`` (``scenario.active`` on the sample
-    grid); per output, the scenario's sensor faults composed in order into
+    Per output, the scenario's sensor faults composed in order into
     ``y ↦ (stuck ? value : gain·y) + offset + drift·(t − onset)``; the
-    component faults' ``Fx f`` added to the state while active.
+    component faults' ``Fx f`` added to the state; both while the fault is
+    active (:meth:`SampleModel.window`).
     """
-    ts = float(plant.Ts)  # type: ignore[arg-type]
-    n = int(round(scenario.duration / ts))
-    on = np.flatnonzero(scenario.active(np.arange(n) * ts))
-    k_on, k_end = (int(on[0]), int(on[-1]) + 1) if on.size else (0, 0)
     p = plant.p
     stuck, value, gain, offset, drift = np.zeros(p), np.zeros(p), np.ones(p), np.zeros(p), np.zeros(p)
     for f in scenario.params.get("sensor_faults", []):
@@ -231,7 +242,7 @@ def linear_parameters(plant: LinearPlant, scenario: Scenario) -> np.ndarray:
             raise ArgumentError(f"component fault {cname!r}: the plant has {list(plant.component_faults)}")
         fvec = fvec + np.asarray(plant.Fx)[:, plant.component_faults.index(cname)] * float(size)
     onset = float(scenario.onset or 0.0)
-    return _finite(np.concatenate([[k_on, k_end, onset], stuck, value, gain, offset, drift, fvec]), "the scenario's fault")
+    return _finite(np.concatenate([[onset], stuck, value, gain, offset, drift, fvec]), "the scenario's fault")
 
 
 def linear_sample_model(
@@ -268,7 +279,7 @@ def linear_sample_model(
     x = ca.SX.sym("x", n + len(random))
     z = ca.SX.sym("z", nq + nv + len(random))
     k = ca.SX.sym("k")
-    par = ca.SX.sym("p", 3 + 5 * p + n)
+    par = ca.SX.sym("p", 1 + 5 * p + n)
     t = k * ts
     values: list[ca.SX] = []
     memory: list[ca.SX] = []
@@ -279,27 +290,31 @@ def linear_sample_model(
         if mem is not None:
             memory.append(mem)
     xs = x[:n]
-    active = ca.logic_and(k >= par[0], k < par[1])
-    y = ca.mtimes(ca.DM(c), xs) + ca.mtimes(ca.DM(lr), z[nq : nq + nv])
     dd = ca.vertcat(*values[plant.m :]) if plant.q else ca.SX(0, 1)
-    if feedback is None:
+
+    def sample(faulty: bool) -> list[ca.SX]:
+        """The sample's outputs outside the fault's window, or inside it (``faulty``)."""
+        y = ca.mtimes(ca.DM(c), xs) + ca.mtimes(ca.DM(lr), z[nq : nq + nv])
         u = ca.vertcat(*values[: plant.m]) if plant.m else ca.SX(0, 1)
-        if plant.m:
+        if feedback is None and plant.m:
             y = y + ca.mtimes(ca.DM(d), u)
-    stuck, value, gain, offset, drift = (par[3 + i * p : 3 + (i + 1) * p] for i in range(5))
-    faulty = ca.if_else(stuck > 0.5, value, y * gain) + offset + drift * (t - par[2])
-    y = ca.vertcat(*[ca.if_else(active, faulty[j], y[j]) for j in range(p)]) if p else y
-    if feedback is not None:
-        u = ca.SX(feedback(y.T, k)).T
-        if u.shape != (plant.m, 1):
-            raise ShapeError(f"the feedback gives {u.shape[1]}×{u.shape[0]}; expected 1×{plant.m}")
-    nxt = ca.mtimes(ca.DM(a), xs) + ca.mtimes(ca.DM(b), u) + ca.mtimes(ca.DM(e), dd) + ca.mtimes(ca.DM(lq), z[:nq])
-    fvec = par[3 + 5 * p :]
-    nxt = ca.vertcat(*[ca.if_else(active, nxt[i] + fvec[i], nxt[i]) for i in range(n)])
-    step = ca.Function("sample", [x, z, k, par, ca.SX(0, 1)], [ca.vertcat(nxt, *memory), u, y, ca.vertcat(xs, dd)], NAMES_IN, NAMES_OUT)
+        if faulty:
+            stuck, value, gain, offset, drift = (par[1 + i * p : 1 + (i + 1) * p] for i in range(5))
+            y = ca.if_else(stuck > 0.5, value, y * gain) + offset + drift * (t - par[0])
+        if feedback is not None:
+            u = ca.SX(feedback(y.T, k)).T
+            if u.shape != (plant.m, 1):
+                raise ShapeError(f"the feedback gives {u.shape[1]}×{u.shape[0]}; expected 1×{plant.m}")
+        nxt = ca.mtimes(ca.DM(a), xs) + ca.mtimes(ca.DM(b), u) + ca.mtimes(ca.DM(e), dd) + ca.mtimes(ca.DM(lq), z[:nq])
+        if faulty:
+            nxt = nxt + par[1 + 5 * p :]
+        return [ca.vertcat(nxt, *memory), u, y, ca.vertcat(xs, dd)]
+
+    ins = [x, z, k, par, ca.SX(0, 1)]
     mapped = scenario_map or (lambda sc: sc)
     return SampleModel(
-        step=step,
+        step=ca.Function("sample", ins, sample(False), NAMES_IN, NAMES_OUT),
+        faulty=ca.Function("sample_faulty", ins, sample(True), NAMES_IN, NAMES_OUT),
         x0=np.concatenate([_finite(x0, "x0").reshape(-1), np.zeros(len(random))]),
         parameters=lambda sc: linear_parameters(plant, mapped(sc)),
         Ts=ts,
@@ -429,13 +444,14 @@ def _design_code(prefixes: Sequence[str]) -> dict[str, str]:
     return {"DESIGN_INCLUDES": "\n".join(inc), "DESIGN_DECLS": "\n".join(decl), "DESIGN_INITS": "\n".join(init), "DESIGN_STEPS": "\n".join(step)}
 
 
-def _sim_source(step: ca.Function, c_dir: Path) -> None:
-    ins = step.sx_in()
-    named = ca.Function("fdisyn_sim", ins, step.call(ins), list(step.name_in()), list(step.name_out()))
+def _sim_source(model: SampleModel, c_dir: Path) -> None:
+    """``fdisyn_sim.c``: the model's step as ``fdisyn_sim``, its faulty step as ``fdisyn_sim_faulty``."""
     for generated in ("fdisyn_sim.c", "fdisyn_sim.h"):
         fresh_path(c_dir / generated)
     cg = ca.CodeGenerator("fdisyn_sim.c", {"with_header": True, "with_export": False, "verbose": False})
-    cg.add(named)
+    for name, fn in (("fdisyn_sim", model.step), ("fdisyn_sim_faulty", model.faulty)):
+        ins = fn.sx_in()
+        cg.add(ca.Function(name, ins, fn.call(ins), list(fn.name_in()), list(fn.name_out())))
     cg.generate(str(c_dir) + os.sep)
 
 
@@ -451,6 +467,7 @@ class CampaignSpec:
     x0: np.ndarray
     parameters: np.ndarray
     drive: np.ndarray
+    window: tuple[int, int]
     samples: int
     Ts: float
     nz: int
@@ -477,7 +494,7 @@ class CompiledCampaign:
         if (key_fn() or b"").decode("ascii", "replace") != spec.key:
             raise BuildError(f"this process already runs another build of {spec.library}; start a new process")
         self._run = lib.fdisyn_campaign_run
-        self._run.argtypes = [ctypes.c_long, ctypes.c_long, _U64, _D, _D, _D, _D, _D, _D, _P, _P, _P, _P, _P]
+        self._run.argtypes = [ctypes.c_long, ctypes.c_long, ctypes.c_long, ctypes.c_long, _U64, _D, _D, _D, _D, _D, _D, _P, _P, _P, _P, _P]
         self._run.restype = ctypes.c_int
         self._draws = lib.fdisyn_campaign_draws
         self._draws.argtypes = [ctypes.c_long, ctypes.c_long, _U64, _D]
@@ -532,7 +549,7 @@ class CompiledCampaign:
 
         if runs and n:
             rc = self._run(
-                runs, n, states.ctypes.data_as(_U64), sp.x0.ctypes.data_as(_D), sp.parameters.ctypes.data_as(_D), opt(sp.drive),
+                runs, n, *sp.window, states.ctypes.data_as(_U64), sp.x0.ctypes.data_as(_D), sp.parameters.ctypes.data_as(_D), opt(sp.drive),
                 *(opt(None if keep is None else a) for a in keep or (None, None, None)),
                 ptrs("r"), ptrs("J"), ptrs("alarm"), ptrs("isolated"), ptrs("status"),
             )
@@ -569,7 +586,7 @@ def build_library(model: SampleModel, built: Mapping[str, Built], directory: Pat
         raise ArgumentError(f"two designs share a diagnoser name: {prefixes}")
     directory.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=directory, prefix=".staging-") as staging:
-        _sim_source(model.step, Path(staging))
+        _sim_source(model, Path(staging))
         sim_c = (Path(staging) / "fdisyn_sim.c").read_bytes()
     design_files = []
     for b in built.values():
@@ -593,7 +610,7 @@ def _compile(model: SampleModel, built: Mapping[str, Built], prefixes: Sequence[
     lib = out / "libfdisyn_campaign.so"
     c_dir = out / "c"
     c_dir.mkdir(parents=True, exist_ok=True)
-    _sim_source(model.step, c_dir)
+    _sim_source(model, c_dir)
     zk, zw, zf = ziggurat_tables()
     fn = model.step
     subs = {
@@ -645,6 +662,7 @@ def compiled_campaign(
         x0=np.ascontiguousarray(model.x0, dtype=float),
         parameters=np.ascontiguousarray(model.parameters(sc), dtype=float),
         drive=model.drive_table(sc),
+        window=model.window(sc),
         samples=model.samples(sc),
         Ts=model.Ts,
         nz=model.nz,

@@ -117,7 +117,7 @@ def test_a_non_finite_measurement_is_status_1_and_no_alarm(wt_built, wt_campaign
     NaN, every sample from then on is skipped (status 1) and raises no alarm, as in the diagnoser's own step."""
     sp = wt_campaign.spec
     p = sp.parameters.copy()
-    p[3 + 2], p[3 + 4 + 2] = 1.0, np.nan  # omega_g_m1 stuck, at NaN (layout of linear_parameters)
+    p[1 + 2], p[1 + 4 + 2] = 1.0, np.nan  # omega_g_m1 stuck, at NaN (layout of linear_parameters)
     nan_run = CompiledCampaign(replace(sp, parameters=p)).run([2], keep_batch=True)
     d = nan_run.designs["kalman_uio"]
     assert np.isnan(nan_run.batch.Y[0, 10_001:, 1:]).all() and np.isnan(nan_run.batch.Y[0, 10_000, 2])
