@@ -59,6 +59,8 @@ if TYPE_CHECKING:
     from fdisyn.evaluation.evaluate import Built
 
 __all__ = [
+    "NAMES_IN",
+    "NAMES_OUT",
     "SampleModel",
     "linear_sample_model",
     "nonlinear_sample_model",
@@ -71,6 +73,7 @@ __all__ = [
 
 TEMPLATE = Path(__file__).with_name("campaign.c.in")
 NAMES_IN = ["x", "z", "k", "p", "d"]
+"""Port names of a sample model's functions (:class:`SampleModel`)."""
 NAMES_OUT = ["x_next", "u", "y", "e"]
 
 # ----------------------------------------------------------------------------- the generator
@@ -146,10 +149,10 @@ class SampleModel:
         fn = self.step
         if fn.n_in() != 5 or fn.n_out() != 4:
             raise ShapeError(f"a sample model's step maps (x, z, k, p, d) to (x⁺, u, y, e); got {fn.n_in()} inputs and {fn.n_out()} outputs")
-        if self.faulty is None:
-            object.__setattr__(self, "faulty", fn)
-        sizes = [(fn.size_in(i), self.faulty.size_in(i)) for i in range(5)] + [(fn.size_out(i), self.faulty.size_out(i)) for i in range(4)]
-        if self.faulty.n_in() != 5 or self.faulty.n_out() != 4 or any(a != b for a, b in sizes):
+        faulty = fn if self.faulty is None else self.faulty
+        object.__setattr__(self, "faulty", faulty)
+        sizes = [(fn.size_in(i), faulty.size_in(i)) for i in range(5)] + [(fn.size_out(i), faulty.size_out(i)) for i in range(4)]
+        if faulty.n_in() != 5 or faulty.n_out() != 4 or any(a != b for a, b in sizes):
             raise ShapeError("a sample model's faulty step must have the ports of its step")
         nx = fn.size1_in(0)
         want = {"x⁺": (fn.size1_out(0), nx), "u": (fn.size1_out(1), len(self.inputs)), "y": (fn.size1_out(2), len(self.outputs)),
@@ -449,7 +452,7 @@ def _sim_source(model: SampleModel, c_dir: Path) -> None:
     for generated in ("fdisyn_sim.c", "fdisyn_sim.h"):
         fresh_path(c_dir / generated)
     cg = ca.CodeGenerator("fdisyn_sim.c", {"with_header": True, "with_export": False, "verbose": False})
-    for name, fn in (("fdisyn_sim", model.step), ("fdisyn_sim_faulty", model.faulty)):
+    for name, fn in (("fdisyn_sim", model.step), ("fdisyn_sim_faulty", model.faulty if model.faulty is not None else model.step)):
         ins = fn.sx_in()
         cg.add(ca.Function(name, ins, fn.call(ins), list(fn.name_in()), list(fn.name_out())))
     cg.generate(str(c_dir) + os.sep)

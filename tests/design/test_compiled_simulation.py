@@ -238,11 +238,11 @@ def test_a_design_reading_other_signals_is_refused(wt_built, motor_built) -> Non
         compiled_campaign(WT, {"motor": motor_built}, "fault_free")
 
 
-# ----------------------------------------------------------------------------- nonlinear and sampled-data plants
+# ----------------------------------------------------------------------------- nonlinear, sampled-data and turbofan plants
 
 
-@pytest.mark.parametrize("name", ["ship_propulsion", "wind_turbine_efficiency", "sampled_data_example"])
-def test_nonlinear_and_sampled_data_simulations_match_python(name: str, tmp_path: Path) -> None:
+@pytest.mark.parametrize("name", ["ship_propulsion", "wind_turbine_efficiency", "sampled_data_example", "turbofan"])
+def test_the_other_problems_simulations_match_python(name: str, tmp_path: Path) -> None:
     """Simulation only (no design): U, Y and the kept truths of every scenario against the problem's simulator."""
     prob = get_problem(name)
     for sname in prob.scenarios:
