@@ -7,21 +7,23 @@ function
     ``(x, z, k, p, d) ↦ (x⁺, u, y, e)``
 
 of the simulation's state ``x``, the sample's standard-normal draws ``z``, the
-sample index ``k``, the scenario's parameters ``p`` (fault window and sizes)
+sample index ``k``, the scenario's parameters ``p`` (its fault's sizes)
 and the sample's row ``d`` of the scenario's drive table (inputs and
 parameters known in advance, the same for every run), giving the next state,
 the known inputs, the measurements and the signals kept beside them (true
 states, unknown inputs, true parameters). The generated C driver
 (``campaign.c.in``) runs it for every run of a chunk with the run's own
-xoshiro256** generator (Blackman & Vigna 2018) seeded from
+xoshiro256** generator (Blackman & Vigna, ACM Transactions on Mathematical
+Software 47(4), 2021) seeded from
 ``SeedSequence(seed).generate_state(4, np.uint64)``, Gaussians by the ziggurat
 method (Marsaglia & Tsang 2000, Journal of Statistical Software 5(8)), and
 feeds each sample to every design's C step, the one ``fdisyn codegen``
 compiles: the designs see the same runs (common random numbers), and run ``i``
 is the same whatever chunk it is in.
 
-The library is built once per problem options and set of designs (the
-scenario only changes ``p`` and the number of samples) in
+The library is built once per problem options and set of designs (a
+scenario only changes ``p``, the drive table, the fault's window and the
+number of samples) in
 ``<work>/campaign/<key>/`` beside the designs' folders, with a build manifest
 checked before it is loaded (:mod:`fdisyn.runtime.compiled`).
 """
@@ -79,7 +81,7 @@ NAMES_OUT = ["x_next", "u", "y", "e"]
 # ----------------------------------------------------------------------------- the generator
 
 ZIGGURAT_R = 3.6541528853610088
-"""Right edge of the base layer of the 256-layer ziggurat (Marsaglia & Tsang 2000, section 4)."""
+"""Right edge of the base layer of the 256-layer ziggurat (Marsaglia & Tsang 2000, Journal of Statistical Software 5(8))."""
 ZIGGURAT_V = 4.92867323399e-3
 """Area of each of its layers (same source)."""
 
@@ -550,9 +552,10 @@ class CompiledCampaign:
         def opt(a: np.ndarray | None) -> Any:
             return None if a is None or a.size == 0 else a.ctypes.data_as(_D)
 
+        x0 = sp.x0 if sp.x0.size else np.zeros(1)  # C copies at least one entry
         if runs and n:
             rc = self._run(
-                runs, n, *sp.window, states.ctypes.data_as(_U64), sp.x0.ctypes.data_as(_D), sp.parameters.ctypes.data_as(_D), opt(sp.drive),
+                runs, n, *sp.window, states.ctypes.data_as(_U64), x0.ctypes.data_as(_D), opt(sp.parameters), opt(sp.drive),
                 *(opt(None if keep is None else a) for a in keep or (None, None, None)),
                 ptrs("r"), ptrs("J"), ptrs("alarm"), ptrs("isolated"), ptrs("status"),
             )
@@ -657,13 +660,16 @@ def compiled_campaign(
         raise ArgumentError("a compiled campaign without designs (simulation only) needs a directory for its library")
     where = Path(directory) if directory is not None else Path(next(iter(built.values())).directory).parent / "campaign"
     lib, key = build_library(model, built, where)
+    parameters = np.ascontiguousarray(model.parameters(sc), dtype=float).reshape(-1)
+    if parameters.size != model.step.size1_in(3):
+        raise ShapeError(f"scenario {sc.name!r} has {parameters.size} parameters; the sample model reads {model.step.size1_in(3)}")
     spec = CampaignSpec(
         library=lib,
         key=key,
         scenario=sc,
         designs=tuple((d, b.gain_file.step.nr, b.gain_file.step.nj) for d, b in built.items()),
         x0=np.ascontiguousarray(model.x0, dtype=float),
-        parameters=np.ascontiguousarray(model.parameters(sc), dtype=float),
+        parameters=parameters,
         drive=model.drive_table(sc),
         window=model.window(sc),
         samples=model.samples(sc),
