@@ -37,7 +37,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 from fdisyn.app.report import ReportContext, fmt, shade, subplots, table, timeline
-from fdisyn.evaluation.compiled_simulation import SampleModel, linear_sample_model
+from fdisyn.evaluation.compiled_simulation import SampleModel, clip_sx, linear_sample_model
 from fdisyn.evaluation.simulate import Signal, simulate_linear
 from fdisyn.models.linear import LinearPlant
 from fdisyn.models.problem import Batch, Problem, Scenario
@@ -462,14 +462,9 @@ def simulate(
     return simulate_linear(args.pop("plant"), _offsets_in_sd(scenario, parameters), seeds, draws=draws, **args)
 
 
-def _clip_sx(v: ca.SX, lo: float, hi: float) -> ca.SX:
-    """``np.clip`` on CasADi expressions, NaN kept (``fmin``/``fmax`` would drop it)."""
-    return ca.if_else(v < lo, lo, ca.if_else(v > hi, hi, v))
-
-
 def sample_model(*, parameters: str = "benchmark", **_design_options: object) -> SampleModel:
     """:func:`simulate` one sample at a time, for the compiled Monte Carlo."""
-    args = _closed_loop(parameters, _clip_sx)
+    args = _closed_loop(parameters, clip_sx)
     return linear_sample_model(args.pop("plant"), scenario_map=lambda sc: _offsets_in_sd(sc, parameters), **args)
 
 

@@ -64,6 +64,7 @@ __all__ = [
     "NAMES_IN",
     "NAMES_OUT",
     "SampleModel",
+    "clip_sx",
     "linear_sample_model",
     "nonlinear_sample_model",
     "sampled_data_sample_model",
@@ -128,7 +129,9 @@ class SampleModel:
 
     ``step(x, z, k, p, d) → (x⁺, u, y, e)``, and ``faulty`` the same while
     the scenario's fault is active (default: ``step``; two functions, so that
-    the samples outside the fault's window skip its arithmetic); ``x0`` the state at ``k = 0``;
+    the samples outside the fault's window skip its arithmetic); ``x0`` the state at ``k = 0``,
+    or ``start(z0) → x0`` from ``n0`` standard normals drawn first in each run
+    (e.g. the run's random parameters and the equilibrium they give);
     ``parameters(scenario)`` the scenario's ``p``; ``drive(scenario)`` its
     drive table (N × nd; ``None``: nd = 0); ``Ts`` the sample time (a
     scenario has ``round(duration / Ts)`` samples); ``inputs``, ``outputs``
@@ -145,7 +148,9 @@ class SampleModel:
     extra: tuple[str, ...] = ()
     drive: Callable[[Scenario], np.ndarray] | None = None
     faulty: ca.Function | None = None
+    start: ca.Function | None = None
     nz: int = field(init=False)
+    n0: int = field(init=False)
 
     def __post_init__(self) -> None:
         fn = self.step
@@ -165,8 +170,14 @@ class SampleModel:
         x0 = np.asarray(self.x0, dtype=float).reshape(-1)
         if not np.all(np.isfinite(x0)):
             raise ArgumentError("a sample model's initial state must be finite")
+        if self.start is None:  # the constant start: no draw
+            z0 = ca.SX.sym("z0", 0)
+            object.__setattr__(self, "start", ca.Function("start", [z0], [ca.DM(x0)], ["z0"], ["x0"]))
+        elif self.start.n_in() != 1 or self.start.n_out() != 1 or self.start.size1_out(0) != nx:
+            raise ShapeError(f"a sample model's start maps its draws to the {nx} entries of x0")
         object.__setattr__(self, "x0", x0)
         object.__setattr__(self, "nz", int(fn.size1_in(1)))
+        object.__setattr__(self, "n0", int(self.start.size1_in(0)))
 
     def samples(self, scenario: Scenario) -> int:
         return int(round(scenario.duration / self.Ts))
@@ -185,6 +196,11 @@ class SampleModel:
         if table.shape != shape:
             raise ShapeError(f"the drive table of scenario {scenario.name!r} has shape {table.shape}; expected {shape}")
         return np.ascontiguousarray(table, dtype=float)
+
+
+def clip_sx(v: ca.SX, lo: float, hi: float) -> ca.SX:
+    """``np.clip`` on CasADi expressions, NaN kept (``fmin``/``fmax`` would drop it)."""
+    return ca.if_else(v < lo, lo, ca.if_else(v > hi, hi, v))
 
 
 def _finite(values: Any, what: str) -> np.ndarray:
@@ -450,11 +466,12 @@ def _design_code(prefixes: Sequence[str]) -> dict[str, str]:
 
 
 def _sim_source(model: SampleModel, c_dir: Path) -> None:
-    """``fdisyn_sim.c``: the model's step as ``fdisyn_sim``, its faulty step as ``fdisyn_sim_faulty``."""
+    """``fdisyn_sim.c``: the model's step as ``fdisyn_sim``, its faulty step as ``fdisyn_sim_faulty``, its start as ``fdisyn_sim_start``."""
     for generated in ("fdisyn_sim.c", "fdisyn_sim.h"):
         fresh_path(c_dir / generated)
     cg = ca.CodeGenerator("fdisyn_sim.c", {"with_header": True, "with_export": False, "verbose": False})
-    for name, fn in (("fdisyn_sim", model.step), ("fdisyn_sim_faulty", model.faulty if model.faulty is not None else model.step)):
+    assert model.faulty is not None and model.start is not None  # filled in by SampleModel
+    for name, fn in (("fdisyn_sim", model.step), ("fdisyn_sim_faulty", model.faulty), ("fdisyn_sim_start", model.start)):
         ins = fn.sx_in()
         cg.add(ca.Function(name, ins, fn.call(ins), list(fn.name_in()), list(fn.name_out())))
     cg.generate(str(c_dir) + os.sep)
@@ -469,13 +486,13 @@ class CampaignSpec:
     scenario: Scenario
     designs: tuple[tuple[str, int, int], ...]
     """(design, nr, nj) in the library's order."""
-    x0: np.ndarray
     parameters: np.ndarray
     drive: np.ndarray
     window: tuple[int, int]
     samples: int
     Ts: float
     nz: int
+    n0: int
     inputs: tuple[str, ...]
     outputs: tuple[str, ...]
     extra: tuple[str, ...]
@@ -499,7 +516,7 @@ class CompiledCampaign:
         if (key_fn() or b"").decode("ascii", "replace") != spec.key:
             raise BuildError(f"this process already runs another build of {spec.library}; start a new process")
         self._run = lib.fdisyn_campaign_run
-        self._run.argtypes = [ctypes.c_long, ctypes.c_long, ctypes.c_long, ctypes.c_long, _U64, _D, _D, _D, _D, _D, _D, _P, _P, _P, _P, _P]
+        self._run.argtypes = [ctypes.c_long, ctypes.c_long, ctypes.c_long, ctypes.c_long, _U64, _D, _D, _D, _D, _D, _P, _P, _P, _P, _P]
         self._run.restype = ctypes.c_int
         self._draws = lib.fdisyn_campaign_draws
         self._draws.argtypes = [ctypes.c_long, ctypes.c_long, _U64, _D]
@@ -527,9 +544,18 @@ class CompiledCampaign:
         return out[: int(count)]
 
     def draws(self, seeds: Sequence[int]) -> np.ndarray:
-        """The standard-normal draws the simulation of each run reads: runs × N × nz (the Python simulator's ``draws``)."""
+        """The standard-normal draws the simulation of each run reads per sample: runs × N × nz (the Python
+        simulator's ``draws``; :meth:`start_draws` has those its start reads before them)."""
         sp = self.spec
-        out = np.zeros((len(seeds), sp.samples, sp.nz))
+        return self._all_draws(seeds)[:, sp.n0 :].reshape(len(seeds), sp.samples, sp.nz)
+
+    def start_draws(self, seeds: Sequence[int]) -> np.ndarray:
+        """The standard normals each run's start reads (runs × n0), drawn before :meth:`draws`."""
+        return self._all_draws(seeds)[:, : self.spec.n0]
+
+    def _all_draws(self, seeds: Sequence[int]) -> np.ndarray:
+        sp = self.spec
+        out = np.zeros((len(seeds), sp.n0 + sp.samples * sp.nz))
         if out.size:
             self._draws(len(seeds), sp.samples, self._states(seeds).ctypes.data_as(_U64), out.ctypes.data_as(_D))
         return out
@@ -552,10 +578,9 @@ class CompiledCampaign:
         def opt(a: np.ndarray | None) -> Any:
             return None if a is None or a.size == 0 else a.ctypes.data_as(_D)
 
-        x0 = sp.x0 if sp.x0.size else np.zeros(1)  # C copies at least one entry
         if runs and n:
             rc = self._run(
-                runs, n, *sp.window, states.ctypes.data_as(_U64), x0.ctypes.data_as(_D), opt(sp.parameters), opt(sp.drive),
+                runs, n, *sp.window, states.ctypes.data_as(_U64), opt(sp.parameters), opt(sp.drive),
                 *(opt(None if keep is None else a) for a in keep or (None, None, None)),
                 ptrs("r"), ptrs("J"), ptrs("alarm"), ptrs("isolated"), ptrs("status"),
             )
@@ -621,7 +646,7 @@ def _compile(model: SampleModel, built: Mapping[str, Built], prefixes: Sequence[
     fn = model.step
     subs = {
         "NX": str(fn.size1_in(0)), "NZ": str(model.nz), "NU": str(len(model.inputs)), "NY": str(len(model.outputs)),
-        "NE": str(len(model.extra)), "NP": str(fn.size1_in(3)), "ND": str(fn.size1_in(4)),
+        "NE": str(len(model.extra)), "NP": str(fn.size1_in(3)), "ND": str(fn.size1_in(4)), "N0": str(model.n0),
         "ZIG_R": _c_double(ZIGGURAT_R),
         "ZIG_K": ", ".join(f"UINT64_C({int(v)})" for v in zk),
         "ZIG_W": ", ".join(_c_double(v) for v in zw),
@@ -668,13 +693,13 @@ def compiled_campaign(
         key=key,
         scenario=sc,
         designs=tuple((d, b.gain_file.step.nr, b.gain_file.step.nj) for d, b in built.items()),
-        x0=np.ascontiguousarray(model.x0, dtype=float),
         parameters=parameters,
         drive=model.drive_table(sc),
         window=model.window(sc),
         samples=model.samples(sc),
         Ts=model.Ts,
         nz=model.nz,
+        n0=model.n0,
         inputs=tuple(model.inputs),
         outputs=tuple(model.outputs),
         extra=tuple(model.extra),

@@ -241,15 +241,17 @@ def test_a_design_reading_other_signals_is_refused(wt_built, motor_built) -> Non
 # ----------------------------------------------------------------------------- nonlinear, sampled-data and turbofan plants
 
 
-@pytest.mark.parametrize("name", ["ship_propulsion", "wind_turbine_efficiency", "sampled_data_example", "turbofan"])
+@pytest.mark.parametrize("name", ["ship_propulsion", "wind_turbine_efficiency", "sampled_data_example", "turbofan", "satellite_pitch"])
 def test_the_other_problems_simulations_match_python(name: str, tmp_path: Path) -> None:
-    """Simulation only (no design): U, Y and the kept truths of every scenario against the problem's simulator."""
+    """Simulation only (no design): U, Y and the kept truths of every scenario against the problem's simulator
+    (the satellite's runs also start from the same draws: its random parameters)."""
     prob = get_problem(name)
     for sname in prob.scenarios:
         cc = compiled_campaign(prob, {}, sname, directory=tmp_path)
         seeds = (1, 2)
         got = cc.run(seeds, keep_batch=True)
-        py = prob.simulate(prob.scenario(sname), seeds, draws=cc.draws(seeds))
+        start = {"start_draws": cc.start_draws(seeds)} if cc.spec.n0 else {}
+        py = prob.simulate(prob.scenario(sname), seeds, draws=cc.draws(seeds), **start)
         assert got.designs == {}
         _close(got.batch.U, py.U)
         _close(got.batch.Y, py.Y)
