@@ -295,9 +295,9 @@ SCENARIOS: dict[str, Scenario] = {
 
 # --------------------------------------------------------------------------- the truth
 
-NUMPY = {"sin": np.sin, "cos": np.cos, "tanh": np.tanh, "ones_like": np.ones_like, "stack": np.column_stack}
+NUMPY: dict[str, Any] = {"sin": np.sin, "cos": np.cos, "tanh": np.tanh, "ones_like": np.ones_like, "stack": np.column_stack}
 """The elementary functions of the truth's equations on runs × states arrays."""
-CASADI = {"sin": ca.sin, "cos": ca.cos, "tanh": ca.tanh, "ones_like": lambda r: ca.SX.ones(r.shape), "stack": lambda cols: ca.horzcat(*cols)}
+CASADI: dict[str, Any] = {"sin": ca.sin, "cos": ca.cos, "tanh": ca.tanh, "ones_like": lambda r: ca.SX.ones(r.shape), "stack": lambda cols: ca.horzcat(*cols)}
 """The same on one run's CasADi row (the compiled simulation, :func:`sample_model`)."""
 
 

@@ -170,14 +170,15 @@ class SampleModel:
         x0 = np.asarray(self.x0, dtype=float).reshape(-1)
         if not np.all(np.isfinite(x0)):
             raise ArgumentError("a sample model's initial state must be finite")
-        if self.start is None:  # the constant start: no draw
-            z0 = ca.SX.sym("z0", 0)
-            object.__setattr__(self, "start", ca.Function("start", [z0], [ca.DM(x0)], ["z0"], ["x0"]))
-        elif self.start.n_in() != 1 or self.start.n_out() != 1 or self.start.size1_out(0) != nx:
+        start = self.start
+        if start is None:  # the constant start: no draw
+            start = ca.Function("start", [ca.SX.sym("z0", 0)], [ca.DM(x0)], ["z0"], ["x0"])
+        elif start.n_in() != 1 or start.n_out() != 1 or start.size1_out(0) != nx:
             raise ShapeError(f"a sample model's start maps its draws to the {nx} entries of x0")
+        object.__setattr__(self, "start", start)
         object.__setattr__(self, "x0", x0)
         object.__setattr__(self, "nz", int(fn.size1_in(1)))
-        object.__setattr__(self, "n0", int(self.start.size1_in(0)))
+        object.__setattr__(self, "n0", int(start.size1_in(0)))
 
     def samples(self, scenario: Scenario) -> int:
         return int(round(scenario.duration / self.Ts))
