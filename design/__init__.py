@@ -5,8 +5,8 @@ The public Python API (see the README's "Python" section)::
 
     plant = fdisyn.LinearPlant.from_control(sys, n_unknown=1, Q=Q, R=R)
     gf = fdisyn.design(plant, method="kalman_uio", P_f=1e-4)   # a certified GainFile
-    fdisyn.export(gf, "build/motor")                            # gains.json, C sources, library, replay
-    mon = fdisyn.load("build/motor")                            # a Monitor
+    fdisyn.export(gf, "motor")                                  # gains.json, C sources, library, replay
+    mon = fdisyn.load("motor")                                  # a Monitor
     fdisyn.methods()                                            # the registered method names
 
 The package root is light: the names above are imported on first use, so

@@ -44,7 +44,7 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
-from fdisyn.app.report import ReportContext, shade, subplots, table, timeline
+from fdisyn.app.report import Claim, ReportContext, fmt, shade, subplots, table
 from fdisyn.evaluation.compiled_simulation import SampleModel, nonlinear_sample_model
 from fdisyn.models.nonlinear import NonlinearPlant
 from fdisyn.models.problem import Batch, Problem, Scenario
@@ -349,7 +349,7 @@ def _excitation_table(records: Sequence[Mapping[str, Any]], dsg: NafdfDesign) ->
             text = "not isolable" if v == NOT_ISOLABLE else v
             if v == NOT_ISOLABLE:  # the parameter the data say least about, at the end of the runs
                 worst = max(bound, key=lambda q: np.median([sd(r["info"][q][1]) / bound[q] for r in rec["runs"]]))
-                text += f" (σ({worst}̂) {np.median([sd(r['info'][worst][1]) for r in rec['runs']]):.3g})"
+                text += f" (σ({worst}̂) {fmt(np.median([sd(r['info'][worst][1]) for r in rec['runs']]))})"
             parts.append(f"{text} {c}/{n}")
         return "; ".join(parts)
 
@@ -357,16 +357,16 @@ def _excitation_table(records: Sequence[Mapping[str, Any]], dsg: NafdfDesign) ->
         iso = [r["isolation_delay"] for r in rec["runs"] if r["isolation_delay"] is not None]
         det = [r["detection_delay"] for r in rec["runs"] if r["detection_delay"] is not None]
         episodes = max(r["alarm_episodes"] for r in rec["runs"])
-        text = f"{np.median(iso):.0f}" if iso else "–"
-        return f"{text} (detected {np.median(det):.0f}; ≤ {episodes} episode{'s' if episodes > 1 else ''})" if det else text
+        text = fmt(np.median(iso)) if iso else "never isolated"
+        return f"{text} (detected {fmt(np.median(det))}; ≤ {episodes} episode{'s' if episodes > 1 else ''})" if det else text
 
     rows, labels = [], [label for label, _ in EXCITATION_FAULTS]
     keys = list(dict.fromkeys((r["kind"], r["offset"], r["amplitude"]) for r in records))
     for kind, off, amp in keys:
         recs = {r["fault"]: r for r in records if (r["kind"], r["offset"], r["amplitude"]) == (kind, off, amp)}
         first = recs[labels[0]]["runs"]
-        sds = " / ".join(f"{np.median([sd(r['info'][q][0]) for r in first]):.3g}" for q in dsg.fault_names)
-        u = f"{off:g}" if kind == "constant" else f"{off:g} ± {amp:g}"
+        sds = " / ".join(fmt(np.median([sd(r["info"][q][0]) for r in first])) for q in dsg.fault_names)
+        u = fmt(off) if kind == "constant" else f"{fmt(off)} ± {fmt(amp)}"
         row: list[object] = [kind, u, sds]
         for label in labels:
             row += [verdict(recs[label]), delay(recs[label])]
@@ -570,7 +570,7 @@ def _report(ctx: ReportContext) -> list[tuple[str, str]]:
                 "of b at t = 701, three runs each (noise draws 1–3) through the generated C. σ is the standard deviation "
                 "of the NF's estimate from its own covariance, σ² = (a R⁻¹)ᵢᵢ/(1 + λ), just before the fault (median over "
                 f"the runs): the NF converges — and the EKF is re-parameterised, the nominal statistics learned and "
-                f"the classifier armed — only when σ(â) ≤ {sd_a:.3g} and σ(b̂) ≤ {sd_b:.3g} "
+                f"the classifier armed — only when σ(â) ≤ {fmt(sd_a)} and σ(b̂) ≤ {fmt(sd_b)} "
                 "(W1·σ² ≤ isolable_jump², isolable_jump = 0.29 and 0.1). "
                 "'not isolable' is the diagnosis 'detected, not isolable (insufficient excitation)': "
                 "the alarm stays on for the whole episode and isolated stays −1; σ in brackets is that of the "
@@ -588,27 +588,32 @@ def _report(ctx: ReportContext) -> list[tuple[str, str]]:
         names = list(v.built["nafdf"].gain_file.step.statistic_names)
         col = {nm: res.J[:, i] for i, nm in enumerate(names)}
         t = b.t
-        fig, axes = subplots(3, 1, figsize=(9, 7.5), sharex=True)
+        fig, axes = subplots(3, 1, figsize=(9, 8.0), sharex=True)
+        outside = {"loc": "upper left", "bbox_to_anchor": (1.01, 1.0), "fontsize": 9, "frameon": False}
         ax = axes[0]
         for q, color in (("a", "tab:blue"), ("b", "tab:orange")):
-            ax.plot(t, col[f"theta_hat_{q}"], color=color, lw=0.8, label=f"NF estimate of {q}")
-            ax.plot(t, b.extra[q][0], color=color, ls="--", lw=1.0, label=f"true {q}")
+            ax.plot(t, col[f"theta_hat_{q}"], color=color, lw=0.8, label=LABELS[f"theta_hat_{q}"])
+            ax.plot(t, b.extra[q][0], color=color, ls="--", lw=1.0, label=f"true {LABELS[q]}")
         ax.set_ylim(-0.8, 0.4)
-        ax.legend(loc="lower right", fontsize=7, ncol=2)
-        ax.set_ylabel("parameter")
+        ax.legend(**outside)
+        ax.set_ylabel("parameter (–)", fontsize=10)
         ax.grid(alpha=0.3)
-        timeline(axes[1], t, np.column_stack([col["wssr"]]), ["WSSR L(t)"])
-        axes[1].plot(t, col["wssr_threshold"], "k--", lw=0.8, label="threshold")
+        axes[1].plot(t, np.maximum(col["wssr"], 1e-6), lw=0.7, label=LABELS["wssr"])
+        axes[1].plot(t, col["wssr_threshold"], "k--", lw=0.8, label=LABELS["wssr_threshold"])
+        axes[1].set_yscale("log")
+        axes[1].grid(alpha=0.3)
         shade(axes[1], t, b.active)
-        axes[1].legend(loc="upper left", fontsize=7)
-        axes[1].set_xlabel("")
-        axes[1].set_ylabel("WSSR")
-        timeline(axes[2], t, np.column_stack([col["d_a"], col["d_b"]]), ["d_a", "d_b"])
-        axes[2].axhline(dsg.settings.W1, color="k", ls=":", lw=0.8, label="W1")
-        axes[2].axhline(dsg.settings.W2, color="k", ls="--", lw=0.8, label="W2")
-        axes[2].legend(loc="upper left", fontsize=7, ncol=4)
-        axes[2].set_ylabel("Bayes distance")
-        axes[2].set_xlabel("t (samples)")
+        axes[1].legend(**outside)
+        axes[1].set_ylabel("WSSR (–)", fontsize=10)
+        for q in ("a", "b"):
+            axes[2].plot(t, np.maximum(col[f"d_{q}"], 1e-6), lw=0.7, label=LABELS[f"d_{q}"])
+        axes[2].set_yscale("log")
+        axes[2].grid(alpha=0.3)
+        axes[2].axhline(dsg.settings.W1, color="k", ls=":", lw=0.8, label=f"W1 = {fmt(dsg.settings.W1)}: isolable")
+        axes[2].axhline(dsg.settings.W2, color="k", ls="--", lw=0.8, label=f"W2 = {fmt(dsg.settings.W2)}")
+        axes[2].legend(**outside)
+        axes[2].set_ylabel("Bayes distance (–)", fontsize=10)
+        axes[2].set_xlabel("t (samples)", fontsize=10)
         sections.append(
             (
                 "Figures — the paper's fault",
@@ -622,6 +627,122 @@ def _report(ctx: ReportContext) -> list[tuple[str, str]]:
             )
         )
     return sections
+
+
+LABELS: Mapping[str, str] = {
+    "u": "engine command u (–)",
+    "y": "measured ship speed y (–)",
+    "x": "ship speed x (–)",
+    "a": "hull resistance a",
+    "b": "engine efficiency b",
+    "nafdf": "NAFDF: EKF, WSSR, NF and Bayes classifier (Zhou, Xi & Zhang c. 1991)",
+    "ekf_innovation_y": "EKF innovation of y (–)",
+    "nf_innovation_y": "NF innovation of y (–)",
+    "wssr": "WSSR of the EKF innovations, eq. (2.4)",
+    "wssr_threshold": "WSSR threshold",
+    "cusum": "CUSUM of the normalised EKF innovations",
+    "cusum_threshold": "CUSUM threshold",
+    "glr": "windowed GLR of the normalised EKF innovations",
+    "glr_threshold": "GLR threshold",
+    "ekf_nis": "EKF normalised innovation squared",
+    "nf_converged": "NF converged (0/1)",
+    "insufficient_excitation": "detected, not isolable: too little excitation (0/1)",
+    "diverged": "filter diverged (0/1)",
+    **{
+        key: text
+        for q, name in (("a", "hull resistance a"), ("b", "engine efficiency b"))
+        for key, text in (
+            (f"theta_hat_{q}", f"NF estimate of the {name}"),
+            (f"info_{q}", f"NF information on {q}, 1/σ²"),
+            (f"d_{q}", f"Bayes distance of {q}, eq. (2.7)"),
+            (f"fault_class_{q}", f"{q} classed faulty (0/1)"),
+            (f"fault_size_{q}", f"estimated jump of {q}, eq. (2.8)"),
+        )
+    },
+}
+"""Readable names of the signals, parameters, statistics and the design the page shows (the paper gives no units)."""
+
+
+def _claims(ctx: ReportContext) -> list[Claim]:
+    """Zhou, Xi & Zhang c. 1991, section 3 (figs. 3–4): the paper's fault against the Monte Carlo of the generated C."""
+    from scipy.stats import chi2
+
+    v = ctx.variants[0]
+    m = v.evaluation.metrics.get("nafdf", {})
+    out = []
+    mm = m.get("paper_a_half")
+    tf = FAULT_TIME
+    if mm is not None and mm.missed_detection_rate is not None:
+        late = mm.missed_detection_rate > 0 or (mm.detection_delay_max_s or 0.0) > PAPER["detection_time"] - tf  # type: ignore[operator]
+        out.append(
+            Claim(
+                "The jump a → a0/2 at t = 701 is detected by the EKF's WSSR (Zhou, Xi & Zhang c. 1991, section 3, fig. 3)",
+                f"at t = {PAPER['detection_time']} ({fmt(PAPER['detection_time'] - tf)} samples)",  # type: ignore[operator]
+                f"runs missed {fmt(100 * mm.missed_detection_rate)} %, delay mean {fmt(mm.detection_delay_mean_s)}, "
+                f"max {fmt(mm.detection_delay_max_s)} samples",
+                "differs" if late else "reproduced",
+                "some runs detect it later than the paper's single run" if late else "",
+            )
+        )
+        iso_ok = (mm.isolation_accuracy or 0.0) >= 0.95
+        out.append(
+            Claim(
+                "The Bayes classifier isolates the hull resistance a (Zhou, Xi & Zhang c. 1991, eq. (2.7), fig. 4)",
+                f"a, at t = {PAPER['isolation_time']}",
+                f"a in {fmt(100 * (mm.isolation_accuracy or 0.0))} % of the runs, median "
+                f"t = {fmt(tf + (mm.extra.get('isolation delay median (samples)') or 0.0))}",
+                "reproduced" if iso_ok else "differs",
+                "" if iso_ok else "runs whose NF did not converge in time end 'detected, not isolable'",
+            )
+        )
+        delay = mm.extra.get("isolation delay median (samples)")
+        if delay is not None:
+            out.append(
+                Claim(
+                    "The EKF is re-parameterised with the NF's estimates, then a is isolated (Zhou, Xi & Zhang c. 1991, fig. 4)",
+                    f"at t = {PAPER['ekf_reset_time']}",
+                    f"isolated at t = {fmt(tf + delay)} (median)",
+                    "differs",
+                    "fdisyn hands the NF's estimate to the EKF as soon as the NF has converged by its own covariance and "
+                    "drift tests, about 80 samples after the alarm with the square-wave input; the paper gives neither its "
+                    "input nor what it waited for until t = 1000.",
+                )
+            )
+        err = mm.extra.get("size error a: mean")
+        sd = mm.extra.get("size error a: sd")
+        if err is not None:
+            true = float(PAPER["true_fault_size_a"])  # type: ignore[arg-type]
+            ok = abs(err) <= max(0.01, 2 * (sd or 0.0))
+            out.append(
+                Claim(
+                    "The fault size estimated from the NF, eq. (2.8) (Zhou, Xi & Zhang c. 1991, section 3; true jump 0.29)",
+                    f"Δâ = {fmt(PAPER['fault_size_a'])}",
+                    f"Δâ = {fmt(true + err)} ± {fmt(sd)} (mean ± sd over the runs)",
+                    "reproduced" if ok else "differs",
+                    "" if ok else "the latched estimate is biased beyond its spread",
+                )
+            )
+    ff = m.get("fault_free")
+    if ff is not None:
+        options = ctx.problem.check_options(v.options)
+        p_f, window = float(options["P_f"]), int(options["window"])
+        thr = float(chi2.ppf(1.0 - p_f, window)) / window
+        out.append(
+            Claim(
+                "WSSR threshold β0 (Zhou, Xi & Zhang c. 1991, section 3)",
+                fmt(PAPER["beta0"]),
+                f"χ²₁₋P_f(N)/N = {fmt(thr)} (P_f = {fmt(p_f)}, N = {window}): "
+                + (
+                    f"one alarm episode every {fmt(ff.mean_time_between_false_alarms_s)} samples"
+                    if ff.mean_time_between_false_alarms_s
+                    else f"no alarm episode in {fmt(ff.fault_free_samples)} samples"
+                ),
+                "differs",
+                "The WSSR of eq. (2.4) has a fault-free mean of 1, so β0 = 0.01 as printed would alarm at almost every "
+                "sample; fdisyn sets the threshold from a false-alarm probability instead.",
+            )
+        )
+    return out
 
 
 NOTES = (
@@ -684,6 +805,8 @@ PROBLEM = Problem(
     reference=dict(PAPER),
     monte_carlo_runs=100,
     report=_report,
+    claims=_claims,
+    labels=LABELS,
     variants=tuple(
         {
             "label": f"{label} at arl0 = {DETECTOR_ARL0:g} samples",

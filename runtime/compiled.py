@@ -1,4 +1,4 @@
-"""Load a compiled diagnoser (``lib<prefix>.so``) with ctypes.
+"""Load a compiled diagnoser (``lib<prefix>.so``; ``.dylib`` on macOS, ``.dll`` on Windows) with ctypes.
 
 A library runs only the gain file it was built from, and only once it is
 known to be the file ``fdisyn codegen`` wrote:
@@ -29,6 +29,7 @@ from __future__ import annotations
 import ctypes
 import hashlib
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -36,7 +37,7 @@ from fdisyn.runtime.errors import BuildError
 from fdisyn.runtime.gainfile import GainFile, gain_file_sha256, read_regular_file
 from fdisyn.runtime.reference import RunResult, StepOutput, sample_block, sample_vector, step_state
 
-__all__ = ["CompiledDiagnoser", "MANIFEST_FORMAT", "library_path", "manifest_path", "write_manifest", "file_sha256"]
+__all__ = ["CompiledDiagnoser", "MANIFEST_FORMAT", "library_path", "library_suffix", "manifest_path", "write_manifest", "file_sha256"]
 
 MANIFEST_FORMAT = "fdisyn.build/1"
 _MANIFEST_BYTES = 1 << 16  # a manifest holds two hashes and a file name: ~250 bytes
@@ -45,9 +46,21 @@ _D = ctypes.POINTER(ctypes.c_double)
 _I = ctypes.POINTER(ctypes.c_int)
 
 
+def library_suffix(platform: str | None = None) -> str:
+    """The file suffix of a shared library on ``platform`` (``sys.platform`` by default): ``.dylib`` on
+    macOS, ``.dll`` on Windows (and Cygwin), ``.so`` elsewhere."""
+    platform = sys.platform if platform is None else platform
+    if platform == "darwin":
+        return ".dylib"
+    if platform in ("win32", "cygwin"):
+        return ".dll"
+    return ".so"
+
+
 def library_path(directory: str | Path, gf: GainFile) -> Path:
-    """Where ``fdisyn codegen`` puts the shared library of ``gf`` in ``directory``."""
-    return Path(directory) / f"lib{gf.name}.so"
+    """Where ``fdisyn codegen`` puts the shared library of ``gf`` in ``directory``: ``lib<name>`` and
+    :func:`library_suffix`."""
+    return Path(directory) / f"lib{gf.name}{library_suffix()}"
 
 
 def manifest_path(library: str | Path) -> Path:

@@ -2,7 +2,7 @@
 
 Typical use in a deployment script::
 
-    mon = Monitor.from_directory("build/wind_turbine/kalman_uio")
+    mon = Monitor.from_directory(".fdisyn/wind_turbine/kalman_uio")
     for u, y in stream:
         d = mon.update(u, y)
         if d.alarm:

@@ -8,6 +8,7 @@ import tempfile
 from pathlib import Path
 
 import pytest
+from fdisyn.app.examples import EXAMPLES
 
 _MYPY: list[tuple[subprocess.Popen, Path]] = []
 """The mypy process of ``tests/test_typing.py`` and its scratch folder, while the session runs."""
@@ -50,12 +51,12 @@ def wt_built(tmp_path_factory: pytest.TempPathFactory):
 
 @pytest.fixture(scope="session")
 def motor_built(tmp_path_factory: pytest.TempPathFactory):
-    """The DC-motor plant file's (``tests/data/dc_motor.toml``) default design (4 outputs of 2 generators),
+    """The DC-motor plant file's (the example ``dc_motor``) default design (4 outputs of 2 generators),
     designed, written and compiled once."""
     from fdisyn.app.plant_file import load_spec
     from fdisyn.evaluation.evaluate import build
 
-    prob = load_spec(Path(__file__).parent / "data" / "dc_motor.toml")
+    prob = load_spec(EXAMPLES / "dc_motor.toml")
     return build(prob, prob.default_design, tmp_path_factory.mktemp("motor") / "kalman_uio")
 
 
@@ -80,4 +81,4 @@ def wt_trace():
 
 @pytest.fixture
 def data_dir() -> Path:
-    return Path(__file__).parent / "data"
+    return EXAMPLES

@@ -85,3 +85,49 @@ def coupling_markov(plant: dict, gen: object, count: int | None = None) -> tuple
     return out[0], out[1]
 
 
+
+
+def scenario_metrics(scenario: str, fault: str | None = None, *, Ts: float = 1.0, **figures: object) -> object:
+    """A :class:`~fdisyn.evaluation.metrics.ScenarioMetrics` with the given ``figures`` and neutral others: what a
+    problem's claims read, without a Monte Carlo."""
+    from fdisyn.evaluation.metrics import ScenarioMetrics
+
+    base: dict[str, object] = dict(
+        scenario=scenario, fault=fault, runs=100, samples_per_run=1000, Ts=Ts, false_alarm_rate=0.0, false_alarm_runs=0.0,
+        missed_detection_rate=None if fault is None else 0.0, missed_alarm_fraction=None, detection_delay_mean_s=None,
+        detection_delay_median_s=None, detection_delay_max_s=None, detection_delay_mean_samples=None,
+        detection_delay_max_samples=None, isolation_accuracy=None, first_isolation_accuracy=None,
+        sample_isolation_accuracy=None, statistic_exceedance=[], statistic_exceedance_interval=[], fault_free_samples=100_000,
+        nonfinite_samples=0,
+    )
+    return ScenarioMetrics(**{**base, **figures})  # type: ignore[arg-type]
+
+
+def claims_context(problem: object, variants: list[dict]) -> object:
+    """A report context whose variants hold only ``label``, ``options``, ``built`` (design → object with a
+    ``gain_file``) and ``metrics`` (design → scenario → metrics): what :attr:`Problem.claims` reads."""
+    from types import SimpleNamespace
+
+    return SimpleNamespace(
+        problem=problem,
+        variants=[
+            SimpleNamespace(
+                label=v["label"], options=v.get("options", {}),
+                built={d: SimpleNamespace(gain_file=gf) for d, gf in v.get("built", {}).items()},
+                evaluation=SimpleNamespace(metrics=v["metrics"], examples={}, batches={}, runs=100),
+            )
+            for v in variants
+        ],
+    )
+
+
+def check_claims(claims: list) -> None:
+    """Every claim has a known verdict, and one that differs says why."""
+    from fdisyn.app.report import VERDICTS
+
+    assert claims
+    for c in claims:
+        assert c.verdict in VERDICTS
+        assert c.claim and c.paper and c.ours
+        if c.verdict == "differs":
+            assert len(c.why) > 20, c.claim

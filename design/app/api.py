@@ -4,8 +4,8 @@
 
     plant = fdisyn.LinearPlant.from_control(sys, n_unknown=1, Q=Q, R=R)
     gf = fdisyn.design(plant, method="kalman_uio", P_f=1e-4)   # a certified GainFile
-    fdisyn.export(gf, "build/motor")                            # what `fdisyn codegen` builds
-    mon = fdisyn.load("build/motor")                            # a Monitor over the compiled step
+    fdisyn.export(gf, "motor")                                  # what `fdisyn codegen` builds
+    mon = fdisyn.load("motor")                                  # a Monitor over the compiled step
     fdisyn.methods()                                            # the registered method names
 
 Each function is what a command of the command line does, from Python:

@@ -12,6 +12,7 @@
     fdisyn bench [SPEC ...] [--out reports/bench.md]
     fdisyn list
     fdisyn methods
+    fdisyn example [NAME [--out PATH] [--force]]
     fdisyn --version
 
 ``SPEC`` is a built-in problem name (``fdisyn list``) or the path of a TOML
@@ -22,9 +23,12 @@ is wrong and what was expected: every :class:`FdisynError` (see
 :mod:`fdisyn.runtime.errors`), every usage error (argparse's own messages
 included, without the usage block), and an ``OSError`` met while reading or
 writing a path the user named (a file given as a directory, no permission, a
-full disk). Anything else is a bug: an :class:`InternalError` or any other
-exception ends with status 3 and one line, ``fdisyn <command>: internal
-error: … — please report; FDISYN_DEBUG=1 shows the traceback`` (with
+full disk), and a design package missing from a runtime-only installation
+(the line names it and the extra, ``fdisyn[design]``, that installs it:
+``replay``, ``example`` and ``--version`` need NumPy alone). Anything else
+is a bug: an :class:`InternalError` or any other exception ends with status
+3 and one line, ``fdisyn <command>: internal error: … — please report;
+FDISYN_DEBUG=1 shows the traceback`` (with
 ``FDISYN_DEBUG=1`` in the environment the traceback is printed before it).
 """
 
@@ -44,6 +48,7 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 from fdisyn import __version__
+from fdisyn.app import DESIGN_EXTRA, WORKDIR, missing_design_package
 from fdisyn.runtime.errors import ArgumentError, FdisynError, FileError, InternalError
 
 __all__ = ["main"]
@@ -106,7 +111,7 @@ def _under(name: str | bytes | int | None, root: Path) -> bool:
 def _user_paths(expected: str, *paths: tuple[str, str | Path]) -> Iterator[None]:
     """Report an ``OSError`` about a path the user named (or a full disk while writing) as one line.
 
-    ``paths`` are ``(option, path)`` pairs, e.g. ``("--out", "build/motor")``;
+    ``paths`` are ``(option, path)`` pairs, e.g. ``("--out", "motor")``;
     the line names the option and path concerned and what was ``expected``.
     An ``OSError`` about any other file is not the user's input and propagates
     unchanged: :func:`main` reports it as a bug (status 3).
@@ -270,6 +275,9 @@ def _cmd_reproduce(a: argparse.Namespace) -> None:
         with _user_paths("writable directories with room for the reports", ("--reports", a.reports), ("--workdir", a.workdir)):
             out = reproduce_problem(prob, runs=a.runs, reports=Path(a.reports), workdir=Path(a.workdir), variants=a.variants)
         print(f"wrote {out}")
+    from fdisyn.app.report import summary_table
+
+    print(summary_table(Path(a.reports), [p.name for p in problems]))
 
 
 def _cmd_bench(a: argparse.Namespace) -> None:
@@ -280,7 +288,7 @@ def _cmd_bench(a: argparse.Namespace) -> None:
     _output_dir(a.workdir, "--workdir")
     specs = a.specs or problem_names()
     with _user_paths("a writable file and directory with room for the benchmark", ("--out", out), ("--workdir", a.workdir)):
-        path = run_bench([_problem(s) for s in specs], out=out, workdir=Path(a.workdir))
+        path = run_bench([_problem(s) for s in specs], out=out, workdir=Path(a.workdir), sdp=a.sdp or not a.specs)
     print(f"wrote {path}")
 
 
@@ -294,6 +302,21 @@ def _cmd_list(a: argparse.Namespace) -> None:
         print(f"  scenarios: {', '.join(p.scenarios)}")
         if p.options:
             print(f"  options:   {', '.join(f'{k}={v!r}' for k, v in p.options.items())}")
+
+
+def _cmd_example(a: argparse.Namespace) -> None:
+    from fdisyn.app.examples import example_names, example_title, write_example
+
+    if a.name is None:
+        if a.out is not None or a.force:
+            raise ArgumentError("--out and --force need the NAME of an example; fdisyn example lists them")
+        for name in example_names():
+            print(f"{name}: {example_title(name)}")
+        return
+    out = _output_file(f"{a.name}.toml" if a.out is None else a.out, "--out")
+    with _user_paths("a writable file name", ("--out", out)):
+        path = write_example(a.name, out, force=a.force)
+    print(f"wrote {path}: the example plant file {a.name!r}; fdisyn design {path} --out DIR designs it")
 
 
 def _cmd_methods(a: argparse.Namespace) -> None:
@@ -334,8 +357,9 @@ def _parser() -> argparse.ArgumentParser:
         description="Design FDI diagnosers as optimisation problems, export them as C, judge them.",
         epilog=_examples(
             "fdisyn list",
-            "fdisyn design tests/data/dc_motor.toml --out build/motor",
-            "fdisyn codegen build/motor",
+            "fdisyn example dc_motor",
+            "fdisyn design dc_motor.toml --out motor",
+            "fdisyn codegen motor",
             "fdisyn design wind_turbine --help",
         ),
         formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -362,15 +386,15 @@ def _parser() -> argparse.ArgumentParser:
         )
 
     def work(p: argparse.ArgumentParser) -> None:
-        p.add_argument("--workdir", default="build", help="where designs are built and compiled (default: build)")
+        p.add_argument("--workdir", default=str(WORKDIR), help=f"where designs are built and compiled (default: {WORKDIR})")
 
     p = command(
         "design",
         "design a diagnoser and write DIR/gains.json",
         "Design a diagnoser of SPEC, verify it against its certificate and write the gain file DIR/gains.json.",
-        "fdisyn design wind_turbine --out build/wt",
-        "fdisyn design wind_turbine --design uio_pole_placement --out build/wt_poles",
-        "fdisyn design tests/data/dc_motor.toml --out build/motor --option P_f=1e-4",
+        "fdisyn design wind_turbine --out wt",
+        "fdisyn design wind_turbine --design uio_pole_placement --out wt_poles",
+        "fdisyn design dc_motor.toml --out motor --option P_f=1e-4",
     )
     p.add_argument("spec", metavar="SPEC", help=_SPEC)
     p.add_argument("--out", required=True, metavar="DIR", help="the directory to write gains.json in (created if missing)")
@@ -381,10 +405,10 @@ def _parser() -> argparse.ArgumentParser:
     p = command(
         "codegen",
         "generate and compile the C step of DIR/gains.json",
-        "Generate the C step of DIR/gains.json (DIR/c/), compile the shared library DIR/lib<name>.so with its build "
-        "manifest and the replay program DIR/replay; the C compiler is $CC (default gcc).",
-        "fdisyn codegen build/motor",
-        "CC='gcc -m32' fdisyn codegen build/motor",
+        "Generate the C step of DIR/gains.json (DIR/c/), compile the shared library DIR/lib<name>.so (.dylib on macOS, "
+        ".dll on Windows) with its build manifest and the replay program DIR/replay; the C compiler is $CC (default gcc).",
+        "fdisyn codegen motor",
+        "CC='gcc -m32' fdisyn codegen motor",
     )
     p.add_argument("dir", metavar="DIR", help="the directory holding gains.json (fdisyn design --out DIR)")
     p.set_defaults(fn=_cmd_codegen)
@@ -394,7 +418,7 @@ def _parser() -> argparse.ArgumentParser:
         "run DIR's compiled diagnoser over a trace CSV",
         "Stream IN.csv through the compiled diagnoser of DIR into OUT.csv (t, alarm, isolated, J0…, r0…), "
         "byte for byte what DIR/replay writes; the README's \"Replay CSV grammar\" is the input format.",
-        "fdisyn replay build/motor trace.csv alarms.csv",
+        "fdisyn replay motor trace.csv alarms.csv",
     )
     p.add_argument("dir", metavar="DIR", help="the directory fdisyn codegen built (gains.json and lib<name>.so)")
     p.add_argument("input", metavar="IN.csv", help="the trace: a header row with t and every input and output of the diagnoser")
@@ -405,7 +429,7 @@ def _parser() -> argparse.ArgumentParser:
         "simulate",
         "simulate one run of a scenario to a trace CSV",
         "Simulate one run of a scenario of SPEC and write its trace (t, inputs, outputs, the truth, fault_active) as CSV.",
-        "fdisyn simulate tests/data/dc_motor.toml --scenario speed_sensor_offset --seed 1 --out trace.csv",
+        "fdisyn simulate dc_motor.toml --scenario speed_sensor_offset --seed 1 --out trace.csv",
         "fdisyn simulate wind_turbine --scenario fault_free --out trace.csv --option parameters=paper",
     )
     p.add_argument("spec", metavar="SPEC", help=_SPEC)
@@ -421,7 +445,7 @@ def _parser() -> argparse.ArgumentParser:
         "Design, export and compile one design of SPEC, run it over --runs simulated runs of every scenario and write "
         "the metrics (false-alarm rate, missed detections, detection delay, isolation accuracy) as JSON.",
         "fdisyn evaluate wind_turbine --design kalman_uio --runs 20 --out metrics.json",
-        "fdisyn evaluate tests/data/dc_motor.toml --runs 5 --seed 100 --out motor.json --workdir /tmp/build",
+        "fdisyn evaluate dc_motor.toml --runs 5 --seed 100 --out motor.json --workdir /tmp/fdisyn",
     )
     p.add_argument("spec", metavar="SPEC", help=_SPEC)
     p.add_argument("--design", default=None, metavar="NAME", help="which of the problem's designs (default: the problem's default)")
@@ -439,8 +463,8 @@ def _parser() -> argparse.ArgumentParser:
             ("Run the whole pipeline for each SPEC (default: every built-in problem) and write " if many else "Run the whole pipeline for SPEC and write ")
             + "REPORTS/<problem>/index.html: the designs and their certificates, the agreement of the generated C with "
             "the Python references, Monte Carlo metrics and figures.",
-            *(("fdisyn reproduce", "fdisyn reproduce wind_turbine tests/data/dc_motor.toml --runs 5 --reports /tmp/reports")
-              if many else ("fdisyn report sampled_data_example --runs 10", "fdisyn report tests/data/ship.toml --reports /tmp/reports"))
+            *(("fdisyn reproduce", "fdisyn reproduce wind_turbine dc_motor.toml --runs 5 --reports /tmp/reports")
+              if many else ("fdisyn report sampled_data_example --runs 10", "fdisyn report ship.toml --reports /tmp/reports"))
         )
         if many:
             p.add_argument("specs", nargs="*", metavar="SPEC", help=_SPEC + "; none: every built-in problem")
@@ -462,11 +486,15 @@ def _parser() -> argparse.ArgumentParser:
         "bench",
         "time the compiled step against the NumPy reference",
         "Time the compiled step of each SPEC's designs (per sample, per block) against the NumPy reference and write "
-        "the table as Markdown.",
+        "the table as Markdown; the full bench (no SPEC) or --sdp adds the SDP solve times of the LMI toolkit.",
         "fdisyn bench",
         "fdisyn bench ship_propulsion --out /tmp/bench.md",
+        "fdisyn bench wind_turbine --sdp",
     )
     p.add_argument("specs", nargs="*", metavar="SPEC", help=_SPEC + "; none: every built-in problem")
+    p.add_argument(
+        "--sdp", action="store_true", help="also time the SDPs of the LMI toolkit (several seconds; always done without SPEC)"
+    )
     p.add_argument("--out", default="reports/bench.md", help="the Markdown file to write (default: reports/bench.md)")
     work(p)
     p.set_defaults(fn=_cmd_bench)
@@ -483,6 +511,20 @@ def _parser() -> argparse.ArgumentParser:
         "fdisyn methods",
     )
     p.set_defaults(fn=_cmd_methods)
+
+    p = command(
+        "example",
+        "write an example plant file (none: list them)",
+        "Write the example plant file NAME (a TOML file to read, change and design) to --out (default NAME.toml in the "
+        "current directory); without NAME, list the examples. An existing file is replaced only with --force.",
+        "fdisyn example",
+        "fdisyn example dc_motor",
+        "fdisyn example ship --out my_ship.toml",
+    )
+    p.add_argument("name", nargs="?", default=None, metavar="NAME", help="the example to write (fdisyn example lists them)")
+    p.add_argument("--out", default=None, metavar="PATH", help="the file to write (default: NAME.toml)")
+    p.add_argument("--force", action="store_true", help="replace PATH if it exists")
+    p.set_defaults(fn=_cmd_example)
     return ap
 
 
@@ -520,6 +562,16 @@ def main(argv: Sequence[str] | None = None) -> int:
                 print(f"fdisyn {args.command}: error: {_one_line(exc)}", file=sys.stderr)
                 return 2
             return _internal_error(args.command, exc, str(exc))
+        except ModuleNotFoundError as exc:
+            package = missing_design_package(exc)
+            if package is None:
+                return _internal_error(args.command, exc, f"{type(exc).__name__}: {exc}")
+            print(
+                f"fdisyn {args.command}: error: this command needs {package}, which is not installed (a runtime-only "
+                f"installation); expected fdisyn's design packages: python3 -m pip install 'fdisyn[{DESIGN_EXTRA}]'",
+                file=sys.stderr,
+            )
+            return 2
         except Exception as exc:  # a bug: one line, never a bare traceback
             return _internal_error(args.command, exc, f"{type(exc).__name__}: {exc}")
     for text in dict.fromkeys(f"{w.category.__name__}: {_one_line(w.message)}" for w in caught):

@@ -10,23 +10,23 @@ an error, not a footnote.
 
 from __future__ import annotations
 
-import json
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
 import casadi as ca
 import numpy as np
+from fdisyn.app import WORKDIR
 from fdisyn.codegen.step import step_function
 from fdisyn.evaluation.evaluate import Built, Evaluation, build, evaluate, progress_printer
-from fdisyn.models.problem import Problem
+from fdisyn.models.problem import Problem, scaled_scenario
 from fdisyn.runtime.errors import ArgumentError, CertificateError
 from fdisyn.runtime.gainfile import SEQUENTIAL_KINDS, GainFile, linear_state_layout
 from fdisyn.runtime.reference import LinearReference, RunResult
 
-__all__ = ["EXPORT_TOL", "ExportCheck", "check_export", "VariantResult", "reproduce_problem"]
+__all__ = ["EXPORT_TOL", "ExportCheck", "check_export", "FaultSizeSweep", "fault_size_sweep", "VariantResult", "reproduce_problem"]
 
 EXPORT_TOL = 1e-12
 """Agreement required between the C step and each Python reference over a
@@ -169,6 +169,46 @@ def export_trace(problem: Problem, samples: int = 10_000, **options: Any) -> tup
     return U, Y
 
 
+SWEEP_FACTORS = (0.25, 0.5, 2.0)
+"""Fault sizes of the report's sweep, as multiples of each faulty scenario's (1 is the scenario itself)."""
+
+SWEEP_RUNS = 20
+"""Runs per scaled scenario of the sweep (at most the page's runs)."""
+
+
+@dataclass(frozen=True, eq=False)
+class FaultSizeSweep:
+    """The faulty scenarios with their fault scaled: ``scenarios[base][factor]`` names the scaled copy of
+    ``base`` in ``evaluation``."""
+
+    factors: tuple[float, ...]
+    scenarios: Mapping[str, Mapping[float, str]]
+    evaluation: Evaluation
+
+
+def fault_size_sweep(
+    problem: Problem, built: Mapping[str, Built], *, runs: int, scenarios: Sequence[str] | None = None, progress: Any = None, **options: Any
+) -> FaultSizeSweep | None:
+    """Monte Carlo of each faulty scenario scaled by :data:`SWEEP_FACTORS` (``Problem.scaled``, else
+    :func:`~fdisyn.models.problem.scaled_scenario`); ``None`` when no scenario's fault has a size."""
+    scale = problem.scaled or scaled_scenario
+    copies: dict[str, Any] = {}
+    by_base: dict[str, dict[float, str]] = {}
+    for name in scenarios if scenarios is not None else list(problem.scenarios):
+        sc = problem.scenario(name)
+        for k in SWEEP_FACTORS:
+            scaled = scale(sc, k) if sc.fault is not None else None
+            if scaled is None:
+                break
+            copies[scaled.name] = scaled
+            by_base.setdefault(name, {})[k] = scaled.name
+    if not copies:
+        return None
+    kw = {} if progress is None else {"progress": progress}
+    ev = evaluate(replace(problem, scenarios=copies), built, runs=runs, **kw, **options)
+    return FaultSizeSweep(factors=SWEEP_FACTORS, scenarios=by_base, evaluation=ev)
+
+
 @dataclass(frozen=True, eq=False)
 class VariantResult:
     """One report variant (e.g. a parameter set): its builds, checks and evaluation."""
@@ -179,16 +219,18 @@ class VariantResult:
     exports: Mapping[str, ExportCheck]
     evaluation: Evaluation
     seconds: float
+    sweep: FaultSizeSweep | None = None
+    """Detection against the fault's size (the main variant only)."""
 
 
 def reproduce_problem(
-    problem: Problem, *, runs: int | None = None, reports: Path = Path("reports"), workdir: Path = Path("build"),
+    problem: Problem, *, runs: int | None = None, reports: Path = Path("reports"), workdir: Path = WORKDIR,
     variants: Sequence[str] | None = None,
 ) -> Path:
     """Run the whole pipeline for ``problem`` and write its report; return the page's path.
 
     ``variants``: the labels of the report variants to run (``"default"`` the main one; ``None``: all)."""
-    from fdisyn.app.report import write_report
+    from fdisyn.app.report import write_index, write_report
 
     say = progress_printer(problem.name)
     given = runs
@@ -221,23 +263,16 @@ def reproduce_problem(
             exports[d] = chk
         say(f"{label}: C export agrees with the references; Monte Carlo with {n_runs} runs per scenario")
         ev = evaluate(problem, built, runs=n_runs, scenarios=scen, progress=say, **opts)
-        results.append(VariantResult(label=label, options=ev.options, built=built, exports=exports, evaluation=ev, seconds=time.perf_counter() - t0))
-    out_dir = reports / problem.name
-    out_dir.mkdir(parents=True, exist_ok=True)
-    doc = {
-        "problem": problem.name,
-        "variants": [
-            {
-                "label": r.label,
-                "options": dict(r.options),
-                "exports": {d: c.to_dict() for d, c in r.exports.items()},
-                "evaluation": r.evaluation.to_dict(),
-                "seconds": r.seconds,
-            }
-            for r in results
-        ],
-    }
-    (out_dir / "metrics.json").write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
-    page = write_report(problem, results, out_dir)
+        sweep = None
+        if label == "default":
+            say(f"fault-size sweep with {min(n_runs, SWEEP_RUNS)} runs per size")
+            sweep = fault_size_sweep(problem, built, runs=min(n_runs, SWEEP_RUNS), scenarios=scen, progress=say, **opts)
+        seconds = time.perf_counter() - t0
+        say(f"{label}: done in {seconds:.1f} s")
+        results.append(
+            VariantResult(label=label, options=ev.options, built=built, exports=exports, evaluation=ev, seconds=seconds, sweep=sweep)
+        )
+    page = write_report(problem, results, reports / problem.name)
+    write_index(reports)
     say(f"report written to {page}")
     return page

@@ -1,8 +1,18 @@
-"""The HTML report of a problem: certificates, export checks, metrics, figures.
+"""The HTML report of a problem: verdict, metrics, figures, certificates, export checks.
 
 ``write_report`` writes ``reports/<problem>/index.html`` with PNG figures next
-to it and the gain files under ``gains/``. Problems add their own sections
-(figures in the spirit of the paper) through ``Problem.report``.
+to it, the gain files under ``gains/`` and the page's numbers in
+``metrics.json``; :func:`write_index` writes ``reports/index.html``, one line
+per problem. A page opens with the verdict (:attr:`Problem.claims`, the
+paper's claims against ours), then a table of contents, then its sections;
+long per-variant detail is folded (``<details>``). Problems add their own
+sections (figures in the spirit of the paper) through ``Problem.report``.
+
+Every number on a page goes through :func:`fmt`; every internal name a reader
+sees (legends, axes, tables) through :func:`label`. The output is
+deterministic: no dates or durations in the files, figures saved without
+their software stamp, floats in ``metrics.json`` rounded to
+:data:`JSON_DIGITS` significant digits.
 
 Figures are Matplotlib ``Figure`` objects made by :func:`subplots`, not by
 ``pyplot``: they belong to no window, and saving one as PNG uses Matplotlib's
@@ -13,61 +23,133 @@ writing a report never changes the user's backend (and needs no display).
 from __future__ import annotations
 
 import html
+import json
+import math
 import platform
 import re
 import sys
-from collections.abc import Iterable, Sequence
-from dataclasses import dataclass, field
-from datetime import datetime, timezone
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from fdisyn.codegen.library import CFLAGS
+from fdisyn.evaluation.metrics import DEFINITIONS
 from fdisyn.models.problem import Problem
 from fdisyn.runtime.gainfile import write_gain_file
 from fdisyn.synthesis.registry import recovery_samples
 from matplotlib.figure import Figure
 
-__all__ = ["ReportContext", "write_report", "subplots", "table", "fmt"]
+__all__ = ["Claim", "ReportContext", "write_report", "write_index", "summary_table", "subplots", "table", "fmt", "label"]
 
 _CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;max-width:1150px;margin:2em auto;padding:0 1em;color:#1b1b1b;line-height:1.45}
 h1{font-size:1.6em}h2{border-bottom:1px solid #ccc;padding-bottom:.2em;margin-top:2em}h3{margin-top:1.5em}
 table{border-collapse:collapse;margin:.8em 0;font-size:.88em}th,td{border:1px solid #d0d0d0;padding:.25em .5em;text-align:right;vertical-align:top}
 th{background:#f3f3f3}td.l,th.l{text-align:left}.ok{color:#176b2c}.bad{color:#b00020;font-weight:bold}
+th a{color:inherit;text-decoration:underline dotted}
 figure{margin:1em 0}figcaption{font-size:.88em;color:#444}code{background:#f4f4f4;padding:0 .2em}
-.small{font-size:.85em;color:#555}
+.small{font-size:.85em;color:#555}nav.toc ol{columns:2;font-size:.92em}
+details{margin:.6em 0;border-left:3px solid #e3e3e3;padding-left:.8em}summary{cursor:pointer;font-weight:600}
+dl.defs dt{font-weight:600;margin-top:.5em}dl.defs dd{margin-left:1.5em}
 """
 
+SIGNIFICANT_DIGITS = 4
+"""Significant digits of every number on a page (:func:`fmt`)."""
 
-def fmt(x: Any, digits: int = 4) -> str:
-    """A number for a table: ``—`` for None, compact otherwise."""
+JSON_DIGITS = 6
+"""Significant digits of the floats in ``metrics.json``: enough for every figure the pages show, few enough that
+the last-digit noise of another BLAS kernel does not change the committed file."""
+
+_SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
+
+
+def fmt(x: Any, digits: int = SIGNIFICANT_DIGITS, *, interval: tuple[Any, Any] | None = None) -> str:
+    """A number as every page shows it: ``digits`` significant digits, positional for ``1e-3 ≤ |x| < 1e5``
+    (``34480``, ``0.01235``), otherwise ``3.448·10⁵``; trailing zeros dropped; ``—`` for None; whole numbers
+    (Python or NumPy ints) exactly below 10⁵. ``interval=(lo, hi)`` appends ``[lo, hi]`` in the same format."""
+    if interval is not None:
+        return f"{fmt(x, digits)} [{fmt(interval[0], digits)}, {fmt(interval[1], digits)}]"
     if x is None:
         return "—"
-    if isinstance(x, bool):
+    if isinstance(x, (bool, np.bool_)):
         return "yes" if x else "no"
-    if isinstance(x, (int, np.integer)):
-        return str(int(x))
+    if isinstance(x, (int, np.integer)) and abs(int(x)) < 10**5:
+        return str(int(x)).replace("-", "−")
     v = float(x)
+    if math.isnan(v):
+        return "NaN"
+    if math.isinf(v):
+        return "∞" if v > 0 else "−∞"
     if v == 0.0:
         return "0"
-    if abs(v) >= 1e4 or abs(v) < 1e-3:
-        return f"{v:.{digits - 1}e}"
-    return f"{v:.{digits}g}"
+    sign = "−" if v < 0 else ""
+    mantissa, exp_text = f"{abs(v):.{digits - 1}e}".split("e")
+    exponent = int(exp_text)
+    if -3 <= exponent < 5:
+        text = f"{abs(v):.{max(digits - 1 - exponent, 0)}f}"
+        return sign + (text.rstrip("0").rstrip(".") if "." in text else text)
+    mantissa = mantissa.rstrip("0").rstrip(".") if "." in mantissa else mantissa
+    return f"{sign}{mantissa}·10{str(exponent).translate(_SUPERSCRIPT)}"
+
+
+def label(problem: Problem | None, name: str) -> str:
+    """What a reader sees for an internal name: :attr:`Problem.labels` ``[name]``, else the name itself."""
+    labels = getattr(problem, "labels", None) or {}
+    return str(labels.get(name, name))
+
+
+def _slug(text: str) -> str:
+    return re.sub(r"[^a-z0-9]+", "-", text.lower()).strip("-") or "section"
+
+
+def defined(header: str, term: str) -> str:
+    """A column header linked to the definition of ``term`` (a key of
+    :data:`fdisyn.evaluation.metrics.DEFINITIONS`) in the page's "Definitions" section."""
+    if term not in DEFINITIONS:
+        raise KeyError(f"no definition of {term!r}; defined: {sorted(DEFINITIONS)}")
+    return f'<a href="#def-{_slug(term)}" title="{html.escape(DEFINITIONS[term])}">{html.escape(header)}</a>'
 
 
 def table(header: Sequence[str], rows: Iterable[Sequence[Any]], *, left: int = 1) -> str:
-    """An HTML table; the first ``left`` columns are left-aligned text."""
-    h = "".join(f'<th class="l">{html.escape(c)}</th>' if i < left else f"<th>{html.escape(c)}</th>" for i, c in enumerate(header))
+    """An HTML table; the first ``left`` columns are left-aligned text. Numbers go through :func:`fmt`;
+    a string cell or header that starts with ``<`` is HTML (e.g. from :func:`defined`), any other is escaped."""
+
+    def cell(c: Any) -> str:
+        return c if isinstance(c, str) and c.startswith("<") else html.escape(c if isinstance(c, str) else fmt(c))
+
+    h = "".join(f'<th class="l">{cell(c)}</th>' if i < left else f"<th>{cell(c)}</th>" for i, c in enumerate(header))
     body = []
     for row in rows:
-        cells = []
-        for i, c in enumerate(row):
-            text = c if isinstance(c, str) and c.startswith("<") else html.escape(c if isinstance(c, str) else fmt(c))
-            cells.append(f'<td class="l">{text}</td>' if i < left else f"<td>{text}</td>")
+        cells = [f'<td class="l">{cell(c)}</td>' if i < left else f"<td>{cell(c)}</td>" for i, c in enumerate(row)]
         body.append("<tr>" + "".join(cells) + "</tr>")
     return f"<table><thead><tr>{h}</tr></thead><tbody>{''.join(body)}</tbody></table>"
+
+
+VERDICTS = ("reproduced", "differs")
+
+
+@dataclass(frozen=True)
+class Claim:
+    """One of the paper's claims against ours, a row of the verdict each page opens with.
+
+    ``claim``: the paper's statement, cited; ``paper``: its figure or number; ``ours``: our measured figure
+    (formatted with :func:`fmt`); ``verdict``: ``"reproduced"`` or ``"differs"``; ``why``: one or two sentences,
+    required when it differs.
+    """
+
+    claim: str
+    paper: str
+    ours: str
+    verdict: str
+    why: str = ""
+
+    def __post_init__(self) -> None:
+        if self.verdict not in VERDICTS:
+            raise ValueError(f"a claim's verdict is one of {VERDICTS}; got {self.verdict!r} for {self.claim!r}")
+        if self.verdict == "differs" and not self.why.strip():
+            raise ValueError(f"the claim {self.claim!r} differs from the paper: say why (Claim.why)")
 
 
 def subplots(nrows: int = 1, ncols: int = 1, *, figsize: tuple[float, float], **kw: Any) -> tuple[Figure, Any]:
@@ -79,9 +161,60 @@ def subplots(nrows: int = 1, ncols: int = 1, *, figsize: tuple[float, float], **
     return fig, fig.subplots(nrows, ncols, **kw)
 
 
+FIGURE_DPI = 110
+"""Pixels per inch of the saved figures: a figure of :data:`FIGURE_WIDTH` inches fills the page's width
+(1100 px), so its type appears at the size it was set."""
+
+FIGURE_WIDTH = 10.0
+"""Inches a figure may take with its legends beside the axes (wider ones are narrowed: the page would shrink them)."""
+
+MIN_FONT_PT = 9.0
+"""The smallest type on a figure, in points at the page's width."""
+
+
+def _tidy(fig: Figure, problem: Problem | None) -> None:
+    """Make a figure readable on the page: internal names through :func:`label` (legends, axis labels), every
+    legend beside its axes (never on the data), no type under :data:`MIN_FONT_PT`, and no wider than
+    :data:`FIGURE_WIDTH` (the axes narrow, the type keeps its size)."""
+    from matplotlib.text import Text
+
+    legends = []
+    for ax in fig.axes:
+        ax.set_xlabel(label(problem, ax.get_xlabel()))
+        ax.set_ylabel(label(problem, ax.get_ylabel()))
+        leg = ax.get_legend()
+        if leg is None:
+            continue
+        handles = list(getattr(leg, "legend_handles", None) or getattr(leg, "legendHandles", []))
+        legends.append((ax, handles, [label(problem, t.get_text()) for t in leg.get_texts()]))
+        leg.remove()
+    if len(legends) > 1 and len({tuple(t) for _, _, t in legends}) == 1:
+        # the same legend on every panel: once, beside the top right panel, not over its neighbours
+        legends = [max(legends, key=lambda e: (e[0].get_position().x1, e[0].get_position().y1))]
+    for ax, handles, texts in legends:
+        ax.legend(handles, texts, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=MIN_FONT_PT,
+                  ncol=1 if len(texts) <= 12 else 2, frameon=False)
+    for t in fig.findobj(Text):
+        if t.get_text() and float(t.get_fontsize()) < MIN_FONT_PT:
+            t.set_fontsize(MIN_FONT_PT)
+    if legends and fig.get_layout_engine() is None:
+        fig.tight_layout()  # legends beside inner panels need the room between the panels
+    for _ in range(3):
+        renderer = fig.canvas.get_renderer() if hasattr(fig.canvas, "get_renderer") else None
+        if renderer is None:
+            from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+            renderer = FigureCanvasAgg(fig).get_renderer()
+        width = fig.get_tightbbox(renderer).width
+        w, h = fig.get_size_inches()
+        if width <= FIGURE_WIDTH + 0.05:
+            break
+        fig.set_size_inches(max(w - (width - FIGURE_WIDTH), 3.0), h)
+
+
 @dataclass
 class ReportContext:
-    """What a problem's report hook gets: the results and :meth:`figure`, which saves a figure next to the page."""
+    """What a problem's report hooks get: the results and :meth:`figure`, which saves a figure next to the page."""
 
     problem: Problem
     variants: Sequence[Any]
@@ -89,9 +222,14 @@ class ReportContext:
     figures: list[str] = field(default_factory=list)
 
     def figure(self, name: str, fig: Figure, caption: str) -> str:
-        """Save ``fig`` as ``<name>.png`` next to the page; return its HTML."""
+        """Save ``fig`` as ``<name>.png`` next to the page (tidied by :func:`_tidy`, without the software
+        stamp, so the bytes depend on the figure alone); return its HTML."""
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+        FigureCanvasAgg(fig)
+        _tidy(fig, self.problem)
         path = self.directory / f"{name}.png"
-        fig.savefig(path, dpi=110, bbox_inches="tight")
+        fig.savefig(path, dpi=FIGURE_DPI, bbox_inches="tight", metadata={"Software": None})
         self.figures.append(path.name)
         return f'<figure><img src="{path.name}" alt="{html.escape(caption)}" style="max-width:100%"><figcaption>{html.escape(caption)}</figcaption></figure>'
 
@@ -132,20 +270,24 @@ def _certificate_table(gf: Any) -> str:
         rows.append(
             [
                 name,
+                first["reason"],
                 *(fmt(k["value"], 3) if k is not None else "—" for k in found),
                 f"{_REL[first['relation']]} {fmt(first['bound'], 3)}",
                 f'<span class="{"ok" if ok else "bad"}">{"pass" if ok else "FAIL"}</span>',
-                first["reason"],
             ]
         )
-    head = ["check", *((g.name for g in gf.generators) if linear else [gf.design]), "bound", "", "reason for the bound"]
-    return table(head, rows, left=1).replace("<td>" + "reason", "<td class=\"l\">reason")
+    head = ["check", "reason for the bound", *((g.name for g in gf.generators) if linear else [gf.design]), "bound", ""]
+    return table(head, rows, left=2)
 
 
-def _designs_section(variant: Any) -> str:
+def _design_rows(variant: Any) -> str:
+    """The variant's designs in one table (linear diagnosers: generators, dof, threshold, …; others: sizes)."""
     if any(b.gain_file.kind != "linear" for b in variant.built.values()):
-        return _other_designs_section(variant)
-    out = []
+        rows = []
+        for d, b in variant.built.items():
+            gf, st = b.gain_file, b.gain_file.step
+            rows.append([d, gf.kind, gf.name, st.nu, st.ny, st.nr, st.nj, st.nstate, ", ".join(gf.faults)])
+        return table(["design", "kind", "gain file", "inputs", "outputs", "residual components", "statistics", "state size", "faults"], rows, left=3)
     rows = []
     for d, b in variant.built.items():
         gf = b.gain_file
@@ -157,120 +299,190 @@ def _designs_section(variant: Any) -> str:
                 gf.name,
                 len(gf.generators),
                 ", ".join(str(e.dof) for e in gf.evaluators),
-                fmt(gf.evaluators[0].threshold, 6),
-                fmt(float(np.trace(gf.evaluators[0].Sigma_r)), 4),
-                fmt(info0.get("spectral_radius_F"), 4),
+                gf.evaluators[0].threshold,
+                float(np.trace(gf.evaluators[0].Sigma_r)),
+                info0.get("spectral_radius_F"),
                 recovery_samples(gf),
                 f"{n_checks}/{n_checks}",
             ]
         )
-    out.append(
-        table(
-            ["design", "gain file name", "generators", "dof", "threshold J_th", "trace Σ_r (gen. 0)", "ρ(F) (gen. 0)", "recovery samples", "checks passed"],
-            rows,
-            left=2,
-        )
+    return table(
+        ["design", "gain file", "generators", "dof", "threshold J_th (gen. 0)", "trace Σ_r (gen. 0)", "ρ(F) (gen. 0)",
+         "recovery (samples)", "checks passed"],
+        rows,
+        left=2,
     )
-    for d, b in variant.built.items():
-        gf = b.gain_file
-        out.append(f"<h4>{html.escape(d)}: certificate</h4>")
-        out.append(_certificate_table(gf))
-        bank = gf.certificate["bank"]
-        mdb = bank.get("info", {}).get("min_detectable_bias", {})
-        if mdb:
-            sensors = sorted({s for row in mdb.values() for s in row})
-            out.append(
-                '<p class="small">Smallest constant sensor bias that crosses the threshold on its own at steady state '
-                + ("(<code>sqrt(J_th / gᵀWg)</code>" if all(e.window == 1 for e in gf.evaluators) else "(<code>sqrt(J_th / (N gᵀWg))</code>, N the WSSR window")
-                + ", sensor units; — : sensor not used).</p>"
-            )
-            out.append(table(["generator", *sensors], [[g, *(row.get(s) for s in sensors)] for g, row in mdb.items()]))
-    return "".join(out)
 
 
-def _other_designs_section(variant: Any) -> str:
-    out = []
-    for d, b in variant.built.items():
-        gf = b.gain_file
-        st = gf.step
+def _certificate_html(gf: Any, problem: Problem | None = None) -> str:
+    """A design's certificate table, with the smallest detectable biases of a linear bank."""
+    out = [_certificate_table(gf)]
+    if gf.kind != "linear":
+        return "".join(out)
+    mdb = gf.certificate["bank"].get("info", {}).get("min_detectable_bias", {})
+    if mdb:
+        sensors = sorted({s for row in mdb.values() for s in row})
         out.append(
-            f"<h4>{html.escape(d)} ({html.escape(gf.kind)}, gain file {html.escape(gf.name)})</h4>"
-            f'<p class="small">{st.nu} inputs, {st.ny} outputs, {st.nr} residual components, {st.nj} statistics, '
-            f"a state vector of {st.nstate} numbers; faults: {html.escape(', '.join(gf.faults))}.</p>"
+            '<p class="small">Smallest constant sensor bias that crosses the threshold on its own at steady state '
+            + ("(<code>sqrt(J_th / gᵀWg)</code>" if all(e.window == 1 for e in gf.evaluators) else "(<code>sqrt(J_th / (N gᵀWg))</code>, N the WSSR window")
+            + ", sensor units). \"not used\": the generator does not read that sensor; \"∞ (steady state)\": it reads "
+            "it, but a constant bias on it has no steady-state effect on the residual (e.g. a bias that looks like a "
+            "constant unknown input, which the generator decouples): only the bias's onset transient shows.</p>"
         )
-        out.append(_certificate_table(gf))
+        cells = [[label(problem, g), *(_bias_cell(row, s) for s in sensors)] for g, row in mdb.items()]
+        out.append(table(["generator", *(label(problem, s) for s in sensors)], cells))
     return "".join(out)
 
 
-def _export_section(variant: Any) -> str:
+def _bias_cell(row: Mapping[str, float | None], sensor: str) -> str:
+    """A cell of the smallest-detectable-bias table: the bias, "not used" (no key), "∞ (steady state)" (``None``)."""
+    if sensor not in row:
+        return "not used"
+    value = row[sensor]
+    return "∞ (steady state)" if value is None else fmt(value)
+
+
+def _certificates_section(problem: Problem, variants: Sequence[Any]) -> str:
+    """Each distinct certificate once, with the designs (and variants) that share it."""
+    owners: dict[str, list[str]] = {}
+    for v in variants:
+        for d, b in v.built.items():
+            owners.setdefault(_certificate_html(b.gain_file, problem), []).append(d if v.label == "default" else f"{d} ({_variant_name(v)})")
+    out = []
+    for k, (body, users) in enumerate(owners.items(), start=1):
+        names = ", ".join(label(problem, u) for u in users)
+        summary = f"Certificate {k}: {html.escape(names)}"
+        out.append(f'<details id="certificate-{k}"{" open" if k == 1 else ""}><summary>{summary}</summary>{body}</details>')
+    return (
+        f'<p class="small">{len(owners)} distinct certificate(s) for {sum(len(u) for u in owners.values())} design(s); designs '
+        "that share a certificate are listed under it.</p>" + "".join(out)
+    )
+
+
+def _designs_section(problem: Problem, variants: Sequence[Any]) -> str:
+    out = []
+    for v in variants:
+        opts = ", ".join(f"{k} = {val!r}" for k, val in v.options.items())
+        body = (f'<p class="small">Problem options: {html.escape(opts)}.</p>' if opts else "") + _design_rows(v)
+        if v.label == "default":
+            out.append(body)
+        else:
+            out.append(f"<details><summary>Variant {html.escape(str(v.label))}</summary>{body}</details>")
+    return "".join(out)
+
+
+def _export_section(variants: Sequence[Any]) -> str:
     rows = []
-    for d, chk in variant.exports.items():
-        for ref, v in chk.references.items():
-            rows.append([d, ref, chk.samples, chk.nonfinite_samples, v["r"], v["J"], v["state"], "equal" if v["decisions_equal"] else "DIFFER"])
+    for v in variants:
+        for d, chk in v.exports.items():
+            for ref, x in chk.references.items():
+                rows.append([_variant_name(v), d, ref, chk.samples, chk.nonfinite_samples, x["r"], x["J"], x["state"],
+                             "equal" if x["decisions_equal"] else "DIFFER"])
     flags = " ".join(CFLAGS)
+    agree = sum(r[-1] == "equal" for r in rows)
     return (
         f"<p>Each design's step was generated by CasADi, compiled with <code>{html.escape(flags)}</code>, loaded with ctypes and "
-        "compared with the CasADi function and (linear diagnosers) the independent NumPy reference built from the gain file alone. "
-        "Normwise relative differences over the check trace (with injected NaN/±inf samples):</p>"
-        + table(["design", "reference", "samples", "non-finite", "r", "J", "state", "alarm/isolated/status"], rows, left=2)
+        "compared with the CasADi function and (linear diagnosers) the independent NumPy reference built from the gain file alone, "
+        f"over a check trace with injected NaN/±inf samples: {agree} of {len(rows)} comparisons make the same decisions, every "
+        "one within the export tolerance (a failing one stops the job).</p>"
+        "<details><summary>Normwise relative differences</summary>"
+        + table(["variant", "design", "reference", "samples", defined("non-finite", "non-finite samples"), "r", "J", "state",
+                 "alarm/isolated/status"], rows, left=3)
+        + "</details>"
     )
 
 
-def _metrics_section(variant: Any) -> str:
+def _glance_section(problem: Problem, variant: Any) -> str:
+    """The main variant's detection figures, one row per faulty scenario and design (the fault-free false alarms
+    pooled over every scenario's fault-free samples)."""
     ev = variant.evaluation
-    designs = list(ev.metrics)
     scen = list(next(iter(ev.metrics.values())))
-    out = [f'<p class="small">{ev.runs} runs per scenario, seeds {ev.seed0}–{ev.seed0 + ev.runs - 1}; every design sees the same runs.</p>']
     rows = []
-    for s in scen:
-        for d in designs:
+    for d in ev.metrics:
+        quiet = [ev.metrics[d][s] for s in scen]
+        n = sum(m.fault_free_samples for m in quiet)
+        far = sum(m.false_alarm_rate * m.fault_free_samples for m in quiet) / n if n else None
+        rows.append([label(problem, d), "all (fault-free samples)", "—", far, None, None, None, None])
+        for s in scen:
             m = ev.metrics[d][s]
-            rows.append(
-                [
-                    s,
-                    d,
-                    m.fault or "none",
-                    m.false_alarm_rate,
-                    m.false_alarm_runs,
-                    m.missed_detection_rate,
-                    m.missed_alarm_fraction,
-                    m.detection_delay_mean_s,
-                    m.detection_delay_max_s,
-                    m.isolation_accuracy,
-                    m.first_isolation_accuracy,
-                    m.sample_isolation_accuracy,
-                ]
-            )
-    out.append(
-        table(
-            [
-                "scenario",
-                "design",
-                "fault",
-                "false-alarm rate",
-                "runs with false alarm",
-                "missed detection",
-                "missed-alarm fraction",
-                "delay mean (s)",
-                "delay max (s)",
-                "isolation acc.",
-                "first-decision acc.",
-                "sample isolation acc.",
-            ],
+            if m.fault is None:
+                continue
+            rows.append([label(problem, d), label(problem, s), label(problem, m.fault), m.false_alarm_rate, m.missed_detection_rate,
+                         m.detection_delay_mean_s, m.isolation_accuracy, m.false_isolation_rate])
+    return (
+        f'<p class="small">{fmt(ev.runs)} runs per scenario; every design sees the same runs.</p>'
+        + table(
+            ["design", "scenario", "fault", defined("false-alarm rate (per sample)", "false-alarm rate"),
+             defined("missed detection (of runs)", "missed detection"), defined("delay mean (s)", "detection delay"),
+             defined("isolation accuracy (of runs)", "isolation accuracy"), defined("false isolation (of runs)", "false isolation")],
             rows,
             left=3,
         )
     )
+
+
+_ISOLATION_COLOURS = (("true fault", "#2e7d32"), ("another fault", "#c62828"), ("not isolated", "#9e9e9e"))
+
+
+def _isolation_section(problem: Problem, variant: Any) -> str:
+    """Per faulty scenario and design, the runs' most frequent decision: the true fault, another fault, or none
+    (% of runs), as numbers and one stacked bar."""
+    ev = variant.evaluation
+    rows = []
+    for s in next(iter(ev.metrics.values())):
+        for d in ev.metrics:
+            m = ev.metrics[d][s]
+            if m.fault is None or m.isolation_accuracy is None:
+                continue
+            parts = [m.isolation_accuracy, m.false_isolation_rate or 0.0]
+            parts.append(max(0.0, 1.0 - parts[0] - parts[1]))
+            bar = "".join(
+                f'<span title="{name}" style="display:inline-block;height:.9em;width:{100 * p:.1f}%;background:{colour}"></span>'
+                for (name, colour), p in zip(_ISOLATION_COLOURS, parts, strict=False)
+            )
+            rows.append([label(problem, s), label(problem, m.fault), label(problem, d), *(100.0 * p for p in parts),
+                         f'<div style="width:16em;background:#eee;line-height:0">{bar}</div>'])
+    if not rows:
+        return ""
+    legend = " ".join(f'<span style="color:{c}">■</span> {n}' for n, c in _ISOLATION_COLOURS)
+    return (
+        "<p class=\"small\">The most frequent isolation decision of each run while the fault is active "
+        f"({defined('definitions', 'isolation accuracy')}): {legend}.</p>"
+        + table(["scenario", "true fault", "design", "true fault (% of runs)", "another fault (% of runs)", "not isolated (% of runs)", ""],
+                rows, left=3)
+    )
+
+
+def _metrics_details(problem: Problem, variant: Any) -> str:
+    """Every metric of one variant (the full tables, folded on the page)."""
+    ev = variant.evaluation
+    designs = list(ev.metrics)
+    scen = list(next(iter(ev.metrics.values())))
+    out = [f'<p class="small">{fmt(ev.runs)} runs per scenario, seeds {ev.seed0}–{ev.seed0 + ev.runs - 1}; every design sees the same runs.</p>']
+    rows = []
+    for s in scen:
+        for d in designs:
+            m = ev.metrics[d][s]
+            rows.append([label(problem, s), label(problem, d), label(problem, m.fault) if m.fault else "none", m.false_alarm_rate, m.false_alarm_runs,
+                         m.missed_detection_rate, m.missed_alarm_fraction, m.detection_delay_mean_s, m.detection_delay_max_s,
+                         m.isolation_accuracy, m.first_isolation_accuracy, m.sample_isolation_accuracy, m.nonfinite_samples])
     out.append(
-        "<p class=\"small\">Definitions: false-alarm rate per fault-free sample (excluding each design's recovery window after a fault); "
-        "missed detection = runs without any alarm while the fault is active; delay from onset to the first alarm; "
-        "isolation accuracy = runs whose most frequent isolated fault during the fault is the true one.</p>"
+        table(
+            ["scenario", "design", "fault", defined("false-alarm rate (per sample)", "false-alarm rate"),
+             defined("false-alarm runs (of runs)", "false-alarm runs"), defined("missed detection (of runs)", "missed detection"),
+             defined("missed-alarm fraction (of samples)", "missed-alarm fraction"), defined("delay mean (s)", "detection delay"),
+             defined("delay max (s)", "detection delay"), defined("isolation acc.", "isolation accuracy"),
+             defined("first-decision acc.", "first isolation accuracy"), defined("sample isolation acc.", "sample isolation accuracy"),
+             defined("non-finite samples", "non-finite samples")],
+            rows,
+            left=3,
+        )
     )
     out.append(_budget_table([(variant, d) for d in designs], scen))
     extra_keys = sorted({k for d in designs for s in scen for k in ev.metrics[d][s].extra})
     if extra_keys:
-        rows = [[s, d, *(ev.metrics[d][s].extra.get(k) for k in extra_keys)] for s in scen for d in designs]
-        out.append("<h4>Problem-specific figures</h4>" + table(["scenario", "design", *extra_keys], rows, left=2))
+        rows = [[label(problem, s), label(problem, d), *(ev.metrics[d][s].extra.get(k) for k in extra_keys)] for s in scen for d in designs]
+        out.append("<h4>Problem-specific figures</h4>" + table(["scenario", "design", *(label(problem, k) for k in extra_keys)], rows, left=2))
     if any(variant.built[d].gain_file.kind != "linear" for d in designs):
         return "".join(out)
     rows = []
@@ -280,24 +492,37 @@ def _metrics_section(variant: Any) -> str:
         for j, rate in enumerate(m.statistic_exceedance):
             lo, hi = m.statistic_exceedance_interval[j]
             inside = lo <= rate <= hi
-            rows.append(
-                [
-                    d,
-                    gf.step.statistic_names[j],
-                    gf.evaluators[j].P_f,
-                    rate,
-                    f"[{fmt(lo)}, {fmt(hi)}]",
-                    f'<span class="{"ok" if inside else "bad"}">{"inside" if inside else "outside"}</span>',
-                ]
-            )
+            rows.append([label(problem, d), label(problem, gf.step.statistic_names[j]), gf.evaluators[j].P_f, rate, f"[{fmt(lo)}, {fmt(hi)}]",
+                         f'<span class="{"ok" if inside else "bad"}">{"inside" if inside else "outside"}</span>'])
     out.append(
-        f"<h4>χ² law on fault-free data ({html.escape(scen[0])})</h4>"
+        f"<h4>χ² law on fault-free data ({html.escape(label(problem, scen[0]))})</h4>"
         "<p class=\"small\">Exceedance rate of each statistic against its design false-alarm probability, with the two-sided "
         "99.9 % binomial interval for independent samples. White residuals (minimum-variance designs) give independent samples; "
         "coloured residuals cluster their exceedances, which widens the real spread beyond this interval.</p>"
-        + table(["design", "statistic", "P_f", "observed", "binomial 99.9 %", ""], rows, left=2)
+        + table(["design", "statistic", "P_f (per sample)", defined("observed (per sample)", "statistic exceedance"), "binomial 99.9 %", ""], rows, left=2)
     )
     return "".join(out)
+
+
+def _definitions_section() -> str:
+    items = "".join(f'<dt id="def-{_slug(k)}">{html.escape(k)}</dt><dd>{html.escape(v)}</dd>' for k, v in DEFINITIONS.items())
+    return f'<p class="small">Per scenario, over R runs of N samples; the column headers link here.</p><dl class="defs">{items}</dl>'
+
+
+def _verdict_section(claims: Sequence[Claim]) -> str:
+    if not claims:
+        return '<p class="small">This problem states no claims of its paper to check.</p>'
+    n = sum(c.verdict == "reproduced" for c in claims)
+    rows = [
+        [c.claim, c.paper, c.ours, f'<span class="{"ok" if c.verdict == "reproduced" else "bad"}">{c.verdict}</span>', c.why or "—"]
+        for c in claims
+    ]
+    return f"<p><strong>{n} of {len(claims)} claims reproduced.</strong></p>" + table(["claim", "paper", "ours", "verdict", "why"], rows, left=5)
+
+
+def _toc(sections: Sequence[tuple[str, str, str]]) -> str:
+    items = "".join(f'<li><a href="#{anchor}">{html.escape(title)}</a></li>' for anchor, title, _ in sections)
+    return f'<nav class="toc"><h2 id="contents">Contents</h2><ol>{items}</ol></nav>'
 
 
 def _run_figures(ctx: ReportContext) -> list[tuple[str, str]]:
@@ -356,7 +581,7 @@ def _mtbfa(m: Any) -> str:
     lo, hi = m.mean_time_between_false_alarms_interval_s
     if m.mean_time_between_false_alarms_s is None:
         return f"none seen (> {fmt(lo)})"
-    return f"{fmt(m.mean_time_between_false_alarms_s)} [{fmt(lo)}, {fmt(hi)}]"
+    return fmt(m.mean_time_between_false_alarms_s, interval=(lo, hi))
 
 
 def _ratio(m: Any) -> str:
@@ -367,7 +592,7 @@ def _ratio(m: Any) -> str:
     if m.delay_bound_ratio < 0.5:  # faster than the bound allows: the fault is no persistent mean shift
         return "no mean shift"
     ok = m.delay_bound_ratio <= 1.2
-    return f'<span class="{"ok" if ok else "bad"}">{m.delay_bound_ratio:.2f}</span>'
+    return f'<span class="{"ok" if ok else "bad"}">{fmt(m.delay_bound_ratio, 3)}</span>'
 
 
 def _variant_name(v: Any) -> str:
@@ -375,7 +600,7 @@ def _variant_name(v: Any) -> str:
     return re.sub(r" at arl0 = [^,]*$", "", str(v.label))
 
 
-def _budget_table(pairs: Sequence[tuple[Any, str]], scen: Sequence[str], *, label: bool = False) -> str:
+def _budget_table(pairs: Sequence[tuple[Any, str]], scen: Sequence[str], *, by_variant: bool = False) -> str:
     """Per design (and variant) and scenario: the false-alarm time against the budget, the delay against the
     Lorden bound."""
     rows = []
@@ -387,7 +612,7 @@ def _budget_table(pairs: Sequence[tuple[Any, str]], scen: Sequence[str], *, labe
             if m.arl0_budget_s is None:
                 continue
             bound_s = None if m.lorden_bound_samples is None else m.lorden_bound_samples * m.Ts
-            head = [s, _variant_name(v), d] if label else [s, d]
+            head = [s, _variant_name(v), d] if by_variant else [s, d]
             rows.append(
                 [
                     *head, _mtbfa(m), m.arl0_budget_s, m.missed_detection_rate, m.detection_delay_mean_s, bound_s, _ratio(m),
@@ -396,10 +621,13 @@ def _budget_table(pairs: Sequence[tuple[Any, str]], scen: Sequence[str], *, labe
             )
     if not rows:
         return ""
-    header = ["scenario", *(["detector"] if label else []), "design", "time between false alarms (s) [95 %]", "budget (s)",
-              "missed detection", "delay mean (s)", "Lorden bound (s)", "delay / bound", "isolation acc.", "false isolation"]
+    header = ["scenario", *(["detector"] if by_variant else []), "design",
+              defined("time between false alarms (s) [95 %]", "mean time between false alarms"), defined("budget (s)", "budget"),
+              defined("missed detection (of runs)", "missed detection"), defined("delay mean (s)", "detection delay"),
+              defined("Lorden bound (s)", "Lorden bound"), defined("delay / bound", "delay ratio"),
+              defined("isolation acc.", "isolation accuracy"), defined("false isolation", "false isolation")]
     if {v.built[d].gain_file.kind for v, d in pairs} == {"nafdf"}:
-        return "<h4>False-alarm budget and the Lorden bound</h4>" + _NAFDF_BUDGET_TEXT + table(header, rows, left=3 if label else 2)
+        return "<h4>False-alarm budget and the Lorden bound</h4>" + _NAFDF_BUDGET_TEXT + table(header, rows, left=3 if by_variant else 2)
     return (
         "<h4>False-alarm budget and the Lorden bound</h4>"
         '<p class="small">Time between false alarms: fault-free time over the number of false-alarm episodes, with Garwood\'s '
@@ -413,7 +641,7 @@ def _budget_table(pairs: Sequence[tuple[Any, str]], scen: Sequence[str], *, labe
         "varying signal, whose residual effect averages out). Isolation is the bank's alarm pattern (the "
         "signature table) over the statistics' held alarms; false isolation: runs whose most frequent decision names "
         "another fault.</p>"
-        + table(header, rows, left=3 if label else 2)
+        + table(header, rows, left=3 if by_variant else 2)
     )
 
 
@@ -459,25 +687,363 @@ def _detectors_section(variants: Sequence[Any]) -> str:
             if s not in scen:
                 scen.append(s)
     pairs = [(v, d) for v in same for d in v.evaluation.metrics]
-    return _budget_table(pairs, scen, label=True)
+    return _budget_table(pairs, scen, by_variant=True)
+
+
+def _fault_free_J(variant: Any, design: str) -> tuple[np.ndarray, str] | None:
+    """Fault-free samples of a design's statistics from the example runs: the fault-free scenario's run 0, else
+    the samples before the first faulty scenario's onset."""
+    ex, bt = variant.evaluation.examples.get(design, {}), variant.evaluation.batches
+    for s, res in ex.items():
+        if bt[s].scenario.fault is None:
+            return res.J, s
+    for s, res in ex.items():
+        quiet = ~bt[s].active & (bt[s].t < (bt[s].scenario.onset or np.inf))
+        if quiet.sum() > 10:
+            return res.J[quiet], s
+    return None
+
+
+def _law_figures(ctx: ReportContext) -> str:
+    """Per design, each statistic's fault-free histogram against its law: χ²(dof) for a χ² statistic; for the
+    others (WSSR, CUSUM, GLR, …) the empirical tail P(J > x) against the threshold and the design's P_f."""
+    import scipy.stats
+
+    v, problem, out = ctx.variants[0], ctx.problem, []
+    for k, (d, b) in enumerate(v.built.items()):
+        got = _fault_free_J(v, d)
+        if got is None:
+            continue
+        J, scen = got
+        gf = b.gain_file
+        names = list(gf.step.statistic_names)
+        shown = list(range(min(len(names), 8)))
+        cols = min(4, len(shown))
+        rows = -(-len(shown) // cols)
+        fig, axes = subplots(rows, cols, figsize=(2.6 * cols, 2.3 * rows + 0.4), squeeze=False)
+        thr = np.asarray(gf.thresholds, dtype=float)
+        for j, ax in zip(shown, axes.ravel(), strict=False):
+            x = J[:, j][np.isfinite(J[:, j])]
+            ev = gf.evaluators[j] if j < len(gf.evaluators) else None
+            if x.size == 0:
+                continue
+            if ev is not None and ev.kind == "chi2":
+                top = max(float(np.max(x)), float(thr[j]) if np.isfinite(thr[j]) else 0.0)
+                ax.hist(x, bins=40, range=(0.0, top), density=True, color="tab:blue", alpha=0.6)
+                grid = np.linspace(top / 400, top, 400)
+                ax.plot(grid, scipy.stats.chi2.pdf(grid, ev.dof), "k", lw=1.0)
+                ax.set_yscale("log")
+                ax.set_ylabel("density")
+                ax.set_title(f"χ²({ev.dof})", fontsize=MIN_FONT_PT)
+            else:
+                xs = np.sort(x)
+                tail = 1.0 - np.arange(xs.size) / xs.size
+                ax.step(xs, tail, where="post", color="tab:blue")
+                ax.set_yscale("log")
+                ax.set_ylabel("P(J > x)")
+                if ev is not None:
+                    ax.axhline(ev.P_f, color="tab:red", ls=":", lw=1.0)
+            if np.isfinite(thr[j]):
+                ax.axvline(thr[j], color="k", ls="--", lw=0.9)
+            ax.set_xlabel(label(problem, names[j]))
+            ax.grid(alpha=0.3)
+        for ax in axes.ravel()[len(shown):]:
+            ax.set_visible(False)
+        fig.tight_layout()
+        caption = (
+            f"{label(problem, d)}: fault-free samples of run 0 ({label(problem, scen)}), {fmt(int(J.shape[0]))} samples. χ² statistics: "
+            "histogram (density) against the χ² density with the statistic's degrees of freedom (black); other statistics: the "
+            "empirical tail P(J > x) against the design's P_f (red, dotted). Dashed: the threshold."
+            + (f" The first {len(shown)} of {len(names)} statistics." if len(shown) < len(names) else "")
+        )
+        body = ctx.figure(f"law_{d}", fig, caption)
+        out.append(body if k == 0 else f"<details><summary>{html.escape(label(problem, d))}</summary>{body}</details>")
+    return "".join(out)
+
+
+def _sweep_figure(ctx: ReportContext) -> str:
+    """Mean detection delay and missed detections against the fault's size, per design and faulty scenario."""
+    v, problem = ctx.variants[0], ctx.problem
+    sweep = getattr(v, "sweep", None)
+    if sweep is None or not sweep.scenarios:
+        return ""
+    designs = list(v.evaluation.metrics)
+    fig, axes = subplots(len(designs), 2, figsize=(9.0, 2.6 * len(designs) + 0.4), squeeze=False)
+    rows = []
+    for i, d in enumerate(designs):
+        for base, by_factor in sweep.scenarios.items():
+            pts = []
+            for f in sorted({1.0, *by_factor}):
+                m = v.evaluation.metrics[d][base] if f == 1.0 else sweep.evaluation.metrics[d][by_factor[f]]
+                pts.append((f, m.detection_delay_mean_s, m.missed_detection_rate))
+                rows.append([label(problem, d), label(problem, base), f, m.runs, m.missed_detection_rate, m.detection_delay_mean_s])
+            f_, delay, missed = zip(*pts, strict=False)
+            axes[i, 0].plot(f_, [np.nan if x is None else x for x in delay], "o-", lw=1.0, ms=3)
+            axes[i, 1].plot(f_, missed, "o-", lw=1.0, ms=3, label=label(problem, base))
+        axes[i, 0].set_ylabel(f"{label(problem, d)}\nmean delay (s)")
+        axes[i, 1].set_ylabel("missed detection")
+        ticks = sorted({1.0, *sweep.factors})
+        for ax in axes[i]:
+            ax.set_xscale("log")
+            ax.set_xticks(ticks, [fmt(f) for f in ticks])
+            ax.minorticks_off()
+            ax.grid(alpha=0.3)
+        axes[i, 1].legend()
+    for ax in axes[-1]:
+        ax.set_xlabel("fault size (× the scenario's)")
+    fig.tight_layout()
+    return ctx.figure(
+        "fault_size_sweep",
+        fig,
+        f"Detection against the fault's size: each faulty scenario with its fault scaled by {', '.join(fmt(f) for f in sweep.factors)} "
+        f"({fmt(sweep.evaluation.runs)} runs each; 1 is the scenario itself with the page's runs). Offsets and drifts scale "
+        "their value, a gain fault its deviation from 1.",
+    ) + (
+        "<details><summary>The numbers</summary>"
+        + table(["design", "scenario", "size (×)", "runs", defined("missed detection (of runs)", "missed detection"),
+                 defined("delay mean (s)", "detection delay")], rows, left=2)
+        + "</details>"
+    )
+
+
+def _discrete_model(problem: Problem, variant: Any, gf: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, np.ndarray]] | None:
+    """``(A, E, C, fault directions)`` of the design model in discrete time: each fault of the gain file that is a
+    component fault (a column of ``Fx``, into the state) or a single sensor (into the output)."""
+    if problem.model is None:
+        return None
+    model = problem.model(**dict(variant.options))
+    if hasattr(model, "A_D"):  # a sampled-data plant: exact sampling of the disturbance, the fault held
+        A, E, C, Fx = model.A_D, model.E_J, model.C, model.Fx_D
+        comp = list(gf.faults) if Fx.shape[1] == len(gf.faults) else []
+        outputs: list[str] = list(gf.outputs)
+    else:
+        plant = model if model.is_discrete else model.discretise(gf.Ts)
+        A, E, C, Fx = plant.A, plant.E, plant.C, plant.Fx
+        comp, outputs = list(plant.component_faults), list(plant.outputs)
+    if C.shape[0] != len(gf.outputs):
+        return None
+    dirs: dict[str, np.ndarray] = {}
+    for f in gf.faults:
+        if f in comp:
+            dirs[f] = np.concatenate([Fx[:, comp.index(f)], np.zeros(C.shape[0])])
+        elif f in outputs:
+            dirs[f] = np.concatenate([np.zeros(A.shape[0]), np.eye(C.shape[0])[outputs.index(f)]])
+    return A, E, C, dirs
+
+
+def _responses(A: np.ndarray, E: np.ndarray, C: np.ndarray, dirs: Mapping[str, np.ndarray], gen: Any, w: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """σ̄(G_rd(e^{jω})) and |G_rf(e^{jω})| per fault of one generator driven by the plant (state and sensor inputs)."""
+    n, ns = A.shape[0], gen.Ar.shape[0]
+    Acl = np.block([[A, np.zeros((n, ns))], [gen.By @ C, gen.Ar]])
+    Ccl = np.hstack([gen.Dy @ C, gen.Cr])
+    Bd = np.vstack([E, np.zeros((ns, E.shape[1]))])
+    rd = np.zeros(w.size)
+    rf = {f: np.zeros(w.size) for f in dirs}
+    for i, z in enumerate(np.exp(1j * w)):
+        M = z * np.eye(n + ns) - Acl
+        rd[i] = np.linalg.norm(Ccl @ np.linalg.solve(M, Bd), 2) if E.shape[1] else 0.0
+        for f, v in dirs.items():
+            bx, by = v[:n], v[n:]
+            B = np.concatenate([bx, gen.By @ by])
+            rf[f][i] = float(np.linalg.norm(Ccl @ np.linalg.solve(M, B) + gen.Dy @ by))
+    return rd, rf
+
+
+def _frequency_figures(ctx: ReportContext) -> str:
+    v, problem, out = ctx.variants[0], ctx.problem, []
+    for k, (d, b) in enumerate(v.built.items()):
+        gf = b.gain_file
+        if gf.kind != "linear" or not gf.generators:
+            continue
+        got = _discrete_model(problem, v, gf)
+        if got is None:
+            continue
+        A, E, C, dirs = got
+        w = np.logspace(-3, 0, 300) * np.pi
+        gens = list(gf.generators)
+        cols = min(2, len(gens))
+        rows = -(-len(gens) // cols)
+        fig, axes = subplots(rows, cols, figsize=(4.6 * cols, 2.6 * rows + 0.4), squeeze=False)
+        for gen, ax in zip(gens, axes.ravel(), strict=False):
+            rd, rf = _responses(A, E, C, dirs, gen, w)
+            om = w / gf.Ts
+            if E.shape[1]:
+                ax.loglog(om, np.maximum(rd, 1e-12), "k", lw=1.2, label="σ̄ G_rd (disturbance)")
+            for f, r in rf.items():
+                if np.max(r) > 1e-9:
+                    ax.loglog(om, np.maximum(r, 1e-12), lw=1.0, label=f"|G_rf| {label(problem, f)}")
+            ax.set_title(label(problem, gen.name), fontsize=MIN_FONT_PT)
+            lo, hi = ax.get_ylim()
+            if hi < 10 * lo:  # under a decade: a linear axis reads better than log ticks
+                ax.set_yscale("linear")
+            ax.set_xlabel("ω (rad/s)")
+            ax.grid(alpha=0.3, which="both")
+            ax.legend()
+        for ax in axes.ravel()[len(gens):]:
+            ax.set_visible(False)
+        fig.tight_layout()
+        body = ctx.figure(
+            f"frequency_{d}",
+            fig,
+            f"{label(problem, d)}: the residual's response to each fault it sees (|G_rf(e^(jωTs))|, Euclidean norm over the residual) "
+            "against the largest singular value of its response to the disturbance (σ̄ G_rd), per generator, up to the Nyquist "
+            "frequency, from the design model and the gain file's generators.",
+        )
+        out.append(body if k == 0 else f"<details><summary>{html.escape(label(problem, d))}</summary>{body}</details>")
+    return "".join(out)
+
+
+def _pole_figure(ctx: ReportContext) -> str:
+    v, problem = ctx.variants[0], ctx.problem
+    linear = [(d, b.gain_file) for d, b in v.built.items() if b.gain_file.kind == "linear" and b.gain_file.generators]
+    if not linear:
+        return ""
+    fig, axes = subplots(1, len(linear), figsize=(3.4 * len(linear) + 1.6, 3.6), squeeze=False)
+    plant_poles = None
+    if problem.model is not None:
+        got = _discrete_model(problem, v, linear[0][1])
+        plant_poles = None if got is None else np.linalg.eigvals(got[0])
+    th = np.linspace(0, 2 * np.pi, 400)
+    rows = []
+    for (d, gf), ax in zip(linear, axes[0], strict=False):
+        ax.plot(np.cos(th), np.sin(th), "k", lw=0.8)
+        if plant_poles is not None:
+            ax.plot(plant_poles.real, plant_poles.imag, "x", color="0.4", ms=6, label="plant")
+        for gen in gf.generators:
+            ev = np.linalg.eigvals(gen.Ar) if gen.Ar.size else np.zeros(0)
+            ax.plot(ev.real, ev.imag, "o", ms=4, fillstyle="none", label=label(problem, gen.name) if len(gf.generators) > 1 else "generator")
+            rows.append([label(problem, d), label(problem, gen.name), gen.Ar.shape[0], float(np.max(np.abs(ev))) if ev.size else None])
+        ax.set_aspect("equal")
+        ax.set_title(label(problem, d), fontsize=MIN_FONT_PT)
+        ax.set_xlabel("Re z")
+        ax.grid(alpha=0.3)
+    for ax in axes[0]:
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend()
+    axes[0, 0].set_ylabel("Im z")
+    fig.tight_layout()
+    return ctx.figure(
+        "generator_poles",
+        fig,
+        "The generators' poles (eigenvalues of Ar) against the unit circle"
+        + (", with the design model's poles (×)." if plant_poles is not None else "."),
+    ) + table(["design", "generator", "order", "spectral radius of Ar"], rows, left=2)
+
+
+def _standard_figures(ctx: ReportContext) -> list[tuple[str, str]]:
+    """The figures every page has where its data allow: statistics against their law, detection against the fault's
+    size, the residuals' frequency responses, the generators' poles."""
+    return [
+        ("Fault-free statistics against their law", _law_figures(ctx)),
+        ("Detection against fault size", _sweep_figure(ctx)),
+        ("Residual frequency responses", _frequency_figures(ctx)),
+        ("Generator poles", _pole_figure(ctx)),
+    ]
+
+
+def _rounded(x: Any) -> Any:
+    """``x`` with every float rounded to :data:`JSON_DIGITS` significant digits (tuples become lists)."""
+    if isinstance(x, (bool, np.bool_)) or x is None or isinstance(x, str):
+        return bool(x) if isinstance(x, np.bool_) else x
+    if isinstance(x, (int, np.integer)):
+        return int(x)
+    if isinstance(x, (float, np.floating)):
+        v = float(x)
+        return v if not math.isfinite(v) or v == 0.0 else float(f"{v:.{JSON_DIGITS}g}")
+    if isinstance(x, Mapping):
+        return {str(k): _rounded(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_rounded(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return _rounded(x.tolist())
+    return x
+
+
+def _summary_rows(problem: Problem, variant: Any) -> list[dict[str, Any]]:
+    """Per design of the main variant: false alarms (rate over every fault-free sample), missed detections,
+    mean delay and isolation accuracy (means over the faulty scenarios that have them)."""
+    out = []
+    for d, per in variant.evaluation.metrics.items():
+        ms = list(per.values())
+        n = sum(m.fault_free_samples for m in ms)
+        faulty = [m for m in ms if m.fault is not None]
+
+        def mean(values: list[Any]) -> float | None:
+            vals = [float(v) for v in values if v is not None]
+            return sum(vals) / len(vals) if vals else None
+
+        out.append(
+            {
+                "design": d,
+                "false_alarm_rate": sum(m.false_alarm_rate * m.fault_free_samples for m in ms) / n if n else None,
+                "missed_detection_rate": mean([m.missed_detection_rate for m in faulty]),
+                "detection_delay_mean_s": mean([m.detection_delay_mean_s for m in faulty]),
+                "isolation_accuracy": mean([m.isolation_accuracy for m in faulty]),
+            }
+        )
+    return out
+
+
+def _metrics_document(problem: Problem, variants: Sequence[Any], claims: Sequence[Claim]) -> dict[str, Any]:
+    return _rounded(
+        {
+            "problem": problem.name,
+            "significant_digits": JSON_DIGITS,
+            "verdict": {"title": problem.title, "claims": len(claims), "reproduced": sum(c.verdict == "reproduced" for c in claims)},
+            "summary": _summary_rows(problem, variants[0]),
+            "variants": [
+                {
+                    "label": v.label,
+                    "options": dict(v.options),
+                    "exports": {d: c.to_dict() for d, c in v.exports.items()},
+                    "evaluation": v.evaluation.to_dict(),
+                }
+                for v in variants
+            ],
+        }
+    )
+
+
+_CLOCK_KEYS = re.compile(r"created_utc|(^|_)(solve_)?time(_|$)|seconds")
+"""Keys of a gain file's provenance and certificate information that hold a date or a duration."""
+
+
+def _without_clock(x: Any) -> Any:
+    if isinstance(x, Mapping):
+        return {k: _without_clock(v) for k, v in x.items() if not _CLOCK_KEYS.search(str(k))}
+    if isinstance(x, list):
+        return [_without_clock(v) for v in x]
+    return x
+
+
+def _published(gf: Any) -> Any:
+    """The gain file as a report publishes it: without its creation date or solver durations (the committed
+    files stay the same from one run to the next; the build folder keeps the full file)."""
+    return replace(gf, provenance=_without_clock(dict(gf.provenance)), certificate=_without_clock(dict(gf.certificate)))
 
 
 def write_report(problem: Problem, variants: Sequence[Any], directory: Path) -> Path:
-    """Write the problem's report page (and its figures and gain files)."""
+    """Write the problem's page, its figures, its gain files and ``metrics.json``; return the page's path."""
     directory.mkdir(parents=True, exist_ok=True)
     ctx = ReportContext(problem=problem, variants=variants, directory=directory)
-    parts = [
-        f"<!doctype html><html><head><meta charset='utf-8'><title>fdisyn — {html.escape(problem.name)}</title><style>{_CSS}</style></head><body>",
-        f"<h1>{html.escape(problem.title)}</h1>",
-        f"<p>{html.escape(problem.summary)}</p>",
-        f'<p class="small">Generated by <code>fdisyn report {html.escape(problem.name)}</code> on '
-        f"{datetime.now(timezone.utc).strftime('%Y-%m-%d %H:%M UTC')}; {html.escape(_versions())}.</p>",
-    ]
-    if problem.notes:
-        parts.append("<h2>Modelling choices</h2><ul>" + "".join(f"<li>{html.escape(n)}</li>" for n in problem.notes) + "</ul>")
-    sections = problem.report(ctx) if problem.report is not None else _run_figures(ctx)
-    for title, body in sections:
-        parts.append(f"<h2>{html.escape(title)}</h2>{body}")
+    claims = list(problem.claims(ctx)) if problem.claims is not None else []
+    main = variants[0]
+    sections: list[tuple[str, str, str]] = []
+
+    def add(title: str, body: str) -> None:
+        if not body:
+            return
+        anchor, k = _slug(title), 2
+        while anchor in {"verdict", "contents", *(a for a, _, _ in sections)}:
+            anchor, k = f"{_slug(title)}-{k}", k + 1
+        sections.append((anchor, title, body))
+
+    add("Detection at a glance", _glance_section(problem, main))
+    add("Isolation", _isolation_section(problem, main))
+    for title, body in problem.report(ctx) if problem.report is not None else _run_figures(ctx):
+        add(title, body)
+    for title, body in _standard_figures(ctx):
+        add(title, body)
     compared = _detectors_section(variants)
     if compared:
         nafdf = {b.gain_file.kind for v in variants for b in v.built.values()} == {"nafdf"}
@@ -488,29 +1054,95 @@ def write_report(problem: Problem, variants: Sequence[Any], directory: Path) -> 
             if nafdf
             else f"{_compared_detectors(variants)} statistics of the same generators"
         )
-        parts.append(
-            f"<h2>Detectors at one false-alarm budget</h2><p>{what}, each designed for the same mean time between false "
-            "alarms arl0.</p>" + compared
-        )
+        add("Detectors at one false-alarm budget",
+            f"<p>{what}, each designed for the same mean time between false alarms arl0.</p>" + compared)
+    add("Designs", _designs_section(problem, variants))
+    add("Certificates", _certificates_section(problem, variants))
+    add("Generated C", _export_section(variants))
+    add(
+        "Monte Carlo metrics",
+        "".join(
+            f"<details{' open' if len(variants) == 1 else ''}><summary>{html.escape('main designs' if v.label == 'default' else str(v.label))}"
+            f"</summary>{_metrics_details(problem, v)}</details>"
+            for v in variants
+        ),
+    )
+    if problem.notes:
+        add("Modelling choices", "<ul>" + "".join(f"<li>{html.escape(n)}</li>" for n in problem.notes) + "</ul>")
+    add("Definitions", _definitions_section())
+    add(
+        "Provenance",
+        f'<p class="small">Generated by <code>fdisyn report {html.escape(problem.name)}</code> with {html.escape(_versions())}. '
+        'Gain files of every design are in <a href="gains/">gains/</a>; the numbers of this page in '
+        f'<a href="metrics.json">metrics.json</a> ({JSON_DIGITS} significant digits).</p>',
+    )
+    parts = [
+        f"<!doctype html><html><head><meta charset='utf-8'><title>fdisyn — {html.escape(problem.name)}</title><style>{_CSS}</style></head><body>",
+        '<p class="small"><a href="../index.html">All problems</a></p>',
+        f"<h1>{html.escape(problem.title)}</h1>",
+        f"<p>{html.escape(problem.summary)}</p>",
+        f'<h2 id="verdict">Verdict</h2>{_verdict_section(claims)}',
+        _toc(sections),
+        *(f'<h2 id="{anchor}">{html.escape(title)}</h2>{body}' for anchor, title, body in sections),
+        "</body></html>",
+    ]
     gains_dir = directory / "gains"
     for v in variants:
-        label = "" if v.label == "default" else f" — {v.label}"
-        opts = ", ".join(f"{k} = {val!r}" for k, val in v.options.items())
-        parts.append(f"<h2>Designs and certificates{html.escape(label)}</h2>")
-        if opts:
-            parts.append(f'<p class="small">Problem options: {html.escape(opts)}.</p>')
-        parts.append(_designs_section(v))
-        parts.append(f"<h2>Generated C{html.escape(label)}</h2>{_export_section(v)}")
-        parts.append(f"<h2>Monte Carlo metrics{html.escape(label)}</h2>{_metrics_section(v)}")
         for b in v.built.values():
-            write_gain_file(b.gain_file, gains_dir / f"{b.gain_file.name}.json")
-    parts.append(
-        '<p class="small">Gain files of every design are in <a href="gains/">gains/</a>; the numbers of this page in '
-        '<a href="metrics.json">metrics.json</a>.</p></body></html>'
-    )
+            write_gain_file(_published(b.gain_file), gains_dir / f"{b.gain_file.name}.json")
+    (directory / "metrics.json").write_text(json.dumps(_metrics_document(problem, variants, claims), indent=1) + "\n", encoding="utf-8")
     page = directory / "index.html"
-    page.write_text("\n".join(parts), encoding="utf-8")
+    page.write_text("\n".join(parts) + "\n", encoding="utf-8")
     return page
+
+
+def _documents(reports: Path, names: Sequence[str] | None = None) -> list[dict[str, Any]]:
+    """The ``metrics.json`` of every problem under ``reports`` (or of ``names``), by name."""
+    paths = [reports / n / "metrics.json" for n in names] if names is not None else sorted(reports.glob("*/metrics.json"))
+    return [json.loads(p.read_text(encoding="utf-8")) for p in paths if p.is_file()]
+
+
+def _verdict_line(doc: Mapping[str, Any]) -> str:
+    v = doc.get("verdict")
+    if not v:
+        return "no verdict (written by an older fdisyn)"
+    return f"{v['reproduced']} of {v['claims']} claims reproduced" if v["claims"] else "no claims stated"
+
+
+def write_index(reports: Path) -> Path:
+    """``reports/index.html``: every problem's page under ``reports`` with its one-line verdict."""
+    rows = []
+    for doc in _documents(reports):
+        name = doc["problem"]
+        title = (doc.get("verdict") or {}).get("title", name)
+        rows.append([f'<a href="{html.escape(name)}/index.html">{html.escape(name)}</a>', title, _verdict_line(doc)])
+    page = reports / "index.html"
+    page.write_text(
+        f"<!doctype html><html><head><meta charset='utf-8'><title>fdisyn — reports</title><style>{_CSS}</style></head><body>"
+        "<h1>fdisyn reports</h1><p>One page per reference problem: the paper's claims against ours first, then the "
+        "Monte Carlo metrics, figures, certificates and the checks of the generated C.</p>"
+        + table(["problem", "paper", "verdict"], rows, left=3)
+        + "</body></html>\n",
+        encoding="utf-8",
+    )
+    return page
+
+
+def summary_table(reports: Path, names: Sequence[str]) -> str:
+    """The end-of-``reproduce`` summary for the terminal: per problem and design, false alarms, missed detections,
+    delay, isolation and the claims reproduced (from each problem's ``metrics.json``)."""
+    header = ["problem", "design", "false alarms (per sample)", "missed detection", "delay (s)", "isolation", "claims reproduced"]
+    rows = []
+    for doc in _documents(reports, names):
+        v = doc.get("verdict") or {}
+        claims = f"{v['reproduced']}/{v['claims']}" if v.get("claims") else "—"
+        for k, r in enumerate(doc.get("summary", [])):
+            rows.append([doc["problem"] if k == 0 else "", r["design"], fmt(r["false_alarm_rate"]), fmt(r["missed_detection_rate"]),
+                         fmt(r["detection_delay_mean_s"]), fmt(r["isolation_accuracy"]), claims if k == 0 else ""])
+    widths = [max(len(str(c)) for c in col) for col in zip(header, *rows, strict=False)]
+    lines = ["  ".join(str(c).ljust(w) if i < 2 else str(c).rjust(w) for i, (c, w) in enumerate(zip(row, widths, strict=False))) for row in [header, *rows]]
+    lines.insert(1, "  ".join("-" * w for w in widths))
+    return "\n".join(lines)
 
 
 def timeline(ax: Any, t: np.ndarray, values: np.ndarray, labels: Sequence[str], *, threshold: float | None = None, log: bool = True) -> None:

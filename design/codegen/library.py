@@ -5,7 +5,8 @@
 * ``DIR/c/``: ``<prefix>_casadi.c`` (CasADi's code for the step),
   ``<prefix>.c`` / ``<prefix>.h`` (the malloc-free C API), ``replay.c``,
   ``bench.c`` and a ``CMakeLists.txt`` for users who build it themselves;
-* ``DIR/lib<prefix>.so``: the shared library (loaded by ctypes);
+* ``DIR/lib<prefix>.so`` (``.dylib`` on macOS, ``.dll`` on Windows:
+  :func:`fdisyn.runtime.compiled.library_suffix`): the shared library (loaded by ctypes);
 * ``DIR/replay``: the pure-C replay program.
 
 Everything is compiled with ``-std=c99 -O2 -Wall -Wextra -Werror -pedantic``
@@ -32,6 +33,7 @@ import re
 import shlex
 import shutil
 import subprocess
+import sys
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -41,7 +43,7 @@ import casadi as ca
 import fdisyn.runtime
 import numpy as np
 from fdisyn.codegen.step import step_function
-from fdisyn.runtime.compiled import write_manifest
+from fdisyn.runtime.compiled import library_path, write_manifest
 from fdisyn.runtime.errors import BuildError, GainFileError
 from fdisyn.runtime.gainfile import FORMAT, GainFile, check_limits, gain_file_sha256, read_gain_file
 from fdisyn.runtime.names import check_diagnoser_name
@@ -57,6 +59,7 @@ __all__ = [
     "compile_sources",
     "codegen",
     "compiler",
+    "shared_library_flags",
     "step_stack_bytes",
 ]
 
@@ -64,6 +67,19 @@ C_TEMPLATES = Path(fdisyn.runtime.__file__).parent / "c"
 """The C templates shipped with the runtime package."""
 
 CFLAGS = ("-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-pedantic")
+
+
+def shared_library_flags(platform: str | None = None) -> tuple[str, ...]:
+    """The compiler flags that make a shared library on ``platform`` (``sys.platform`` by default):
+    ``-dynamiclib`` on macOS, ``-shared`` elsewhere; position-independent code (``-fPIC``) except on
+    Windows, where all code is (MinGW warns about the flag, and ``-Werror`` would fail the build)."""
+    platform = sys.platform if platform is None else platform
+    if platform == "darwin":
+        return ("-fPIC", "-dynamiclib")
+    if platform in ("win32", "cygwin"):
+        return ("-shared",)
+    return ("-fPIC", "-shared")
+
 
 STACK_LIMIT_BYTES = 64 * 1024
 """Largest stack frame ``<prefix>_step`` may need (its work arrays and the copy
@@ -320,7 +336,8 @@ def _finish(proc: subprocess.Popen[str], argv: list[str], what: str) -> None:
 
 
 def compile_sources(gf: GainFile, c_dir: str | Path, out_dir: str | Path) -> tuple[Path, Path]:
-    """Compile ``lib<prefix>.so`` and the ``replay`` program; return their paths.
+    """Compile the shared library (:func:`~fdisyn.runtime.compiled.library_path`) and the ``replay`` program;
+    return their paths.
 
     Paths are made absolute, so a folder named like an option (``-o…``)
     never reaches the compiler as one. The library's build manifest (its
@@ -334,10 +351,10 @@ def compile_sources(gf: GainFile, c_dir: str | Path, out_dir: str | Path) -> tup
     check_diagnoser_name(gf.name, "name", error=GainFileError)
     c_dir, out_dir = Path(c_dir).absolute(), Path(out_dir).absolute()
     cc = compiler()
-    lib = out_dir / f"lib{gf.name}.so"
+    lib = library_path(out_dir, gf)
     replay = out_dir / "replay"
     wrapper = str(c_dir / f"{gf.name}.c")
-    lib_argv = [*cc, *CFLAGS, "-fPIC", "-shared", wrapper, "-o", str(lib), "-lm"]
+    lib_argv = [*cc, *CFLAGS, *shared_library_flags(), wrapper, "-o", str(lib), "-lm"]
     replay_argv = [*cc, *CFLAGS, str(c_dir / "replay.c"), wrapper, "-o", str(replay), "-lm"]
     started = [_start(lib_argv, str(lib))]
     try:

@@ -31,10 +31,10 @@ checked before it is loaded (:mod:`fdisyn.runtime.compiled`).
 from __future__ import annotations
 
 import ctypes
-import fcntl
 import hashlib
 import math
 import os
+import sys
 import tempfile
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -43,7 +43,17 @@ from typing import TYPE_CHECKING, Any
 
 import casadi as ca
 import numpy as np
-from fdisyn.codegen.library import CFLAGS, _c_double, _finish, _start, c_string_literal, compiler, fill_template, fresh_path
+from fdisyn.codegen.library import (
+    CFLAGS,
+    _c_double,
+    _finish,
+    _start,
+    c_string_literal,
+    compiler,
+    fill_template,
+    fresh_path,
+    shared_library_flags,
+)
 from fdisyn.evaluation.campaign import ChunkRuns, DesignRuns
 from fdisyn.evaluation.sampled_data_simulation import disturbance_factor
 from fdisyn.evaluation.simulate import SensorFaultSpec, Signal
@@ -52,10 +62,15 @@ from fdisyn.models.nonlinear import NonlinearPlant, noise_factor
 from fdisyn.models.problem import Batch, Problem, Scenario
 from fdisyn.models.sampled_data import SampledDataPlant
 from fdisyn.numerics.linalg import psd_factor
-from fdisyn.runtime.compiled import _check_before_loading, write_manifest
+from fdisyn.runtime.compiled import _check_before_loading, library_suffix, write_manifest
 from fdisyn.runtime.errors import ArgumentError, BuildError, ShapeError
 from fdisyn.runtime.gainfile import gain_file_sha256
 from fdisyn.runtime.names import check_diagnoser_name
+
+try:
+    import fcntl
+except ImportError:  # Windows: no advisory locks; concurrent builds of one library are not guarded there
+    fcntl = None  # type: ignore[assignment]
 
 if TYPE_CHECKING:
     from fdisyn.evaluation.evaluate import Built
@@ -441,10 +456,12 @@ def sampled_data_sample_model(
 
 # ----------------------------------------------------------------------------- the fused library
 
-LIBRARY_FLAGS = ("-fPIC", "-fno-semantic-interposition", "-shared")
-"""Beside :data:`fdisyn.codegen.library.CFLAGS`: calls between the library's own functions (a design's step and
-CasADi's helpers) are direct and may be inlined, as in a program (14 % fewer instructions per wind-turbine
-sample; the same arithmetic, so the steps stay bit for bit those of ``fdisyn codegen``'s library)."""
+LIBRARY_FLAGS = (*shared_library_flags(), *(("-fno-semantic-interposition",) if sys.platform.startswith("linux") else ()))
+"""Beside :data:`fdisyn.codegen.library.CFLAGS`: a shared library where calls between its own functions (a
+design's step and CasADi's helpers) are direct and may be inlined, as in a program (on Linux: 14 % fewer
+instructions per wind-turbine sample; the same arithmetic, so the steps stay bit for bit those of ``fdisyn
+codegen``'s library)."""
+LIBRARY = f"libfdisyn_campaign{library_suffix()}"
 
 _U64 = ctypes.POINTER(ctypes.c_uint64)
 _D = ctypes.POINTER(ctypes.c_double)
@@ -632,10 +649,11 @@ def build_library(model: SampleModel, built: Mapping[str, Built], directory: Pat
     key = _key([sim_c, TEMPLATE.read_bytes(), " ".join([*compiler(), *CFLAGS, *LIBRARY_FLAGS]).encode()]
                + [gain_file_sha256(b.gain_file).encode() for b in built.values()] + [p.read_bytes() for p in design_files])
     out = directory / key[:16]
-    lib = out / "libfdisyn_campaign.so"
+    lib = out / LIBRARY
     out.mkdir(exist_ok=True)
     with (out / ".lock").open("a") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)  # processes building the same library wait for the first one's
+        if fcntl is not None:  # processes building the same library wait for the first one's
+            fcntl.flock(lock, fcntl.LOCK_EX)
         try:
             _check_before_loading(lib, key)
         except BuildError:
@@ -644,7 +662,7 @@ def build_library(model: SampleModel, built: Mapping[str, Built], directory: Pat
 
 
 def _compile(model: SampleModel, built: Mapping[str, Built], prefixes: Sequence[str], out: Path, key: str) -> None:
-    lib = out / "libfdisyn_campaign.so"
+    lib = out / LIBRARY
     c_dir = out / "c"
     c_dir.mkdir(parents=True, exist_ok=True)
     _sim_source(model, c_dir)
@@ -664,7 +682,7 @@ def _compile(model: SampleModel, built: Mapping[str, Built], prefixes: Sequence[
     source.write_text(fill_template(TEMPLATE.read_text(encoding="utf-8"), subs, TEMPLATE.name), encoding="utf-8")
     includes = sorted({f"-I{Path(b.artifacts.c_dir).absolute()}" for b in built.values()})
     wrappers = [str(Path(b.artifacts.c_dir).absolute() / f"{b.gain_file.name}.c") for b in built.values()]
-    tmp = fresh_path(out / "libfdisyn_campaign.so.part")
+    tmp = fresh_path(out / f"{LIBRARY}.part")
     argv = [*compiler(), *CFLAGS, *LIBRARY_FLAGS, f"-I{c_dir.absolute()}", *includes, str(source.absolute()), *wrappers,
             "-o", str(tmp.absolute()), "-lm"]
     _finish(_start(argv, str(lib)), argv, str(lib))

@@ -1,44 +1,7 @@
 """FDI performance metrics over Monte Carlo runs of one scenario.
 
-Definitions (per scenario, over ``R`` runs of ``N`` samples):
-
-false-alarm rate
-    fraction of fault-free samples with ``alarm = 1``. Fault-free samples are
-    those before the fault and those more than ``recovery`` samples after it
-    ends (the residual generator needs that long to forget the fault).
-false-alarm runs
-    fraction of runs with at least one false alarm.
-missed-detection rate
-    fraction of runs with no alarm while the fault is active.
-missed-alarm fraction
-    fraction of fault-active samples without alarm.
-detection delay
-    first alarm at or after the fault onset, minus the onset (runs that
-    detected only); mean, median and max, in samples and seconds.
-isolation accuracy
-    fraction of runs whose most frequent isolation decision (``isolated ≥ 0``)
-    while the fault is active names the true fault; runs that never isolate
-    count as wrong. ``false isolation``: the fraction of runs whose most
-    frequent decision names another fault (a run that never isolates is not
-    counted: detected, not isolated). ``first isolation accuracy``: the same for the first
-    decision (harsh for multi-sensor faults, whose pattern builds up over a
-    few samples). ``sample isolation accuracy``: among fault-active samples
-    with an alarm, the fraction with the true fault isolated.
-statistic exceedance
-    per statistic, the fraction of fault-free samples with ``J > threshold``
-    (to compare with its ``P_f``), with a two-sided 99.9 % binomial interval.
-mean time between false alarms
-    fault-free time (all runs) divided by the number of false-alarm episodes
-    (an episode starts at a fault-free sample that alarms after one that did
-    not), with Garwood's exact 95 % Poisson interval on the count; beside the
-    design's budget ``arl0`` (or, for a design by ``P_f``, the budget it implies,
-    ``Ts / Σ_j P_f,j``).
-Lorden bound and delay ratio
-    ``ln(ARL_j) / I_j`` samples, the smallest over the statistics ``j``, with
-    ``ARL_j`` statistic ``j``'s share of the budget and ``I_j`` the
-    Kullback–Leibler information per sample the fault brings to its
-    generator's residual (Lorden, Annals of Mathematical Statistics 42(6),
-    1971); the ratio is the measured mean delay over it.
+Definitions (per scenario, over ``R`` runs of ``N`` samples): :data:`DEFINITIONS`,
+appended below, which the reports render in their "Definitions" section.
 """
 
 from __future__ import annotations
@@ -50,7 +13,59 @@ from typing import Any
 import numpy as np
 import scipy.stats
 
-__all__ = ["ScenarioMetrics", "scenario_metrics", "binomial_interval", "poisson_time_interval"]
+__all__ = ["DEFINITIONS", "ScenarioMetrics", "scenario_metrics", "binomial_interval", "poisson_time_interval"]
+
+
+DEFINITIONS: dict[str, str] = {
+    "false-alarm rate": (
+        "fraction of fault-free samples with alarm = 1. Fault-free samples are those before the fault and those more "
+        "than recovery samples after it ends (the residual generator needs that long to forget the fault)."
+    ),
+    "false-alarm runs": "fraction of runs with at least one false alarm.",
+    "missed detection": "fraction of runs with no alarm while the fault is active.",
+    "missed-alarm fraction": "fraction of fault-active samples without alarm.",
+    "detection delay": (
+        "first alarm at or after the fault onset, minus the onset (runs that detected only); mean, median and max, "
+        "in samples and seconds."
+    ),
+    "isolation accuracy": (
+        "fraction of runs whose most frequent isolation decision (isolated ≥ 0) while the fault is active names the "
+        "true fault; runs that never isolate count as wrong."
+    ),
+    "false isolation": (
+        "fraction of runs whose most frequent decision names another fault (a run that never isolates is not counted: "
+        "detected, not isolated)."
+    ),
+    "first isolation accuracy": (
+        "the isolation accuracy of the first decision (harsh for multi-sensor faults, whose pattern builds up over a "
+        "few samples)."
+    ),
+    "sample isolation accuracy": "among fault-active samples with an alarm, the fraction with the true fault isolated.",
+    "statistic exceedance": (
+        "per statistic, the fraction of fault-free samples with J > threshold (to compare with its P_f), with a "
+        "two-sided 99.9 % binomial interval for independent samples."
+    ),
+    "mean time between false alarms": (
+        "fault-free time (all runs) divided by the number of false-alarm episodes (an episode starts at a fault-free "
+        "sample that alarms after one that did not), with Garwood's exact 95 % Poisson interval on the count."
+    ),
+    "budget": (
+        "the false-alarm time the design was made for: its arl0, or for a design by P_f the budget it implies, "
+        "Ts / Σ_j P_f,j."
+    ),
+    "Lorden bound": (
+        "ln(ARL_j) / I_j samples, the smallest over the statistics j, with ARL_j statistic j's share of the budget and "
+        "I_j the Kullback–Leibler information per sample the fault brings to its generator's residual (Lorden, Annals "
+        "of Mathematical Statistics 42(6), 1971): no detector with that budget is faster on average for a persistent "
+        "change."
+    ),
+    "delay ratio": "the measured mean detection delay over the Lorden bound (the goal is ≤ 1.2).",
+    "non-finite samples": "samples whose inputs or outputs held NaN or ±inf; the diagnoser skips them and counts them.",
+}
+"""The metrics' definitions, by the name the reports' column headers link to (one source: this module's docstring
+and the reports' "Definitions" section both render it)."""
+
+__doc__ = (__doc__ or "") + "\n" + "\n".join(f"{name}\n    {text}" for name, text in DEFINITIONS.items())
 
 
 def binomial_interval(n: int, p: float, *, alpha: float = 1e-3) -> tuple[int, int]:

@@ -23,7 +23,7 @@ from fdisyn.runtime.names import shown
 from fdisyn.runtime.trace import Trace
 from fdisyn.synthesis.registry import check_option
 
-__all__ = ["Scenario", "Batch", "Problem", "get_problem", "problem_names"]
+__all__ = ["Scenario", "Batch", "Problem", "get_problem", "problem_names", "scaled_scenario"]
 
 
 @dataclass(frozen=True)
@@ -126,6 +126,18 @@ class Problem:
     :class:`~fdisyn.evaluation.compiled_simulation.SampleModel` whose runs match
     :attr:`simulate`'s given the same standard-normal draws; ``None``: the runs
     stay on the Python path."""
+    claims: Callable[..., Sequence[Any]] | None = None
+    """The paper's claims against ours, the table each report page opens with: ``claims(ctx)`` with ``ctx`` the
+    :class:`fdisyn.app.report.ReportContext`, returning :class:`fdisyn.app.report.Claim` rows."""
+    labels: Mapping[str, str] = field(default_factory=dict)
+    """Readable physical names with units of internal names (signals, statistics, faults, designs), e.g.
+    ``"omega_g_m1": "generator speed ω_g,m1 (rad/s)"``: what the report shows (:func:`fdisyn.app.report.label`)."""
+    model: Callable[..., Any] | None = None
+    """``model(**options)``: the design model (a ``LinearPlant`` or ``SampledDataPlant``) for the residuals' frequency
+    responses and the plant's poles in the report; ``None`` for nonlinear problems."""
+    scaled: Callable[[Scenario, float], Scenario | None] | None = None
+    """``scaled(scenario, k)``: the scenario with its fault ``k`` times as large, for the report's fault-size sweep
+    (``None`` from the hook: this scenario's fault has no size). Default: :func:`scaled_scenario`."""
 
     def design(self, name: str | None = None, **options: Any) -> GainFile:
         key = name or self.default_design
@@ -155,6 +167,39 @@ class Problem:
             raise ArgumentError(f"problem {self.name!r} has no option(s) {unknown}; options: {dict(self.options)}")
         checked = {k: check_option(k, v, self.options[k], f"problem {self.name!r}") for k, v in options.items()}
         return {**self.options, **checked}
+
+
+def scaled_scenario(scenario: Scenario, k: float) -> Scenario | None:
+    """``scenario`` with its fault ``k`` times as large; ``None`` when its size is not known.
+
+    A ``size`` parameter is multiplied by ``k``; ``sensor_faults`` ``(sensor, kind, value)`` entries scale an
+    offset's or a drift's value and a gain's deviation from 1 (a stuck sensor's value is no size: ``None``).
+    """
+    from dataclasses import replace
+
+    if scenario.fault is None:
+        return None
+    params = dict(scenario.params)
+    if str(params.get("kind", "bias")).split("_")[0] not in ("bias", "offset", "drift"):  # stuck, open circuit: no size
+        return None
+    if isinstance(params.get("size"), (int, float)):
+        params["size"] = params["size"] * k
+    elif params.get("sensor_faults"):
+        faults: list[Any] = []
+        for spec in params["sensor_faults"]:
+            # (sensor, kind, value) tuples, or specs with those fields (plant files)
+            sensor, kind, value = spec if isinstance(spec, (tuple, list)) else (spec.sensor, spec.kind, spec.value)
+            if kind == "gain":
+                value = 1.0 + k * (value - 1.0)
+            elif kind.startswith("offset") or kind.startswith("drift"):
+                value = k * value
+            else:
+                return None
+            faults.append((sensor, kind, value) if isinstance(spec, (tuple, list)) else replace(spec, value=value))
+        params["sensor_faults"] = faults
+    else:
+        return None
+    return replace(scenario, name=f"{scenario.name}_x{k:g}", description=f"{scenario.description} Fault scaled by {k:g}.", params=params)
 
 
 def problem_names() -> list[str]:

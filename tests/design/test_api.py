@@ -9,15 +9,17 @@ import control
 import fdisyn
 import numpy as np
 import pytest
+from fdisyn.app.examples import EXAMPLES
 from fdisyn.app.plant_file import load_spec
+from fdisyn.runtime.compiled import library_suffix
 from fdisyn.runtime.errors import ArgumentError, BuildError, ExistenceError, FileError, GainFileError, ShapeError
 from fdisyn.runtime.gainfile import read_gain_file, write_gain_file
 from fdisyn.runtime.reference import LinearReference
 from fdisyn.synthesis.uio import kalman_uio
 
-DATA = Path(__file__).parents[1] / "data"
+DATA = EXAMPLES
 
-# The README's DC motor (tests/data/dc_motor.toml): states current, speed, angle; load torque unknown
+# The README's DC motor (the example dc_motor): states current, speed, angle; load torque unknown
 A = np.array([[-100.0, -5.0, 0.0], [50.0, -0.1, 0.0], [0.0, 1.0, 0.0]])
 B = np.array([[100.0], [0.0], [0.0]])
 E = np.array([[0.0], [-1000.0], [0.0]])
@@ -71,7 +73,7 @@ def test_load_and_export_refuse_with_the_error_classes(motor, tmp_path) -> None:
     with pytest.raises(FileError, match="no gain file at"):  # a missing file
         fdisyn.load(tmp_path / "nowhere")
     write_gain_file(gf, tmp_path / "only" / "gains.json")
-    with pytest.raises(BuildError, match=r"no compiled diagnoser at .*libdc_motor_kalman_uio.so; run `fdisyn codegen`"):
+    with pytest.raises(BuildError, match=rf"no compiled diagnoser at .*libdc_motor_kalman_uio{library_suffix()}; run `fdisyn codegen`"):
         fdisyn.load(tmp_path / "only")
     assert fdisyn.load(tmp_path / "only", backend="reference").backend == "reference"
     with pytest.raises(ArgumentError, match="backend must be"):

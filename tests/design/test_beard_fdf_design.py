@@ -1,4 +1,4 @@
-"""The Beard filter designed from a plant file (``tests/data/beard_textbook.toml``): the detection spaces against
+"""The Beard filter designed from a plant file (the example ``beard_textbook``): the detection spaces against
 their closed form (Massoumnia, IEEE TAC 31(9), 1986: ``dim T = ν + z``), the assigned spectrum, Beard's invariance
 in a noise-free simulation of the plant and the filter, the robust cones (He, Zhang & Wu, Journal of Astronautics,
 c. 1999), the Monte Carlo, and the errors a plant file can make."""
@@ -14,6 +14,7 @@ import control
 import numpy as np
 import pytest
 from fdisyn.app.cli import main
+from fdisyn.app.examples import EXAMPLES
 from fdisyn.app.plant_file import load_spec, problem_from_document
 from fdisyn.evaluation.evaluate import build, evaluate
 from fdisyn.models.linear import LinearPlant
@@ -25,7 +26,7 @@ from fdisyn.synthesis.beard_fdf.reference import beard_reference_run
 from fdisyn.synthesis.registry import get_method
 
 ROOT = Path(__file__).parents[2]
-TEXTBOOK = ROOT / "tests" / "data" / "beard_textbook.toml"
+TEXTBOOK = EXAMPLES / "beard_textbook.toml"
 DOC = tomllib.loads(TEXTBOOK.read_text(encoding="utf-8"))
 TS = DOC["model"]["Ts"]
 

@@ -5,15 +5,16 @@ from __future__ import annotations
 import argparse
 import json
 import subprocess
-from pathlib import Path
 
 import fdisyn
 import numpy as np
 import pytest
 from fdisyn.app.cli import _parser, main
+from fdisyn.app.examples import EXAMPLES
+from fdisyn.runtime.compiled import library_suffix
 from fdisyn.runtime.gainfile import read_gain_file
 
-DATA = Path(__file__).parents[1] / "data"
+DATA = EXAMPLES
 
 
 def test_built_in_problem_design_codegen_simulate_replay(tmp_path, capsys):
@@ -22,7 +23,7 @@ def test_built_in_problem_design_codegen_simulate_replay(tmp_path, capsys):
     gf = read_gain_file(d / "gains.json")
     assert gf.name == "wind_turbine_kalman_uio" and gf.design == "kalman_uio"
     assert main(["codegen", str(d)]) == 0
-    for rel in ("c/wind_turbine_kalman_uio.h", "c/wind_turbine_kalman_uio.c", "c/replay.c", "libwind_turbine_kalman_uio.so", "replay"):
+    for rel in ("c/wind_turbine_kalman_uio.h", "c/wind_turbine_kalman_uio.c", "c/replay.c", f"libwind_turbine_kalman_uio{library_suffix()}", "replay"):
         assert (d / rel).exists(), rel
     trace = tmp_path / "trace.csv"
     assert main(["simulate", "wind_turbine", "--scenario", "benchmark_stuck", "--seed", "7", "--out", str(trace)]) == 0

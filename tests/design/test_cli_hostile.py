@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from fdisyn.app.cli import main
+from fdisyn.app.examples import EXAMPLES
 from fdisyn.app.plant_file import load_spec
 from fdisyn.evaluation.evaluate import MONTE_CARLO_MEMORY
 from fdisyn.runtime.errors import (
@@ -31,7 +32,7 @@ from fdisyn.runtime.errors import (
 )
 from fdisyn.runtime.gainfile import read_gain_file
 
-DATA = Path(__file__).parents[1] / "data"
+DATA = EXAMPLES
 MOTOR = (DATA / "dc_motor.toml").read_text(encoding="utf-8")
 SAMPLED = (DATA / "sampled_data.toml").read_text(encoding="utf-8")
 SHIP = (DATA / "ship.toml").read_text(encoding="utf-8")

@@ -13,15 +13,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 import scipy.stats
+from fdisyn.app.examples import EXAMPLES
 from fdisyn.app.plant_file import load_spec, problem_from_document
 from fdisyn.evaluation.compiled_simulation import CompiledCampaign, SampleModel, compiled_campaign, linear_sample_model
 from fdisyn.evaluation.simulate import SensorFaultSpec, Signal, simulate_linear
 from fdisyn.models.linear import LinearPlant
 from fdisyn.models.problem import Scenario, get_problem
 from fdisyn.problems.wind_turbine import PROBLEM as WT
+from fdisyn.runtime.compiled import manifest_path
 from fdisyn.runtime.errors import ArgumentError, ShapeError
 
-DATA = Path(__file__).parents[1] / "data"
+DATA = EXAMPLES
 
 TOLERANCE = 1e-11
 """Compiled against Python simulation on the same draws, relative to each signal's largest magnitude: the two
@@ -150,7 +152,7 @@ def test_a_changed_library_is_rebuilt_not_loaded(wt_built, wt_campaign, tmp_path
 
     copy = tmp_path / lib.name
     copy.write_bytes(lib.read_bytes() + b"\0")
-    (tmp_path / lib.with_suffix(".manifest.json").name).write_bytes(lib.with_suffix(".manifest.json").read_bytes())
+    manifest_path(copy).write_bytes(manifest_path(lib).read_bytes())
     with pytest.raises(BuildError, match="not the library"):
         CompiledCampaign(replace(wt_campaign.spec, library=copy))
 

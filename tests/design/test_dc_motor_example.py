@@ -1,4 +1,4 @@
-"""The README's plant-file example (``tests/data/dc_motor.toml``) is a good one: the file the
+"""The README's plant-file example (the example ``dc_motor``) is a good one: the file the
 README shows, fault-free runs that alarm at the rate ``P_f`` promises (from the first sample
 on), and a speed-sensor offset detected and isolated in every run."""
 
@@ -9,12 +9,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from fdisyn.app.examples import EXAMPLES
 from fdisyn.app.plant_file import load_spec
 from fdisyn.evaluation.evaluate import evaluate
 from fdisyn.evaluation.metrics import binomial_interval
 
 ROOT = Path(__file__).parents[2]
-EXAMPLE = ROOT / "tests" / "data" / "dc_motor.toml"
+EXAMPLE = EXAMPLES / "dc_motor.toml"
 RUNS = 20
 
 

@@ -14,13 +14,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 from fdisyn.app.cli import main
+from fdisyn.app.examples import EXAMPLES
 from fdisyn.app.plant_file import problem_from_document
 from fdisyn.models.linear import LinearPlant
 from fdisyn.models.nonlinear import NonlinearPlant
 from fdisyn.runtime.errors import ArgumentError, SpecError, TraceError
 from fdisyn.runtime.trace import Trace
 
-DATA = Path(__file__).parents[1] / "data"
+DATA = EXAMPLES
 MOTOR = tomllib.loads((DATA / "dc_motor.toml").read_text())
 SHIP = tomllib.loads((DATA / "ship.toml").read_text())
 HOSTILE = 'x", 0}; __attribute__((constructor)) static void pwn(void){} static const char *y[] = {"'

@@ -40,7 +40,7 @@ def test_the_readme_example_runs(tmp_path, monkeypatch) -> None:
     assert isinstance(gf, fdisyn.GainFile) and gf.certificate["passed"] is True
     assert isinstance(mon, fdisyn.Monitor) and mon.backend == "compiled"
     assert plant.inputs == ("v",) and plant.unknown_inputs == ("load",) and plant.outputs == ("i", "w", "th") and plant.Ts == 0.001
-    assert (tmp_path / "build" / "motor" / "gains.json").is_file() and (tmp_path / "build" / "motor" / "replay").is_file()
+    assert (tmp_path / "motor" / "gains.json").is_file() and (tmp_path / "motor" / "replay").is_file()
     v = mon.update(np.array([0.4]), np.array([0.4, 0.0, 0.0]))  # the motor at rest holding the load: no alarm
     assert v.alarm is False and v.fault is None
     g = gf.generators[0].to_control()

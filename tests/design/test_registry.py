@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from fdisyn.app.cli import main
+from fdisyn.app.examples import EXAMPLES
 from fdisyn.app.plant_file import load_spec, problem_from_document
 from fdisyn.codegen.step import step_function
 from fdisyn.models.linear import LinearPlant
@@ -20,7 +21,7 @@ from fdisyn.synthesis import registry
 from fdisyn.synthesis.registry import REQUIRED, Method
 
 README = Path(__file__).parents[2] / "README.md"
-DATA = Path(__file__).parents[1] / "data"
+DATA = EXAMPLES
 
 
 def _cell(text: str) -> str:

@@ -7,6 +7,7 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 from fdisyn.app.report import ReportContext, subplots, timeline
 
 
@@ -47,3 +48,107 @@ def test_the_detector_comparison_names_the_detectors_it_compares() -> None:
         "Automatic Control 21(1), 1976)"
     )
     assert _compared_detectors(variants("wssr", "cusum")) == "WSSR (Long & Wang, Aeroengine 43(5), 2017, section 2) and CUSUM (Page, Biometrika 41(1/2), 1954)"
+
+
+def test_fmt_one_number_format() -> None:
+    from fdisyn.app.report import fmt
+
+    assert fmt(None) == "—"
+    assert fmt(0.0) == "0" and fmt(0) == "0" and fmt(True) == "yes"
+    assert fmt(12) == "12" and fmt(-3) == "−3" and fmt(np.int64(99999)) == "99999"
+    assert fmt(0.5) == "0.5" and fmt(1.0) == "1" and fmt(2.0 / 3.0) == "0.6667"
+    assert fmt(34480.4) == "34480" and fmt(12.3456) == "12.35" and fmt(0.0012345) == "0.001234"
+    assert fmt(123456.0) == "1.235·10⁵" and fmt(3.45e4, 3) == "34500" and fmt(345000, 3) == "3.45·10⁵"
+    assert fmt(2.5e-4) == "2.5·10⁻⁴" and fmt(-7.97e-17, 3) == "−7.97·10⁻¹⁷"
+    assert fmt(99999.6) == "1·10⁵" and fmt(0.00099996) == "0.001"  # decided after rounding
+    assert fmt(float("nan")) == "NaN" and fmt(float("inf")) == "∞" and fmt(-float("inf")) == "−∞"
+    assert fmt(3.45e5, 3, interval=(2.4e5, 4.9e5)) == "3.45·10⁵ [2.4·10⁵, 4.9·10⁵]"
+    assert fmt(120.0, interval=(80.0, None)) == "120 [80, —]"
+
+
+def test_a_claim_that_differs_says_why() -> None:
+    import pytest
+    from fdisyn.app.report import Claim, _verdict_section
+
+    with pytest.raises(ValueError, match="say why"):
+        Claim(claim="X detects at once (A, B 1(2), 2000, fig. 2)", paper="at once", ours="3 s", verdict="differs")
+    with pytest.raises(ValueError, match="reproduced"):
+        Claim(claim="X", paper="1", ours="1", verdict="yes")
+    claims = [
+        Claim(claim="X detects at once", paper="at once", ours="1 s", verdict="reproduced"),
+        Claim(claim="Y never detects", paper="never", ours="1 s", verdict="differs", why="Its threshold did not match its residual."),
+    ]
+    page = _verdict_section(claims)
+    assert "1 of 2 claims reproduced" in page and "differs" in page and "Its threshold did not match its residual." in page
+
+
+def test_labels_map_internal_names() -> None:
+    from types import SimpleNamespace
+
+    from fdisyn.app.report import label
+
+    prob = SimpleNamespace(labels={"omega_g_m1": "generator speed ω_g,m1 (rad/s)"})
+    assert label(prob, "omega_g_m1") == "generator speed ω_g,m1 (rad/s)"  # type: ignore[arg-type]
+    assert label(prob, "other") == "other" and label(None, "x") == "x"  # type: ignore[arg-type]
+
+
+def test_every_definition_is_in_the_metrics_docstring() -> None:
+    import fdisyn.evaluation.metrics as metrics
+
+    for name, text in metrics.DEFINITIONS.items():
+        assert f"{name}\n    {text}" in (metrics.__doc__ or "")
+
+
+@pytest.fixture(scope="module")
+def two_reports(tmp_path_factory):
+    """The main job on the sampled-data example (main variant, two runs), twice, into two folders."""
+    from fdisyn.app.pipeline import reproduce_problem
+    from fdisyn.models.problem import get_problem
+
+    root = tmp_path_factory.mktemp("reports")
+    prob = get_problem("sampled_data_example")
+    pages = [reproduce_problem(prob, runs=2, reports=root / k, workdir=root / f"work{k}", variants=["default"]) for k in ("a", "b")]
+    return pages
+
+
+def test_two_writes_are_identical(two_reports) -> None:
+    a, b = (p.parent for p in two_reports)
+    files = sorted(str(f.relative_to(a)) for f in a.rglob("*") if f.is_file())
+    assert files == sorted(str(f.relative_to(b)) for f in b.rglob("*") if f.is_file())
+    assert "index.html" in files and "metrics.json" in files and any(f.endswith(".png") for f in files)
+    for f in files:
+        assert (a / f).read_bytes() == (b / f).read_bytes(), f
+    assert (a.parent / "index.html").read_bytes() == (b.parent / "index.html").read_bytes()
+
+
+def test_the_page_opens_with_the_verdict_and_its_contents_resolve(two_reports) -> None:
+    import re
+
+    text = two_reports[0].read_text()
+    assert text.index('id="verdict"') < text.index('id="contents"') < text.index('id="detection-at-a-glance"')
+    ids = set(re.findall(r'id="([^"]+)"', text))
+    targets = re.findall(r'href="#([^"]+)"', text)
+    assert targets and all(t in ids for t in targets)
+    toc = text[text.index('id="contents"') : text.index("</nav>")]
+    assert {"definitions", "certificates", "isolation", "generator-poles"} <= set(re.findall(r'href="#([^"]+)"', toc))
+    assert "claims reproduced" in text
+    for png in re.findall(r'src="([^"]+)"', text):
+        assert (two_reports[0].parent / png).is_file()
+
+
+def test_the_index_links_every_page(two_reports) -> None:
+    import re
+
+    index = two_reports[0].parent.parent / "index.html"
+    links = re.findall(r'href="([^"]+)"', index.read_text())
+    assert links == ["sampled_data_example/index.html"]
+    assert all((index.parent / link).is_file() for link in links)
+    assert "3 of 7 claims reproduced" in index.read_text()
+
+
+def test_the_summary_table_names_every_design(two_reports) -> None:
+    from fdisyn.app.report import summary_table
+
+    text = summary_table(two_reports[0].parent.parent, ["sampled_data_example"])
+    assert text.splitlines()[0].split()[:2] == ["problem", "design"]
+    assert all(d in text for d in ("direct", "indirect", "lmi")) and "3/7" in text

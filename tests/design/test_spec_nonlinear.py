@@ -2,7 +2,7 @@
 (Shanghai Jiao Tong University, c. 1991).
 
 The truth for the TOML route is the built-in ``ship_propulsion`` problem:
-``tests/data/ship.toml`` writes the same plant, the same settings and the
+The example ``ship.toml`` writes the same plant, the same settings and the
 same input, so the design must be the same step function and the simulator
 the same data, to the bit.
 """
@@ -17,6 +17,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 from fdisyn.app.cli import main
+from fdisyn.app.examples import EXAMPLES
 from fdisyn.app.plant_file import load_spec, problem_from_document
 from fdisyn.evaluation.simulate import Signal
 from fdisyn.problems import ship_propulsion as sp
@@ -24,7 +25,7 @@ from fdisyn.runtime.errors import FdisynError, SpecError
 from fdisyn.runtime.gainfile import read_gain_file
 from fdisyn.synthesis.nafdf.design import nafdf_extra_metrics
 
-DATA = Path(__file__).parents[1] / "data"
+DATA = EXAMPLES
 SHIP = DATA / "ship.toml"
 
 

@@ -3,12 +3,11 @@ designs, the χ² law, detection, C export, the TOML route."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 import scipy.stats
 from fdisyn.app.cli import main
+from fdisyn.app.examples import EXAMPLES
 from fdisyn.app.pipeline import EXPORT_TOL, check_export, export_trace
 from fdisyn.evaluation.evaluate import build
 from fdisyn.evaluation.metrics import binomial_interval
@@ -17,7 +16,7 @@ from fdisyn.runtime.gainfile import read_gain_file
 
 from tests.helpers import check_values, coupling_markov
 
-DATA = Path(__file__).parents[1] / "data"
+DATA = EXAMPLES
 
 
 @pytest.fixture(scope="module")
@@ -100,3 +99,26 @@ def test_toml_refuses_two_names_for_one_matrix(tmp_path, capsys):
     spec.write_text(text)
     assert main(["design", str(spec), "--out", str(tmp_path / "d")]) == 2
     assert "gives both 'h' and 'Ts'" in capsys.readouterr().err
+
+
+def test_labels_name_what_the_gain_files_name(built):
+    for name, b in built.items():
+        gf = b.gain_file
+        names = {name, *gf.inputs, *gf.outputs, *gf.faults, *gf.step.residual_names, *gf.step.statistic_names}
+        assert not sorted(names - set(PROBLEM.labels)), name
+
+
+def test_claims_say_why_the_indirect_design_detects_what_the_paper_says_it_cannot():
+    from tests.helpers import check_claims, claims_context, scenario_metrics
+
+    found = scenario_metrics("paper", "f", missed_detection_rate=0.0, detection_delay_mean_s=1.0)
+    ctx = claims_context(PROBLEM, [{"label": "default", "metrics": {"direct": {"paper": found}, "indirect": {"paper": found}}}])
+    claims = PROBLEM.claims(ctx)
+    check_claims(claims)
+    verdicts = {c.claim.split(" (")[0]: c.verdict for c in claims}
+    assert verdicts["The direct design detects the fault of 10 at 60 s"] == "reproduced"
+    assert verdicts["The indirect design cannot detect the fault of 10 at 60 s"] == "differs"
+    assert verdicts["Designing on the sampled-data system beats discretising first"] == "reproduced"
+    assert verdicts["Optimal observer gain E of the direct design"] == "reproduced"  # the paper's "H"
+    assert verdicts["Optimal observer gain L of the direct design"] == "differs"  # L[0,0] = e⁻¹ printed 0.38
+    assert PROBLEM.model() is not None and PROBLEM.model().Ts == 1.0

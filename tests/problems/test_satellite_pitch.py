@@ -201,3 +201,11 @@ def test_scenarios_and_the_fault_size_sweep() -> None:
     for bad in ("wheel", "array_drive"):
         with pytest.raises(ArgumentError):
             sp.fault_scenario(bad, 1.5)
+
+
+def test_labels_name_the_signals_faults_and_designs():
+    plant = sp.design_model()
+    names = {*plant.inputs, *plant.outputs, *sp.FAULTS, *sp.PROBLEM.designs, "rho", "rms"}
+    names |= {f"eps_{o}" for o in plant.outputs} | {f"{k}_{f}" for k in ("angle", "cone") for f in sp.FAULTS}
+    assert not sorted(names - set(sp.PROBLEM.labels))
+    assert sp.PROBLEM.model().outputs == plant.outputs

@@ -143,3 +143,25 @@ def test_small_monte_carlo_through_the_compiled_step(ship_built):
     assert paper.isolation_accuracy >= 0.9 and paper.first_isolation_accuracy >= 0.9
     assert healthy.extra["runs with an isolation"] == 0.0
     assert abs(paper.extra["size error a: mean"]) < 0.02  # true Δa = 0.29; the converged â spreads by ~0.02
+
+
+def test_labels_name_what_the_gain_file_names(ship_built):
+    from fdisyn.problems.ship_propulsion import PROBLEM
+
+    gf = ship_built.gain_file
+    names = {*gf.inputs, *gf.outputs, *gf.faults, *gf.step.residual_names, *gf.step.statistic_names, *PROBLEM.designs}
+    assert not sorted(names - set(PROBLEM.labels))
+
+
+def test_claims_of_the_paper_fault_and_the_threshold():
+    from fdisyn.problems.ship_propulsion import PROBLEM
+
+    from tests.helpers import check_claims, claims_context, scenario_metrics
+
+    paper = scenario_metrics("paper_a_half", "a", detection_delay_mean_s=8.6, detection_delay_max_s=11.0, isolation_accuracy=1.0,
+                             extra={"isolation delay median (samples)": 126.0, "size error a: mean": 0.002, "size error a: sd": 0.017})
+    ff = scenario_metrics("fault_free", mean_time_between_false_alarms_s=33333.0, false_alarm_episodes=60)
+    claims = PROBLEM.claims(claims_context(PROBLEM, [{"label": "default", "metrics": {"nafdf": {"paper_a_half": paper, "fault_free": ff}}}]))
+    check_claims(claims)
+    verdicts = [c.verdict for c in claims]
+    assert verdicts == ["reproduced", "reproduced", "differs", "reproduced", "differs"]  # detection, isolation, when, size, β0

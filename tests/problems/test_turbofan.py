@@ -203,3 +203,26 @@ def test_the_glr_of_the_grouped_bank_exceeds_the_step_limits(grouped) -> None:  
     assert fp.coefficients - fp.per_onset_coefficients * fp.window == step_coefficients(gf.generators, gf.evaluators)
     assert fp.onsets_within("coefficients") == 1 < fp.onsets_within("nstate") == tf.GLR_AT_STATE_LIMIT["window"]
     assert min(fp.lorden_samples) > 25
+
+
+def test_labels_name_what_the_gain_file_names(grouped) -> None:  # noqa: ANN001
+    gd, _ = grouped
+    gf = gd.gain_file
+    names = {*gf.inputs, *gf.outputs, *gf.faults, *gf.step.residual_names, *gf.step.statistic_names, *(g.name for g in gf.generators)}
+    assert not sorted(names - set(tf.PROBLEM.labels))
+    assert set(tf.PROBLEM.designs) <= set(tf.PROBLEM.labels)
+
+
+def test_claims_of_the_structure_and_the_grouping() -> None:
+    from tests.helpers import check_claims, claims_context, scenario_metrics
+
+    faulty = {f"{s}_{k}": scenario_metrics(f"{s}_{k}", s, detection_delay_mean_s=0.5, isolation_accuracy=1.0)
+              for s in tf.OUTPUTS for k in tf.FAULT_KINDS}
+    faulty["T42_bias"] = scenario_metrics("T42_bias", "T42", detection_delay_mean_s=0.5, isolation_accuracy=0.1)
+    faulty["P3_open_circuit"] = scenario_metrics("P3_open_circuit", "P3", detection_delay_mean_s=0.1, isolation_accuracy=1.0)
+    ff = scenario_metrics("fault_free", false_alarm_runs=0.02)
+    metrics = {d: {**faulty, "fault_free": ff} for d in ("grouped", "ungrouped")}
+    claims = tf.PROBLEM.claims(claims_context(tf.PROBLEM, [{"label": "default", "metrics": metrics}]))
+    check_claims(claims)
+    assert [c.verdict for c in claims] == ["reproduced", "reproduced", "reproduced", "differs", "differs"]
+    assert "T42" in claims[3].ours and "T5" in claims[3].why

@@ -63,3 +63,15 @@ def test_eta_sensitivity_is_automatic_differentiation() -> None:
     # the difference's round-off is eps·|f_i|/h: 3e-8 on ω_g (|f| = 152, entry 0.4 → rtol 1e-6) and
     # 4e-10 on ω_r (|f| = 1.6, entry 3.5e-6 → atol 1e-9)
     np.testing.assert_allclose(lin["F_theta"].reshape(-1), fd, rtol=1e-6, atol=1e-9)
+
+
+def test_claims_of_the_efficiency_drop():
+    from tests.helpers import check_claims, claims_context, scenario_metrics
+
+    drop = scenario_metrics("eta_drop", "eta", Ts=wt.TS, detection_delay_mean_s=0.46, detection_delay_max_s=0.72,
+                            isolation_accuracy=0.98, extra={"isolation delay median (samples)": 405.0,
+                                                            "size error eta: mean": -2e-5, "size error eta: sd": 1.2e-3})
+    claims = wt.PROBLEM.claims(claims_context(wt.PROBLEM, [{"label": "default", "metrics": {"nafdf": {"eta_drop": drop}}}]))
+    check_claims(claims)
+    assert [c.verdict for c in claims] == ["reproduced"] * 3
+    assert {"eta", "theta_hat_eta", "wssr", "tau_r", "omega_g", "nafdf"} <= set(wt.PROBLEM.labels)

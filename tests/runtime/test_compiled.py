@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from fdisyn.app.cli import main
 from fdisyn.codegen.library import codegen
-from fdisyn.runtime.compiled import CompiledDiagnoser, manifest_path
+from fdisyn.runtime.compiled import CompiledDiagnoser, library_suffix, manifest_path
 from fdisyn.runtime.errors import ArgumentError, BuildError, ShapeError
 from fdisyn.runtime.gainfile import (
     Decision,
@@ -29,6 +29,9 @@ from fdisyn.runtime.monitor import Monitor
 from fdisyn.runtime.reference import LinearReference
 from fdisyn.runtime.trace import Trace, write_trace
 
+SO = library_suffix()
+"""The shared library's suffix here: ``.so``, ``.dylib`` or ``.dll``."""
+
 
 def _trace_csv(gf: GainFile, U: np.ndarray, Y: np.ndarray, path) -> str:  # noqa: ANN001 - a path
     t = np.arange(len(Y)) * gf.Ts
@@ -38,6 +41,19 @@ def _trace_csv(gf: GainFile, U: np.ndarray, Y: np.ndarray, path) -> str:  # noqa
 def _cli(*args: str) -> subprocess.CompletedProcess:
     """``fdisyn`` in a fresh process: a crash in C shows as a negative return code, not a dead test run."""
     return subprocess.run([sys.executable, "-m", "fdisyn.app.cli", *args], capture_output=True, text=True, timeout=120)
+
+
+# ------------------------------------------------------------------ the library's file name and build command
+def test_the_library_is_named_and_built_for_the_platform(wt_built):
+    from fdisyn.codegen.library import shared_library_flags
+
+    assert [library_suffix(p) for p in ("linux", "darwin", "win32", "cygwin", "freebsd14")] == [".so", ".dylib", ".dll", ".dll", ".so"]
+    assert shared_library_flags("linux") == ("-fPIC", "-shared") and shared_library_flags("darwin") == ("-fPIC", "-dynamiclib")
+    assert shared_library_flags("win32") == ("-shared",)
+    lib = wt_built.artifacts.library
+    assert lib.name == f"lib{wt_built.gain_file.name}{SO}" and lib.is_file()
+    assert json.loads(manifest_path(lib).read_text())["library"] == lib.name
+    assert manifest_path(lib).name == f"lib{wt_built.gain_file.name}.manifest.json"
 
 
 # ------------------------------------------------------------------ the library is bound to its gain file
@@ -62,7 +78,7 @@ def test_a_rewritten_gain_file_is_refused_until_codegen(built_copy, wt_trace, ca
     doc = json.loads(p.read_text())
     doc["evaluators"][0]["threshold"] *= 10.0
     p.write_text(json.dumps(doc, indent=1))
-    with pytest.raises(BuildError, match=rf"libwind_turbine_kalman_uio.so was built from another gain file \(sha256 [0-9a-f]{{16}}…; this gain file has [0-9a-f]{{16}}…\); run `fdisyn codegen {built_copy}`"):
+    with pytest.raises(BuildError, match=rf"libwind_turbine_kalman_uio{SO} was built from another gain file \(sha256 [0-9a-f]{{16}}…; this gain file has [0-9a-f]{{16}}…\); run `fdisyn codegen {built_copy}`"):
         Monitor.from_directory(built_copy)
     _, U, Y = wt_trace
     trace = _trace_csv(read_gain_file(p), U[:200], Y[:200], built_copy / "in.csv")
@@ -90,12 +106,12 @@ def test_layout_and_key_order_do_not_matter(built_copy):
         ("no manifest", "has no build manifest libwind_turbine_kalman_uio.manifest.json"),
         ("bad manifest", "cannot read the build manifest"),
         # links to a device: hashing or reading them would never end
-        ("library a device", r"libwind_turbine_kalman_uio.so is not a regular file \(a device, a FIFO or a directory\); run `fdisyn codegen"),
+        ("library a device", rf"libwind_turbine_kalman_uio{SO} is not a regular file \(a device, a FIFO or a directory\); run `fdisyn codegen"),
         ("manifest a device", r"manifest.json is not a regular file .*expected a build manifest; run `fdisyn codegen"),
     ],
 )
 def test_a_damaged_library_never_reaches_dlopen(built_copy, wt_trace, damage, message):
-    lib = built_copy / "libwind_turbine_kalman_uio.so"
+    lib = built_copy / f"libwind_turbine_kalman_uio{SO}"
     data = lib.read_bytes()
     if damage == "truncate":
         lib.write_bytes(data[: len(data) // 2])
@@ -294,12 +310,12 @@ def test_a_rebuilt_library_is_not_confused_with_the_one_already_loaded(built_cop
     """dlopen returns the library already loaded from a path, even after `fdisyn codegen` rebuilt the file:
     the hash compiled into the loaded code tells, and the message says what to do."""
     gf = read_gain_file(built_copy / "gains.json")
-    CompiledDiagnoser(built_copy / "libwind_turbine_kalman_uio.so", gf)  # loaded in this process
+    CompiledDiagnoser(built_copy / f"libwind_turbine_kalman_uio{SO}", gf)  # loaded in this process
     doc = json.loads((built_copy / "gains.json").read_text())
     doc["decision"]["persistence"] = 3
     (built_copy / "gains.json").write_text(json.dumps(doc))
     assert main(["codegen", str(built_copy)]) == 0
-    with pytest.raises(BuildError, match=r"this process already runs an older build of .*libwind_turbine_kalman_uio.so .* start a new process"):
+    with pytest.raises(BuildError, match=rf"this process already runs an older build of .*libwind_turbine_kalman_uio{SO} .* start a new process"):
         Monitor.from_directory(built_copy)
     proc = subprocess.run(  # a new process loads the new build
         [sys.executable, "-c", f"from fdisyn.runtime.monitor import Monitor; print(Monitor.from_directory({str(built_copy)!r}).impl.gf.decision.persistence)"],
