@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 from fdisyn.app.report import Claim, ReportContext, fmt, shade, subplots, table
+from fdisyn.evaluation.compiled_simulation import SampleModel, sampled_data_sample_model
 from fdisyn.evaluation.sampled_data_simulation import simulate_sampled_data
 from fdisyn.models.linear import LinearPlant
 from fdisyn.models.problem import Batch, Problem, Scenario
@@ -149,13 +150,22 @@ SCENARIOS = {
 }
 
 
-def _simulate(sc: Scenario, seeds: Sequence[int], **_options: object) -> Batch:
-    """Exact samples of the sampled-data plant (the disturbance integrated between samples)."""
+def _drive(sc: Scenario) -> tuple[np.ndarray, np.ndarray]:
+    """The unit-step input and the fault step of ``sc`` on its sample grid."""
     n = int(round(sc.duration / PLANT.Ts))
     t = np.arange(n) * PLANT.Ts
-    u = np.ones((n, 1))
-    f = (float(sc.params.get("size", 0.0)) * sc.active(t)).astype(float)[:, None]
-    runs = [simulate_sampled_data(plant=PLANT, v=u, rng=np.random.default_rng(int(s)), f=f) for s in seeds]
+    return np.ones((n, 1)), (float(sc.params.get("size", 0.0)) * sc.active(t)).astype(float)[:, None]
+
+
+def _simulate(sc: Scenario, seeds: Sequence[int], draws: np.ndarray | None = None, **_options: object) -> Batch:
+    """Exact samples of the sampled-data plant (the disturbance integrated between samples). ``draws``: given
+    standard normals (:func:`fdisyn.evaluation.sampled_data_simulation.simulate_sampled_data`)."""
+    u, f = _drive(sc)
+    t = np.arange(len(u)) * PLANT.Ts
+    runs = [
+        simulate_sampled_data(plant=PLANT, v=u, rng=np.random.default_rng(int(s)), f=f, draws=None if draws is None else draws[i])
+        for i, s in enumerate(seeds)
+    ]
     return Batch(
         scenario=sc,
         seeds=tuple(int(s) for s in seeds),
@@ -368,6 +378,11 @@ NOTES = (
     "‖V G_ed‖∞ with the fault side normalised; exact when G_dJ has full row normal rank (as here).",
 )
 
+def _sample_model(**_options: object) -> SampleModel:
+    """:func:`_simulate` one sample at a time, for the compiled Monte Carlo."""
+    return sampled_data_sample_model(PLANT, drive=_drive, inputs=("u",), outputs=("y1", "y2"), states=("x1", "x2"))
+
+
 PROBLEM = Problem(
     name="sampled_data_example",
     title="Optimal diagnostic observer for a sampled-data system",
@@ -380,6 +395,7 @@ PROBLEM = Problem(
     default_design="direct",
     scenarios=SCENARIOS,
     simulate=_simulate,
+    sample_model=_sample_model,
     options={"P_f": 1e-3, "detector": None, "arl0": None},
     reference={"J_direct_detects_at_60s": True, "J_indirect_detects": False},
     monte_carlo_runs=200,

@@ -67,7 +67,10 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
+import casadi as ca
 import numpy as np
+import scipy.special
+from fdisyn.evaluation.compiled_simulation import NAMES_IN, NAMES_OUT, SampleModel, clip_sx
 from fdisyn.models.linear import LinearPlant
 from fdisyn.models.problem import Batch, Problem, Scenario
 from fdisyn.runtime.errors import ArgumentError
@@ -237,9 +240,18 @@ DECAY_RATE = 0.5
 faster than the 0.42 rad/s coupled mode's period of 15 s, and slow enough not to pass the gyro noise unfiltered."""
 
 
-def run_parameters(seeds: Sequence[int], truth: Truth = TRUTH) -> dict[str, np.ndarray]:
-    """The true ``Js, Jp, k, b`` of each run: the first four draws of its seed's generator."""
-    draws = np.array([np.random.default_rng(int(s)).uniform(-1.0, 1.0, 4) for s in seeds]).reshape(-1, 4)
+def run_parameters(seeds: Sequence[int], truth: Truth = TRUTH, uniforms: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    """The true ``Js, Jp, k, b`` of each run: the first four draws of its seed's generator, uniform on
+    ``[−1, 1]`` (``uniforms``, runs × 4: given ones instead)."""
+    if uniforms is None:
+        draws = np.array([np.random.default_rng(int(s)).uniform(-1.0, 1.0, 4) for s in seeds]).reshape(-1, 4)
+    else:
+        draws = np.asarray(uniforms, dtype=float).reshape(-1, 4)
+    return scaled_parameters(draws, truth)
+
+
+def scaled_parameters(draws: Any, truth: Truth = TRUTH) -> dict[str, Any]:
+    """``Js, Jp, k, b`` from their draws in ``[−1, 1]`` (runs × 4; a CasADi row for the compiled start)."""
     scale = 1.0 + truth.parameter_error * draws
     nominal = (NOMINAL.Js, NOMINAL.Jp, NOMINAL.k, NOMINAL.b)
     return {name: nominal[i] * scale[:, i] for i, name in enumerate(("Js", "Jp", "k", "b"))}
@@ -283,12 +295,18 @@ SCENARIOS: dict[str, Scenario] = {
 
 # --------------------------------------------------------------------------- the truth
 
-def truth_derivative(x: np.ndarray, tau: np.ndarray, p: Mapping[str, np.ndarray], truth: Truth) -> np.ndarray:
+NUMPY: dict[str, Any] = {"sin": np.sin, "cos": np.cos, "tanh": np.tanh, "ones_like": np.ones_like, "stack": np.column_stack}
+"""The elementary functions of the truth's equations on runs × states arrays."""
+CASADI: dict[str, Any] = {"sin": ca.sin, "cos": ca.cos, "tanh": ca.tanh, "ones_like": lambda r: ca.SX.ones(r.shape), "stack": lambda cols: ca.horzcat(*cols)}
+"""The same on one run's CasADi row (the compiled simulation, :func:`sample_model`)."""
+
+
+def truth_derivative(x: Any, tau: Any, p: Mapping[str, Any], truth: Truth, ops: Mapping[str, Any] = NUMPY) -> Any:
     """Time derivative of the truth's state ``[θ, φ, θ̇, φ̇, q, q̇]`` (runs × 6) under applied torques ``tau`` (runs × 2)."""
     rel, rel_rate = x[:, 1] - x[:, 0], x[:, 3] - x[:, 2]
     if truth.nonlinear:
-        spring = p["k"] * np.sin(rel)
-        friction = truth.friction_torque * np.tanh(rel_rate / truth.friction_rate)
+        spring = p["k"] * ops["sin"](rel)
+        friction = truth.friction_torque * ops["tanh"](rel_rate / truth.friction_rate)
     else:
         spring, friction = p["k"] * rel, 0.0
     internal = spring + p["b"] * rel_rate + friction  # on the body; its reaction on the array
@@ -300,15 +318,15 @@ def truth_derivative(x: np.ndarray, tau: np.ndarray, p: Mapping[str, np.ndarray]
     det = p["Js"] - d * d
     theta_acc = (body - d * modal) / det
     q_acc = (p["Js"] * modal - d * body) / det
-    return np.column_stack([x[:, 2], x[:, 3], theta_acc, array / p["Jp"], x[:, 5], q_acc])
+    return ops["stack"]([x[:, 2], x[:, 3], theta_acc, array / p["Jp"], x[:, 5], q_acc])
 
 
-def rk4_step(x: np.ndarray, tau: np.ndarray, p: Mapping[str, np.ndarray], truth: Truth, h: float) -> np.ndarray:
+def rk4_step(x: Any, tau: Any, p: Mapping[str, Any], truth: Truth, h: float, ops: Mapping[str, Any] = NUMPY) -> Any:
     """One classical Runge–Kutta step of length ``h`` with the torques ``tau`` held."""
-    k1 = truth_derivative(x, tau, p, truth)
-    k2 = truth_derivative(x + 0.5 * h * k1, tau, p, truth)
-    k3 = truth_derivative(x + 0.5 * h * k2, tau, p, truth)
-    k4 = truth_derivative(x + h * k3, tau, p, truth)
+    k1 = truth_derivative(x, tau, p, truth, ops)
+    k2 = truth_derivative(x + 0.5 * h * k1, tau, p, truth, ops)
+    k3 = truth_derivative(x + 0.5 * h * k2, tau, p, truth, ops)
+    k4 = truth_derivative(x + h * k3, tau, p, truth, ops)
     return x + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
 
 
@@ -332,24 +350,39 @@ def steady_state(p: Mapping[str, np.ndarray], truth: Truth = TRUTH) -> np.ndarra
     where ``k sin(φ − θ) = k φ_c − K_pφ (φ − φ_c)`` (Newton's method; the linear spring when the truth is linear).
     Limits are not reached there (module docstring).
     """
-    g, k = GAINS, np.asarray(p["k"], dtype=float)
-    theta = np.full(k.shape, truth.disturbance / g["Kp_theta"])
-    phi = np.full(k.shape, truth.cant)
-    spring, slope = (np.sin, np.cos) if truth.nonlinear else (lambda r: r, np.ones_like)
-    for _ in range(20):
-        res = k * spring(phi - theta) - NOMINAL.k * truth.cant + g["Kp_phi"] * (phi - truth.cant)
-        phi = phi - res / (k * slope(phi - theta) + g["Kp_phi"])
+    k = np.asarray(p["k"], dtype=float)
+    theta = np.full(k.shape, truth.disturbance / GAINS["Kp_theta"])
+    phi = hold_angle(k, theta, np.full(k.shape, truth.cant), truth)
     x = np.zeros((k.size, 6))
     x[:, 0], x[:, 1] = theta, phi
     return x
 
 
+def hold_angle(k: Any, theta: Any, phi: Any, truth: Truth = TRUTH, ops: Mapping[str, Any] = NUMPY) -> Any:
+    """The array angle where ``k sin(φ − θ) = k φ_c − K_pφ (φ − φ_c)``, by 20 Newton steps from ``phi``
+    (:func:`steady_state`; the linear spring when the truth is linear)."""
+    g = GAINS
+    spring, slope = (ops["sin"], ops["cos"]) if truth.nonlinear else (lambda r: r, ops["ones_like"])
+    for _ in range(20):
+        res = k * spring(phi - theta) - NOMINAL.k * truth.cant + g["Kp_phi"] * (phi - truth.cant)
+        phi = phi - res / (k * slope(phi - theta) + g["Kp_phi"])
+    return phi
+
+
 def simulate(
-    scenario: Scenario, seeds: Sequence[int], *, truth: Truth = TRUTH, **_options: object
+    scenario: Scenario,
+    seeds: Sequence[int],
+    *,
+    truth: Truth = TRUTH,
+    draws: np.ndarray | None = None,
+    start_draws: np.ndarray | None = None,
+    **_options: object,
 ) -> Batch:
     """Closed-loop truth runs of ``scenario``, one per seed, vectorised over seeds.
 
-    Per seed: the parameters (:func:`run_parameters`), then the measurement noise, from the seed's generator.
+    Per seed: the parameters (:func:`run_parameters`), then the measurement noise, from the seed's generator
+    (``start_draws``, runs × 4, and ``draws``, runs × N × 4: given standard normals instead, the parameters'
+    uniforms being ``erf(z/√2)``, as the compiled simulation draws them).
     At sample ``k`` the controller reads ``y(k)`` and commands ``u(k)`` (logged), held over the sample; the
     faulty actuator applies ``(1 − κ)·sat(u)`` from the onset. ``extra`` holds the true states (also the flexible
     coordinate ``q``, ``q_dot``), the applied torques ``T_y_applied``, ``T_p_applied`` and the true parameters.
@@ -357,10 +390,13 @@ def simulate(
     seeds = tuple(int(s) for s in seeds)
     runs, n = len(seeds), int(round(scenario.duration / TS))
     t = np.arange(n) * TS
-    p = run_parameters(seeds, truth)
+    p = run_parameters(seeds, truth, None if start_draws is None else scipy.special.erf(np.asarray(start_draws) / np.sqrt(2.0)))
     sd = np.asarray(truth.noise, dtype=float)
     noise = np.zeros((runs, n, 4))
     for i, s in enumerate(seeds):
+        if draws is not None:
+            noise[i] = draws[i] * sd
+            continue
         rng = np.random.default_rng(s)
         rng.uniform(size=4)  # the parameter draws
         noise[i] = rng.standard_normal((n, 4)) * sd
@@ -389,6 +425,51 @@ def simulate(
     extra |= {"T_y_applied": applied[:, :, 0], "T_p_applied": applied[:, :, 1]}
     extra |= {f"true_{name}": np.repeat(v[:, None], n, axis=1) for name, v in p.items()}
     return Batch(scenario=scenario, seeds=seeds, t=t, inputs=INPUTS, outputs=OUTPUTS, U=U, Y=X[:, :, :4] + noise, extra=extra)
+
+
+def sample_model(*, truth: Truth = TRUTH, **_options: object) -> SampleModel:
+    """:func:`simulate` one sample at a time, for the compiled Monte Carlo: each run starts from four draws
+    (its parameters, uniform as ``erf(z/√2)``, kept in the state, and the equilibrium they give), then per
+    sample the controller on the noisy measurements, the saturated torques (reduced by the fault while it is
+    active) and ``substeps`` RK4 steps of the truth."""
+    g, kff, h = GAINS, NOMINAL.k * truth.cant, TS / truth.substeps
+    names = ("Js", "Jp", "k", "b")
+    z0 = ca.SX.sym("z0", 1, 4)
+    p0 = scaled_parameters(ca.erf(z0 / np.sqrt(2.0)), truth)
+    theta = truth.disturbance / g["Kp_theta"]
+    x_start = ca.SX.zeros(1, 6)
+    if not truth.start_at_rest:
+        x_start[0], x_start[1] = theta, hold_angle(p0["k"], theta, truth.cant, truth, CASADI)
+    start = ca.Function("start", [z0.T], [ca.horzcat(x_start, *[p0[q] for q in names]).T], ["z0"], ["x0"])
+    x, z, k, loss = ca.SX.sym("x", 10), ca.SX.sym("z", 4), ca.SX.sym("k"), ca.SX.sym("p", 2)
+    row = x[:6].T
+    p = {q: x[6 + i] for i, q in enumerate(names)}
+    y = row[:, :4] + z.T * ca.DM(np.asarray(truth.noise, dtype=float)).T
+    u = ca.horzcat(-g["Kp_theta"] * y[:, 0] - g["Kd_theta"] * y[:, 2], kff - g["Kp_phi"] * (y[:, 1] - truth.cant) - g["Kd_phi"] * y[:, 3])
+
+    def limit(v: ca.SX, bound: float | None) -> ca.SX:
+        return v if bound is None else clip_sx(v, -bound, bound)
+
+    def outputs(faulty: bool) -> list[ca.SX]:
+        tau = ca.horzcat(limit(u[:, 0], truth.wheel_limit), limit(u[:, 1], truth.drive_limit))
+        tau = tau * (1.0 - loss.T) if faulty else tau * 1.0
+        nxt = row
+        for _ in range(truth.substeps):
+            nxt = rk4_step(nxt, tau, p, truth, h, CASADI)
+        return [ca.vertcat(nxt.T, x[6:]), u.T, y.T, ca.vertcat(row.T, tau.T, x[6:])]
+
+    ins = [x, z, k, loss, ca.SX(0, 1)]
+    return SampleModel(
+        step=ca.Function("sample", ins, outputs(False), NAMES_IN, NAMES_OUT),
+        faulty=ca.Function("sample_faulty", ins, outputs(True), NAMES_IN, NAMES_OUT),
+        start=start,
+        x0=np.zeros(10),
+        parameters=lambda sc: np.array([sc.params["kappa"] if sc.fault == f else 0.0 for f in FAULTS]),
+        Ts=TS,
+        inputs=INPUTS,
+        outputs=OUTPUTS,
+        extra=(*STATES, "q", "q_dot", "T_y_applied", "T_p_applied", *(f"true_{q}" for q in names)),
+    )
 
 
 # --------------------------------------------------------------------------- the fault-free levels of a design
@@ -794,6 +875,7 @@ PROBLEM = Problem(
     default_design="optimised",
     scenarios=SCENARIOS,
     simulate=simulate,
+    sample_model=sample_model,
     options={"P_f": 1e-3, "window": 50, "persistence": 1},
     reference={
         "setting": [

@@ -45,6 +45,7 @@ from typing import Any
 
 import numpy as np
 from fdisyn.app.report import Claim, ReportContext, fmt, shade, subplots, table
+from fdisyn.evaluation.compiled_simulation import SampleModel, nonlinear_sample_model
 from fdisyn.models.nonlinear import NonlinearPlant
 from fdisyn.models.problem import Batch, Problem, Scenario
 from fdisyn.runtime.errors import ArgumentError
@@ -447,13 +448,9 @@ def _pipeline_scenarios() -> dict[str, Scenario]:
     return {"fault_free": fault_scenario("fault_free"), **{nm: fault_scenario(nm, sc) for nm, sc in STANDARD_FAULTS}}
 
 
-def _simulate(sc: Scenario, seeds: Sequence[int], **_options: object) -> Batch:
-    """Eq. (3.1) for each seed (the documented square-wave input or the scenario's ``params["input"]``,
-    ``x(0) = 0``), stacked for the pipeline.
-
-    Row ``k`` of the true parameters ``extra["a"]``, ``extra["b"]`` drives the transition
-    ``x(k) → x(k+1)`` (module docstring); ``extra["x"]`` is the true state.
-    """
+def _drive(sc: Scenario) -> tuple[np.ndarray, np.ndarray]:
+    """The input (the documented square wave or the scenario's ``params["input"]``) and the true parameters of
+    ``sc``, row ``k`` driving the transition ``x(k) → x(k+1)`` (module docstring)."""
     pl = plant()
     T = int(sc.duration)
     theta = np.tile(pl.theta_nominal, (T, 1))
@@ -463,7 +460,23 @@ def _simulate(sc: Scenario, seeds: Sequence[int], **_options: object) -> Batch:
             i = pl.parameters.index(k)
             theta[tf:, i] = scale[k] * pl.theta_nominal[i]
     u = excitation(length=T, **sc.params["input"]) if "input" in sc.params else input_signal(T)
-    runs = [pl.simulate(x0=[X0], u=u, theta=theta, rng=np.random.default_rng(int(s))) for s in seeds]
+    return u, theta
+
+
+def _simulate(sc: Scenario, seeds: Sequence[int], draws: np.ndarray | None = None, **_options: object) -> Batch:
+    """Eq. (3.1) for each seed (:func:`_drive`, ``x(0) = 0``), stacked for the pipeline.
+
+    Row ``k`` of the true parameters ``extra["a"]``, ``extra["b"]`` drives the transition
+    ``x(k) → x(k+1)`` (module docstring); ``extra["x"]`` is the true state. ``draws``: given standard
+    normals (:meth:`fdisyn.models.nonlinear.NonlinearPlant.simulate`).
+    """
+    pl = plant()
+    u, theta = _drive(sc)
+    T = len(u)
+    runs = [
+        pl.simulate(x0=[X0], u=u, theta=theta, rng=np.random.default_rng(int(s)), draws=None if draws is None else draws[i])
+        for i, s in enumerate(seeds)
+    ]
     return Batch(
         scenario=sc,
         seeds=tuple(int(s) for s in seeds),
@@ -474,6 +487,11 @@ def _simulate(sc: Scenario, seeds: Sequence[int], **_options: object) -> Batch:
         Y=np.stack([y for _, y in runs]),
         extra={"x": np.stack([x[:, 0] for x, _ in runs]), "a": np.stack([theta[:, 0] for _ in runs]), "b": np.stack([theta[:, 1] for _ in runs])},
     )
+
+
+def _sample_model(**_options: object) -> SampleModel:
+    """:func:`_simulate` one sample at a time, for the compiled Monte Carlo."""
+    return nonlinear_sample_model(plant(), x0=[X0], drive=_drive, Ts=1.0, extra={"x": "x", "a": "a", "b": "b"})
 
 
 def _gain_file(
@@ -782,6 +800,7 @@ PROBLEM = Problem(
     default_design="nafdf",
     scenarios=_pipeline_scenarios(),
     simulate=_simulate,
+    sample_model=_sample_model,
     options={"P_f": 1e-4, "window": 10, "detector": None, "arl0": None},
     reference=dict(PAPER),
     monte_carlo_runs=100,

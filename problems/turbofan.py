@@ -35,10 +35,13 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+import casadi as ca
 import numpy as np
 import scipy.linalg
+from fdisyn.evaluation.compiled_simulation import NAMES_IN, NAMES_OUT, SampleModel
 from fdisyn.models.linear import LinearPlant
 from fdisyn.models.problem import Batch, Problem, Scenario
+from fdisyn.runtime.errors import ArgumentError
 from fdisyn.runtime.gainfile import GainFile
 from fdisyn.runtime.trace import Trace
 
@@ -216,7 +219,13 @@ def design_model(E: np.ndarray | None = None, truth: Truth = TRUTH) -> LinearPla
 
 
 def simulate_truth(
-    U: np.ndarray, seeds: Sequence[int], *, truth: Truth = TRUTH, faults: Sequence[Mapping[str, Any]] = (), t: np.ndarray | None = None
+    U: np.ndarray,
+    seeds: Sequence[int],
+    *,
+    truth: Truth = TRUTH,
+    faults: Sequence[Mapping[str, Any]] = (),
+    t: np.ndarray | None = None,
+    draws: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Runs of the stand-in engine: (``Y`` runs × N × 9, ``X`` runs × N × 12).
 
@@ -224,7 +233,8 @@ def simulate_truth(
     ``{"sensor", "kind", "onset", "size"}``, kinds ``bias`` (offset ``size``),
     ``drift`` (``size`` per second), ``stuck`` (the reading frozen at onset),
     ``open_circuit`` (the reading falls to ``−size``: the sensor's zero, in
-    deviation units)) corrupt the readings after the noise is added.
+    deviation units)) corrupt the readings after the noise is added. ``draws``
+    (runs × N × 9) replaces the seeds' standard normals of the sensor noise.
     """
     u = np.asarray(U, dtype=float)
     nsamp = u.shape[0]
@@ -255,7 +265,7 @@ def simulate_truth(
     Y = X @ C.T + u @ D.T
     sd = sensor_noise(truth)
     for i, s in enumerate(seeds):
-        Y[i] += np.random.default_rng(int(s)).standard_normal((nsamp, len(OUTPUTS))) * sd
+        Y[i] += (np.random.default_rng(int(s)).standard_normal((nsamp, len(OUTPUTS))) if draws is None else draws[i]) * sd
     for f in faults:
         j = OUTPUTS.index(f["sensor"])
         on = tt >= f["onset"] - 1e-9
@@ -353,13 +363,14 @@ def _scenarios() -> dict[str, Scenario]:
 SCENARIOS = _scenarios()
 
 
-def simulate(scenario: Scenario, seeds: Sequence[int], **_options: object) -> Batch:
-    """Runs of the stand-in engine through ``scenario`` (true states kept as ``x_<state>``)."""
+def simulate(scenario: Scenario, seeds: Sequence[int], draws: np.ndarray | None = None, **_options: object) -> Batch:
+    """Runs of the stand-in engine through ``scenario`` (true states kept as ``x_<state>``; ``draws``:
+    given standard normals, :func:`simulate_truth`)."""
     n = int(round(scenario.duration / TS))
     t = np.arange(n) * TS
     u = throttle(t)
     faults = [] if scenario.fault is None else [{**scenario.params, "onset": scenario.onset}]
-    y, x = simulate_truth(u, seeds, faults=faults, t=t)
+    y, x = simulate_truth(u, seeds, faults=faults, t=t, draws=draws)
     return Batch(
         scenario=scenario,
         seeds=tuple(int(s) for s in seeds),
@@ -369,6 +380,65 @@ def simulate(scenario: Scenario, seeds: Sequence[int], **_options: object) -> Ba
         U=np.broadcast_to(u, (len(seeds), *u.shape)).copy(),
         Y=y,
         extra={f"x_{s}": x[:, :, i] for i, s in enumerate(STATES)},
+    )
+
+
+def _drive(scenario: Scenario) -> np.ndarray:
+    """The noise-free run of ``scenario`` (the same for every run: the engine has no process noise): per sample
+    the readings, the inputs and the true states."""
+    n = int(round(scenario.duration / TS))
+    t = np.arange(n) * TS
+    u = throttle(t)
+    y, x = simulate_truth(u, [0], t=t, draws=np.zeros((1, n, len(OUTPUTS))))
+    return np.hstack([y[0], u, x[0]])
+
+
+def _fault_parameters(scenario: Scenario) -> np.ndarray:
+    """``[onset, kind (0 none, 1 bias, 2 drift, 3 stuck, 4 open circuit), sensor, size, first sample of the fault]``."""
+    if scenario.fault is None:
+        return np.zeros(5)
+    kinds = ("bias", "drift", "stuck", "open_circuit")
+    par = scenario.params
+    if par["kind"] not in kinds or par["sensor"] not in OUTPUTS:
+        raise ArgumentError(f"scenario {scenario.name!r}: no sensor fault {par['kind']!r} on {par['sensor']!r}")
+    onset = float(scenario.onset or 0.0)
+    k0 = int(np.argmax(np.arange(int(round(scenario.duration / TS))) * TS >= onset - 1e-9))
+    return np.array([onset, kinds.index(par["kind"]) + 1.0, OUTPUTS.index(par["sensor"]), float(par["size"]), k0])
+
+
+def sample_model(**_options: object) -> SampleModel:
+    """:func:`simulate` one sample at a time, for the compiled Monte Carlo: the noise-free run (:func:`_drive`)
+    read from the drive table, the sensor noise and fault added per run as :func:`simulate_truth` does (a stuck
+    reading is kept in the state from the fault's first sample)."""
+    ny, nu, nx = len(OUTPUTS), len(INPUTS), len(STATES)
+    mem, z, k = ca.SX.sym("stuck", ny), ca.SX.sym("z", ny), ca.SX.sym("k")
+    par, d = ca.SX.sym("p", 5), ca.SX.sym("d", ny + nu + nx)
+    y = d[:ny] + sensor_noise() * z
+    u, x = d[ny : ny + nu], d[ny + nu :]
+
+    def outputs(faulty: bool) -> list[ca.SX]:
+        if not faulty:
+            return [mem, u, y, x]
+        onset, kind, sensor, size, first = par[0], par[1], par[2], par[3], par[4]
+        held = ca.if_else(k == first, y, mem)
+        out = []
+        for j in range(ny):
+            yj = ca.if_else(kind == 1, y[j] + size, ca.if_else(kind == 2, y[j] + size * (k * TS - onset),
+                            ca.if_else(kind == 3, held[j], ca.if_else(kind == 4, -size, y[j]))))
+            out.append(ca.if_else(sensor == j, yj, y[j]))
+        return [held, u, ca.vertcat(*out), x]
+
+    ins = [mem, z, k, par, d]
+    return SampleModel(
+        step=ca.Function("sample", ins, outputs(False), NAMES_IN, NAMES_OUT),
+        faulty=ca.Function("sample_faulty", ins, outputs(True), NAMES_IN, NAMES_OUT),
+        x0=np.zeros(ny),
+        parameters=_fault_parameters,
+        Ts=TS,
+        inputs=INPUTS,
+        outputs=OUTPUTS,
+        extra=tuple(f"x_{s}" for s in STATES),
+        drive=_drive,
     )
 
 
@@ -894,6 +964,7 @@ PROBLEM = Problem(
     default_design="grouped",
     scenarios=SCENARIOS,
     simulate=simulate,
+    sample_model=sample_model,
     options={"P_f": 1e-5, "persistence": 1, "window": 25, "detector": None, "arl0": None},
     reference={"rank_C": 8},
     monte_carlo_runs=50,

@@ -37,6 +37,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 from fdisyn.app.report import Claim, ReportContext, fmt, shade, subplots
+from fdisyn.evaluation.compiled_simulation import SampleModel, clip_sx, linear_sample_model
 from fdisyn.evaluation.simulate import Signal, simulate_linear
 from fdisyn.models.linear import LinearPlant
 from fdisyn.models.problem import Batch, Problem, Scenario
@@ -410,7 +411,42 @@ SCENARIOS: dict[str, Scenario] = {
 }
 
 
-def simulate(scenario: Scenario, seeds: Sequence[int], *, parameters: str = "benchmark", **_design_options: object) -> Batch:
+def _offsets_in_sd(scenario: Scenario, parameters: str) -> Scenario:
+    """``scenario`` with its ``offset_sd`` faults (an offset in the sensor's noise standard deviations) as offsets."""
+    faults = scenario.params.get("sensor_faults", [])
+    if not any(kind == "offset_sd" for _, kind, _ in faults):
+        return scenario
+    sd = np.sqrt(np.diag(design_model(parameters).R))
+    faults = [(name, "offset", v * float(sd[OUTPUTS.index(name)])) if kind == "offset_sd" else (name, kind, v) for name, kind, v in faults]
+    return replace(scenario, params={**scenario.params, "sensor_faults": faults})
+
+
+def _closed_loop(parameters: str, clip: Callable[[Any, float, float], Any]) -> dict[str, Any]:
+    """The arguments of the closed-loop simulation (:func:`simulate`) but the scenario: the ZOH plant, the
+    equilibrium start, the torque signals and the optimal-torque law ``τ_g = clip(K ω_g,m1², 0, limit)``
+    written with ``clip`` (NumPy's on runs × outputs, or CasADi's on one sample)."""
+    p = _parameters(parameters)
+    op = OPERATING_POINT
+    x0, tau_g0 = operating_point(p, op)
+    k_opt = tau_g0 / x0[1] ** 2
+    limit = op.torque_limit * tau_g0
+    g1 = OUTPUTS.index("omega_g_m1")
+
+    def torque_control(y: Any, k: Any) -> Any:
+        return clip(k_opt * y[:, g1 : g1 + 1] ** 2, 0.0, limit)
+
+    return {
+        "plant": discrete_model(p),
+        "x0": x0,
+        "inputs": [Signal("constant", offset=tau_g0)],
+        "unknown_inputs": [Signal("gauss_markov", offset=op.tau_r, amplitude=op.turbulence * op.tau_r, period=op.correlation_time)],
+        "feedback": torque_control,
+    }
+
+
+def simulate(
+    scenario: Scenario, seeds: Sequence[int], *, parameters: str = "benchmark", draws: np.ndarray | None = None, **_design_options: object
+) -> Batch:
     """Closed-loop simulation of the ZOH plant, vectorised over ``seeds``.
 
     Per seed: aerodynamic torque ``τ_r = τ̄_r (1 + σ ζ)`` with ``ζ`` a unit
@@ -420,32 +456,16 @@ def simulate(scenario: Scenario, seeds: Sequence[int], *, parameters: str = "ben
     noise ``w ~ N(0, Q)`` and sensor noise ``v ~ N(0, R)`` drawn from the same
     covariances the design assumes; the scenario's sensor faults act on the
     measurements (and so on the controller). Starts at the equilibrium of the
-    mean torque.
+    mean torque. ``draws``: given standard normals (:func:`fdisyn.evaluation.simulate.simulate_linear`).
     """
-    p = _parameters(parameters)
-    op = OPERATING_POINT
-    x0, tau_g0 = operating_point(p, op)
-    faults = scenario.params.get("sensor_faults", [])
-    if any(kind == "offset_sd" for _, kind, _ in faults):  # an offset in the sensor's noise standard deviations
-        sd = np.sqrt(np.diag(design_model(parameters).R))
-        faults = [(name, "offset", v * float(sd[OUTPUTS.index(name)])) if kind == "offset_sd" else (name, kind, v) for name, kind, v in faults]
-        scenario = replace(scenario, params={**scenario.params, "sensor_faults": faults})
-    k_opt = tau_g0 / x0[1] ** 2
-    limit = op.torque_limit * tau_g0
-    g1 = OUTPUTS.index("omega_g_m1")
+    args = _closed_loop(parameters, np.clip)
+    return simulate_linear(args.pop("plant"), _offsets_in_sd(scenario, parameters), seeds, draws=draws, **args)
 
-    def torque_control(y: np.ndarray, k: int) -> np.ndarray:
-        return np.clip(k_opt * y[:, g1 : g1 + 1] ** 2, 0.0, limit)
 
-    return simulate_linear(
-        discrete_model(p),
-        scenario,
-        seeds,
-        x0=x0,
-        inputs=[Signal("constant", offset=tau_g0)],
-        unknown_inputs=[Signal("gauss_markov", offset=op.tau_r, amplitude=op.turbulence * op.tau_r, period=op.correlation_time)],
-        feedback=torque_control,
-    )
+def sample_model(*, parameters: str = "benchmark", **_design_options: object) -> SampleModel:
+    """:func:`simulate` one sample at a time, for the compiled Monte Carlo."""
+    args = _closed_loop(parameters, clip_sx)
+    return linear_sample_model(args.pop("plant"), scenario_map=lambda sc: _offsets_in_sd(sc, parameters), **args)
 
 
 def _block_max(t: np.ndarray, j: np.ndarray, block: int = 25) -> tuple[np.ndarray, np.ndarray]:
@@ -762,6 +782,7 @@ PROBLEM = Problem(
     default_design="kalman_uio",
     scenarios=SCENARIOS,
     simulate=simulate,
+    sample_model=sample_model,
     options={"parameters": "benchmark", "P_f": 3e-4, "persistence": 1, "detector": None, "arl0": None},
     reference=REFERENCE,
     monte_carlo_runs=100,

@@ -43,6 +43,7 @@ from collections.abc import Mapping, Sequence
 import casadi as ca
 import numpy as np
 from fdisyn.app.report import Claim, ReportContext, fmt, shade, subplots
+from fdisyn.evaluation.compiled_simulation import SampleModel, nonlinear_sample_model
 from fdisyn.models.nonlinear import NonlinearPlant
 from fdisyn.models.problem import Batch, Problem, Scenario
 from fdisyn.models.sampling import zoh
@@ -223,17 +224,26 @@ def _pipeline_scenarios() -> dict[str, Scenario]:
     }
 
 
-def _simulate(sc: Scenario, seeds: Sequence[int], **_options: object) -> Batch:
-    """The drive train from its operating point under :func:`input_signal`, for each seed; a fault sets
-    ``η = params["eta"]`` from the onset on (``extra["eta"]``: the true η per transition)."""
-    pl = plant()
+def _drive(sc: Scenario) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`input_signal` and the true η per transition: ``params["eta"]`` from a fault's onset on."""
     n = int(round(sc.duration / TS))
     theta = np.full((n, 1), ETA_NOMINAL)
     if sc.fault is not None:
         theta[int(round((sc.onset or 0.0) / TS)) :, 0] = sc.params["eta"]
+    return input_signal(n), theta
+
+
+def _simulate(sc: Scenario, seeds: Sequence[int], draws: np.ndarray | None = None, **_options: object) -> Batch:
+    """The drive train from its operating point under :func:`_drive`, for each seed (``extra["eta"]``: the
+    true η per transition). ``draws``: given standard normals (:meth:`fdisyn.models.nonlinear.NonlinearPlant.simulate`)."""
+    pl = plant()
+    u, theta = _drive(sc)
+    n = len(u)
     x0, _ = operating_point()
-    u = input_signal(n)
-    runs = [pl.simulate(x0=x0, u=u, theta=theta, rng=np.random.default_rng(int(s))) for s in seeds]
+    runs = [
+        pl.simulate(x0=x0, u=u, theta=theta, rng=np.random.default_rng(int(s)), draws=None if draws is None else draws[i])
+        for i, s in enumerate(seeds)
+    ]
     return Batch(
         scenario=sc,
         seeds=tuple(int(s) for s in seeds),
@@ -388,6 +398,11 @@ NOTES = (
     "drift over N2 and its innovations pass their χ² tests; the inputs give σ(η̂) ≈ 1.5e-4), η ∈ [0.5, 1.2].",
 )
 
+def _sample_model(**_options: object) -> SampleModel:
+    """:func:`_simulate` one sample at a time, for the compiled Monte Carlo."""
+    return nonlinear_sample_model(plant(), x0=operating_point()[0], drive=_drive, Ts=TS, extra={"eta": "eta"})
+
+
 PROBLEM = Problem(
     name="wind_turbine_efficiency",
     title="Wind-turbine drive-train efficiency: the NAFDF on a second plant",
@@ -399,6 +414,7 @@ PROBLEM = Problem(
     default_design="nafdf",
     scenarios=_pipeline_scenarios(),
     simulate=_simulate,
+    sample_model=_sample_model,
     options={"P_f": 1e-4, "window": 50, "detector": None, "arl0": None},
     monte_carlo_runs=50,
     report=_report,

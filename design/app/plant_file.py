@@ -128,6 +128,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from fdisyn.evaluation.compiled_simulation import SampleModel, linear_sample_model, nonlinear_sample_model
 from fdisyn.evaluation.simulate import SENSOR_FAULT_KINDS, SensorFaultSpec, Signal, simulate_linear
 from fdisyn.models.linear import LinearPlant
 from fdisyn.models.problem import Batch, Problem, Scenario, get_problem
@@ -468,8 +469,11 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
     else:
         sim_plant = physical
 
-    def simulate(scenario: Scenario, seeds: tuple[int, ...]) -> Batch:
-        return simulate_linear(sim_plant, scenario, seeds, x0=x0, inputs=u_sigs, unknown_inputs=d_sigs)
+    def simulate(scenario: Scenario, seeds: tuple[int, ...], draws: np.ndarray | None = None) -> Batch:
+        return simulate_linear(sim_plant, scenario, seeds, x0=x0, inputs=u_sigs, unknown_inputs=d_sigs, draws=draws)
+
+    def sample_model() -> SampleModel:
+        return linear_sample_model(sim_plant, x0=x0, inputs=u_sigs, unknown_inputs=d_sigs)
 
     return Problem(
         name=name,
@@ -479,6 +483,7 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
         default_design=method.name,
         scenarios=scenarios,
         simulate=simulate,
+        sample_model=sample_model,
         monte_carlo_runs=50,
     )
 
@@ -651,24 +656,37 @@ def _nonlinear_problem(path: Path, top: _Section, name: str) -> Problem:
         )
         scenarios[scen.name] = scen
 
-    def simulate(scenario: Scenario, seeds: tuple[int, ...]) -> Batch:
+    def parameters(scenario: Scenario) -> np.ndarray:
         n = int(round(scenario.duration / step_ts))
-        t = np.arange(n) * step_ts
         # row k of θ drives the transition x(k) → x(k+1): a jump at the onset first shows in y(onset + 1)
         theta = np.tile(plant.theta_nominal, (n, 1))
         if scenario.fault is not None:
-            theta[scenario.active(t)] = np.asarray(scenario.params["theta"], dtype=float)
+            theta[scenario.active(np.arange(n) * step_ts)] = np.asarray(scenario.params["theta"], dtype=float)
+        return theta
+
+    def simulate(scenario: Scenario, seeds: tuple[int, ...], draws: np.ndarray | None = None) -> Batch:
+        n = int(round(scenario.duration / step_ts))
+        t = np.arange(n) * step_ts
+        theta = parameters(scenario)
+        # the draws of a sample: the plant's v and e, then one per random input signal (nonlinear_sample_model)
+        slots = np.cumsum([plant.n + plant.p] + [s.kind in ("prbs", "gauss_markov") for s in u_sigs])
         U, Y, X = [], [], []
-        for seed in seeds:
+        for i, seed in enumerate(seeds):
             rng = np.random.default_rng(seed)
-            u = np.column_stack([s.sample(t, rng, step_ts) for s in u_sigs]) if plant.m else np.zeros((n, 0))
-            x, y = plant.simulate(x0=x0, u=u, theta=theta, rng=rng)
+            given = None if draws is None else draws[i]
+            zs = [None if given is None or slots[j + 1] == slots[j] else given[:, slots[j]] for j in range(len(u_sigs))]
+            u = np.column_stack([s.sample(t, rng, step_ts, z) for s, z in zip(u_sigs, zs, strict=True)]) if plant.m else np.zeros((n, 0))
+            x, y = plant.simulate(x0=x0, u=u, theta=theta, rng=rng, draws=None if given is None else given[:, : plant.n + plant.p])
             U.append(u)
             Y.append(y)
             X.append(x)
         extra = {f"true_{q}": np.tile(theta[:, k], (len(seeds), 1)) for k, q in enumerate(pars)}
         extra |= {f"true_{s}": np.stack(X)[:, :, k] for k, s in enumerate(plant.states)}
         return Batch(scenario, tuple(seeds), t, plant.inputs, plant.outputs, np.stack(U), np.stack(Y), extra)
+
+    def sample_model() -> SampleModel:
+        keep = {f"true_{q}": q for q in pars} | {f"true_{s}": s for s in plant.states}
+        return nonlinear_sample_model(plant, x0=x0, drive=lambda sc: (None, parameters(sc)), Ts=step_ts, extra=keep, signals=u_sigs)
 
     return Problem(
         name=name,
@@ -678,5 +696,6 @@ def _nonlinear_problem(path: Path, top: _Section, name: str) -> Problem:
         default_design=method.name,
         scenarios=scenarios,
         simulate=simulate,
+        sample_model=sample_model,
         monte_carlo_runs=50,
     )

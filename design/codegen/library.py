@@ -54,6 +54,7 @@ __all__ = [
     "CodegenResult",
     "c_comment_text",
     "c_string_literal",
+    "fill_template",
     "generate_sources",
     "compile_sources",
     "codegen",
@@ -209,6 +210,12 @@ def _render(template: str, gf: GainFile, extra: Mapping[str, str] | None = None)
         "THRESHOLDS": _c_doubles(gf.thresholds),
         **(extra or {}),
     }
+
+    return fill_template(text, subs, template)
+
+
+def fill_template(text: str, subs: Mapping[str, str], template: str) -> str:
+    """``text`` with each ``@NAME@`` replaced by ``subs[NAME]`` in one pass (``template`` names it in errors)."""
 
     def fill(m: re.Match[str]) -> str:
         if m.group(1) not in subs:

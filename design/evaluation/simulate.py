@@ -58,9 +58,10 @@ def apply_sensor_faults(
             y[:, j] += f.value * since_onset
 
 
-def gauss_markov(rng: np.random.Generator, n: int, a: float) -> np.ndarray:
-    """A unit-variance first-order Gauss–Markov sequence ``ζ⁺ = a ζ + √(1−a²) ε``, started stationary."""
-    eps = rng.standard_normal(n)
+def gauss_markov(rng: np.random.Generator, n: int, a: float, z: np.ndarray | None = None) -> np.ndarray:
+    """A unit-variance first-order Gauss–Markov sequence ``ζ⁺ = a ζ + √(1−a²) ε``, started stationary
+    (``ε``: ``z`` when given, else drawn from ``rng``)."""
+    eps = rng.standard_normal(n) if z is None else np.array(z, dtype=float)
     eps[1:] *= np.sqrt(1.0 - a * a)
     return scipy.signal.lfilter([1.0], [1.0, -a], eps)
 
@@ -91,7 +92,9 @@ class Signal:
         if self.kind in ("sine", "square", "prbs", "gauss_markov") and not self.period > 0:
             raise ArgumentError(f"a {self.kind} signal needs a positive period, got {self.period}")
 
-    def sample(self, t: np.ndarray, rng: np.random.Generator, Ts: float) -> np.ndarray:
+    def sample(self, t: np.ndarray, rng: np.random.Generator, Ts: float, z: np.ndarray | None = None) -> np.ndarray:
+        """The signal on ``t``; a random one draws from ``rng`` unless given its standard normals ``z``
+        (one per sample; a ``prbs`` level is the sign of the draw at each switching instant)."""
         if self.kind == "constant":
             return np.full(t.shape, self.offset)
         if self.kind == "step":
@@ -104,9 +107,9 @@ class Signal:
             return self.offset + self.amplitude * np.where(half % 2 == 0, 1.0, -1.0)
         if self.kind == "prbs":
             hold = max(1, int(round(self.period / Ts)))
-            levels = rng.choice([-1.0, 1.0], size=len(t) // hold + 1)
+            levels = rng.choice([-1.0, 1.0], size=len(t) // hold + 1) if z is None else np.where(z[::hold] >= 0, 1.0, -1.0)
             return self.offset + self.amplitude * np.repeat(levels, hold)[: len(t)]
-        return self.offset + self.amplitude * gauss_markov(rng, len(t), float(np.exp(-Ts / self.period)))
+        return self.offset + self.amplitude * gauss_markov(rng, len(t), float(np.exp(-Ts / self.period)), z)
 
 
 def simulate_linear(
@@ -118,6 +121,7 @@ def simulate_linear(
     inputs: Sequence[Signal],
     unknown_inputs: Sequence[Signal],
     feedback: Callable[[np.ndarray, int], np.ndarray] | None = None,
+    draws: np.ndarray | None = None,
 ) -> Batch:
     """Exact discrete simulation of ``plant`` over ``scenario``, vectorised over seeds.
 
@@ -127,6 +131,12 @@ def simulate_linear(
     state. ``u`` comes from ``inputs`` or, when ``feedback`` is
     given, from ``feedback(y_k, k)`` (runs × nu) computed on the (possibly
     faulty) measurements — a controller closing the loop; it needs ``D = 0``.
+
+    ``draws`` (runs × N × nz) replaces the generators' standard normals, laid
+    out per sample as ``[w (rank Q), v (rank R), one per prbs or gauss_markov
+    signal, inputs first]``: the draws of the compiled simulation
+    (:func:`fdisyn.evaluation.compiled_simulation.linear_sample_model`), to
+    compare the two on the same noise.
     """
     if not plant.is_discrete:
         raise ArgumentError("simulate_linear needs the discrete plant")
@@ -145,14 +155,18 @@ def simulate_linear(
     v = np.empty((runs, n, plant.p))
     uu = np.empty((runs, n, plant.m))
     dd = np.empty((runs, n, plant.q))
+    nq, nv = lq.shape[1], lr.shape[1]
+    slots = np.cumsum([nq + nv] + [s.kind in ("prbs", "gauss_markov") for s in (*inputs, *unknown_inputs)])
+    if draws is not None and np.shape(draws) != (runs, n, slots[-1]):
+        raise ShapeError(f"draws have shape {np.shape(draws)}; expected {(runs, n, int(slots[-1]))}")
     for i, s in enumerate(seeds):
         rng = np.random.default_rng(int(s))
-        w[i] = rng.standard_normal((n, lq.shape[1])) @ lq.T
-        v[i] = rng.standard_normal((n, lr.shape[1])) @ lr.T
-        for j, sig in enumerate(inputs):
-            uu[i, :, j] = sig.sample(t, rng, ts)
-        for j, sig in enumerate(unknown_inputs):
-            dd[i, :, j] = sig.sample(t, rng, ts)
+        given = None if draws is None else np.asarray(draws[i], dtype=float)
+        w[i] = (rng.standard_normal((n, nq)) if given is None else given[:, :nq]) @ lq.T
+        v[i] = (rng.standard_normal((n, nv)) if given is None else given[:, nq : nq + nv]) @ lr.T
+        for j, sig in enumerate((*inputs, *unknown_inputs)):
+            z = None if given is None or slots[j + 1] == slots[j] else given[:, slots[j]]
+            (uu[i, :, j] if j < len(inputs) else dd[i, :, j - len(inputs)])[:] = sig.sample(t, rng, ts, z)
     active = scenario.active(t)
     onset = scenario.onset or 0.0
     # component faults: steps of the fault inputs while active, entering through Fx (held over the sample)

@@ -835,6 +835,7 @@ class NonlinearPlant:
         u: object,
         theta: object | None = None,
         rng: np.random.Generator,
+        draws: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray]:
         """Simulate ``T`` samples of (2.1) with Gaussian noise; returns ``(x, y)``, shapes ``(T, n)``, ``(T, p)``.
 
@@ -842,7 +843,9 @@ class NonlinearPlant:
         ``(T, l)``, where row ``k`` is the parameter of the transition
         ``x(k) → x(k+1)`` (a fault at ``k_f`` first shows in ``y(k_f + 1)``).
         ``x[k]`` and ``y[k] = h(x[k], θ(k)) + e[k]`` are the state and
-        measurement at sample ``k``; ``x[0] = x0``.
+        measurement at sample ``k``; ``x[0] = x0``. ``draws`` (T × (n + p)) replaces
+        the standard normals drawn from ``rng`` (``v``'s, then ``e``'s, per sample):
+        the draws of the compiled simulation, to compare the two on the same noise.
         """
         uu = np.asarray(u, dtype=float)
         if uu.ndim == 1 and self.m == 1:
@@ -856,8 +859,10 @@ class NonlinearPlant:
         if th.shape != (T, self.l):
             raise ShapeError(f"theta has shape {th.shape}; expected ({self.l},) or ({T}, {self.l})")
         x0v = as_vector(x0, "x0", self.n)
-        v = _gaussian(rng, self.Q, T)
-        e = _gaussian(rng, self.R, T)
+        if draws is not None and np.shape(draws) != (T, self.n + self.p):
+            raise ShapeError(f"draws have shape {np.shape(draws)}; expected ({T}, {self.n + self.p})")
+        v = _gaussian(rng, self.Q, T, None if draws is None else draws[:, : self.n])
+        e = _gaussian(rng, self.R, T, None if draws is None else draws[:, self.n :])
         xs = ca.SX.sym("x", self.n)
         drive = ca.SX.sym("drive", self.m + self.l + self.n)
         step = ca.Function(
@@ -894,11 +899,15 @@ def _constants(constants: object) -> dict[str, float]:
     return out
 
 
-def _gaussian(rng: np.random.Generator, cov: np.ndarray, count: int) -> np.ndarray:
-    """``count`` samples of ``N(0, cov)`` (rows); a singular ``cov`` is fine (eigen-factor, not Cholesky)."""
+def noise_factor(cov: np.ndarray) -> np.ndarray:
+    """``F`` with ``F Fᵀ = cov`` (square; a singular ``cov`` is fine: eigen-factor, not Cholesky)."""
     w, vecs = np.linalg.eigh(cov)
-    factor = vecs * np.sqrt(np.clip(w, 0.0, None))[None, :]
-    return rng.standard_normal((count, cov.shape[0])) @ factor.T
+    return vecs * np.sqrt(np.clip(w, 0.0, None))[None, :]
+
+
+def _gaussian(rng: np.random.Generator, cov: np.ndarray, count: int, z: np.ndarray | None = None) -> np.ndarray:
+    """``count`` samples of ``N(0, cov)`` (rows), from ``rng`` or the given standard normals ``z``."""
+    return (rng.standard_normal((count, cov.shape[0])) if z is None else z) @ noise_factor(cov).T
 
 
 def _nominal_vector(parameters: Sequence[str], nominal: Mapping[str, float]) -> np.ndarray:

@@ -120,6 +120,12 @@ class Problem:
     gain file's diagnoser kind, :func:`fdisyn.synthesis.registry.extra_metrics`): an
     :class:`~fdisyn.synthesis.registry.ExtraMetrics`, a few values per run and their
     reduction over the runs (the Monte Carlo never holds every run)."""
+    sample_model: Callable[..., Any] | None = None
+    """The simulator one sample at a time, for the compiled Monte Carlo:
+    ``sample_model(**options)`` returns a
+    :class:`~fdisyn.evaluation.compiled_simulation.SampleModel` whose runs match
+    :attr:`simulate`'s given the same standard-normal draws; ``None``: the runs
+    stay on the Python path."""
     claims: Callable[..., Sequence[Any]] | None = None
     """The paper's claims against ours, the table each report page opens with: ``claims(ctx)`` with ``ctx`` the
     :class:`fdisyn.app.report.ReportContext`, returning :class:`fdisyn.app.report.Claim` rows."""
