@@ -167,10 +167,26 @@ class Campaign:
     built: Mapping[str, Built]
     options: Mapping[str, Any]
     extra: Mapping[str, Any] = field(default_factory=dict)
+    compiled: bool = True
+    """Simulate and diagnose in one generated C call where the problem has a sample model
+    (:func:`fdisyn.evaluation.compiled_simulation.compiled_campaign`); ``False``: the Python simulator."""
+    _fused: dict[str, Any] = field(default_factory=dict, repr=False)
+
+    def chunk(self, sc: Scenario, task: ChunkTask) -> ChunkRuns:
+        """The chunk's runs simulated and diagnosed: compiled when the problem allows, else on the Python path."""
+        if self.compiled and self.built and self.problem.sample_model is not None:
+            if sc.name not in self._fused:
+                from fdisyn.evaluation.compiled_simulation import compiled_campaign  # it imports this module
+
+                self._fused[sc.name] = compiled_campaign(self.problem, self.built, sc, **self.options)
+            fused = self._fused[sc.name]
+            if fused is not None:
+                return fused.run(task.seeds, keep_batch=task.keep_batch)
+        return simulate_and_diagnose(self.problem, self.built, sc, task.seeds, keep_batch=task.keep_batch, **self.options)
 
     def run(self, task: ChunkTask) -> ChunkSummary:
         sc = self.problem.scenario(task.scenario)
-        chunk = simulate_and_diagnose(self.problem, self.built, sc, task.seeds, keep_batch=task.keep_batch, **self.options)
+        chunk = self.chunk(sc, task)
         out = {}
         for name, b in self.built.items():
             plan = MetricsPlan.of(sc, b.gain_file, chunk.t, self.extra.get(name))
@@ -240,9 +256,11 @@ class CampaignSpec:
     """``(design, directory, sha256 of its gains.json)``: a directory built again is loaded again."""
     scenarios: tuple[Scenario, ...] = ()
     """The scenarios run, as the parent has them (a problem's scenarios may be replaced, e.g. scaled faults)."""
+    compiled: bool = True
+    """:attr:`Campaign.compiled`."""
 
     def key(self) -> bytes:
-        return pickle.dumps((self.source, self.options, self.built, self.scenarios))
+        return pickle.dumps((self.source, self.options, self.built, self.scenarios, self.compiled))
 
 
 _CAMPAIGNS: dict[bytes, Campaign] = {}
@@ -282,7 +300,7 @@ def _campaign(spec: CampaignSpec) -> Campaign:
         if spec.scenarios:
             problem = replace(problem, scenarios={sc.name: sc for sc in spec.scenarios})
         built = {name: load_built(d) for name, d, _ in spec.built}
-        _CAMPAIGNS[key] = Campaign(problem, built, dict(spec.options), extra_hooks(problem, built))
+        _CAMPAIGNS[key] = Campaign(problem, built, dict(spec.options), extra_hooks(problem, built), compiled=spec.compiled)
     return _CAMPAIGNS[key]
 
 

@@ -116,6 +116,7 @@ def evaluate(
     client: Any = None,
     source: str | Path | None = None,
     progress: bool = True,
+    compiled: bool = True,
     **options: Any,
 ) -> Evaluation:
     """Monte Carlo of every scenario through every built diagnoser's C step.
@@ -125,7 +126,8 @@ def evaluate(
     ``dask.distributed.Client`` to run on instead. Worker processes rebuild the problem from ``source`` (a plant
     file's path or ``module:attribute``; a built-in problem needs none): without one, a plant file's problem runs
     here. The metrics are the same, to the last bit, however the runs are spread. ``progress``: a bar per
-    scenario (:mod:`fdisyn.evaluation.progress`).
+    scenario (:mod:`fdisyn.evaluation.progress`). ``compiled``: simulate and diagnose each chunk in one generated C
+    call where the problem has a sample model (``False``: its Python simulator, NumPy's random numbers).
     """
     if isinstance(runs, bool) or not isinstance(runs, int) or runs < 1:
         raise ArgumentError(f"runs must be a whole number ≥ 1; got {runs!r}")
@@ -150,12 +152,13 @@ def evaluate(
             options=tuple(sorted(options.items())),
             built=tuple((d, str(b.directory.absolute()), file_sha256(b.directory / "gains.json")) for d, b in built.items()),
             scenarios=tuple(problem.scenario(n) for n in names),
+            compiled=compiled,
         )
     elif workers is not None and workers > 1 or client is not None:
         raise ArgumentError(
             f"problem {problem.name!r} is not built in: give source= (its plant file) to run it on workers, or workers=1"
         )
-    campaign = Campaign(problem, built, options, extra_hooks(problem, built))
+    campaign = Campaign(problem, built, options, extra_hooks(problem, built), compiled=compiled)
     ts = min((b.gain_file.Ts for b in built.values()), default=1.0)
     tasks, samples = [], {}
     for sname in names:

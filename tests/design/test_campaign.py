@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from fdisyn.app.cli import main
-from fdisyn.evaluation.campaign import DesignRuns, run_seed, simulate_and_diagnose
+from fdisyn.evaluation.campaign import Campaign, ChunkTask, DesignRuns, run_seed, simulate_and_diagnose
 from fdisyn.evaluation.evaluate import build, evaluate
 from fdisyn.evaluation.metrics import MetricsAccumulator, MetricsPlan, scenario_metrics, summarise_runs
 from fdisyn.evaluation.progress import quiet
@@ -118,14 +118,20 @@ def test_merged_summaries_equal_the_reference_on_the_stacked_runs(case: tuple) -
     assert got.to_dict() == want.to_dict()
 
 
-def test_a_real_campaign_equals_the_reference_on_its_stacked_runs(sde_built) -> None:
-    """sampled_data_example, every scenario: the streamed metrics (chunks of 3) equal the reference metrics of the
-    same runs simulated and diagnosed at once, Lorden bound included, to the last bit."""
+@pytest.mark.parametrize("compiled", [True, False], ids=["compiled", "python"])
+def test_a_real_campaign_equals_the_reference_on_its_stacked_runs(sde_built, compiled: bool) -> None:
+    """sampled_data_example, every scenario, on the compiled and on the Python path: the streamed metrics (chunks
+    of 3) equal the reference metrics of the same runs simulated and diagnosed at once, Lorden bound included, to
+    the last bit."""
     d, gf = SDE.default_design, sde_built.gain_file
-    ev = evaluate(SDE, {d: sde_built}, runs=RUNS, chunk=3, workers=1, progress=False)
+    if compiled:
+        ev = evaluate(SDE, {d: sde_built}, runs=RUNS, chunk=3, workers=1, progress=False)
+    else:
+        ev = evaluate(SDE, {d: sde_built}, runs=RUNS, chunk=3, workers=1, progress=False, compiled=False)
+    campaign = Campaign(SDE, {d: sde_built}, SDE.check_options({}), compiled=compiled)
     for s, name in enumerate(SDE.scenarios):
         sc = SDE.scenario(name)
-        chunk = simulate_and_diagnose(SDE, {d: sde_built}, sc, [run_seed(0, s, i) for i in range(RUNS)], keep_batch=True)
+        chunk = campaign.chunk(sc, ChunkTask(name, s, 0, tuple(run_seed(0, s, i) for i in range(RUNS)), keep_batch=True))
         runs = chunk.designs[d]
         active = sc.active(chunk.t)
         lorden = None
@@ -205,8 +211,8 @@ def _failing_simulate(sc, seeds, **options):  # noqa: ANN001, ANN003, ANN202 - a
     return SDE.simulate(sc, seeds, **options)
 
 
-FAILING = dataclasses.replace(SDE, simulate=_failing_simulate)
-"""sampled_data_example whose run 4 of every scenario raises."""
+FAILING = dataclasses.replace(SDE, simulate=_failing_simulate, sample_model=None)
+"""sampled_data_example on its Python simulator, whose run 4 of every scenario raises."""
 
 _CALLS: list[int] = []
 
@@ -235,7 +241,7 @@ def _dying_simulate(sc, seeds, **options):  # noqa: ANN001, ANN003, ANN202 - a P
     return SDE.simulate(sc, seeds, **options)
 
 
-DYING = dataclasses.replace(SDE, simulate=_dying_simulate)
+DYING = dataclasses.replace(SDE, simulate=_dying_simulate, sample_model=None)
 
 
 def test_a_worker_process_that_dies_is_replaced_then_reported(sde_built) -> None:
@@ -247,10 +253,11 @@ def test_a_worker_process_that_dies_is_replaced_then_reported(sde_built) -> None
 
 
 def test_a_run_that_fails_once_is_retried(sde_built, serial) -> None:
-    flaky: Problem = dataclasses.replace(SDE, simulate=_flaky_simulate)
+    flaky: Problem = dataclasses.replace(SDE, simulate=_flaky_simulate, sample_model=None)
     _CALLS.clear()
     ev = evaluate(flaky, {SDE.default_design: sde_built}, runs=RUNS, seed0=3, workers=1, progress=False)
-    assert _doc(ev) == _doc(serial) and len(_CALLS) > 2
+    python = evaluate(SDE, {SDE.default_design: sde_built}, runs=RUNS, seed0=3, workers=1, progress=False, compiled=False)
+    assert _doc(ev) == _doc(python) and len(_CALLS) > 2
 
 
 def test_a_problem_that_is_not_built_in_needs_its_source_for_workers(sde_built) -> None:
