@@ -33,7 +33,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from fdisyn.evaluation.metrics import MetricsPlan, RunSummaries, summarise_runs
+from fdisyn.evaluation.metrics import MetricsPlan, RunSummaries, extra_values, summarise_runs
 from fdisyn.models.problem import Batch, Problem, Scenario
 from fdisyn.runtime.errors import ArgumentError, FdisynError, MonteCarloError
 
@@ -172,25 +172,42 @@ class Campaign:
     (:func:`fdisyn.evaluation.compiled_simulation.compiled_campaign`); ``False``: the Python simulator."""
     _fused: dict[str, Any] = field(default_factory=dict, repr=False)
 
+    def fused(self, sc: Scenario) -> Any:
+        """The scenario's :class:`~fdisyn.evaluation.compiled_simulation.CompiledCampaign`, or ``None`` (the Python
+        path: ``compiled=False``, no design, or no sample model)."""
+        if not (self.compiled and self.built and self.problem.sample_model is not None):
+            return None
+        if sc.name not in self._fused:
+            from fdisyn.evaluation.compiled_simulation import compiled_campaign  # it imports this module
+
+            self._fused[sc.name] = compiled_campaign(self.problem, self.built, sc, **self.options)
+        return self._fused[sc.name]
+
     def chunk(self, sc: Scenario, task: ChunkTask) -> ChunkRuns:
         """The chunk's runs simulated and diagnosed: compiled when the problem allows, else on the Python path."""
-        if self.compiled and self.built and self.problem.sample_model is not None:
-            if sc.name not in self._fused:
-                from fdisyn.evaluation.compiled_simulation import compiled_campaign  # it imports this module
-
-                self._fused[sc.name] = compiled_campaign(self.problem, self.built, sc, **self.options)
-            fused = self._fused[sc.name]
-            if fused is not None:
-                return fused.run(task.seeds, keep_batch=task.keep_batch)
+        fused = self.fused(sc)
+        if fused is not None:
+            return fused.run(task.seeds, keep_batch=task.keep_batch)
         return simulate_and_diagnose(self.problem, self.built, sc, task.seeds, keep_batch=task.keep_batch, **self.options)
 
     def run(self, task: ChunkTask) -> ChunkSummary:
+        """The chunk's per-run summaries: on the compiled path accumulated in its C loop, no sample kept but those
+        the extra figures read (their designs' arrays) and the batch when asked for; else from the chunk's arrays."""
         sc = self.problem.scenario(task.scenario)
-        chunk = self.chunk(sc, task)
-        out = {}
-        for name, b in self.built.items():
-            plan = MetricsPlan.of(sc, b.gain_file, chunk.t, self.extra.get(name))
-            out[name] = summarise_runs(plan, chunk.designs[name], sc, b.gain_file)
+        fused = self.fused(sc)
+        if fused is not None:
+            t = np.arange(fused.spec.samples) * fused.spec.Ts
+            plans = {name: MetricsPlan.of(sc, b.gain_file, t, self.extra.get(name)) for name, b in self.built.items()}
+            with_extra = [name for name, plan in plans.items() if plan.extra is not None]
+            chunk, out = fused.summarise(task.seeds, plans, keep_batch=task.keep_batch, arrays=with_extra)
+            for name in with_extra:
+                out[name] = replace(out[name], extra=extra_values(plans[name], chunk.designs[name], sc, self.built[name].gain_file))
+        else:
+            chunk = self.chunk(sc, task)
+            out = {}
+            for name, b in self.built.items():
+                plan = MetricsPlan.of(sc, b.gain_file, chunk.t, self.extra.get(name))
+                out[name] = summarise_runs(plan, chunk.designs[name], sc, b.gain_file)
         return ChunkSummary(task=task, t=chunk.t, summaries=out, batch=None if chunk.batch is None else first_run(chunk.batch))
 
     def run_or_locate(self, task: ChunkTask) -> ChunkSummary:

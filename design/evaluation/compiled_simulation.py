@@ -55,6 +55,7 @@ from fdisyn.codegen.library import (
     shared_library_flags,
 )
 from fdisyn.evaluation.campaign import ChunkRuns, DesignRuns
+from fdisyn.evaluation.metrics import HISTOGRAM_EDGES, MetricsPlan, RunSummaries
 from fdisyn.evaluation.sampled_data_simulation import disturbance_factor
 from fdisyn.evaluation.simulate import SensorFaultSpec, Signal
 from fdisyn.models.linear import LinearPlant
@@ -468,24 +469,50 @@ _D = ctypes.POINTER(ctypes.c_double)
 _P = ctypes.POINTER(ctypes.c_void_p)
 
 
+class _Plan(ctypes.Structure):
+    """``struct campaign_plan`` of ``campaign.c.in``: one design's summaries to accumulate in the C loop."""
+
+    _fields_ = [(name, ctypes.c_void_p) for name in ("quiet", "active", "on", "thresholds", "edges", "binned")] + [
+        ("nedges", ctypes.c_long), ("fault", ctypes.c_long)] + [(name, ctypes.c_void_p) for name in ("counts", "sums", "histogram")]
+
+
+SUMMARY_COUNTS = ("quiet_alarms", "episodes", "first_alarm", "alarmed_fault", "first_isolation", "mode_isolation",
+                  "correct_isolated", "nonfinite")
+"""The per-run counts the C loop writes, in its order (``CAMPAIGN_COUNTS`` of ``campaign.c.in``), then ``exceed``."""
+
+
 def _design_code(prefixes: Sequence[str]) -> dict[str, str]:
     """The per-design lines of ``campaign.c.in`` (prefixes are checked diagnoser names: they form identifiers)."""
-    inc, decl, init, step = [], [], [], []
+    inc, decl, init, step, end = [], [], [], [], []
     for i, pre in enumerate(prefixes):
         check_diagnoser_name(pre, "name", error=BuildError)
         P = pre.upper()
         inc.append(f'#include "{pre}.h"')
         decl.append(f"    double st{i}[CAMPAIGN_SZ({P}_NSTATE)], rb{i}[CAMPAIGN_SZ({P}_NR)], jb{i}[CAMPAIGN_SZ({P}_NJ)];\n"
-                    f"    int a{i}, iso{i}, rc{i};")
-        init.append(f"        {pre}_init(st{i});")
+                    f"    int64_t md{i}[CAMPAIGN_SZ({P}_NFAULTS)];\n"
+                    f"    struct campaign_acc acc{i} = {{0, 0, 0, 0, 0}};\n"
+                    f"    int a{i}, iso{i}, rc{i}, kept{i} = r && r[{i}];")
+        init.append(f"        {pre}_init(st{i});\n"
+                     f"        if (plans) campaign_begin(plans + {i}, &acc{i}, md{i}, i, {P}_NR, {P}_NJ, {P}_NFAULTS);")
         step.append(
-            f"            rc{i} = {pre}_step(st{i}, u, y, {P}_NR ? r[{i}] + at * {P}_NR : rb{i}, {P}_NJ ? J[{i}] + at * {P}_NJ : jb{i}, &a{i}, &iso{i});\n"
-            f"            if (rc{i} < 0) return -1;\n"
-            f"            alarm[{i}][at] = (unsigned char)(a{i} != 0);\n"
-            f"            isolated[{i}][at] = (int32_t)iso{i};\n"
-            f"            status[{i}][at] = (signed char)rc{i};"
+            f"            {{\n"
+            f"                double *r{i} = kept{i} && {P}_NR ? r[{i}] + at * {P}_NR : rb{i};\n"
+            f"                double *j{i} = kept{i} && {P}_NJ ? J[{i}] + at * {P}_NJ : jb{i};\n"
+            f"                rc{i} = {pre}_step(st{i}, u, y, r{i}, j{i}, &a{i}, &iso{i});\n"
+            f"                if (rc{i} < 0) return -1;\n"
+            f"                if (kept{i}) {{\n"
+            f"                    alarm[{i}][at] = (unsigned char)(a{i} != 0);\n"
+            f"                    isolated[{i}][at] = (int32_t)iso{i};\n"
+            f"                    status[{i}][at] = (signed char)rc{i};\n"
+            f"                }}\n"
+            f"                if (plans && campaign_observe(plans + {i}, &acc{i}, k, a{i} != 0, iso{i}, rc{i}, r{i}, j{i}, {P}_NR, {P}_NJ,\n"
+            f"                                              {P}_NFAULTS) != 0)\n"
+            f"                    return -2;\n"
+            f"            }}"
         )
-    return {"DESIGN_INCLUDES": "\n".join(inc), "DESIGN_DECLS": "\n".join(decl), "DESIGN_INITS": "\n".join(init), "DESIGN_STEPS": "\n".join(step)}
+        end.append(f"        if (plans) campaign_end(plans + {i}, &acc{i}, {P}_NR, {P}_NFAULTS);")
+    return {"DESIGN_INCLUDES": "\n".join(inc), "DESIGN_DECLS": "\n".join(decl), "DESIGN_INITS": "\n".join(init),
+            "DESIGN_STEPS": "\n".join(step), "DESIGN_ENDS": "\n".join(end)}
 
 
 def _sim_source(model: SampleModel, c_dir: Path) -> None:
@@ -539,8 +566,13 @@ class CompiledCampaign:
         if (key_fn() or b"").decode("ascii", "replace") != spec.key:
             raise BuildError(f"this process already runs another build of {spec.library}; start a new process")
         self._run = lib.fdisyn_campaign_run
-        self._run.argtypes = [ctypes.c_long, ctypes.c_long, ctypes.c_long, ctypes.c_long, _U64, _D, _D, _D, _D, _D, _P, _P, _P, _P, _P]
+        self._run.argtypes = [ctypes.c_long, ctypes.c_long, ctypes.c_long, ctypes.c_long, _U64, _D, _D, _D, _D, _D, _P, _P, _P, _P, _P,
+                              ctypes.POINTER(_Plan)]
         self._run.restype = ctypes.c_int
+        layout = lib.fdisyn_campaign_summary_layout
+        layout.argtypes, layout.restype = [], ctypes.c_int
+        if layout() != len(SUMMARY_COUNTS):
+            raise BuildError(f"{spec.library} writes {layout()} counts per run; this fdisyn reads {len(SUMMARY_COUNTS)}")
         self._draws = lib.fdisyn_campaign_draws
         self._draws.argtypes = [ctypes.c_long, ctypes.c_long, _U64, _D]
         self._draws.restype = None
@@ -585,6 +617,30 @@ class CompiledCampaign:
 
     def run(self, seeds: Sequence[int], *, keep_batch: bool = False) -> ChunkRuns:
         """Simulate run seed ``seeds[i]`` for every ``i`` and diagnose it with every design, in one C call."""
+        return self._call(seeds, keep_batch=keep_batch, arrays=[d for d, _, _ in self.spec.designs], plans=None)[0]
+
+    def summaries(self, seeds: Sequence[int], plans: Mapping[str, MetricsPlan]) -> Mapping[str, RunSummaries]:
+        """Each design's :class:`RunSummaries` of runs ``seeds`` (:func:`~fdisyn.evaluation.metrics.summarise_runs`
+        of :meth:`run`'s arrays, accumulated in the C loop without them; ``extra`` left ``None``, see :meth:`summarise`)."""
+        return self.summarise(seeds, plans)[1]
+
+    def summarise(
+        self, seeds: Sequence[int], plans: Mapping[str, MetricsPlan], *, keep_batch: bool = False, arrays: Sequence[str] = ()
+    ) -> tuple[ChunkRuns, dict[str, RunSummaries]]:
+        """The runs ``seeds`` of every design summarised in the C loop (``plans``: one per design); the
+        :class:`ChunkRuns` holds the arrays of the designs in ``arrays`` only (e.g. those with extra figures, which
+        read them) and the batch when ``keep_batch``. The residual sums are each run's own, in sample order: a run's
+        summary does not depend on its chunk."""
+        missing = [d for d, _, _ in self.spec.designs if d not in plans]
+        if missing:
+            raise ArgumentError(f"no metrics plan for design(s) {missing}")
+        chunk, out = self._call(seeds, keep_batch=keep_batch, arrays=arrays, plans=plans)
+        assert out is not None
+        return chunk, out
+
+    def _call(
+        self, seeds: Sequence[int], *, keep_batch: bool, arrays: Sequence[str], plans: Mapping[str, MetricsPlan] | None
+    ) -> tuple[ChunkRuns, dict[str, RunSummaries] | None]:
         sp = self.spec
         seeds = tuple(int(s) for s in seeds)
         states = self._states(seeds)
@@ -592,21 +648,48 @@ class CompiledCampaign:
         outs = {d: DesignRuns(
             r=np.zeros((runs, n, nr)), J=np.zeros((runs, n, nj)), alarm=np.zeros((runs, n), bool),
             isolated=np.full((runs, n), -1, np.int32), status=np.zeros((runs, n), np.int8),
-        ) for d, nr, nj in sp.designs}
+        ) for d, nr, nj in sp.designs if d in arrays}
         keep = [np.zeros((runs, n, m)) for m in (len(sp.inputs), len(sp.outputs), len(sp.extra))] if keep_batch else None
 
         def ptrs(field_name: str) -> Any:
-            return (ctypes.c_void_p * len(outs))(*[getattr(o, field_name).ctypes.data for o in outs.values()])
+            return (ctypes.c_void_p * len(sp.designs))(*[getattr(outs[d], field_name).ctypes.data if d in outs else None
+                                                         for d, _, _ in sp.designs])
 
         def opt(a: np.ndarray | None) -> Any:
             return None if a is None or a.size == 0 else a.ctypes.data_as(_D)
 
+        c_plans, held = None, []
+        if plans is not None:
+            c_plans = (_Plan * max(len(sp.designs), 1))()
+            for i, (d, nr, nj) in enumerate(sp.designs):
+                plan = plans[d]
+                h = np.ascontiguousarray(plan.thresholds, dtype=float)
+                if h.shape != (nj,) or plan.quiet.shape != (n,) or plan.active.shape != (n,):
+                    raise ShapeError(f"design {d!r}: its metrics plan is not for {n} samples and {nj} statistics")
+                binned = (np.isfinite(h) & (h > 0)).astype(np.uint8)
+                edges = np.ascontiguousarray([HISTOGRAM_EDGES * float(x) for x in h]).reshape(nj, len(HISTOGRAM_EDGES))
+                bufs = {
+                    "quiet": np.ascontiguousarray(plan.quiet, dtype=np.uint8),
+                    "active": np.ascontiguousarray(plan.active, dtype=np.uint8),
+                    "on": None if plan.on is None else np.ascontiguousarray(plan.on, dtype=np.uint8),
+                    "thresholds": h, "edges": edges, "binned": binned,
+                    "counts": np.zeros((runs, len(SUMMARY_COUNTS) + nj), np.int64),
+                    "sums": np.zeros((runs, 2 * nr + nr * nr)),
+                    "histogram": np.zeros((nj, len(HISTOGRAM_EDGES) + 1), np.int64),
+                }
+                held.append(bufs)
+                for name, a in bufs.items():
+                    setattr(c_plans[i], name, None if a is None or a.size == 0 else a.ctypes.data)
+                c_plans[i].nedges = len(HISTOGRAM_EDGES)
+                c_plans[i].fault = -1 if plan.fault_index is None else int(plan.fault_index)
         if runs and n:
             rc = self._run(
                 runs, n, *sp.window, states.ctypes.data_as(_U64), opt(sp.parameters), opt(sp.drive),
                 *(opt(None if keep is None else a) for a in keep or (None, None, None)),
-                ptrs("r"), ptrs("J"), ptrs("alarm"), ptrs("isolated"), ptrs("status"),
+                ptrs("r"), ptrs("J"), ptrs("alarm"), ptrs("isolated"), ptrs("status"), c_plans,
             )
+            if rc == -2:
+                raise BuildError(f"the compiled campaign {sp.library}: a design isolated a class it does not have")
             if rc != 0:
                 raise BuildError(f"the compiled campaign {sp.library} reported an internal error ({rc})")
         t = np.arange(n) * sp.Ts
@@ -615,7 +698,22 @@ class CompiledCampaign:
             U, Y, E = keep
             batch = Batch(scenario=sp.scenario, seeds=seeds, t=t, inputs=sp.inputs, outputs=sp.outputs, U=U, Y=Y,
                           extra={name: E[:, :, i] for i, name in enumerate(sp.extra)})
-        return ChunkRuns(seeds=seeds, t=t, designs=outs, batch=batch)
+        chunk = ChunkRuns(seeds=seeds, t=t, designs=outs, batch=batch)
+        if plans is None:
+            return chunk, None
+        summaries = {}
+        for (d, nr, nj), bufs in zip(sp.designs, held, strict=True):
+            counts, sums = bufs["counts"], bufs["sums"]
+            fields = {name: counts[:, i].copy() for i, name in enumerate(SUMMARY_COUNTS)}
+            summaries[d] = RunSummaries(
+                **fields,
+                exceed=counts[:, len(SUMMARY_COUNTS):].copy(),
+                r_on=sums[:, :nr].copy(),
+                r_off=sums[:, nr : 2 * nr].copy(),
+                rr_off=sums[:, 2 * nr :].reshape(runs, nr, nr).copy(),
+                histogram=[bufs["histogram"][j].copy() if bufs["binned"][j] else np.zeros(0, dtype=np.int64) for j in range(nj)],
+            )
+        return chunk, summaries
 
 
 def _key(texts: Sequence[bytes]) -> str:

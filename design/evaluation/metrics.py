@@ -30,6 +30,7 @@ __all__ = [
     "MetricsPlan",
     "RunSummaries",
     "summarise_runs",
+    "extra_values",
     "MetricsAccumulator",
 ]
 
@@ -382,10 +383,6 @@ def summarise_runs(plan: MetricsPlan, runs: Any, scenario: Any = None, gf: Any =
             off = r[i][~on]
             r_off[i] = np.sum(off, axis=0)
             rr_off[i] = off.T @ off
-    extra = None
-    if plan.extra is not None:
-        rows = {"alarm": alarm.astype(np.int64), "isolated": isolated, "J": J, "r": r}
-        extra = [plan.extra.per_run(scenario, gf, {k: v[i] for k, v in rows.items()}) for i in range(R)]
     return RunSummaries(
         quiet_alarms=np.sum(alarm[:, quiet], axis=1).astype(np.int64),
         episodes=np.sum(rising[:, quiet], axis=1).astype(np.int64),
@@ -400,8 +397,17 @@ def summarise_runs(plan: MetricsPlan, runs: Any, scenario: Any = None, gf: Any =
         rr_off=rr_off,
         nonfinite=np.sum(np.asarray(runs.status) == 1, axis=1).astype(np.int64),
         histogram=fault_free_histogram(J[:, quiet, :].reshape(-1, J.shape[2]), plan.thresholds),
-        extra=extra,
+        extra=extra_values(plan, runs, scenario, gf),
     )
+
+
+def extra_values(plan: MetricsPlan, runs: Any, scenario: Any = None, gf: Any = None) -> list[Any] | None:
+    """Each run's value of the plan's extra figures (``None`` without them), ``runs`` as :func:`summarise_runs` takes them."""
+    if plan.extra is None:
+        return None
+    rows = {"alarm": np.asarray(runs.alarm, dtype=bool).astype(np.int64), "isolated": np.asarray(runs.isolated, dtype=np.int64),
+            "J": np.asarray(runs.J, dtype=float), "r": np.asarray(runs.r, dtype=float)}
+    return [plan.extra.per_run(scenario, gf, {k: v[i] for k, v in rows.items()}) for i in range(len(rows["alarm"]))]
 
 
 class MetricsAccumulator:

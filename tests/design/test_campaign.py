@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from fdisyn.app.cli import main
-from fdisyn.evaluation.campaign import Campaign, ChunkTask, DesignRuns, run_seed, simulate_and_diagnose
+from fdisyn.evaluation.campaign import Campaign, ChunkTask, DesignRuns, run_seed
 from fdisyn.evaluation.evaluate import build, evaluate
 from fdisyn.evaluation.metrics import MetricsAccumulator, MetricsPlan, scenario_metrics, summarise_runs
 from fdisyn.evaluation.progress import quiet

@@ -279,3 +279,81 @@ def test_a_nonlinear_plant_file_matches_its_python_simulation(signal: dict, tmp_
         _close(got.batch.Y, py.Y)
         for key, values in py.extra.items():
             _close(got.batch.extra[key], values)
+
+
+# ----------------------------------------------------------------------------- summaries in the C loop
+
+RESIDUAL_SUMS_RTOL = 1e-12
+"""The C loop's residual sums against :func:`summarise_runs`'s, relative to each sum's largest magnitude: both add
+each run's rows in sample order except the outer products, which NumPy takes by BLAS (blocked, reordered sums: a
+rounding error of order N·eps of the magnitude, ~1e-14 relative for the wind turbine's 30 000 samples)."""
+
+
+def assert_summaries_equal(got, want) -> None:  # noqa: ANN001 - RunSummaries
+    """Every count the same, the histograms the same, the residual sums to :data:`RESIDUAL_SUMS_RTOL`."""
+    for f in ("quiet_alarms", "episodes", "exceed", "first_alarm", "alarmed_fault", "first_isolation", "mode_isolation",
+              "correct_isolated", "nonfinite"):
+        assert getattr(got, f).dtype == np.int64 and np.array_equal(getattr(got, f), getattr(want, f)), f
+    assert len(got.histogram) == len(want.histogram)
+    for a, b in zip(got.histogram, want.histogram, strict=True):
+        assert np.array_equal(a, b)
+    for f in ("r_on", "r_off", "rr_off"):
+        a, b = getattr(got, f), getattr(want, f)
+        assert a.shape == b.shape, f
+        np.testing.assert_allclose(a, b, rtol=0, atol=RESIDUAL_SUMS_RTOL * max(float(np.max(np.abs(b), initial=0.0)), 1e-300), err_msg=f)
+
+
+@pytest.mark.parametrize("scenario", ["fault_free", "benchmark_stuck", "paper_F2"])
+def test_the_c_loops_summaries_equal_summarise_runs_on_the_arrays(wt_built, scenario: str, tmp_path: Path) -> None:
+    """Wind turbine: a fault-free scenario, and faults that end (the recovery window leaves quiet samples out) with
+    a Lorden window of 40 samples (``on`` a strict part of ``active``) and without one."""
+    from fdisyn.evaluation.metrics import MetricsPlan, summarise_runs
+
+    cc = compiled_campaign(WT, {"kalman_uio": wt_built}, scenario)
+    seeds = [11, 12, 13]
+    chunk = cc.run(seeds)
+    plan = MetricsPlan.of(WT.scenario(scenario), wt_built.gain_file, chunk.t)
+    plans = [plan]
+    if plan.on is not None:
+        assert np.any(~plan.quiet & ~plan.active)  # a recovery window
+        plans.append(replace(plan, on=plan.active & (np.cumsum(plan.active) <= 40)))
+    for p in plans:
+        want = summarise_runs(p, chunk.designs["kalman_uio"])
+        got = cc.summaries(seeds, {"kalman_uio": p})["kalman_uio"]
+        assert_summaries_equal(got, want)
+        if p.on is not None:
+            assert np.any(want.alarmed_fault > 0) and np.any(want.first_isolation >= 0)
+    # the arrays not asked for are not made; those asked for are run()'s
+    runs, summaries = cc.summarise(seeds, {"kalman_uio": plan}, keep_batch=True)
+    assert runs.designs == {} and runs.batch is not None and runs.batch.Y.shape[0] == 3
+    runs, _ = cc.summarise(seeds, {"kalman_uio": plan}, arrays=["kalman_uio"])
+    for f in ("r", "J", "alarm", "isolated", "status"):
+        assert np.array_equal(getattr(runs.designs["kalman_uio"], f), getattr(chunk.designs["kalman_uio"], f))
+
+
+def test_the_c_loops_summaries_equal_summarise_runs_for_the_sampled_data_example(tmp_path: Path) -> None:
+    from fdisyn.evaluation.evaluate import build
+    from fdisyn.evaluation.metrics import MetricsPlan, summarise_runs
+
+    sde = get_problem("sampled_data_example")
+    d = sde.default_design
+    b = build(sde, d, tmp_path / d)
+    for name in sde.scenarios:
+        cc = compiled_campaign(sde, {d: b}, name)
+        assert cc is not None
+        seeds = [1, 2, 3, 4]
+        chunk = cc.run(seeds)
+        plan = MetricsPlan.of(sde.scenario(name), b.gain_file, chunk.t)
+        assert_summaries_equal(cc.summaries(seeds, {d: plan})[d], summarise_runs(plan, chunk.designs[d]))
+
+
+def test_wind_turbine_metrics_do_not_depend_on_the_chunks(wt_built) -> None:
+    """Chunks of 1 and of 5 runs: the same metrics to the last bit (each run's residual sums in sample order)."""
+    from fdisyn.evaluation.evaluate import evaluate
+
+    scenarios = {name: WT.scenario(name) for name in ("fault_free", "benchmark_stuck")}
+    prob = replace(WT, scenarios=scenarios)
+    one = evaluate(prob, {"kalman_uio": wt_built}, runs=5, chunk=1, workers=1, progress=False)
+    five = evaluate(prob, {"kalman_uio": wt_built}, runs=5, chunk=5, workers=1, progress=False)
+    for name in scenarios:
+        assert one.metrics["kalman_uio"][name].to_dict() == five.metrics["kalman_uio"][name].to_dict(), name
