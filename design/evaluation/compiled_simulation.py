@@ -788,6 +788,11 @@ def _compile(model: SampleModel, built: Mapping[str, Built], prefixes: Sequence[
     write_manifest(lib, key)
 
 
+_LIBRARIES: dict[tuple[Any, ...], tuple[Any, SampleModel, Path, str]] = {}
+"""Per process, the sample model and built library of each (sample model, options, folder, designs); the sample
+model's function is kept with them, so its ``id`` in the key is never reused by another."""
+
+
 def compiled_campaign(
     problem: Problem, built: Mapping[str, Built], scenario: str | Scenario, *, directory: str | Path | None = None, **options: Any
 ) -> CompiledCampaign | None:
@@ -802,11 +807,17 @@ def compiled_campaign(
     if problem.sample_model is None:
         return None
     sc = problem.scenario(scenario) if isinstance(scenario, str) else scenario
-    model = problem.sample_model(**problem.check_options(options))
+    checked = problem.check_options(options)
     if directory is None and not built:
         raise ArgumentError("a compiled campaign without designs (simulation only) needs a directory for its library")
     where = Path(directory) if directory is not None else Path(next(iter(built.values())).directory).parent / "campaign"
-    lib, key = build_library(model, built, where)
+    # one sample model and one library serve every scenario: generated, hashed and checked once per process
+    memo = (id(problem.sample_model), repr(sorted(checked.items())), str(where.absolute()),
+            tuple((d, gain_file_sha256(b.gain_file), str(Path(b.directory).absolute())) for d, b in built.items()))
+    if memo not in _LIBRARIES:
+        model = problem.sample_model(**checked)
+        _LIBRARIES[memo] = (problem.sample_model, model, *build_library(model, built, where))
+    _, model, lib, key = _LIBRARIES[memo]
     parameters = np.ascontiguousarray(model.parameters(sc), dtype=float).reshape(-1)
     if parameters.size != model.step.size1_in(3):
         raise ShapeError(f"scenario {sc.name!r} has {parameters.size} parameters; the sample model reads {model.step.size1_in(3)}")
