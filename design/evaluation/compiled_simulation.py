@@ -667,7 +667,9 @@ class CompiledCampaign:
                 if h.shape != (nj,) or plan.quiet.shape != (n,) or plan.active.shape != (n,):
                     raise ShapeError(f"design {d!r}: its metrics plan is not for {n} samples and {nj} statistics")
                 binned = (np.isfinite(h) & (h > 0)).astype(np.uint8)
-                edges = np.ascontiguousarray([HISTOGRAM_EDGES * float(x) for x in h]).reshape(nj, len(HISTOGRAM_EDGES))
+                # a statistic without a finite positive threshold has no histogram (its edges are never read)
+                edges = np.ascontiguousarray([HISTOGRAM_EDGES * (float(x) if ok else 1.0) for x, ok in zip(h, binned, strict=True)])
+                edges = edges.reshape(nj, len(HISTOGRAM_EDGES))
                 bufs = {
                     "quiet": np.ascontiguousarray(plan.quiet, dtype=np.uint8),
                     "active": np.ascontiguousarray(plan.active, dtype=np.uint8),
