@@ -794,7 +794,13 @@ def _claims(ctx: Any) -> list[Any]:
                 f"{fmt(ff.false_alarm_rate)} per sample, in {fmt(100 * ff.false_alarm_runs)} % of the runs (levels set for "
                 f"P_f = {fmt(ctx.problem.check_options(v.options)['P_f'])})",
                 "reproduced" if ff.false_alarm_runs <= 0.05 else "differs",
-                "" if ff.false_alarm_runs <= 0.05 else "the explicit threshold, learned on 50 runs, is exceeded more often than its P_f",
+                "" if ff.false_alarm_runs <= 0.05 else (
+                    f"the explicit threshold is the fault-free residual level learned on 50 runs for P_f = "
+                    f"{fmt(ctx.problem.check_options(v.options)['P_f'])} per sample, so some runs alarm: the measured "
+                    f"{fmt(ff.false_alarm_rate)} per sample is "
+                    + ("within" if ff.false_alarm_rate <= ctx.problem.check_options(v.options)["P_f"] else "above")
+                    + " that rate; the paper shows a single run"
+                ),
             )
         )
     for f in FAULTS:

@@ -711,6 +711,7 @@ def _law_figures(ctx: ReportContext) -> str:
     for the others (WSSR, CUSUM, GLR, …) the empirical tail P(J ≥ x) against the threshold and the design's P_f."""
     import scipy.stats
     from fdisyn.evaluation.metrics import HISTOGRAM_EDGES
+    from matplotlib.ticker import MaxNLocator
 
     v, problem, out = ctx.variants[0], ctx.problem, []
     for k, (d, b) in enumerate(v.built.items()):
@@ -754,6 +755,7 @@ def _law_figures(ctx: ReportContext) -> str:
             # the statistic's name above its panel (wrapped), the axis only "J": long names side by side overlap
             ax.set_title(textwrap.fill(label(problem, names[j]), 30) + f"\n{law}", fontsize=MIN_FONT_PT)
             ax.set_xlabel("J")
+            ax.xaxis.set_major_locator(MaxNLocator(4))  # a narrow panel: a few ticks that do not run into each other
             ax.grid(alpha=0.3)
         for ax in axes.ravel()[len(shown):]:
             ax.set_visible(False)
