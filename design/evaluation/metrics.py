@@ -85,7 +85,7 @@ DEFINITIONS: dict[str, str] = {
     "non-finite samples": "samples whose inputs or outputs held NaN or ±inf; the diagnoser skips them and counts them.",
     "fault-free histogram": (
         "per statistic with a finite positive threshold h, the counts of its fault-free samples in the bins "
-        "HISTOGRAM_EDGES × h (0 to 3 h by h/20): the first count is below 0, the last at or above 3 h (or not a number)."
+        "from 0 to 3 h in steps of h/20: the first count is below 0, the last at or above 3 h (or not a number)."
     ),
 }
 """The metrics' definitions, by the name the reports' column headers link to (one source: this module's docstring
