@@ -236,6 +236,14 @@ def step_stack_bytes(fn: ca.Function, nstate: int) -> int:
     return 8 * int(slots)
 
 
+def casadi_step(gf: GainFile, step: ca.Function | None = None) -> ca.Function:
+    """``gf``'s step (default :func:`step_function`) named ``<name>_casadi_step``: the function CasADi's C of the
+    diagnoser is generated from (and the compiled Monte Carlo's vector version)."""
+    fn = step if step is not None else step_function(gf)
+    ins: list[Any] = list(fn.sx_in() if fn.is_a("SXFunction") else fn.mx_in())
+    return ca.Function(f"{gf.name}_casadi_step", ins, fn.call(ins), list(fn.name_in()), list(fn.name_out()))
+
+
 def generate_sources(gf: GainFile, c_dir: str | Path, *, step: ca.Function | None = None) -> Path:
     """Write the C sources of ``gf``'s step into ``c_dir``; return the header path.
 
@@ -259,8 +267,7 @@ def generate_sources(gf: GainFile, c_dir: str | Path, *, step: ca.Function | Non
     c_dir.mkdir(parents=True, exist_ok=True)
     for generated in (f"{gf.name}_casadi.c", f"{gf.name}_casadi.h", f"{gf.name}.h", f"{gf.name}.c", "replay.c", "bench.c", "CMakeLists.txt"):
         fresh_path(c_dir / generated)
-    ins: list[Any] = list(fn.sx_in() if fn.is_a("SXFunction") else fn.mx_in())
-    named = ca.Function(f"{gf.name}_casadi_step", ins, fn.call(ins), list(fn.name_in()), list(fn.name_out()))
+    named = casadi_step(gf, fn)
     # the generated header carries the <f>_SZ_* work-size macros the wrapper uses
     cg = ca.CodeGenerator(f"{gf.name}_casadi.c", {"with_header": True, "with_export": False, "verbose": False})
     cg.add(named)

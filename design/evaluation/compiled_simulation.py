@@ -43,12 +43,15 @@ from typing import TYPE_CHECKING, Any
 
 import casadi as ca
 import numpy as np
+from fdisyn.codegen import lanes
+from fdisyn.codegen.lanes import LANE_PRELUDE, lane_function, scalar_lanes
 from fdisyn.codegen.library import (
     CFLAGS,
     _c_double,
     _finish,
     _start,
     c_string_literal,
+    casadi_step,
     compiler,
     fill_template,
     fresh_path,
@@ -487,43 +490,87 @@ def _design_code(prefixes: Sequence[str]) -> dict[str, str]:
     for i, pre in enumerate(prefixes):
         check_diagnoser_name(pre, "name", error=BuildError)
         P = pre.upper()
-        inc.append(f'#include "{pre}.h"')
-        decl.append(f"    double st{i}[CAMPAIGN_SZ({P}_NSTATE)], rb{i}[CAMPAIGN_SZ({P}_NR)], jb{i}[CAMPAIGN_SZ({P}_NJ)];\n"
-                    f"    int64_t md{i}[CAMPAIGN_SZ({P}_NFAULTS)];\n"
-                    f"    struct campaign_acc acc{i} = {{0, 0, 0, 0, 0}};\n"
-                    f"    int a{i}, iso{i}, rc{i}, kept{i} = r && r[{i}];")
-        init.append(f"        {pre}_init(st{i});\n"
-                     f"        if (plans) campaign_begin(plans + {i}, &acc{i}, md{i}, i, {P}_NR, {P}_NJ, {P}_NFAULTS);")
+        inc.append(f'#include "{pre}.h"\n#include "{pre}_casadi.h"')
+        decl.append(f"    double st{i}[CAMPAIGN_SZ({P}_NSTATE) * L], nx{i}[CAMPAIGN_SZ({P}_NSTATE) * L], st1_{i}[CAMPAIGN_SZ({P}_NSTATE)];\n"
+                    f"    double lr{i}[CAMPAIGN_SZ({P}_NR) * L], lj{i}[CAMPAIGN_SZ({P}_NJ) * L], la{i}[L], liso{i}[L], lst{i}[L];\n"
+                    f"    double rb{i}[CAMPAIGN_SZ({P}_NR)], jb{i}[CAMPAIGN_SZ({P}_NJ)];\n"
+                    f"    int64_t md{i}[CAMPAIGN_SZ({P}_NFAULTS) * L];\n"
+                    f"    struct campaign_acc acc{i}[L];\n"
+                    f"    const int kept{i} = r && r[{i}];")
+        init.append(f"            {pre}_init(st1_{i});\n"
+                    f"            for (j = 0; j < {P}_NSTATE; ++j) st{i}[j * L + l] = st1_{i}[j];\n"
+                    f"            if (plans && l < m)\n"
+                    f"                campaign_begin(plans + {i}, &acc{i}[l], md{i} + l * CAMPAIGN_SZ({P}_NFAULTS), i0 + l, {P}_NR, {P}_NJ,\n"
+                    f"                               {P}_NFAULTS);")
         step.append(
-            f"            {{\n"
-            f"                double *r{i} = kept{i} && {P}_NR ? r[{i}] + at * {P}_NR : rb{i};\n"
-            f"                double *j{i} = kept{i} && {P}_NJ ? J[{i}] + at * {P}_NJ : jb{i};\n"
-            f"                rc{i} = {pre}_step(st{i}, u, y, r{i}, j{i}, &a{i}, &iso{i});\n"
-            f"                if (rc{i} < 0) return -1;\n"
-            f"                if (kept{i}) {{\n"
-            f"                    alarm[{i}][at] = (unsigned char)(a{i} != 0);\n"
-            f"                    isolated[{i}][at] = (int32_t)iso{i};\n"
-            f"                    status[{i}][at] = (signed char)rc{i};\n"
-            f"                }}\n"
-            f"                if (plans && campaign_observe(plans + {i}, &acc{i}, k, a{i} != 0, iso{i}, rc{i}, r{i}, j{i}, {P}_NR, {P}_NJ,\n"
-            f"                                              {P}_NFAULTS) != 0)\n"
-            f"                    return -2;\n"
-            f"            }}"
+            f"            larg[0] = st{i};\n"
+            f"            larg[1] = u;\n"
+            f"            larg[2] = y;\n"
+            f"            lres[0] = nx{i};\n"
+            f"            lres[1] = lr{i};\n"
+            f"            lres[2] = lj{i};\n"
+            f"            lres[3] = la{i};\n"
+            f"            lres[4] = liso{i};\n"
+            f"            lres[5] = lst{i};\n"
+            f"            if (campaign_lane_step{i}(larg, lres, level) != 0) return -1;\n"
+            f"            memcpy(st{i}, nx{i}, sizeof st{i});\n"
+            f"            if (kept{i} || plans)\n"
+            f"                for (l = 0; l < m; ++l) {{ /* as {pre}_step reads the step's outputs */\n"
+            f"                    const long at = (i0 + l) * n + k;\n"
+            f"                    const int a = la{i}[l] > 0.5, iso = liso{i}[l] < 0.0 ? -1 : (int)(liso{i}[l] + 0.5), rc = lst{i}[l] > 0.5;\n"
+            f"                    double *rl = kept{i} && {P}_NR ? r[{i}] + at * {P}_NR : rb{i};\n"
+            f"                    double *jl = kept{i} && {P}_NJ ? J[{i}] + at * {P}_NJ : jb{i};\n"
+            f"                    for (j = 0; j < {P}_NR; ++j) rl[j] = lr{i}[j * L + l];\n"
+            f"                    for (j = 0; j < {P}_NJ; ++j) jl[j] = lj{i}[j * L + l];\n"
+            f"                    if (kept{i}) {{\n"
+            f"                        alarm[{i}][at] = (unsigned char)a;\n"
+            f"                        isolated[{i}][at] = (int32_t)iso;\n"
+            f"                        status[{i}][at] = (signed char)rc;\n"
+            f"                    }}\n"
+            f"                    if (plans && campaign_observe(plans + {i}, &acc{i}[l], k, a, iso, rc, rl, jl, {P}_NR, {P}_NJ, {P}_NFAULTS) != 0)\n"
+            f"                        return -2;\n"
+            f"                }}"
         )
-        end.append(f"        if (plans) campaign_end(plans + {i}, &acc{i}, {P}_NR, {P}_NFAULTS);")
+        end.append(f"            if (plans) campaign_end(plans + {i}, &acc{i}[l], {P}_NR, {P}_NFAULTS);")
     return {"DESIGN_INCLUDES": "\n".join(inc), "DESIGN_DECLS": "\n".join(decl), "DESIGN_INITS": "\n".join(init),
             "DESIGN_STEPS": "\n".join(step), "DESIGN_ENDS": "\n".join(end)}
 
 
+def _lane_code(model: SampleModel, built: Mapping[str, Built]) -> tuple[str, list[str]]:
+    """The lane functions of the campaign (:mod:`fdisyn.codegen.lanes`): the simulation's and every design's step,
+    as vectors where the function has a lane form, else CasADi's scalar C per lane; and the names of the latter."""
+    sim, faulty, _ = _sim_functions(model)
+    functions = [("campaign_lane_sim", "fdisyn_sim", sim), ("campaign_lane_sim_faulty", "fdisyn_sim_faulty", faulty)]
+    functions += [(f"campaign_lane_step{i}", f"{b.gain_file.name}_casadi_step", casadi_step(b.gain_file))
+                  for i, b in enumerate(built.values())]
+    code, scalar = [], []
+    for name, symbol, fn in functions:
+        text = lane_function(fn, name)
+        if text is None:
+            scalar.append(symbol)
+            text = scalar_lanes(fn, name, symbol)
+        code.append(text)
+    return "\n".join(code), scalar
+
+
+def _sim_functions(model: SampleModel) -> list[ca.Function]:
+    """The model's step as ``fdisyn_sim``, its faulty step as ``fdisyn_sim_faulty`` and its start as ``fdisyn_sim_start``:
+    the functions the C is generated from."""
+    assert model.faulty is not None and model.start is not None  # filled in by SampleModel
+    out = []
+    for name, fn in (("fdisyn_sim", model.step), ("fdisyn_sim_faulty", model.faulty), ("fdisyn_sim_start", model.start)):
+        ins = fn.sx_in()
+        out.append(ca.Function(name, ins, fn.call(ins), list(fn.name_in()), list(fn.name_out())))
+    return out
+
+
 def _sim_source(model: SampleModel, c_dir: Path) -> None:
-    """``fdisyn_sim.c``: the model's step as ``fdisyn_sim``, its faulty step as ``fdisyn_sim_faulty``, its start as ``fdisyn_sim_start``."""
+    """``fdisyn_sim.c``: :func:`_sim_functions` in CasADi's C."""
     for generated in ("fdisyn_sim.c", "fdisyn_sim.h"):
         fresh_path(c_dir / generated)
     cg = ca.CodeGenerator("fdisyn_sim.c", {"with_header": True, "with_export": False, "verbose": False})
-    assert model.faulty is not None and model.start is not None  # filled in by SampleModel
-    for name, fn in (("fdisyn_sim", model.step), ("fdisyn_sim_faulty", model.faulty), ("fdisyn_sim_start", model.start)):
-        ins = fn.sx_in()
-        cg.add(ca.Function(name, ins, fn.call(ins), list(fn.name_in()), list(fn.name_out())))
+    for fn in _sim_functions(model):
+        cg.add(fn)
     cg.generate(str(c_dir) + os.sep)
 
 
@@ -576,6 +623,10 @@ class CompiledCampaign:
         self._draws = lib.fdisyn_campaign_draws
         self._draws.argtypes = [ctypes.c_long, ctypes.c_long, _U64, _D]
         self._draws.restype = None
+        self._set_level = lib.fdisyn_campaign_set_level
+        self._set_level.argtypes, self._set_level.restype = [ctypes.c_int], None
+        self._level = lib.fdisyn_campaign_level
+        self._level.argtypes, self._level.restype = [], ctypes.c_int
         self._normals = lib.fdisyn_campaign_normals
         self._normals.argtypes = [_U64, ctypes.c_long, _D]
         self._normals.restype = None
@@ -591,6 +642,17 @@ class CompiledCampaign:
         if bad:
             raise ArgumentError(f"seeds must be whole numbers ≥ 0; got {bad[:5]}")
         return np.ascontiguousarray(np.stack([generator_state(int(s)) for s in seeds]) if seeds else np.zeros((0, 4), np.uint64))
+
+    def vector_level(self, level: int | None = None) -> int:
+        """The vectors the runs go through: 3 AVX-512, 2 AVX2, 1 the baseline (see :mod:`fdisyn.codegen.lanes`);
+        ``level`` forces one for this process's library (0: the widest this CPU runs), for tests. Results do not
+        depend on it."""
+        if level is not None:
+            self._set_level(0)
+            if level not in range(self._level() + 1):
+                raise ArgumentError(f"vector level must be 0 … {self._level()} on this CPU; got {level!r}")
+            self._set_level(int(level))
+        return int(self._level())
 
     def normals(self, seed: int, count: int) -> np.ndarray:
         """``count`` standard normals of run seed ``seed``'s generator (the kernel's law, for tests)."""
@@ -746,7 +808,7 @@ def build_library(model: SampleModel, built: Mapping[str, Built], directory: Pat
     for b in built.values():
         c_dir = Path(b.artifacts.c_dir)
         design_files += [c_dir / f"{b.gain_file.name}{s}" for s in (".c", ".h", "_casadi.c", "_casadi.h")]
-    key = _key([sim_c, TEMPLATE.read_bytes(), " ".join([*compiler(), *CFLAGS, *LIBRARY_FLAGS]).encode()]
+    key = _key([sim_c, TEMPLATE.read_bytes(), Path(lanes.__file__).read_bytes(), " ".join([*compiler(), *CFLAGS, *LIBRARY_FLAGS]).encode()]
                + [gain_file_sha256(b.gain_file).encode() for b in built.values()] + [p.read_bytes() for p in design_files])
     out = directory / key[:16]
     lib = out / LIBRARY
@@ -777,6 +839,8 @@ def _compile(model: SampleModel, built: Mapping[str, Built], prefixes: Sequence[
         "ZIG_F": ", ".join(_c_double(v) for v in zf),
         "KEY": c_string_literal(key),
         **_design_code(prefixes),
+        "LANE_PRELUDE": LANE_PRELUDE,
+        "LANE_CODE": _lane_code(model, built)[0],
     }
     source = fresh_path(c_dir / "fdisyn_campaign.c")
     source.write_text(fill_template(TEMPLATE.read_text(encoding="utf-8"), subs, TEMPLATE.name), encoding="utf-8")

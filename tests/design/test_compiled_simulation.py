@@ -357,3 +357,30 @@ def test_wind_turbine_metrics_do_not_depend_on_the_chunks(wt_built) -> None:
     five = evaluate(prob, {"kalman_uio": wt_built}, runs=5, chunk=5, workers=1, progress=False)
     for name in scenarios:
         assert one.metrics["kalman_uio"][name].to_dict() == five.metrics["kalman_uio"][name].to_dict(), name
+
+
+# ----------------------------------------------------------------------------- vectors of runs
+
+
+def test_every_vector_width_gives_the_same_runs(wt_campaign) -> None:
+    """Eleven runs (a group of eight and a partial one) through every vector width this CPU runs: identical to the
+    last bit, and each run the same as alone (run 9 is lane 1 of the second group, alone it is lane 0)."""
+    seeds = list(range(30, 41))
+    natural = wt_campaign.vector_level(0)
+    try:
+        chunks = {}
+        for level in range(1, natural + 1):
+            assert wt_campaign.vector_level(level) == level
+            chunks[level] = wt_campaign.run(seeds, keep_batch=True)
+        with pytest.raises(ArgumentError, match="vector level"):
+            wt_campaign.vector_level(natural + 1)
+    finally:
+        wt_campaign.vector_level(0)
+    first = chunks[1]
+    for chunk in chunks.values():
+        assert np.array_equal(chunk.batch.Y, first.batch.Y) and np.array_equal(chunk.batch.U, first.batch.U)
+        for f in ("r", "J", "alarm", "isolated", "status"):
+            assert np.array_equal(getattr(chunk.designs["kalman_uio"], f), getattr(first.designs["kalman_uio"], f))
+    alone = wt_campaign.run([seeds[9]], keep_batch=True)
+    assert np.array_equal(alone.batch.Y[0], first.batch.Y[9])
+    assert np.array_equal(alone.designs["kalman_uio"].J[0], first.designs["kalman_uio"].J[9])
