@@ -573,7 +573,7 @@ def _chosen(gf: GainFile) -> Mapping[str, Any]:
 
 
 def _structure_section() -> str:
-    from fdisyn.app.report import fmt, table
+    from fdisyn.app.report import fmt, folded, table
     from fdisyn.synthesis.uio_gos import completed_condition, output_groups
 
     rows = [[pos, printed, value, why] for pos, printed, value, why in TRANSCRIPTION]
@@ -600,7 +600,7 @@ def _structure_section() -> str:
     return (
         "<p>Every guessed entry of the transcribed model (Long & Wang 2017, section 2). The reconstruction is the "
         "fewest moved lines that reproduce the paper's structural facts:</p>"
-        + table(["position", "printed", "value chosen", "why"], rows, left=4)
+        + folded(table(["position", "printed", "value chosen", "why"], rows, left=4), f"The {len(rows)} guessed entries")
         + table(["structural fact", "transcribed model", "paper"], facts, left=1)
         + f"<p>Open-loop eigenvalues (rad/s): {eig}. All stable, from the spool inertia (time constant "
         f"{fmt(1 / -lam[0].real)} s) to the gas-path volumes ({fmt(1 / -lam[-1].real * 1e3)} ms): plausible for a turbofan.</p>"
@@ -687,35 +687,6 @@ def _residual_figures(ctx: Any, v: Any) -> str:
             what = "around the P3 open circuit" if fname == "fault" else "without a fault"
             out.append(ctx.figure(f"wssr_{dname}_{fname}", fig, f"Run 0, {dname} bank {what}: each UIO's WSSR over its threshold (cf. Long & Wang 2017, figs. {fig_no})."))
     return "".join(out)
-
-
-def _metrics_section(v: Any) -> str:
-    from fdisyn.app.report import table
-
-    m = v.evaluation.metrics
-    rows: list[list[Any]] = []
-    for dname in m:
-        ff = m[dname].get("fault_free")
-        rows.append([dname, "none (fault-free)", "", ff.false_alarm_rate if ff else None, ff.false_alarm_runs if ff else None, "", "", ""])
-        for sensor in OUTPUTS:
-            for kind in FAULT_KINDS:
-                mm = m[dname].get(f"{sensor}_{kind}")
-                if mm is None:
-                    continue
-                rows.append([dname, LABELS[sensor], kind, mm.false_alarm_rate, mm.false_alarm_runs, mm.missed_detection_rate,
-                             mm.detection_delay_mean_s, mm.isolation_accuracy])
-        mm = m[dname].get("P3_open_circuit")
-        if mm is not None:
-            rows.append([dname, LABELS["P3"], "open circuit", mm.false_alarm_rate, mm.false_alarm_runs, mm.missed_detection_rate,
-                         mm.detection_delay_mean_s, mm.isolation_accuracy])
-    return (
-        f"<p>{v.evaluation.runs} runs per scenario through the compiled C step. False-alarm rate: the fraction of "
-        "fault-free samples with an alarm; false-alarm runs: the fraction of runs with any; missed: the fraction of runs "
-        "without an alarm while the fault acts; delay: from the onset to the first alarm (a stuck sensor can only show at "
-        "the throttle move 10 s after it sticks; — where no run detected it); isolation: the fraction of detected runs "
-        "whose isolated fault is the faulty sensor.</p>"
-        + table(["design", "faulty sensor", "fault", "false-alarm rate", "false-alarm runs", "missed", "delay mean (s)", "isolation"], rows, left=3)
-    )
 
 
 def _rank_comparison(v: Any) -> str:
@@ -872,7 +843,6 @@ def _report(ctx: Any) -> list[tuple[str, str]]:
         sections.append(("The unknown-input direction E", _estimate_section(ctx, gf) + _rank_comparison(v)))
     sections.append(("Grouped against ungrouped", _grouping_section(v)))
     sections.append(("Figures 9–12: the P3 open circuit", _residual_figures(ctx, v)))
-    sections.append(("Monte Carlo per sensor and fault kind", _metrics_section(v)))
     compared = [w.evaluation.runs for w in ctx.variants if w.options.get("arl0") is not None]
     # the GLR is sized on the generators of a WSSR bank (a CUSUM's are whitened already)
     wssr = [w for w in ctx.variants if "grouped" in w.built and w.built["grouped"].gain_file.evaluators[0].kind == "wssr"]
