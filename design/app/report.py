@@ -53,7 +53,8 @@ th a{color:inherit;text-decoration:underline dotted}
 figure{margin:1em 0}figcaption{font-size:.88em;color:#444}code{background:#f4f4f4;padding:0 .2em}
 .small{font-size:.85em;color:#555}nav.toc ol{columns:2;font-size:.92em}
 details{margin:.6em 0;border-left:3px solid #e3e3e3;padding-left:.8em}summary{cursor:pointer;font-weight:600}
-dl.defs dt{font-weight:600;margin-top:.5em}dl.defs dd{margin-left:1.5em}
+dl.defs{display:grid;grid-template-columns:max-content 1fr;gap:.3em 1em}dl.defs dt{font-weight:600}dl.defs dd{margin:0}
+.glance td.l{white-space:nowrap}.glance td{padding:.1em .5em}
 """
 
 SIGNIFICANT_DIGITS = 4
@@ -237,6 +238,13 @@ def _tidy(fig: Figure, problem: Problem | None) -> None:
             fig.tight_layout()  # narrower panels, the legends keep their size: lay out again
 
 
+def _figure_legend(fig: Figure, handles: Sequence[Any], texts: Sequence[str]) -> None:
+    """One legend for every panel, to the right of them all: a legend beside one panel of a grid as tall as several
+    panels would push the grid's rows apart."""
+    fig.set_layout_engine("constrained")
+    fig.legend(handles, texts, loc="outside right upper", fontsize=MIN_FONT_PT, ncol=1 if len(texts) <= 12 else 2, frameon=False)
+
+
 @dataclass
 class ReportContext:
     """What a problem's report hooks get: the results and :meth:`figure`, which saves a figure next to the page."""
@@ -278,6 +286,11 @@ def _versions() -> str:
 _REL = {"<=": "≤", ">=": "≥"}
 
 
+def _certified(gf: Any) -> list[Mapping[str, Any]]:
+    """The certificates whose checks a page shows: a linear diagnoser's one per generator, another's its own."""
+    return list(gf.certificate["generators"]) if gf.kind == "linear" else [gf.certificate[gf.kind]]
+
+
 CERTIFICATE_COLUMNS = 6
 """Generators a certificate table shows side by side, one column each; a bank of more shows one row per generator."""
 
@@ -287,7 +300,7 @@ def _certificate_table(gf: Any, problem: Problem | None = None) -> str:
     generator (banks repeat their checks): one column per generator, or for a bank of more than
     :data:`CERTIFICATE_COLUMNS` the checks in one table and the values in another, one row per generator."""
     linear = gf.kind == "linear"
-    certs = gf.certificate["generators"] if linear else [gf.certificate[gf.kind]]
+    certs = _certified(gf)
     owners = [label(problem, g.name) for g in gf.generators] if linear else [label(problem, gf.design)]
     names: list[str] = []
     for c in certs:
@@ -377,20 +390,24 @@ def _bias_cell(row: Mapping[str, float | None], sensor: str) -> str:
 
 
 def _certificates_section(problem: Problem, variants: Sequence[Any]) -> str:
-    """Each distinct certificate once, with the designs (and variants) that share it."""
+    """Each distinct certificate once (folded), with the designs (and variants) that share it and its checks passed."""
     owners: dict[str, list[str]] = {}
+    checks: dict[str, list[bool]] = {}
     for v in variants:
         for d, b in v.built.items():
-            owners.setdefault(_certificate_html(b.gain_file, problem), []).append(
-                label(problem, d) if v.label == "default" else f"{label(problem, d)} ({_variant_name(v)})")
+            body = _certificate_html(b.gain_file, problem)
+            owners.setdefault(body, []).append(label(problem, d) if v.label == "default" else f"{label(problem, d)} ({_variant_name(v)})")
+            checks[body] = [bool(k["passed"]) for c in _certified(b.gain_file) for k in c["checks"]]
     out = []
     for k, (body, users) in enumerate(owners.items(), start=1):
-        names = ", ".join(users)
-        summary = f"Certificate {k}: {html.escape(names)}"
-        out.append(f'<details id="certificate-{k}"{" open" if k == 1 else ""}><summary>{summary}</summary>{body}</details>')
+        passed = checks[body]
+        verdict = "every one passes" if all(passed) else f"{len(passed) - sum(passed)} FAIL"
+        summary = f"Certificate {k}: {', '.join(users)} — {len(passed)} checks, {verdict}"
+        out.append(f'<details id="certificate-{k}"><summary>{html.escape(summary)}</summary>{body}</details>')
+    listed = "".join(out)
     return (
         f'<p class="small">{len(owners)} distinct certificate(s) for {sum(len(u) for u in owners.values())} design(s); designs '
-        "that share a certificate are listed under it.</p>" + "".join(out)
+        "that share a certificate are listed under it.</p>" + (listed if len(out) <= 3 else folded(listed, f"The {len(out)} certificates"))
     )
 
 
@@ -443,33 +460,33 @@ def _most(value: float | None, bad: bool) -> Any:
 
 
 def _glance_section(problem: Problem, variant: Any) -> str:
-    """The main variant's detection figures: one row per faulty scenario, the designs side by side (false alarms,
-    missed detection, delay, isolation), under one row of the false alarms pooled over every scenario's fault-free
-    samples."""
+    """The main variant's detection figures: one row per faulty scenario, the designs side by side (missed detection,
+    delay, isolation), each design headed by its false alarms pooled over every scenario's fault-free samples."""
     ev = variant.evaluation
     designs = list(ev.metrics)
     faulty = _faulty_scenarios(variant)
-    pooled: list[Any] = ["all (fault-free samples)", ""]
+    groups = []
     for d in designs:
         ms = list(ev.metrics[d].values())
         n = sum(m.fault_free_samples for m in ms)
-        pooled += [sum(m.false_alarm_rate * m.fault_free_samples for m in ms) / n if n else None, "—", "—", "—"]
-    rows = [pooled]
+        far = sum(m.false_alarm_rate * m.fault_free_samples for m in ms) / n if n else None
+        groups.append((f'<span>{html.escape(label(problem, d))}<br><span class="small">{defined("false alarms", "false-alarm rate")}: '
+                       f"{html.escape(fmt(far))} per sample</span></span>", 3))
+    rows = []
     for (s, _), lead in zip(faulty, _fault_cells(problem, faulty), strict=True):
         row = list(lead)
         for d in designs:
             m = ev.metrics[d][s]
             missed, iso = m.missed_detection_rate, m.isolation_accuracy
-            row += [m.false_alarm_rate, _most(missed, missed is not None and missed > 0.5), m.detection_delay_mean_s,
-                    _most(iso, iso is not None and iso < 0.5)]
+            row += [_most(missed, missed is not None and missed > 0.5), m.detection_delay_mean_s, _most(iso, iso is not None and iso < 0.5)]
         rows.append(row)
-    per = [defined("false alarms (per sample)", "false-alarm rate"), defined("missed (of runs)", "missed detection"),
-           defined("delay mean (s)", "detection delay"), defined("isolated (of runs)", "isolation accuracy")]
+    per = [defined("missed (of runs)", "missed detection"), defined("delay mean (s)", "detection delay"),
+           defined("isolated (of runs)", "isolation accuracy")]
     return (
-        f'<p class="small">{fmt(ev.runs)} runs per scenario; every design sees the same runs. Bold red: missed, or not '
-        "isolated, in more than half of the runs. False isolation and the other figures: "
-        '<a href="#isolation">Isolation</a>, <a href="#monte-carlo-metrics">Monte Carlo metrics</a>.</p>'
-        + table(["scenario", "fault", *(per * len(designs))], rows, left=2, groups=[(label(problem, d), len(per)) for d in designs])
+        f'<p class="small">{fmt(ev.runs)} runs per scenario; every design sees the same runs; false alarms over every '
+        "scenario's fault-free samples. Bold red: missed, or not isolated, in more than half of the runs. Each scenario's "
+        'false alarms and the other figures: <a href="#monte-carlo-metrics">Monte Carlo metrics</a>.</p>'
+        + f'<div class="glance">{table(["scenario", "fault", *(per * len(designs))], rows, left=2, groups=groups)}</div>'
     )
 
 
@@ -512,7 +529,7 @@ def _isolation_section(problem: Problem, variant: Any) -> str:
     return (
         "<p class=\"small\">The most frequent isolation decision of each run while the fault is active "
         f"({defined('definitions', 'isolation accuracy')}): {legend}; the number is the true fault's share of the runs.</p>"
-        + table(["scenario", "fault", *(label(problem, d) for d in designs)], bars, left=2)
+        + f'<div class="glance">{table(["scenario", "fault", *(label(problem, d) for d in designs)], bars, left=2)}</div>'
         + folded(table(["scenario", "true fault", "design", "true fault (% of runs)", "another fault (% of runs)",
                         "not isolated (% of runs)"], rows, left=3))
     )
@@ -893,7 +910,7 @@ def _sweep_figure(ctx: ReportContext) -> str:
     if sweep is None or not sweep.scenarios:
         return ""
     designs = list(v.evaluation.metrics)
-    fig, axes = subplots(len(designs), 2, figsize=(9.0, 2.6 * len(designs) + 0.4), squeeze=False)
+    fig, axes = subplots(len(designs), 2, figsize=(9.0, 2.2 * len(designs) + 0.4), squeeze=False)
     rows = []
     for i, d in enumerate(designs):
         for base, by_factor in sweep.scenarios.items():
@@ -915,10 +932,9 @@ def _sweep_figure(ctx: ReportContext) -> str:
             ax.set_xticks(ticks, [fmt(f) for f in ticks])
             ax.minorticks_off()
             ax.grid(alpha=0.3)
-        axes[i, 1].legend()
     for ax in axes[-1]:
         ax.set_xlabel("fault size (× the scenario's)")
-    fig.tight_layout()
+    _figure_legend(fig, *axes[0, 1].get_legend_handles_labels())
     return ctx.figure(
         "fault_size_sweep",
         fig,
@@ -996,7 +1012,8 @@ def _frequency_figures(ctx: ReportContext) -> str:
         palette = colormaps["tab10" if len(dirs) <= 10 else "tab20"]
         colour = {f: palette(i % palette.N) for i, f in enumerate(dirs)}
         seen: set[str] = set()
-        fig, axes = subplots(rows, cols, figsize=(4.6 * cols if cols <= 2 else 2.6 * cols, 2.6 * rows + 0.4), squeeze=False)
+        fig, axes = subplots(rows, cols, figsize=(4.6 * cols, 2.6 * rows + 0.4) if cols <= 2 else (2.6 * cols, 1.8 * rows + 0.4),
+                             squeeze=False)
         for gen, ax in zip(gens, axes.ravel(), strict=False):
             rd, rf = _responses(A, E, C, dirs, gen, w)
             om = w / gf.Ts
@@ -1006,7 +1023,7 @@ def _frequency_figures(ctx: ReportContext) -> str:
                 if np.max(r) > 1e-9:
                     ax.loglog(om, np.maximum(r, 1e-12), lw=1.0, color=colour[f])
                     seen.add(f)
-            ax.set_title(textwrap.fill(label(problem, gen.name), 34), fontsize=MIN_FONT_PT)
+            ax.set_title(textwrap.fill(label(problem, gen.name), 34 if cols <= 2 else 22), fontsize=MIN_FONT_PT)
             lo, hi = ax.get_ylim()
             if hi < 10 * lo:  # under a decade: a linear axis reads better than log ticks
                 ax.set_yscale("linear")
@@ -1015,10 +1032,9 @@ def _frequency_figures(ctx: ReportContext) -> str:
             ax.set_xlabel("ω (rad/s)")
         handles = ([Line2D([], [], color="k", lw=1.2)] if E.shape[1] else []) + [Line2D([], [], color=colour[f], lw=1.0) for f in dirs if f in seen]
         texts = (["σ̄ G_rd (disturbance)"] if E.shape[1] else []) + [f"|G_rf| {label(problem, f)}" for f in dirs if f in seen]
-        axes[0, -1].legend(handles, texts)
         for ax in axes.ravel()[len(gens):]:
             ax.set_visible(False)
-        fig.tight_layout()
+        _figure_legend(fig, handles, texts)
         body = ctx.figure(
             f"frequency_{d}",
             fig,
@@ -1028,6 +1044,10 @@ def _frequency_figures(ctx: ReportContext) -> str:
         )
         out.append(body if k == 0 else folded(body, label(problem, d)))
     return "".join(out)
+
+
+POLE_LEGEND = 8
+"""Generators of a bank whose poles the pole figure tells apart, one colour each; a larger bank's share one."""
 
 
 def _pole_figure(ctx: ReportContext) -> str:
@@ -1048,7 +1068,10 @@ def _pole_figure(ctx: ReportContext) -> str:
             ax.plot(plant_poles.real, plant_poles.imag, "x", color="0.4", ms=6, label="plant")
         for gen in gf.generators:
             ev = np.linalg.eigvals(gen.Ar) if gen.Ar.size else np.zeros(0)
-            ax.plot(ev.real, ev.imag, "o", ms=4, fillstyle="none", label=label(problem, gen.name) if len(gf.generators) > 1 else "generator")
+            if len(gf.generators) <= POLE_LEGEND:
+                ax.plot(ev.real, ev.imag, "o", ms=4, fillstyle="none", label=label(problem, gen.name) if len(gf.generators) > 1 else "generator")
+            else:  # a large bank: its generators in one colour (their spectral radii in the table)
+                ax.plot(ev.real, ev.imag, "o", ms=4, fillstyle="none", color="tab:blue", label="generators" if gen is gf.generators[0] else None)
             rows.append([label(problem, d), label(problem, gen.name), gen.Ar.shape[0], float(np.max(np.abs(ev))) if ev.size else None])
         ax.set_aspect("equal")
         ax.set_title(textwrap.fill(label(problem, d), 28), fontsize=MIN_FONT_PT)
