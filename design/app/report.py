@@ -42,18 +42,19 @@ from fdisyn.runtime.gainfile import write_gain_file
 from fdisyn.synthesis.registry import recovery_samples
 from matplotlib.figure import Figure
 
-__all__ = ["Claim", "ReportContext", "write_report", "write_index", "summary_table", "subplots", "table", "fmt", "label"]
+__all__ = ["Claim", "ReportContext", "write_report", "write_index", "summary_table", "subplots", "table", "folded", "fmt", "label"]
 
 _CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;max-width:1150px;margin:2em auto;padding:0 1em;color:#1b1b1b;line-height:1.45}
 h1{font-size:1.6em}h2{border-bottom:1px solid #ccc;padding-bottom:.2em;margin-top:2em}h3{margin-top:1.5em}
 table{border-collapse:collapse;margin:.8em 0;font-size:.88em}th,td{border:1px solid #d0d0d0;padding:.25em .5em;text-align:right;vertical-align:top}
-th{background:#f3f3f3}td.l,th.l{text-align:left}.ok{color:#176b2c}.bad{color:#b00020;font-weight:bold}
+th{background:#f3f3f3}td.l,th.l{text-align:left}td.g,th.g{border-left:2px solid #888}th.g[colspan]{text-align:center}.ok{color:#176b2c}.bad{color:#b00020;font-weight:bold}
 th a{color:inherit;text-decoration:underline dotted}
 figure{margin:1em 0}figcaption{font-size:.88em;color:#444}code{background:#f4f4f4;padding:0 .2em}
 .small{font-size:.85em;color:#555}nav.toc ol{columns:2;font-size:.92em}
 details{margin:.6em 0;border-left:3px solid #e3e3e3;padding-left:.8em}summary{cursor:pointer;font-weight:600}
-dl.defs dt{font-weight:600;margin-top:.5em}dl.defs dd{margin-left:1.5em}
+dl.defs{display:grid;grid-template-columns:max-content 1fr;gap:.3em 1em}dl.defs dt{font-weight:600}dl.defs dd{margin:0}
+.glance td.l{white-space:nowrap}.glance td{padding:.1em .5em}
 """
 
 SIGNIFICANT_DIGITS = 4
@@ -113,19 +114,40 @@ def defined(header: str, term: str) -> str:
     return f'<a href="#def-{_slug(term)}" title="{html.escape(DEFINITIONS[term])}">{html.escape(header)}</a>'
 
 
-def table(header: Sequence[str], rows: Iterable[Sequence[Any]], *, left: int = 1) -> str:
+def table(header: Sequence[str], rows: Iterable[Sequence[Any]], *, left: int = 1, groups: Sequence[tuple[str, int]] = ()) -> str:
     """An HTML table; the first ``left`` columns are left-aligned text. Numbers go through :func:`fmt`;
-    a string cell or header that starts with ``<`` is HTML (e.g. from :func:`defined`), any other is escaped."""
+    a string cell or header that starts with ``<`` is HTML (e.g. from :func:`defined`), any other is escaped.
+
+    ``groups``: ``(title, columns)`` pairs heading the last columns in groups (e.g. the designs side by side, each
+    over the same figures); the columns before them span both header rows, a rule separates the groups."""
 
     def cell(c: Any) -> str:
         return c if isinstance(c, str) and c.startswith("<") else html.escape(c if isinstance(c, str) else fmt(c))
 
-    h = "".join(f'<th class="l">{cell(c)}</th>' if i < left else f"<th>{cell(c)}</th>" for i, c in enumerate(header))
+    first = len(header) - sum(n for _, n in groups)
+    starts = set(np.cumsum([first, *(n for _, n in groups)])[:-1].tolist()) if groups else set()
+
+    def attrs(i: int) -> str:
+        cls = " ".join(c for c, on in (("l", i < left), ("g", i in starts)) if on)
+        return f' class="{cls}"' if cls else ""
+
+    if groups:
+        span = ' rowspan="2"'
+        top = "".join(f"<th{attrs(i)}{span}>{cell(c)}</th>" for i, c in enumerate(header[:first]))
+        top += "".join(f'<th class="g" colspan="{n}">{cell(t)}</th>' for t, n in groups)
+        h = top + "</tr><tr>" + "".join(f"<th{attrs(i)}>{cell(c)}</th>" for i, c in enumerate(header) if i >= first)
+    else:
+        h = "".join(f"<th{attrs(i)}>{cell(c)}</th>" for i, c in enumerate(header))
     body = []
     for row in rows:
-        cells = [f'<td class="l">{cell(c)}</td>' if i < left else f"<td>{cell(c)}</td>" for i, c in enumerate(row)]
+        cells = [f"<td{attrs(i)}>{cell(c)}</td>" for i, c in enumerate(row)]
         body.append("<tr>" + "".join(cells) + "</tr>")
     return f"<table><thead><tr>{h}</tr></thead><tbody>{''.join(body)}</tbody></table>"
+
+
+def folded(body: str, summary: str = "The numbers") -> str:
+    """``body`` folded under ``summary`` (closed): the numbers behind a figure, a long table."""
+    return f"<details><summary>{html.escape(summary)}</summary>{body}</details>"
 
 
 VERDICTS = ("reproduced", "differs")
@@ -216,6 +238,13 @@ def _tidy(fig: Figure, problem: Problem | None) -> None:
             fig.tight_layout()  # narrower panels, the legends keep their size: lay out again
 
 
+def _figure_legend(fig: Figure, handles: Sequence[Any], texts: Sequence[str]) -> None:
+    """One legend for every panel, to the right of them all: a legend beside one panel of a grid as tall as several
+    panels would push the grid's rows apart."""
+    fig.set_layout_engine("constrained")
+    fig.legend(handles, texts, loc="outside right upper", fontsize=MIN_FONT_PT, ncol=1 if len(texts) <= 12 else 2, frameon=False)
+
+
 @dataclass
 class ReportContext:
     """What a problem's report hooks get: the results and :meth:`figure`, which saves a figure next to the page."""
@@ -257,40 +286,54 @@ def _versions() -> str:
 _REL = {"<=": "≤", ">=": "≥"}
 
 
-def _certificate_table(gf: Any) -> str:
-    """One row per check, one value column per generator (banks repeat their checks)."""
+def _certified(gf: Any) -> list[Mapping[str, Any]]:
+    """The certificates whose checks a page shows: a linear diagnoser's one per generator, another's its own."""
+    return list(gf.certificate["generators"]) if gf.kind == "linear" else [gf.certificate[gf.kind]]
+
+
+CERTIFICATE_COLUMNS = 6
+"""Generators a certificate table shows side by side, one column each; a bank of more shows one row per generator."""
+
+
+def _certificate_table(gf: Any, problem: Problem | None = None) -> str:
+    """Every check with the reason for its bound, its bound and whether every generator passes it, and its value per
+    generator (banks repeat their checks): one column per generator, or for a bank of more than
+    :data:`CERTIFICATE_COLUMNS` the checks in one table and the values in another, one row per generator."""
     linear = gf.kind == "linear"
-    certs = gf.certificate["generators"] if linear else [gf.certificate[gf.kind]]
+    certs = _certified(gf)
+    owners = [label(problem, g.name) for g in gf.generators] if linear else [label(problem, gf.design)]
     names: list[str] = []
     for c in certs:
         for chk in c["checks"]:
             if chk["name"] not in names:
                 names.append(chk["name"])
+    found = {name: [next((k for k in c["checks"] if k["name"] == name), None) for c in certs] for name in names}
+
+    def value(k: Mapping[str, Any] | None) -> str:
+        return fmt(k["value"], 3) if k is not None else "—"
+
+    wide = len(certs) <= CERTIFICATE_COLUMNS
     rows = []
     for name in names:
-        found = [next((k for k in c["checks"] if k["name"] == name), None) for c in certs]
-        first = next(k for k in found if k is not None)
-        ok = all(k is None or k["passed"] for k in found)
-        rows.append(
-            [
-                name,
-                first["reason"],
-                *(fmt(k["value"], 3) if k is not None else "—" for k in found),
-                f"{_REL[first['relation']]} {fmt(first['bound'], 3)}",
-                f'<span class="{"ok" if ok else "bad"}">{"pass" if ok else "FAIL"}</span>',
-            ]
-        )
-    head = ["check", "reason for the bound", *((g.name for g in gf.generators) if linear else [gf.design]), "bound", ""]
-    return table(head, rows, left=2)
+        first = next(k for k in found[name] if k is not None)
+        ok = all(k is None or k["passed"] for k in found[name])
+        verdict = f'<span class="{"ok" if ok else "bad"}">{"pass" if ok else "FAIL"}</span>'
+        bound = f"{_REL[first['relation']]} {fmt(first['bound'], 3)}"
+        rows.append([name, first["reason"], *((value(k) for k in found[name]) if wide else []), bound, verdict])
+    if wide:
+        return table(["check", "reason for the bound", *owners, "bound", ""], rows, left=2)
+    values = [[owner, *(value(found[name][i]) for name in names)] for i, owner in enumerate(owners)]
+    return (table(["check", "reason for the bound", "bound", "every generator"], rows, left=2)
+            + table(["generator", *names], values, left=1))
 
 
-def _design_rows(variant: Any) -> str:
+def _design_rows(problem: Problem, variant: Any) -> str:
     """The variant's designs in one table (linear diagnosers: generators, dof, threshold, …; others: sizes)."""
     if any(b.gain_file.kind != "linear" for b in variant.built.values()):
         rows = []
         for d, b in variant.built.items():
             gf, st = b.gain_file, b.gain_file.step
-            rows.append([d, gf.kind, gf.name, st.nu, st.ny, st.nr, st.nj, st.nstate, ", ".join(gf.faults)])
+            rows.append([label(problem, d), gf.kind, gf.name, st.nu, st.ny, st.nr, st.nj, st.nstate, ", ".join(label(problem, f) for f in gf.faults)])
         return table(["design", "kind", "gain file", "inputs", "outputs", "residual components", "statistics", "state size", "faults"], rows, left=3)
     rows = []
     for d, b in variant.built.items():
@@ -299,7 +342,7 @@ def _design_rows(variant: Any) -> str:
         info0 = gf.certificate["generators"][0].get("info", {}) if gf.certificate["generators"] else {}
         rows.append(
             [
-                d,
+                label(problem, d),
                 gf.name,
                 len(gf.generators),
                 ", ".join(str(e.dof) for e in gf.evaluators),
@@ -320,7 +363,7 @@ def _design_rows(variant: Any) -> str:
 
 def _certificate_html(gf: Any, problem: Problem | None = None) -> str:
     """A design's certificate table, with the smallest detectable biases of a linear bank."""
-    out = [_certificate_table(gf)]
+    out = [_certificate_table(gf, problem)]
     if gf.kind != "linear":
         return "".join(out)
     mdb = gf.certificate["bank"].get("info", {}).get("min_detectable_bias", {})
@@ -347,19 +390,24 @@ def _bias_cell(row: Mapping[str, float | None], sensor: str) -> str:
 
 
 def _certificates_section(problem: Problem, variants: Sequence[Any]) -> str:
-    """Each distinct certificate once, with the designs (and variants) that share it."""
+    """Each distinct certificate once (folded), with the designs (and variants) that share it and its checks passed."""
     owners: dict[str, list[str]] = {}
+    checks: dict[str, list[bool]] = {}
     for v in variants:
         for d, b in v.built.items():
-            owners.setdefault(_certificate_html(b.gain_file, problem), []).append(d if v.label == "default" else f"{d} ({_variant_name(v)})")
+            body = _certificate_html(b.gain_file, problem)
+            owners.setdefault(body, []).append(label(problem, d) if v.label == "default" else f"{label(problem, d)} ({_variant_name(v)})")
+            checks[body] = [bool(k["passed"]) for c in _certified(b.gain_file) for k in c["checks"]]
     out = []
     for k, (body, users) in enumerate(owners.items(), start=1):
-        names = ", ".join(label(problem, u) for u in users)
-        summary = f"Certificate {k}: {html.escape(names)}"
-        out.append(f'<details id="certificate-{k}"{" open" if k == 1 else ""}><summary>{summary}</summary>{body}</details>')
+        passed = checks[body]
+        verdict = "every one passes" if all(passed) else f"{len(passed) - sum(passed)} FAIL"
+        summary = f"Certificate {k}: {', '.join(users)} — {len(passed)} checks, {verdict}"
+        out.append(f'<details id="certificate-{k}"><summary>{html.escape(summary)}</summary>{body}</details>')
+    listed = "".join(out)
     return (
         f'<p class="small">{len(owners)} distinct certificate(s) for {sum(len(u) for u in owners.values())} design(s); designs '
-        "that share a certificate are listed under it.</p>" + "".join(out)
+        "that share a certificate are listed under it.</p>" + (listed if len(out) <= 3 else folded(listed, f"The {len(out)} certificates"))
     )
 
 
@@ -367,20 +415,20 @@ def _designs_section(problem: Problem, variants: Sequence[Any]) -> str:
     out = []
     for v in variants:
         opts = ", ".join(f"{k} = {val!r}" for k, val in v.options.items())
-        body = (f'<p class="small">Problem options: {html.escape(opts)}.</p>' if opts else "") + _design_rows(v)
+        body = (f'<p class="small">Problem options: {html.escape(opts)}.</p>' if opts else "") + _design_rows(problem, v)
         if v.label == "default":
             out.append(body)
         else:
-            out.append(f"<details><summary>Variant {html.escape(str(v.label))}</summary>{body}</details>")
+            out.append(folded(body, f"Variant {v.label}"))
     return "".join(out)
 
 
-def _export_section(variants: Sequence[Any]) -> str:
+def _export_section(problem: Problem, variants: Sequence[Any]) -> str:
     rows = []
     for v in variants:
         for d, chk in v.exports.items():
             for ref, x in chk.references.items():
-                rows.append([_variant_name(v), d, ref, chk.samples, chk.nonfinite_samples, x["r"], x["J"], x["state"],
+                rows.append([_variant_name(v), label(problem, d), ref, chk.samples, chk.nonfinite_samples, x["r"], x["J"], x["state"],
                              "equal" if x["decisions_equal"] else "DIFFER"])
     flags = " ".join(CFLAGS)
     agree = sum(r[-1] == "equal" for r in rows)
@@ -389,71 +437,101 @@ def _export_section(variants: Sequence[Any]) -> str:
         "compared with the CasADi function and (linear diagnosers) the independent NumPy reference built from the gain file alone, "
         f"over a check trace with injected NaN/±inf samples: {agree} of {len(rows)} comparisons make the same decisions, every "
         "one within the export tolerance (a failing one stops the job).</p>"
-        "<details><summary>Normwise relative differences</summary>"
-        + table(["variant", "design", "reference", "samples", defined("non-finite", "non-finite samples"), "r", "J", "state",
-                 "alarm/isolated/status"], rows, left=3)
-        + "</details>"
+        + folded(table(["variant", "design", "reference", "samples", defined("non-finite", "non-finite samples"), "r", "J", "state",
+                        "alarm/isolated/status"], rows, left=3), "Normwise relative differences")
     )
 
 
-def _glance_section(problem: Problem, variant: Any) -> str:
-    """The main variant's detection figures, one row per faulty scenario and design (the fault-free false alarms
-    pooled over every scenario's fault-free samples)."""
+def _faulty_scenarios(variant: Any) -> list[tuple[str, str]]:
+    """The main variant's faulty scenarios with their faults, in the evaluation's order."""
     ev = variant.evaluation
-    scen = list(next(iter(ev.metrics.values())))
+    first = next(iter(ev.metrics.values()))
+    return [(s, m.fault) for s, m in first.items() if m.fault is not None]
+
+
+def _fault_cells(problem: Problem, faulty: Sequence[tuple[str, str]]) -> list[list[str]]:
+    """``[scenario, fault]`` per faulty scenario, the fault named on the first of the consecutive scenarios it shares."""
+    return [[label(problem, s), label(problem, f) if k == 0 or faulty[k - 1][1] != f else ""] for k, (s, f) in enumerate(faulty)]
+
+
+def _most(value: float | None, bad: bool) -> Any:
+    """A rate as a table cell, bold red when ``bad`` (the glance's "in most runs")."""
+    return f'<span class="bad">{fmt(value)}</span>' if value is not None and bad else value
+
+
+def _glance_section(problem: Problem, variant: Any) -> str:
+    """The main variant's detection figures: one row per faulty scenario, the designs side by side (missed detection,
+    delay, isolation), each design headed by its false alarms pooled over every scenario's fault-free samples."""
+    ev = variant.evaluation
+    designs = list(ev.metrics)
+    faulty = _faulty_scenarios(variant)
+    groups = []
+    for d in designs:
+        ms = list(ev.metrics[d].values())
+        n = sum(m.fault_free_samples for m in ms)
+        far = sum(m.false_alarm_rate * m.fault_free_samples for m in ms) / n if n else None
+        groups.append((f'<span>{html.escape(label(problem, d))}<br><span class="small">{defined("false alarms", "false-alarm rate")}: '
+                       f"{html.escape(fmt(far))} per sample</span></span>", 3))
     rows = []
-    for d in ev.metrics:
-        quiet = [ev.metrics[d][s] for s in scen]
-        n = sum(m.fault_free_samples for m in quiet)
-        far = sum(m.false_alarm_rate * m.fault_free_samples for m in quiet) / n if n else None
-        rows.append([label(problem, d), "all (fault-free samples)", "—", far, None, None, None, None])
-        for s in scen:
+    for (s, _), lead in zip(faulty, _fault_cells(problem, faulty), strict=True):
+        row = list(lead)
+        for d in designs:
             m = ev.metrics[d][s]
-            if m.fault is None:
-                continue
-            rows.append([label(problem, d), label(problem, s), label(problem, m.fault), m.false_alarm_rate, m.missed_detection_rate,
-                         m.detection_delay_mean_s, m.isolation_accuracy, m.false_isolation_rate])
+            missed, iso = m.missed_detection_rate, m.isolation_accuracy
+            row += [_most(missed, missed is not None and missed > 0.5), m.detection_delay_mean_s, _most(iso, iso is not None and iso < 0.5)]
+        rows.append(row)
+    per = [defined("missed (of runs)", "missed detection"), defined("delay mean (s)", "detection delay"),
+           defined("isolated (of runs)", "isolation accuracy")]
     return (
-        f'<p class="small">{fmt(ev.runs)} runs per scenario; every design sees the same runs.</p>'
-        + table(
-            ["design", "scenario", "fault", defined("false-alarm rate (per sample)", "false-alarm rate"),
-             defined("missed detection (of runs)", "missed detection"), defined("delay mean (s)", "detection delay"),
-             defined("isolation accuracy (of runs)", "isolation accuracy"), defined("false isolation (of runs)", "false isolation")],
-            rows,
-            left=3,
-        )
+        f'<p class="small">{fmt(ev.runs)} runs per scenario; every design sees the same runs; false alarms over every '
+        "scenario's fault-free samples. Bold red: missed, or not isolated, in more than half of the runs. Each scenario's "
+        'false alarms and the other figures: <a href="#monte-carlo-metrics">Monte Carlo metrics</a>.</p>'
+        + f'<div class="glance">{table(["scenario", "fault", *(per * len(designs))], rows, left=2, groups=groups)}</div>'
     )
 
 
 _ISOLATION_COLOURS = (("true fault", "#2e7d32"), ("another fault", "#c62828"), ("not isolated", "#9e9e9e"))
 
 
+def _isolation_bar(parts: Sequence[float]) -> str:
+    """One stacked bar of the isolation decisions (fractions of runs, :data:`_ISOLATION_COLOURS`) with the true
+    fault's percentage beside it."""
+    bar = "".join(
+        f'<span title="{name} {fmt(100 * p)} %" style="display:inline-block;height:.9em;width:{100 * p:.1f}%;background:{colour}"></span>'
+        for (name, colour), p in zip(_ISOLATION_COLOURS, parts, strict=True)
+    )
+    return (f'<div style="white-space:nowrap"><div style="display:inline-block;vertical-align:middle;width:7em;background:#eee;'
+            f'line-height:0">{bar}</div> {fmt(100 * parts[0])} %</div>')
+
+
 def _isolation_section(problem: Problem, variant: Any) -> str:
     """Per faulty scenario and design, the runs' most frequent decision: the true fault, another fault, or none
-    (% of runs), as numbers and one stacked bar."""
+    (% of runs): one stacked bar per design, the numbers folded."""
     ev = variant.evaluation
-    rows = []
-    for s in next(iter(ev.metrics.values())):
-        for d in ev.metrics:
+    designs = [d for d in ev.metrics if any(m.fault is not None and m.isolation_accuracy is not None for m in ev.metrics[d].values())]
+    faulty = [(s, f) for s, f in _faulty_scenarios(variant) if any(ev.metrics[d][s].isolation_accuracy is not None for d in designs)]
+    if not faulty:
+        return ""
+    bars, rows = [], []
+    for (s, _), lead in zip(faulty, _fault_cells(problem, faulty), strict=True):
+        cells = []
+        for d in designs:
             m = ev.metrics[d][s]
-            if m.fault is None or m.isolation_accuracy is None:
+            if m.isolation_accuracy is None:
+                cells.append("—")
                 continue
             parts = [m.isolation_accuracy, m.false_isolation_rate or 0.0]
             parts.append(max(0.0, 1.0 - parts[0] - parts[1]))
-            bar = "".join(
-                f'<span title="{name}" style="display:inline-block;height:.9em;width:{100 * p:.1f}%;background:{colour}"></span>'
-                for (name, colour), p in zip(_ISOLATION_COLOURS, parts, strict=False)
-            )
-            rows.append([label(problem, s), label(problem, m.fault), label(problem, d), *(100.0 * p for p in parts),
-                         f'<div style="width:16em;background:#eee;line-height:0">{bar}</div>'])
-    if not rows:
-        return ""
+            cells.append(_isolation_bar(parts))
+            rows.append([label(problem, s), label(problem, m.fault), label(problem, d), *(100.0 * p for p in parts)])
+        bars.append([*lead, *cells])
     legend = " ".join(f'<span style="color:{c}">■</span> {n}' for n, c in _ISOLATION_COLOURS)
     return (
         "<p class=\"small\">The most frequent isolation decision of each run while the fault is active "
-        f"({defined('definitions', 'isolation accuracy')}): {legend}.</p>"
-        + table(["scenario", "true fault", "design", "true fault (% of runs)", "another fault (% of runs)", "not isolated (% of runs)", ""],
-                rows, left=3)
+        f"({defined('definitions', 'isolation accuracy')}): {legend}; the number is the true fault's share of the runs.</p>"
+        + f'<div class="glance">{table(["scenario", "fault", *(label(problem, d) for d in designs)], bars, left=2)}</div>'
+        + folded(table(["scenario", "true fault", "design", "true fault (% of runs)", "another fault (% of runs)",
+                        "not isolated (% of runs)"], rows, left=3))
     )
 
 
@@ -482,7 +560,7 @@ def _metrics_details(problem: Problem, variant: Any) -> str:
             left=3,
         )
     )
-    out.append(_budget_table([(variant, d) for d in designs], scen))
+    out.append(_budget_table(problem, [(variant, d) for d in designs], scen))
     extra_keys = sorted({k for d in designs for s in scen for k in ev.metrics[d][s].extra})
     if extra_keys:
         rows = [[label(problem, s), label(problem, d), *(ev.metrics[d][s].extra.get(k) for k in extra_keys)] for s in scen for d in designs]
@@ -556,7 +634,7 @@ def _run_figures(ctx: ReportContext) -> list[tuple[str, str]]:
             shade(axes[0], b.t, b.active)
             axes[0].legend(fontsize=7, ncol=3)
             axes[1].step(b.t, res.isolated, where="post", lw=0.9)
-            axes[1].set_yticks(range(-1, len(gf.faults)), ["none", *gf.faults])
+            axes[1].set_yticks(range(-1, len(gf.faults)), ["none", *(label(ctx.problem, f) for f in gf.faults)])
             axes[1].set_ylabel("isolated")
             axes[1].grid(alpha=0.3)
             shade(axes[1], b.t, b.active)
@@ -572,7 +650,7 @@ def _run_figures(ctx: ReportContext) -> list[tuple[str, str]]:
                 ctx.figure(
                     f"{dname}_{sname}",
                     fig,
-                    f"{dname}, scenario {sname} ({ctx.problem.scenarios[sname].description or 'no description'}): run 0 "
+                    f"{label(ctx.problem, dname)}, scenario {label(ctx.problem, sname)} ({ctx.problem.scenarios[sname].description or 'no description'}): run 0 "
                     "through the generated C — statistics over their thresholds, the isolated fault"
                     + (", the parameter estimates against the truth." if est else "."),
                 )
@@ -580,22 +658,34 @@ def _run_figures(ctx: ReportContext) -> list[tuple[str, str]]:
     return [("Figures", "".join(body))] if body else []
 
 
-def _mtbfa(m: Any) -> str:
-    """The measured mean time between false alarms with its 95 % interval: "120 [80, 190]", "> 400" for none seen."""
-    lo, hi = m.mean_time_between_false_alarms_interval_s
-    if m.mean_time_between_false_alarms_s is None:
+def _mtbfa(mean_s: float | None, interval: tuple[float, float | None]) -> str:
+    """A measured mean time between false alarms with its 95 % interval: "120 [80, 190]", "none seen (> 400)"."""
+    lo, hi = interval
+    if mean_s is None:
         return f"none seen (> {fmt(lo)})"
-    return fmt(m.mean_time_between_false_alarms_s, interval=(lo, hi))
+    return fmt(mean_s, interval=(lo, hi))
+
+
+RATIO_GOAL = 1.2
+"""The goal of a mean detection delay over its Lorden bound (:func:`_ratio`)."""
+
+
+def _meets_goal(m: Any) -> bool | None:
+    """Whether the mean delay is within :data:`RATIO_GOAL` times the Lorden bound; None where the ratio says nothing:
+    the bound under one sample (a fault so large that any detector needs the onset sample), or a delay under half
+    the bound (faster than the bound allows: the fault is no persistent mean shift)."""
+    if m.delay_bound_ratio is None or m.lorden_bound_samples is None or m.lorden_bound_samples < 1.0 or m.delay_bound_ratio < 0.5:
+        return None
+    return bool(m.delay_bound_ratio <= RATIO_GOAL)
 
 
 def _ratio(m: Any) -> str:
-    """Mean delay over the Lorden bound, with a class when it meets the goal (≤ 1.2); "—" when the bound is
-    under one sample (a fault so large that any detector needs the onset sample: the ratio says nothing)."""
-    if m.delay_bound_ratio is None or m.lorden_bound_samples is None or m.lorden_bound_samples < 1.0:
-        return "—"
-    if m.delay_bound_ratio < 0.5:  # faster than the bound allows: the fault is no persistent mean shift
-        return "no mean shift"
-    ok = m.delay_bound_ratio <= 1.2
+    """Mean delay over the Lorden bound, with a class when it meets the goal (:func:`_meets_goal`); "no mean shift"
+    under half the bound, "—" where the bound is under one sample."""
+    ok = _meets_goal(m)
+    if ok is None:
+        shown = m.delay_bound_ratio is not None and m.lorden_bound_samples is not None and m.lorden_bound_samples >= 1.0
+        return "no mean shift" if shown else "—"
     return f'<span class="{"ok" if ok else "bad"}">{fmt(m.delay_bound_ratio, 3)}</span>'
 
 
@@ -604,7 +694,7 @@ def _variant_name(v: Any) -> str:
     return re.sub(r" at arl0 = [^,]*$", "", str(v.label))
 
 
-def _budget_table(pairs: Sequence[tuple[Any, str]], scen: Sequence[str], *, by_variant: bool = False) -> str:
+def _budget_table(problem: Problem, pairs: Sequence[tuple[Any, str]], scen: Sequence[str], *, by_variant: bool = False) -> str:
     """Per design (and variant) and scenario: the false-alarm time against the budget, the delay against the
     Lorden bound."""
     rows = []
@@ -616,10 +706,10 @@ def _budget_table(pairs: Sequence[tuple[Any, str]], scen: Sequence[str], *, by_v
             if m.arl0_budget_s is None:
                 continue
             bound_s = None if m.lorden_bound_samples is None else m.lorden_bound_samples * m.Ts
-            head = [s, _variant_name(v), d] if by_variant else [s, d]
+            head = [label(problem, s), _variant_name(v), label(problem, d)] if by_variant else [label(problem, s), label(problem, d)]
             rows.append(
                 [
-                    *head, _mtbfa(m), m.arl0_budget_s, m.missed_detection_rate, m.detection_delay_mean_s, bound_s, _ratio(m),
+                    *head, _mtbfa(m.mean_time_between_false_alarms_s, m.mean_time_between_false_alarms_interval_s), m.arl0_budget_s, m.missed_detection_rate, m.detection_delay_mean_s, bound_s, _ratio(m),
                     m.isolation_accuracy, m.false_isolation_rate,
                 ]
             )
@@ -640,7 +730,7 @@ def _budget_table(pairs: Sequence[tuple[Any, str]], scen: Sequence[str], *, by_v
         "statistics of ln of each one's share of the budget (in samples) over the Kullback–Leibler information per sample the "
         "fault brought to its generator's residual (measured mean shift, long-run covariance; Lorden, Annals of Mathematical "
         "Statistics 42(6), 1971): no detector with that budget is faster on average for a persistent change. The ratio is "
-        "shown where the bound is at least one sample; the goal is ≤ 1.2. \"No mean shift\": detected more than twice "
+        f"shown where the bound is at least one sample; the goal is ≤ {fmt(RATIO_GOAL)}. \"No mean shift\": detected more than twice "
         "as fast as the bound allows, so the fault is not the persistent mean change the bound is for (a gain fault on a "
         "varying signal, whose residual effect averages out). Isolation is the bank's alarm pattern (the "
         "signature table) over the statistics' held alarms; false isolation: runs whose most frequent decision names "
@@ -680,8 +770,46 @@ def _compared_detectors(variants: Sequence[Any]) -> str:
     return listed[:1].upper() + listed[1:]
 
 
-def _detectors_section(variants: Sequence[Any]) -> str:
-    """The detectors side by side at the same false-alarm budget (the variants with an ``arl0`` option)."""
+def _budget_summary(problem: Problem, pairs: Sequence[tuple[Any, str]]) -> str:
+    """One row per detector and design: the time between false alarms over every scenario's fault-free samples
+    against the budget, and the faulty scenarios' missed detections, delays, delay/bound goals and isolation."""
+    from fdisyn.evaluation.metrics import poisson_time_interval
+
+    def mean(values: Iterable[Any]) -> float | None:
+        vals = [float(x) for x in values if x is not None]
+        return sum(vals) / len(vals) if vals else None
+
+    rows = []
+    for v, d in pairs:
+        ms = [m for m in v.evaluation.metrics[d].values() if m.arl0_budget_s is not None]
+        if not ms:
+            continue
+        episodes = sum(m.false_alarm_episodes for m in ms)
+        exposure = sum(m.fault_free_samples * m.Ts for m in ms)
+        mtbfa = _mtbfa(exposure / episodes if episodes else None, poisson_time_interval(episodes, exposure))
+        faulty = [m for m in ms if m.fault is not None]
+        goals = [g for g in (_meets_goal(m) for m in faulty) if g is not None]
+        rows.append([_variant_name(v), label(problem, d), mtbfa, ms[0].arl0_budget_s, mean(m.missed_detection_rate for m in faulty),
+                     mean(m.detection_delay_mean_s for m in faulty), f"{sum(goals)} of {len(goals)}" if goals else "—",
+                     mean(m.isolation_accuracy for m in faulty), mean(m.false_isolation_rate for m in faulty)])
+    if not rows:
+        return ""
+    return (
+        '<p class="small">One row per detector: the time between false alarms over every scenario\'s fault-free samples '
+        "[95 %] against the budget; missed detection, delay and isolation: means over the faulty scenarios; delay within "
+        f"{fmt(RATIO_GOAL)} × bound: the faulty scenarios whose mean delay is within {fmt(RATIO_GOAL)} times the Lorden bound, "
+        "of those that show the ratio. Every scenario and the columns' meaning: folded below.</p>"
+        + table(["detector", "design", defined("time between false alarms (s) [95 %]", "mean time between false alarms"),
+                 defined("budget (s)", "budget"), defined("missed detection (of runs, mean)", "missed detection"),
+                 defined("delay mean (s)", "detection delay"), defined(f"delay within {fmt(RATIO_GOAL)} × bound", "delay ratio"),
+                 defined("isolation acc. (mean)", "isolation accuracy"), defined("false isolation (mean)", "false isolation")],
+                rows, left=2)
+    )
+
+
+def _detectors_section(problem: Problem, variants: Sequence[Any]) -> str:
+    """The detectors side by side at the same false-alarm budget (the variants with an ``arl0`` option): one row per
+    detector, every scenario folded."""
     same = [v for v in variants if v.options.get("arl0") is not None]
     if len(same) < 2:
         return ""
@@ -691,7 +819,10 @@ def _detectors_section(variants: Sequence[Any]) -> str:
             if s not in scen:
                 scen.append(s)
     pairs = [(v, d) for v in same for d in v.evaluation.metrics]
-    return _budget_table(pairs, scen, by_variant=True)
+    full = _budget_table(problem, pairs, scen, by_variant=True)
+    if not full:
+        return ""
+    return _budget_summary(problem, pairs) + folded(full, "Every scenario")
 
 
 def _fault_free_counts(variant: Any, design: str, nj: int) -> list[np.ndarray]:
@@ -768,7 +899,7 @@ def _law_figures(ctx: ReportContext) -> str:
             + (f" The first {len(shown)} of the {with_threshold} statistics with a threshold." if len(shown) < with_threshold else "")
         )
         body = ctx.figure(f"law_{d}", fig, caption)
-        out.append(body if k == 0 else f"<details><summary>{html.escape(label(problem, d))}</summary>{body}</details>")
+        out.append(body if k == 0 else folded(body, label(problem, d)))
     return "".join(out)
 
 
@@ -779,7 +910,7 @@ def _sweep_figure(ctx: ReportContext) -> str:
     if sweep is None or not sweep.scenarios:
         return ""
     designs = list(v.evaluation.metrics)
-    fig, axes = subplots(len(designs), 2, figsize=(9.0, 2.6 * len(designs) + 0.4), squeeze=False)
+    fig, axes = subplots(len(designs), 2, figsize=(9.0, 2.2 * len(designs) + 0.4), squeeze=False)
     rows = []
     for i, d in enumerate(designs):
         for base, by_factor in sweep.scenarios.items():
@@ -801,10 +932,9 @@ def _sweep_figure(ctx: ReportContext) -> str:
             ax.set_xticks(ticks, [fmt(f) for f in ticks])
             ax.minorticks_off()
             ax.grid(alpha=0.3)
-        axes[i, 1].legend()
     for ax in axes[-1]:
         ax.set_xlabel("fault size (× the scenario's)")
-    fig.tight_layout()
+    _figure_legend(fig, *axes[0, 1].get_legend_handles_labels())
     return ctx.figure(
         "fault_size_sweep",
         fig,
@@ -812,10 +942,8 @@ def _sweep_figure(ctx: ReportContext) -> str:
         f"({fmt(sweep.evaluation.runs)} runs each; 1 is the scenario itself with the page's runs). Offsets and drifts scale "
         "their value, a gain fault its deviation from 1.",
     ) + (
-        "<details><summary>The numbers</summary>"
-        + table(["design", "scenario", "size (×)", "runs", defined("missed detection (of runs)", "missed detection"),
-                 defined("delay mean (s)", "detection delay")], rows, left=2)
-        + "</details>"
+        folded(table(["design", "scenario", "size (×)", "runs", defined("missed detection (of runs)", "missed detection"),
+                      defined("delay mean (s)", "detection delay")], rows, left=2))
     )
 
 
@@ -863,6 +991,11 @@ def _responses(A: np.ndarray, E: np.ndarray, C: np.ndarray, dirs: Mapping[str, n
 
 
 def _frequency_figures(ctx: ReportContext) -> str:
+    """Per design, each generator's |G_rf| per fault against σ̄ G_rd: one panel per generator, a fault in the same
+    colour on every panel, one legend (up to four panels a row for a large bank)."""
+    from matplotlib import colormaps
+    from matplotlib.lines import Line2D
+
     v, problem, out = ctx.variants[0], ctx.problem, []
     for k, (d, b) in enumerate(v.built.items()):
         gf = b.gain_file
@@ -874,27 +1007,34 @@ def _frequency_figures(ctx: ReportContext) -> str:
         A, E, C, dirs = got
         w = np.logspace(-3, 0, 300) * np.pi
         gens = list(gf.generators)
-        cols = min(2, len(gens))
+        cols = min(2 if len(gens) <= 4 else 4, len(gens))
         rows = -(-len(gens) // cols)
-        fig, axes = subplots(rows, cols, figsize=(4.6 * cols, 2.6 * rows + 0.4), squeeze=False)
+        palette = colormaps["tab10" if len(dirs) <= 10 else "tab20"]
+        colour = {f: palette(i % palette.N) for i, f in enumerate(dirs)}
+        seen: set[str] = set()
+        fig, axes = subplots(rows, cols, figsize=(4.6 * cols, 2.6 * rows + 0.4) if cols <= 2 else (2.6 * cols, 1.8 * rows + 0.4),
+                             squeeze=False)
         for gen, ax in zip(gens, axes.ravel(), strict=False):
             rd, rf = _responses(A, E, C, dirs, gen, w)
             om = w / gf.Ts
             if E.shape[1]:
-                ax.loglog(om, np.maximum(rd, 1e-12), "k", lw=1.2, label="σ̄ G_rd (disturbance)")
+                ax.loglog(om, np.maximum(rd, 1e-12), "k", lw=1.2)
             for f, r in rf.items():
                 if np.max(r) > 1e-9:
-                    ax.loglog(om, np.maximum(r, 1e-12), lw=1.0, label=f"|G_rf| {label(problem, f)}")
-            ax.set_title(label(problem, gen.name), fontsize=MIN_FONT_PT)
+                    ax.loglog(om, np.maximum(r, 1e-12), lw=1.0, color=colour[f])
+                    seen.add(f)
+            ax.set_title(textwrap.fill(label(problem, gen.name), 34 if cols <= 2 else 22), fontsize=MIN_FONT_PT)
             lo, hi = ax.get_ylim()
             if hi < 10 * lo:  # under a decade: a linear axis reads better than log ticks
                 ax.set_yscale("linear")
-            ax.set_xlabel("ω (rad/s)")
             ax.grid(alpha=0.3, which="both")
-            ax.legend()
+        for ax in axes.ravel()[max(len(gens) - cols, 0) : len(gens)]:  # the lowest panel of each column
+            ax.set_xlabel("ω (rad/s)")
+        handles = ([Line2D([], [], color="k", lw=1.2)] if E.shape[1] else []) + [Line2D([], [], color=colour[f], lw=1.0) for f in dirs if f in seen]
+        texts = (["σ̄ G_rd (disturbance)"] if E.shape[1] else []) + [f"|G_rf| {label(problem, f)}" for f in dirs if f in seen]
         for ax in axes.ravel()[len(gens):]:
             ax.set_visible(False)
-        fig.tight_layout()
+        _figure_legend(fig, handles, texts)
         body = ctx.figure(
             f"frequency_{d}",
             fig,
@@ -902,8 +1042,12 @@ def _frequency_figures(ctx: ReportContext) -> str:
             "against the largest singular value of its response to the disturbance (σ̄ G_rd), per generator, up to the Nyquist "
             "frequency, from the design model and the gain file's generators.",
         )
-        out.append(body if k == 0 else f"<details><summary>{html.escape(label(problem, d))}</summary>{body}</details>")
+        out.append(body if k == 0 else folded(body, label(problem, d)))
     return "".join(out)
+
+
+POLE_LEGEND = 8
+"""Generators of a bank whose poles the pole figure tells apart, one colour each; a larger bank's share one."""
 
 
 def _pole_figure(ctx: ReportContext) -> str:
@@ -924,7 +1068,10 @@ def _pole_figure(ctx: ReportContext) -> str:
             ax.plot(plant_poles.real, plant_poles.imag, "x", color="0.4", ms=6, label="plant")
         for gen in gf.generators:
             ev = np.linalg.eigvals(gen.Ar) if gen.Ar.size else np.zeros(0)
-            ax.plot(ev.real, ev.imag, "o", ms=4, fillstyle="none", label=label(problem, gen.name) if len(gf.generators) > 1 else "generator")
+            if len(gf.generators) <= POLE_LEGEND:
+                ax.plot(ev.real, ev.imag, "o", ms=4, fillstyle="none", label=label(problem, gen.name) if len(gf.generators) > 1 else "generator")
+            else:  # a large bank: its generators in one colour (their spectral radii in the table)
+                ax.plot(ev.real, ev.imag, "o", ms=4, fillstyle="none", color="tab:blue", label="generators" if gen is gf.generators[0] else None)
             rows.append([label(problem, d), label(problem, gen.name), gen.Ar.shape[0], float(np.max(np.abs(ev))) if ev.size else None])
         ax.set_aspect("equal")
         ax.set_title(textwrap.fill(label(problem, d), 28), fontsize=MIN_FONT_PT)
@@ -940,7 +1087,7 @@ def _pole_figure(ctx: ReportContext) -> str:
         fig,
         "The generators' poles (eigenvalues of Ar) against the unit circle"
         + (", with the design model's poles (×)." if plant_poles is not None else "."),
-    ) + table(["design", "generator", "order", "spectral radius of Ar"], rows, left=2)
+    ) + folded(table(["design", "generator", "order", "spectral radius of Ar"], rows, left=2))
 
 
 def _standard_figures(ctx: ReportContext) -> list[tuple[str, str]]:
@@ -1057,7 +1204,7 @@ def write_report(problem: Problem, variants: Sequence[Any], directory: Path) -> 
         add(title, body)
     for title, body in _standard_figures(ctx):
         add(title, body)
-    compared = _detectors_section(variants)
+    compared = _detectors_section(problem, variants)
     if compared:
         nafdf = {b.gain_file.kind for v in variants for b in v.built.values()} == {"nafdf"}
         what = (
@@ -1071,7 +1218,7 @@ def write_report(problem: Problem, variants: Sequence[Any], directory: Path) -> 
             f"<p>{what}, each designed for the same mean time between false alarms arl0.</p>" + compared)
     add("Designs", _designs_section(problem, variants))
     add("Certificates", _certificates_section(problem, variants))
-    add("Generated C", _export_section(variants))
+    add("Generated C", _export_section(problem, variants))
     add(
         "Monte Carlo metrics",
         "".join(

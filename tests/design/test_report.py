@@ -152,3 +152,54 @@ def test_the_summary_table_names_every_design(two_reports) -> None:
     text = summary_table(two_reports[0].parent.parent, ["sampled_data_example"])
     assert text.splitlines()[0].split()[:2] == ["problem", "design"]
     assert all(d in text for d in ("direct", "indirect", "lmi")) and "3/7" in text
+
+
+def _metric(fault: str | None, isolated: float = 1.0):
+    from types import SimpleNamespace
+
+    return SimpleNamespace(fault=fault, fault_free_samples=100, false_alarm_rate=0.01, missed_detection_rate=None if fault is None else 0.0,
+                           detection_delay_mean_s=None if fault is None else 0.5, isolation_accuracy=None if fault is None else isolated,
+                           false_isolation_rate=None if fault is None else 0.0)
+
+
+def test_many_scenarios_read_at_a_glance() -> None:
+    """Thirty faulty scenarios and two designs: one visible row per scenario in the glance and in the isolation
+    figure, the designs side by side under their labels; the per-design numbers folded."""
+    import re
+    from types import SimpleNamespace
+
+    from fdisyn.app.report import _glance_section, _isolation_section
+
+    scenarios = {"fault_free": None, **{f"s{k}": f"sensor{k // 3}" for k in range(30)}}
+    metrics = {d: {s: _metric(f, 0.2 if s == "s4" else 1.0) for s, f in scenarios.items()} for d in ("a", "b")}
+    variant = SimpleNamespace(evaluation=SimpleNamespace(runs=4, metrics=metrics))
+    prob = SimpleNamespace(labels={"a": "design A", "b": "design B", "sensor0": "the first sensor"})
+    for section in (_glance_section(prob, variant), _isolation_section(prob, variant)):  # type: ignore[arg-type]
+        visible = re.sub(r"<details.*?</details>", "", section, flags=re.S)
+        assert visible.count("<tr>") <= 30 + 3
+        assert visible.count("design A") == 1 and visible.count("design B") == 1
+        assert visible.count("the first sensor") == 1  # named once for its three scenarios
+    glance = _glance_section(prob, variant)  # type: ignore[arg-type]
+    assert glance.count('<span class="bad">0.2</span>') == 2  # not isolated in most runs, both designs
+    folded = _isolation_section(prob, variant)  # type: ignore[arg-type]
+    assert folded.count("<details>") == 1 and re.search(r"<details>.*design A.*</details>", folded, flags=re.S)
+
+
+def test_certificate_columns_carry_the_generators_labels() -> None:
+    """The certificate names each generator by its label (the internal name where the problem has none), side by
+    side for a small bank and one row each for a large one."""
+    from types import SimpleNamespace
+
+    from fdisyn.app.report import CERTIFICATE_COLUMNS, _certificate_table
+
+    def gain_file(n: int) -> SimpleNamespace:
+        check = {"name": "spectral radius of F", "reason": "F must be Schur stable", "value": 0.5, "relation": "<=", "bound": 1.0,
+                 "passed": True}
+        gens = [SimpleNamespace(name=f"uio_{k}") for k in range(n)]
+        return SimpleNamespace(kind="linear", generators=gens, certificate={"generators": [{"checks": [check]} for _ in gens]})
+
+    prob = SimpleNamespace(labels={"uio_0": "the observer on ω_r,m1"})
+    for n in (2, CERTIFICATE_COLUMNS + 2):
+        page = _certificate_table(gain_file(n), prob)  # type: ignore[arg-type]
+        assert "the observer on ω_r,m1" in page and ">uio_0<" not in page and ">uio_1<" in page
+        assert page.count("<table>") == (1 if n <= CERTIFICATE_COLUMNS else 2)
