@@ -667,9 +667,15 @@ def _report(ctx: Any) -> list[tuple[str, str]]:
     ax.set_xlim(-lim, lim)
     ax.set_ylim(-lim, lim)
     ax.legend(fontsize=9, loc="lower left", bbox_to_anchor=(0.0, 1.01), frameon=False, markerscale=6)
-    ax.set_xlabel("residual along the pitch-wheel direction (orthonormal plane of the two fault directions)", fontsize=10)
-    ax.set_ylabel("residual across it, in that plane", fontsize=10)
-    ax.ticklabel_format(style="sci", scilimits=(-2, 2))
+    # the power of ten in the axis labels: matplotlib's offset text would sit on the long x label
+    power = int(np.floor(np.log10(lim))) if lim > 0 and np.isfinite(lim) else 0
+    from matplotlib.ticker import FuncFormatter
+
+    unit = f" (×10{str(power).translate(str.maketrans('-0123456789', '⁻⁰¹²³⁴⁵⁶⁷⁸⁹'))})" if power else ""
+    for axis in (ax.xaxis, ax.yaxis):
+        axis.set_major_formatter(FuncFormatter(lambda value, _pos: f"{value / 10.0**power:g}"))
+    ax.set_xlabel(f"residual along the pitch-wheel direction{unit}\n(orthonormal plane of the two fault directions)", fontsize=10)
+    ax.set_ylabel(f"residual across it, in that plane{unit}", fontsize=10)
     ax.grid(alpha=0.3)
     sections.append(("Figures — the residual in output space", ctx.figure(
         "residual_plane", fig, f"Window-mean residual of run 0 ({d} filter) projected on the plane of the two fault directions: "

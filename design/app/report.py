@@ -887,6 +887,7 @@ def _law_figures(ctx: ReportContext) -> str:
             ax.set_title(textwrap.fill(label(problem, names[j]), 30) + f"\n{law}", fontsize=MIN_FONT_PT)
             ax.set_xlabel("J")
             ax.xaxis.set_major_locator(MaxNLocator(4))  # a narrow panel: a few ticks that do not run into each other
+            ax.ticklabel_format(axis="x", style="sci", scilimits=(-2, 3), useMathText=True)  # 2·10⁻⁴, not 0.0002
             ax.grid(alpha=0.3)
         for ax in axes.ravel()[len(shown):]:
             ax.set_visible(False)
