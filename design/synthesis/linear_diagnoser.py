@@ -711,6 +711,30 @@ def chosen_detector(detector: str | None, evaluator: str, where: str, default: s
     return detector if detector is not None else evaluator
 
 
+def check_min_fault(kind: str, min_fault: object, where: str) -> None:
+    """Refuse ``min_fault`` for a detector that does not read it.
+
+    Parameters
+    ----------
+    kind : str
+        The chosen detector (:func:`chosen_detector`).
+    min_fault : object
+        The option as given (``None``: not given).
+    where : str
+        Prefixes the message (see :func:`fdisyn.synthesis.registry.at`).
+
+    Raises
+    ------
+    ArgumentError
+        ``min_fault`` given with ``'chi2'`` or ``'wssr'``: only the sequential detectors are designed for a fault size.
+    """
+    if min_fault is not None and kind not in SEQUENTIAL_KINDS:
+        raise ArgumentError(
+            f"{at(where, 'min_fault')} is read only by the detectors 'cusum' and 'glr' (their designed fault sizes); "
+            f"the detector here is {kind!r}: remove min_fault, or choose detector = 'cusum' or 'glr'"
+        )
+
+
 def _check_ts(plant: Any, options: Mapping[str, Any], where: str) -> None:
     if isinstance(plant, LinearPlant) and plant.is_discrete and options.get("Ts") is not None:
         raise ArgumentError(f"{at(where, 'Ts')} = {options['Ts']!r}: the plant is discrete (Ts = {plant.Ts}); give Ts for a continuous plant only")
@@ -747,6 +771,7 @@ def linear_method(
                 f"{at(where, 'persistence')} = {shown(opts['persistence'])} with detector {kind!r}: a sequential statistic "
                 "accumulates the evidence itself; use persistence 1 (set the false-alarm budget with arl0)"
             )
+        check_min_fault(kind, opts.get("min_fault"), where)
         if not sampled_data:
             _check_ts(plant, opts, where)
         if check is not None:

@@ -38,6 +38,8 @@ from __future__ import annotations
 
 import itertools
 import math
+import os
+import stat
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import PurePath
@@ -51,11 +53,12 @@ from fdisyn.numerics.linalg import rank
 from fdisyn.runtime.errors import ArgumentError, ExistenceError, FdisynError, ShapeError, TraceError
 from fdisyn.runtime.gainfile import GainFile
 from fdisyn.runtime.names import shown
-from fdisyn.runtime.trace import Trace, read_trace
+from fdisyn.runtime.trace import Trace, TraceReader
 from fdisyn.synthesis.linear_diagnoser import (
     FaultClass,
     _sensor_indices,
     budget_seconds,
+    check_min_fault,
     chosen_detector,
     default_fault_classes,
     linear_diagnoser,
@@ -485,10 +488,17 @@ def _training_option(value: Any, where: str, plant: LinearPlant | None) -> Any:
     return str(value)
 
 
+def _detector(detector: str | None, evaluator: str | None, where: str) -> str:
+    """The statistic: ``detector`` or its earlier name ``evaluator`` (default ``'wssr'``); both given and different
+    is refused, whichever of them equals the default."""
+    return chosen_detector(detector, evaluator or detector or "wssr", where, default="")
+
+
 def _check(plant: Any, opts: Mapping[str, Any], where: str) -> None:
-    kind = chosen_detector(opts.get("detector"), opts["evaluator"], where, default="wssr")
+    kind = _detector(opts.get("detector"), opts["evaluator"], where)
     if kind in ("chi2", "cusum") and opts["window"] not in (None, 1):
         raise ArgumentError(f"{at(where, 'window')} = {shown(opts['window'])} needs detector = 'wssr' or 'glr' (the {kind!r} statistic has no window)")
+    check_min_fault(kind, opts.get("min_fault"), where)
     if isinstance(plant, LinearPlant):
         if plant.is_discrete and opts["Ts"] is not None:
             raise ArgumentError(f"{at(where, 'Ts')} = {shown(opts['Ts'])}: the plant is discrete (Ts = {plant.Ts}); give Ts for a continuous plant only")
@@ -514,22 +524,54 @@ def _training_data(training: Any, plant: LinearPlant, virtual: Sequence[int], Ts
         missing = [s for s in names if s not in trace.extra]
         if missing:
             raise ArgumentError(f"{label}: the trace has no column for the virtual output(s) {missing}")
-        xv = np.column_stack([np.asarray(trace.extra[s], dtype=float) for s in names])
+        xv = np.column_stack([np.asarray(trace.extra[s], dtype=float) for s in names]) if names else np.zeros((trace.t.shape[0], 0))
         u, y, t = trace.U, trace.Y, trace.t
         if trace.inputs != plant.inputs or trace.outputs != plant.outputs:
             raise ArgumentError(f"{label}: the trace's inputs and outputs {list(trace.inputs + trace.outputs)} are not the plant's")
     else:
         try:
-            trace = read_trace(training, inputs=plant.inputs, outputs=(*plant.outputs, *names))
+            trace = _read_training(training, plant.inputs, (*plant.outputs, *names))
         except TraceError as exc:
             raise TraceError(f"{label} {training}: {exc}") from None
         u, y, xv, t = trace.U, trace.Y[:, : plant.p], trace.Y[:, plant.p :], trace.t
     if t.shape[0] < 10:
         raise ArgumentError(f"{label}: {t.shape[0]} samples; the estimate needs a training run of many samples")
+    t = np.asarray(t, dtype=float)
+    bad = np.flatnonzero(~np.isfinite(t))
+    if bad.size:  # a NaN passes every comparison below unnoticed
+        raise ArgumentError(
+            f"{label}: the time t of sample {int(bad[0]) + 1} is {float(t[bad[0]])!r}; expected a finite time every Ts = {Ts:g} s"
+        )
     step = np.diff(t)
-    if np.max(np.abs(step - Ts)) > 1e-6 * Ts:
+    if not np.all(np.abs(step - Ts) <= 1e-6 * Ts):
         raise ArgumentError(f"{label}: the trace's time steps range over [{step.min():.6g}, {step.max():.6g}] s; expected every Ts = {Ts:g} s")
     return np.asarray(u, dtype=float), np.asarray(y, dtype=float), np.asarray(xv, dtype=float)
+
+
+def _read_training(path: str, inputs: Sequence[str], outputs: Sequence[str]) -> Trace:
+    """The trace CSV ``path`` (the replay grammar), which must be a regular file.
+
+    A training trace is data a user may have received, like a plant file: a
+    FIFO would block the design until some writer appeared, a device such as
+    ``/dev/zero`` would be read without end. The file is opened without
+    waiting (``O_NONBLOCK``) and anything but a regular file is refused before
+    a byte is read. Errors are :class:`TraceError` (the caller adds the option's name).
+    """
+    try:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+    except OSError as exc:
+        raise TraceError(f"cannot read it: {exc.strerror or exc}") from None
+    if not stat.S_ISREG(os.fstat(fd).st_mode):
+        os.close(fd)
+        raise TraceError("not a regular file (a FIFO, a device or a directory); expected a trace CSV")
+    with os.fdopen(fd, "rb") as fh:
+        try:
+            blocks = list(TraceReader(fh, path, inputs=inputs, outputs=outputs).blocks())
+        except OSError as exc:
+            raise TraceError(f"cannot read it: {exc.strerror or exc}") from None
+    m = len(inputs)
+    data = np.concatenate(blocks) if blocks else np.zeros((0, 1 + m + len(outputs)))
+    return Trace(t=data[:, 0], inputs=tuple(inputs), outputs=tuple(outputs), U=data[:, 1 : 1 + m], Y=data[:, 1 + m :])
 
 
 @dataclass(frozen=True, eq=False)
@@ -553,7 +595,7 @@ def gos_design(
     where: str = "",
     P_f: float,
     persistence: int = 1,
-    evaluator: str = "wssr",
+    evaluator: str | None = None,
     window: int | None = None,
     detector: str | None = None,
     arl0: float | None = None,
@@ -584,7 +626,7 @@ def gos_design(
     on it). Without ``training`` the plant's own ``E`` is decoupled.
     """
     where = where or "method 'kalman_uio_gos'"
-    evaluator = chosen_detector(detector, evaluator, where, default="wssr")
+    evaluator = _detector(detector, evaluator, where)
     if window is None:
         window = {"wssr": 25, "glr": None}.get(evaluator, 1)
     want = tuple(range(plant.p)) if sensors is None else tuple(sensors)
@@ -676,7 +718,7 @@ def _register() -> None:
         ARL0,
         PERSISTENCE,
         replace(DETECTOR, doc=DETECTOR.doc.replace("(default: evaluator's value)", "(default: evaluator's value, 'wssr')")),
-        replace(EVALUATOR, default="wssr"),
+        replace(EVALUATOR, default=None, doc="the statistic of each generator (the same option as detector, its earlier name; default 'wssr')"),
         replace(LINEAR_WINDOW, default=None, doc="WSSR window N in samples, or the GLR's onset window (default 25 for 'wssr', chosen for 'glr')"),
         MIN_FAULT,
         FAULTS,
