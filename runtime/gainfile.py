@@ -18,8 +18,11 @@ valid samples, see :class:`Evaluator`) and ``decision`` (a fault signature
 table over the statistics).
 
 Matrices are nested lists of floats written with full round-trip precision
-(Python's ``repr``); non-finite numbers are refused on writing and reading.
-The reader validates everything and raises :class:`GainFileError` naming the
+(Python's ``repr``); non-finite numbers are refused on writing and reading,
+and so are numbers beyond :data:`MAX_MAGNITUDE` (``1e150``) in magnitude,
+which could overflow the consistency checks. The document is parsed strictly
+(:func:`parse_json_data`: a key repeated in any object is refused). The
+reader validates everything and raises :class:`GainFileError` naming the
 field, what was expected and what was found:
 
 * names follow :mod:`fdisyn.runtime.names` (``name`` prefixes the C API;
@@ -88,6 +91,9 @@ __all__ = [
     "SEQUENTIAL_KINDS",
     "MAX_WSSR_WINDOW",
     "MAX_GLR_WINDOW",
+    "MAX_MAGNITUDE",
+    "check_magnitudes",
+    "parse_json_data",
     "glr_weights",
     "release_level",
 ]
@@ -139,6 +145,16 @@ the reader parses at all. ``persistence`` ≤ 10⁹ consecutive exceedances: the
 step counts them in a double, and beyond 2⁵³ a count no longer grows, so a
 larger one could never alarm (10⁹, like the NAFDF's sample counters, is 11
 days of samples at 1 kHz). Other kinds add their own limits to their payload."""
+
+MAX_MAGNITUDE = 1e150
+"""Largest magnitude of a number in a gain file's matrices and numeric fields (every kind's payload too).
+
+The reader's consistency checks multiply the file's numbers: ``(I − Ar) Xu − Bu``, ``‖Ar‖·‖Xu‖``,
+``A − L C`` and its equilibrium solve, ``UᵀU`` of an axis basis. A product of two entries is at most
+10³⁰⁰; a sum of them over an inner dimension the :data:`LIMITS` allow (at most 2048) at most ~2·10³⁰³,
+and the Frobenius norm of a matrix of at most 2048 × 2048 such sums ~4·10³⁰⁶: below the largest double
+(1.8·10³⁰⁸), so no check can overflow to ``inf`` and pass (``gap ≤ tol·inf``). Designed files hold
+numbers far below it (the committed designs: at most ~10¹⁰)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -538,19 +554,100 @@ def read_gain_file(path: str | Path) -> GainFile:
         raise GainFileError(f"{p} is a directory; expected a gain file") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise GainFileError(f"cannot read gain file {p}: {exc}") from exc
-    try:
-        doc = json.loads(text, parse_constant=_refuse_constant)
-    except json.JSONDecodeError as exc:
-        raise GainFileError(f"{p} is not valid JSON (line {exc.lineno}, column {exc.colno}): {exc.msg}") from exc
-    except ValueError as exc:
-        raise GainFileError(f"{p}: {exc}") from exc
-    except RecursionError:
-        raise GainFileError(f"{p}: its JSON is nested too deeply to be a gain file") from None
-    return gain_file_from_dict(doc, source=str(p))
+    return gain_file_from_dict(parse_json_data(text, str(p), "a gain file"), source=str(p))
+
+
+class _DuplicateKey(dict[str, Any]):
+    """An object of a JSON document that repeated ``key`` (marked by the parser, found by :func:`parse_json_data`)."""
+
+    key: str
+
+
+class _NonFinite(ValueError):
+    pass
 
 
 def _refuse_constant(name: str) -> float:
-    raise ValueError(f"non-finite number {name} in a gain file")
+    raise _NonFinite(name)
+
+
+def parse_json_data(text: str, source: str, what: str, *, error: type[FdisynError] = GainFileError) -> Any:
+    """Parse a JSON document fdisyn reads as data (a gain file, a build manifest), strictly.
+
+    Python's :func:`json.loads` keeps the last of a repeated key (``"passed": false, …, "passed": true``
+    reads as ``true``) and reads ``NaN`` and ``Infinity``; a document that repeats a key in any object, or
+    holds such a constant, is refused here instead, as is one that is not JSON or is nested too deeply.
+
+    Parameters
+    ----------
+    text
+        The document.
+    source
+        What the refusal names first (the file's path).
+    what
+        What the document should be, with its article (``"a gain file"``).
+    error
+        The exception type raised (:class:`GainFileError`, or e.g. ``BuildError`` for a manifest).
+
+    Returns
+    -------
+    Any
+        The parsed document: dicts, lists, strings, numbers, booleans and ``None``.
+
+    Raises
+    ------
+    FdisynError
+        ``error``, one line: the position of a syntax error, the repeated key and the object that holds
+        it (``generators[0].method``, or the top level), the non-finite constant, or the nesting.
+    """
+    marked: list[_DuplicateKey] = []
+
+    def unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+        obj = dict(pairs)
+        if len(obj) == len(pairs):
+            return obj
+        dup, seen = _DuplicateKey(obj), set()
+        for k, _ in pairs:
+            if k in seen:
+                dup.key = k
+                break
+            seen.add(k)
+        marked.append(dup)
+        return dup
+
+    try:
+        doc = json.loads(text, parse_constant=_refuse_constant, object_pairs_hook=unique_keys)
+    except json.JSONDecodeError as exc:
+        raise error(f"{source} is not valid JSON (line {exc.lineno}, column {exc.colno}): {exc.msg}") from None
+    except _NonFinite as exc:
+        raise error(f"{source}: non-finite number {exc} in {what}; expected finite numbers only") from None
+    except RecursionError:
+        raise error(f"{source}: its JSON is nested too deeply to be {what}") from None
+    except ValueError as exc:  # an integer of more digits than Python converts
+        raise error(f"{source} is not readable as {what}: {exc}") from None
+    if marked:
+        where, key = _first_duplicate(doc) or ("in an object", marked[0].key)
+        raise error(
+            f"{source}: key {shown(key)} appears more than once {where}; {what} holds each key once (a JSON reader "
+            "would keep only one of the values): remove the repeated entry or write the file again"
+        )
+    return doc
+
+
+def _first_duplicate(doc: object) -> tuple[str, str] | None:
+    """Where the first object marked by :func:`parse_json_data` is (``in generators[0].method``, ``at the top
+    level``) and its repeated key; ``None`` if there is none."""
+    stack: list[tuple[str, object]] = [("", doc)]
+    while stack:  # depth first, in document order, without recursion
+        path, node = stack.pop()
+        if isinstance(node, _DuplicateKey):
+            return (f"in {path}" if path else "at the top level"), node.key
+        if isinstance(node, dict):
+            keys = [k if k.isidentifier() else shown(k, 40) for k in node]  # a key may hold anything, a line break too
+            stack.extend((f"{path}.{k}" if path else k, v) for k, v in reversed(list(zip(keys, node.values(), strict=True))))
+        elif isinstance(node, list):
+            stack.extend((f"{path}[{i}]", v) for i, v in reversed(list(enumerate(node))))
+    return None
 
 
 def gain_file_from_dict(doc: object, *, source: str = "gain file") -> GainFile:
@@ -608,16 +705,11 @@ def gain_file_from_dict(doc: object, *, source: str = "gain file") -> GainFile:
         gens = []
         for i, gd in enumerate(r.array("generators")):
             gr = _Reader(gd, f"{source}: generators[{i}]")
+            # the reader's refusals name the generator already; the generator's own checks are prefixed here
+            matrices: dict[str, Any] = {k: gr.matrix(k) for k in _MATRIX_KEYS}
+            name, outputs_used, method = gr.string("name"), tuple(gr.integers("outputs_used")), gr.obj("method")
             try:
-                matrices: dict[str, Any] = {k: gr.matrix(k) for k in _MATRIX_KEYS}
-                gens.append(
-                    Generator(
-                        name=gr.string("name"),
-                        outputs_used=tuple(gr.integers("outputs_used")),
-                        **matrices,
-                        method=gr.obj("method"),
-                    )
-                )
+                gens.append(Generator(name=name, outputs_used=outputs_used, **matrices, method=method))
             except GainFileError as exc:
                 raise GainFileError(f"{source}: generators[{i}]: {exc}") from None
         kwargs["generators"] = tuple(gens)
@@ -738,6 +830,7 @@ class _Reader:
         x = real_number(v)
         if x is None or not math.isfinite(x):
             raise GainFileError(f"{self.where}: field {key!r} must be a finite number, found {shown(v)}")
+        check_magnitudes(x, f"{self.where}: {key}")
         return x
 
     def integer(self, key: str, *, minimum: int | None = None) -> int:
@@ -782,6 +875,7 @@ class _Reader:
             raise GainFileError(f"{self.where}: field {key!r} must be a list of numbers") from None
         if a.ndim != 1 or not np.all(np.isfinite(a)):
             raise GainFileError(f"{self.where}: field {key!r} must be a flat list of finite numbers")
+        check_magnitudes(a, f"{self.where}: {key}")
         return a
 
     def matrix(self, key: str) -> np.ndarray:
@@ -800,6 +894,7 @@ class _Reader:
             raise GainFileError(f"{self.where}: matrix {key!r} holds something that is not a number") from None
         if not np.all(np.isfinite(a)):
             raise GainFileError(f"{self.where}: matrix {key!r} holds a non-finite number")
+        check_magnitudes(a, f"{self.where}: {key}")
         return a
 
 
@@ -818,13 +913,14 @@ def _validate(gf: GainFile) -> None:
         _fail(f"format {gf.format!r}; expected {FORMAT!r}")
     check_limits(gf)  # sizes first: nothing costly runs on a file beyond them
     _validate_names(gf)
-    if not math.isfinite(gf.Ts) or gf.Ts <= 0:
-        _fail(f"Ts must be a positive sample time in seconds, found {gf.Ts!r}")
+    if not (math.isfinite(gf.Ts) and 0 < gf.Ts <= MAX_MAGNITUDE):
+        _fail(f"Ts must be a positive sample time in seconds of at most {MAX_MAGNITUDE:g}, found {gf.Ts!r}")
     st = gf.step
     if st.nu != len(gf.inputs) or st.ny != len(gf.outputs):
         _fail(f"step sizes nu={st.nu}, ny={st.ny} do not match {len(gf.inputs)} inputs and {len(gf.outputs)} outputs")
     if st.init_state.shape != (st.nstate,):
         _fail(f"step.init_state has {st.init_state.size} entries; nstate is {st.nstate}")
+    check_magnitudes(st.init_state, "step.init_state")
     if len(st.residual_names) != st.nr or len(st.statistic_names) != st.nj:
         _fail(f"step names: {len(st.residual_names)} residual and {len(st.statistic_names)} statistic names for nr={st.nr}, nj={st.nj}")
     if gf.kind == "linear":
@@ -865,8 +961,10 @@ def _validate_extension_thresholds(gf: GainFile) -> None:
     if not isinstance(thr, (list, tuple)) or len(thr) != gf.step.nj:
         _fail(f"extensions[{gf.kind!r}].thresholds must list one threshold (or null) per statistic ({gf.step.nj}), found {shown(thr)}")
     for j, v in enumerate(thr):
-        if v is not None and (type(v) not in (int, float) or (isinstance(v, float) and math.isnan(v))):
+        if v is not None and type(v) not in (int, float):
             _fail(f"extensions[{gf.kind!r}].thresholds[{j}] must be a number or null, found {shown(v)}")
+        if v is not None:
+            check_magnitudes(real_number(v), f"extensions[{gf.kind!r}].thresholds[{j}]")
 
 
 def step_coefficients(generators: Sequence[Generator], evaluators: Sequence[Evaluator]) -> int:
@@ -992,18 +1090,18 @@ def _validate_sequential(e: Evaluator, w: str, ng: int, decision: Decision | Non
     assert e.directions is not None
     rows = e.directions.shape[0]
     _shape(e.directions, f"{w}.directions", (rows, ng))
-    _finite(e.directions, f"{w}.directions")
+    check_magnitudes(e.directions, f"{w}.directions")
     per = int(e.window) if e.kind == "glr" else 1
     if rows == 0 or rows % per:
         _fail(f"{w}.directions must hold {per} row(s) per fault hypothesis and at least one hypothesis, found {rows} rows")
     if e.kind == "cusum":
         assert e.drift is not None
-        _finite(e.drift, f"{w}.drift")
+        check_magnitudes(e.drift, f"{w}.drift")
         if e.drift.shape != (rows,) or not np.all(e.drift > 0):
             _fail(f"{w}.drift must hold one positive number per direction ({rows}), found {shown(e.drift.tolist())}")
     else:
         assert e.information is not None
-        _finite(e.information, f"{w}.information")
+        check_magnitudes(e.information, f"{w}.information")
         c = e.information.reshape(-1, per) if e.information.shape == (rows,) else None
         if c is None or not np.all(c >= 0) or not np.all(np.diff(c, axis=1) >= -1e-9 * c[:, -1:]) or not np.all(c[:, -1] > 0):
             _fail(f"{w}.information must hold, per hypothesis, {per} nondecreasing cumulative informations ending positive")
@@ -1015,22 +1113,44 @@ def _validate_sequential(e: Evaluator, w: str, ng: int, decision: Decision | Non
         check_label(h, f"{w}.hypotheses[{i}]", error=GainFileError)
 
 
-def _finite(a: np.ndarray, where: str) -> None:
-    if not np.all(np.isfinite(a)):
-        _fail(f"{where} holds a non-finite number")
+def check_magnitudes(values: object, where: str) -> None:
+    """Refuse a number that is not finite or is beyond :data:`MAX_MAGNITUDE` in magnitude.
+
+    Parameters
+    ----------
+    values
+        A number or an array of numbers (any shape) of the field ``where``.
+    where
+        The field, as the refusal names it (``generators[0].Bu``).
+
+    Raises
+    ------
+    GainFileError
+        One line naming the field, the first offending entry (its index) and the bound.
+    """
+    a = np.asarray(values, dtype=float)
+    with np.errstate(invalid="ignore"):
+        bad = ~(np.abs(a) <= MAX_MAGNITUDE)  # NaN fails the comparison, so it is bad too
+    if np.any(bad):
+        idx = np.unravel_index(int(np.argmax(bad)), a.shape) if a.ndim else ()
+        at = "".join(f"[{int(i)}]" for i in idx)
+        _fail(
+            f"{where}{at} is {float(a[idx])!r}; a gain file's numbers must be finite and at most {MAX_MAGNITUDE:g} in "
+            "magnitude (larger ones overflow its consistency checks): write the file again with `fdisyn design`"
+        )
 
 
 def _validate_linear(gf: GainFile) -> None:
     m, p = len(gf.inputs), len(gf.outputs)
     pl = gf.plant
     for k, a in pl.items():
-        _finite(a, f"plant.{k}")
+        check_magnitudes(a, f"plant.{k}")
     for i, gen in enumerate(gf.generators):
         for k in _MATRIX_KEYS:
-            _finite(getattr(gen, k), f"generators[{i}].{k}")
+            check_magnitudes(getattr(gen, k), f"generators[{i}].{k}")
     for j, ev in enumerate(gf.evaluators):
-        _finite(ev.Sigma_r, f"evaluators[{j}].Sigma_r")
-        _finite(ev.W, f"evaluators[{j}].W")
+        check_magnitudes(ev.Sigma_r, f"evaluators[{j}].Sigma_r")
+        check_magnitudes(ev.W, f"evaluators[{j}].W")
     if set(pl) != {"A", "B", "C", "D", "E", "Q", "R"}:
         _fail(f"plant must hold A, B, C, D, E, Q, R; found {sorted(pl)}")
     n = pl["A"].shape[0]
@@ -1055,14 +1175,15 @@ def _validate_linear(gf: GainFile) -> None:
                 rho = math.inf
             if not rho < 1.0:
                 _fail(f"{w}.Ar is not Schur stable (spectral radius {rho:.6g}); the generator would diverge")
-            # the equilibrium maps must solve (I − Ar) X = B: catches edited or corrupted files
+            # the equilibrium maps must solve (I − Ar) X = B: catches edited or corrupted files. The entries are
+            # within MAX_MAGNITUDE, so both sides stay finite; a non-finite one (NaN or inf) fails all the same
             for xk, bk in (("Xu", "Bu"), ("Xy", "By")):
                 x, b = getattr(g, xk), getattr(g, bk)
                 with np.errstate(over="ignore", invalid="ignore"):
-                    res = np.linalg.norm((np.eye(ns) - g.Ar) @ x - b)
-                    bound = 1e-8 * (np.linalg.norm(b) + np.linalg.norm(g.Ar) * np.linalg.norm(x) + 1e-300)
-                if not res <= bound:  # written so that an overflowed (NaN) check fails
-                    _fail(f"{w}.{xk} is not (I − Ar)⁻¹ {bk} (residual {res:.3g}); the file is inconsistent")
+                    res = float(np.linalg.norm((np.eye(ns) - g.Ar) @ x - b))
+                    bound = 1e-8 * (float(np.linalg.norm(b)) + float(np.linalg.norm(g.Ar)) * float(np.linalg.norm(x)) + 1e-300)
+                if not (math.isfinite(res) and math.isfinite(bound) and res <= bound):
+                    _fail(f"{w}.{xk} is not (I − Ar)⁻¹ {bk} (residual {res:.3g}, allowed {bound:.3g}); the file is inconsistent")
         nr += g.n_residual
     if len(gf.evaluators) == 0:
         _fail("a linear diagnoser needs at least one evaluator")
@@ -1087,6 +1208,7 @@ def _validate_linear(gf: GainFile) -> None:
         _shape(e.W, f"{w}.W", (ng, ng))
         if not 0.0 < e.P_f < 1.0:
             _fail(f"{w}.P_f must be a probability in (0, 1), found {e.P_f}")
+        check_magnitudes(e.threshold, f"{w}.threshold")
         if not e.threshold > 0:
             _fail(f"{w}.threshold must be positive, found {e.threshold}")
         _validate_chi2_weight(e, w)

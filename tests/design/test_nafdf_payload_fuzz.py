@@ -235,3 +235,65 @@ def test_mutated_nafdf_gain_files_never_crash_or_raise_anything_but_one_fdisyn_l
     ok = sum(r["outcome"] == "ok" for r in outcomes.values())
     # not vacuous: most mutations are refused, and some mutated files (other valid models) build and run
     assert kinds == {"ok", "refused"} and refused >= MUTATIONS // 2 and ok >= 5, (refused, ok)
+
+
+# --------------------------------------------------------------------------- huge numbers
+_SHIP = ROOT / "reports" / "ship_propulsion" / "gains" / "ship_propulsion_nafdf.json"
+_BOUND_SEED = 20240626
+_BOUND_MUTATIONS = 60
+_HUGE: list[float] = [1e308, -1e308, 1e200, -1e200, 1e150 * (1 + 1e-12), 1e150, -1e150, 0.999e150, 1e100]
+
+
+def _payload_numbers(doc: dict[str, Any]) -> list[tuple[Any, ...]]:
+    """Paths to the numbers of the payload the reader validates (settings, noise covariances, θ, tables, state)."""
+    payload = doc["extensions"]["nafdf"]
+    roots = [("settings",), ("plant", "theta_nominal"), ("plant", "Q1"), ("plant", "Q2"), ("plant", "Ts"), ("detector_thresholds",), ("init_state",), ("thresholds",)]
+    out = []
+    for root in roots:
+        if root[0] not in payload:
+            continue
+        out += [("extensions", "nafdf", *root, *p) for p in _paths(_get(payload, root))] or [("extensions", "nafdf", *root)]
+    return [p for p in out if isinstance(_get(doc, p), (int, float)) and not isinstance(_get(doc, p), bool)]
+
+
+def test_huge_payload_numbers_are_refused_by_name_or_consistent(tmp_path: Path) -> None:
+    """±1e308, ±1e200 and values about the gain file's magnitude bound in the ship's payload: refused naming the
+    field, or the payload's relations (its threshold table, initial state and exported thresholds against the
+    settings) hold at finite values. In-process: only the reader and the design's re-certification run."""
+    import warnings
+
+    from fdisyn.runtime.errors import GainFileError
+    from fdisyn.runtime.gainfile import MAX_MAGNITUDE, read_gain_file
+    from fdisyn.synthesis.nafdf.design import _init_state, detector_thresholds
+    from fdisyn.synthesis.nafdf.payload import nafdf_from_gain_file
+
+    base = json.loads(_SHIP.read_text(encoding="utf-8"))
+    paths = _payload_numbers(base)
+    rng = np.random.default_rng(_BOUND_SEED)
+    outcomes = {"refused": 0, "accepted": 0}
+    for _ in range(_BOUND_MUTATIONS):
+        doc = copy.deepcopy(base)
+        path, value = paths[int(rng.integers(len(paths)))], float(rng.choice(_HUGE))
+        _get(doc, path[:-1])[path[-1]] = value
+        (tmp_path / "gains.json").write_text(json.dumps(doc), encoding="utf-8")
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", RuntimeWarning)  # a silent overflow on the way is a finding
+            try:
+                gf = read_gain_file(tmp_path / "gains.json")
+                design = nafdf_from_gain_file(gf)
+            except GainFileError as exc:
+                msg = str(exc)
+                field = next(str(k) for k in reversed(path) if isinstance(k, str))
+                assert "\n" not in msg and field in msg, (path, value, msg)
+                if abs(value) > MAX_MAGNITUDE:
+                    assert "at most 1e+150" in msg or "must be" in msg, (path, value, msg)
+                outcomes["refused"] += 1
+                continue
+        assert abs(value) <= MAX_MAGNITUDE, (path, value)
+        truth = detector_thresholds(design.plant, design.settings)
+        assert np.all(np.isfinite(truth)) and np.allclose(design.thresholds, truth, rtol=1e-9, atol=0.0)
+        init = _init_state(design.plant, design.settings, design.layout)
+        assert np.all(np.abs(init) <= MAX_MAGNITUDE) and np.array_equal(gf.step.init_state, init)
+        assert np.all(np.isfinite(gf.thresholds[np.isfinite(gf.thresholds)]))
+        outcomes["accepted"] += 1
+    assert outcomes["refused"] > _BOUND_MUTATIONS // 2 and outcomes["accepted"] > 0, outcomes

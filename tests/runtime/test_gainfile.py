@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import json
 import os
+from pathlib import Path
 
 import numpy as np
 import pytest
-from fdisyn.runtime.errors import GainFileError
-from fdisyn.runtime.gainfile import FORMAT, gain_file_sha256, read_gain_file, write_gain_file
+from fdisyn.runtime.errors import BuildError, GainFileError
+from fdisyn.runtime.gainfile import FORMAT, gain_file_sha256, parse_json_data, read_gain_file, write_gain_file
 
 
 @pytest.fixture
@@ -227,3 +228,53 @@ def test_the_content_hash_sees_values_not_layout(doc, tmp_path):
     assert gain_file_sha256(read_gain_file(p)) == h
     doc["evaluators"][2]["threshold"] = np.nextafter(doc["evaluators"][2]["threshold"], np.inf)  # one ulp
     assert gain_file_sha256(read_gain_file(_write(tmp_path, doc))) != h
+
+
+# --------------------------------------------------------------------------- repeated keys
+_REPORTS = Path(__file__).resolve().parents[2] / "reports"
+_DUP = "__repeated__"
+
+
+def _with_repeated_key(path: Path, where: tuple[object, ...], key: str, first: object) -> str:
+    """The JSON text of ``path`` with ``key`` written twice in the object at ``where``: ``first`` before the
+    file's own value (a JSON reader keeps the last)."""
+    doc = json.loads(path.read_text(encoding="utf-8"))
+    parent = doc
+    for k in where[:-1]:
+        parent = parent[k]
+    parent[where[-1]] = {_DUP: 0, **parent[where[-1]]} if where else None
+    return json.dumps(doc, indent=1).replace(f'"{_DUP}": 0', f'"{key}": {json.dumps(first)}', 1)
+
+
+@pytest.mark.parametrize(
+    ("file", "where", "key", "first", "place"),
+    [
+        ("wind_turbine/gains/wind_turbine_kalman_uio.json", ("generators", 0), "Bu", [[1.0]], r"in generators\[0\]"),
+        ("wind_turbine/gains/wind_turbine_kalman_uio.json", ("certificate",), "passed", False, "in certificate"),
+        ("wind_turbine/gains/wind_turbine_kalman_uio.json", ("certificate", "generators", 1), "passed", False, r"in certificate\.generators\[1\]"),
+        ("wind_turbine/gains/wind_turbine_kalman_uio.json", ("provenance",), "fdisyn", "0", "in provenance"),
+        ("satellite_pitch/gains/satellite_pitch_optimised.json", ("extensions", "beard_fdf"), "h", 1.0, r"in extensions\.beard_fdf"),
+        ("ship_propulsion/gains/ship_propulsion_nafdf.json", ("extensions", "nafdf", "settings"), "window", 3, r"in extensions\.nafdf\.settings"),
+    ],
+)
+def test_a_repeated_key_is_refused_with_its_place(tmp_path, file, where, key, first, place):
+    p = tmp_path / "gains.json"
+    p.write_text(_with_repeated_key(_REPORTS / file, where, key, first), encoding="utf-8")
+    with pytest.raises(GainFileError, match=rf"key '{key}' appears more than once {place}; a gain file holds each key once"):
+        read_gain_file(p)
+
+
+def test_a_repeated_key_at_the_top_level_is_refused(tmp_path):
+    doc = json.loads((_REPORTS / "wind_turbine/gains/wind_turbine_kalman_uio.json").read_text(encoding="utf-8"))
+    text = json.dumps({_DUP: 0, **doc}).replace(f'"{_DUP}": 0', '"name": "other"', 1)
+    p = tmp_path / "gains.json"
+    p.write_text(text, encoding="utf-8")
+    with pytest.raises(GainFileError, match=r"key 'name' appears more than once at the top level") as exc:
+        read_gain_file(p)
+    assert "\n" not in str(exc.value)
+
+
+def test_parse_json_data_names_a_hostile_key_on_one_line():
+    with pytest.raises(BuildError, match=r"m\.json: key 'x' appears more than once in a\.'b\\nc'\[1\]; a build manifest holds"):
+        parse_json_data('{"a": {"b\\nc": [0, {"x": 1, "x": 2}]}}', "m.json", "a build manifest", error=BuildError)
+    assert parse_json_data('{"a": [{"x": 1}, {"x": 2}]}', "m.json", "a build manifest") == {"a": [{"x": 1}, {"x": 2}]}

@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 from fdisyn.numerics.certificate import Certificate
 from fdisyn.runtime.errors import GainFileError
-from fdisyn.runtime.gainfile import LIMITS, GainFile, StepSpec, to_jsonable
+from fdisyn.runtime.gainfile import LIMITS, MAX_MAGNITUDE, GainFile, StepSpec, check_magnitudes, to_jsonable
 from fdisyn.runtime.layout import StateLayout
 from fdisyn.runtime.names import shown
 from fdisyn.runtime.values import real_number
@@ -251,6 +251,7 @@ class _Reader:
         v = real_number(self.doc[key])
         if v is None or not math.isfinite(v):
             raise self.fail(key, expected)
+        check_magnitudes(v, f"{self.where}.{key}")
         return v
 
     def integer(self, key: str, lo: int, hi: int) -> int:
@@ -270,13 +271,16 @@ class _Reader:
         nums = [real_number(z) for r in v for z in r]
         if any(z is None or not math.isfinite(z) for z in nums):
             raise self.fail(key, f"a {shape} matrix of finite numbers", v)
-        return np.array(nums, dtype=float).reshape(rows, width)
+        out = np.array(nums, dtype=float).reshape(rows, width)
+        check_magnitudes(out, f"{self.where}.{key}")  # bounded: the checks below multiply the entries
+        return out
 
 
 def beard_from_gain_file(gf: GainFile) -> BeardFilter:
     """The filter of a ``kind = "beard_fdf"`` gain file, every field validated.
 
-    Shapes against the common fields (``nu``, ``ny``, ``faults``), finite numbers, orthonormal axes
+    Shapes against the common fields (``nu``, ``ny``, ``faults``), finite numbers within
+    :data:`~fdisyn.runtime.gainfile.MAX_MAGNITUDE` (so that no check below overflows), orthonormal axes
     (to 1e-9), ``0 ≤ Y_th ≤ π/2``, ``A − L C`` Schur stable, the equilibrium maps, the window within
     :data:`~fdisyn.runtime.gainfile.LIMITS` (``N·p + n + 8 ≤ nstate``), ``h, ε̄ > 0``, ``rho`` null or
     ``> 1``, the persistence, the thresholds, and the step's sizes, names and initial state. Raises
@@ -323,9 +327,13 @@ def beard_from_gain_file(gf: GainFile) -> BeardFilter:
             f"{where}: A B C D L and the equilibrium maps hold up to {coefficients} coefficients; at most "
             f"{LIMITS['coefficients']} are supported (the generated C has one multiply-add per coefficient)"
         )
-    G = A - L @ C
-    radius = float(np.max(np.abs(np.linalg.eigvals(G))))
-    if not radius < 1.0:
+    G = A - L @ C  # finite: entries within MAX_MAGNITUDE (see check_magnitudes)
+    try:
+        with np.errstate(over="ignore", invalid="ignore"):
+            radius = float(np.max(np.abs(np.linalg.eigvals(G))))
+    except np.linalg.LinAlgError:
+        radius = math.nan
+    if not radius < 1.0:  # NaN (eigenvalues that cannot be computed) fails too
         raise GainFileError(f"{where}.L must make A − L C Schur stable (spectral radius < 1); found spectral radius {radius!r}")
 
     axes_doc = doc["axes"]
@@ -364,11 +372,21 @@ def beard_from_gain_file(gf: GainFile) -> BeardFilter:
         explicit_level=level, rho=rho, persistence=persistence, design_info=doc["design"],
     )  # fmt: skip
     for key in ("Xu", "Xy"):
-        want = getattr(flt, key)
+        try:
+            with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+                want = getattr(flt, key)
+        except np.linalg.LinAlgError:
+            want = np.full((n, m if key == "Xu" else p), math.nan)
         got = rd.matrix(key, n, want.shape[1])
+        if not np.all(np.abs(want) <= MAX_MAGNITUDE):  # large entries or I − G near singular: beyond the bound, inf or NaN
+            raise GainFileError(
+                f"{where}.{key}: A B C D L give an equilibrium map with entries up to {float(np.max(np.abs(want))):.3g}, beyond "
+                f"{MAX_MAGNITUDE:g} (their numbers are too large or I − (A − L C) is too close to singular); expected a "
+                "filter whose equilibrium a gain file can hold"
+            )
         scale = float(np.max(np.abs(want))) if want.size else 0.0
         gap = float(np.max(np.abs(got - want))) if want.size else 0.0
-        if not gap <= _EQUILIBRIUM_RTOL * scale:
+        if not (math.isfinite(gap) and gap <= _EQUILIBRIUM_RTOL * scale):
             raise GainFileError(
                 f"{where}.{key} must be the equilibrium map (I − G)⁻¹{'(B − L D)' if key == 'Xu' else ' L'} of A B C D L "
                 f"(to {_EQUILIBRIUM_RTOL:g} relative); found it {gap!r} away"

@@ -16,7 +16,7 @@ from fdisyn.models.nonlinear import NonlinearPlant, function_from_program, model
 from fdisyn.models.sampling import check_sample_time
 from fdisyn.numerics.linalg import as_covariance
 from fdisyn.runtime.errors import FdisynError, GainFileError
-from fdisyn.runtime.gainfile import GainFile, StepSpec
+from fdisyn.runtime.gainfile import GainFile, StepSpec, check_magnitudes
 from fdisyn.runtime.layout import StateLayout
 from fdisyn.runtime.names import shown
 from fdisyn.runtime.values import real_number
@@ -183,6 +183,7 @@ def _json_number(v: object, where: str) -> float:
         raise GainFileError(f"{where} must hold numbers; found {shown(v)}")
     if not math.isfinite(out):
         raise GainFileError(f"{where} must hold finite numbers; found {shown(v)}")
+    check_magnitudes(out, where)  # bounded like every number of a gain file: no check below can overflow
     return out
 
 
@@ -492,7 +493,8 @@ def nafdf_lorden_bound(gf: GainFile, shift: np.ndarray, covariance: np.ndarray) 
     cov = np.asarray(covariance, dtype=float)[:p, :p]
     if not (np.all(np.isfinite(mu)) and np.all(np.isfinite(cov))):
         return None
-    info = 0.5 * float(mu @ np.linalg.pinv(cov, rcond=1e-9, hermitian=True) @ mu)
-    if info <= 0.0:
+    with np.errstate(over="ignore", invalid="ignore"):
+        info = 0.5 * float(mu @ np.linalg.pinv(cov, rcond=1e-9, hermitian=True) @ mu)
+    if not (math.isfinite(info) and info > 0.0):  # an overflowed (inf, NaN) information gives no bound either
         return None
     return info, lorden_delay(1.0 / float(_stored_settings(gf)["false_alarm_probability"]), info)
