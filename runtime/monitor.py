@@ -24,11 +24,12 @@ from typing import Literal
 
 import numpy as np
 from fdisyn.runtime.compiled import CompiledDiagnoser, library_path
-from fdisyn.runtime.errors import BuildError
+from fdisyn.runtime.errors import ArgumentError, BuildError
 from fdisyn.runtime.gainfile import GainFile, read_gain_file
+from fdisyn.runtime.names import shown
 from fdisyn.runtime.reference import ChangeEstimate, LinearReference, RunResult, glr_estimates
 
-__all__ = ["Verdict", "Monitor"]
+__all__ = ["BACKENDS", "Verdict", "Monitor"]
 
 
 @dataclass(frozen=True)
@@ -46,10 +47,39 @@ class Verdict:
     """The sample held a non-finite value and was skipped where it mattered."""
 
 
+BACKENDS = ("auto", "compiled", "reference")
+"""What runs the step: ``"compiled"`` the C library, ``"reference"`` the NumPy reference, ``"auto"`` the library when there is one."""
+
+
+def _backend(backend: object) -> str:
+    if not isinstance(backend, str) or backend not in BACKENDS:
+        raise ArgumentError(f"backend = {shown(backend)}: expected 'auto', 'compiled' or 'reference'")
+    return backend
+
+
 class Monitor:
     """Runs one diagnoser over a stream; keeps its state and counts bad samples."""
 
     def __init__(self, gf: GainFile, *, library: str | Path | None = None, backend: Literal["auto", "compiled", "reference"] = "auto") -> None:
+        """Run ``gf`` by ``backend``.
+
+        Parameters
+        ----------
+        gf : GainFile
+            The diagnoser.
+        library : str or Path, optional
+            The compiled library built from ``gf`` (``fdisyn codegen``).
+        backend : {"auto", "compiled", "reference"}
+            ``"auto"``: the library when one is given, else the NumPy reference.
+
+        Raises
+        ------
+        ArgumentError
+            ``backend`` is none of the three (it is never guessed).
+        BuildError
+            ``"compiled"`` without a library, or a library not built from ``gf``.
+        """
+        backend = _backend(backend)
         self.gf = gf
         if backend == "reference" or (backend == "auto" and library is None):
             self.impl: CompiledDiagnoser | LinearReference = LinearReference(gf)
@@ -67,8 +97,10 @@ class Monitor:
         A library that was not built from this very ``gains.json`` (or that
         changed since it was built) raises :class:`BuildError` saying to run
         ``fdisyn codegen DIR``; it is never run, nor silently replaced by the
-        reference.
+        reference. A ``backend`` other than ``"auto"``, ``"compiled"`` or ``"reference"`` raises
+        :class:`ArgumentError` before anything is read.
         """
+        backend = _backend(backend)
         d = Path(directory)
         gf = read_gain_file(d / "gains.json")
         lib = library_path(d, gf)

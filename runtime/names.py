@@ -57,6 +57,7 @@ from __future__ import annotations
 
 import re
 import reprlib
+import unicodedata
 from collections.abc import Mapping, Sequence
 
 from fdisyn.runtime.errors import ArgumentError, FdisynError
@@ -137,12 +138,24 @@ def _string(name: object, what: str, error: Error) -> str:
     return name
 
 
+def _folded(s: str) -> str:
+    """What a non-ASCII name would read as if folded (Unicode NFKC, as Python folds identifiers): a hint for the message.
+
+    Names are compared exactly and are ASCII; a fullwidth ``ｘ`` is never the name ``x``."""
+    if s.isascii():
+        return ""
+    folded = unicodedata.normalize("NFKC", s)
+    if folded != s and folded.isascii():
+        return f" (it holds non-ASCII characters: it reads as {folded!r} only after Unicode NFKC normalisation, and names are compared exactly)"
+    return " (it holds non-ASCII characters)"
+
+
 def check_signal_name(name: object, what: str, *, error: Error = ArgumentError) -> str:
     """``name`` if it is a signal name (see the module docstring), else ``error`` naming ``what``."""
     s = _string(name, what, error)
     if not _SIGNAL.match(s) or len(s) > SIGNAL_NAME_MAX:
         raise error(
-            f"{what} {shown(s)} is not a signal name: expected a letter, then letters, digits or '_', "
+            f"{what} {shown(s)} is not a signal name{_folded(s)}: expected a letter, then letters, digits or '_', "
             f"at most {SIGNAL_NAME_MAX} characters"
         )
     if s in RESERVED_SIGNAL_NAMES:
@@ -168,7 +181,7 @@ def check_fault_name(name: object, what: str, *, error: Error = ArgumentError) -
     s = _string(name, what, error)
     if not _FAULT.match(s) or len(s) > FAULT_NAME_MAX:
         raise error(
-            f"{what} {shown(s)} is not a fault name: expected names (a letter, then letters, digits or '_') "
+            f"{what} {shown(s)} is not a fault name{_folded(s)}: expected names (a letter, then letters, digits or '_') "
             f"joined by '+' or '|', at most {FAULT_NAME_MAX} characters"
         )
     return s
@@ -179,7 +192,7 @@ def check_diagnoser_name(name: object, what: str, *, error: Error = ArgumentErro
     s = _string(name, what, error)
     if not _SIGNAL.match(s) or "__" in s or s.endswith("_") or len(s) > DIAGNOSER_NAME_MAX:
         raise error(
-            f"{what} {shown(s)} cannot prefix the generated C API: expected a C identifier that starts with a letter, "
+            f"{what} {shown(s)} cannot prefix the generated C API{_folded(s)}: expected a C identifier that starts with a letter, "
             f"has no '__' and no trailing '_', at most {DIAGNOSER_NAME_MAX} characters"
         )
     if s in RESERVED_DIAGNOSER_NAMES:
@@ -194,7 +207,7 @@ def check_label(name: object, what: str, *, max_length: int = LABEL_MAX, error: 
     s = _string(name, what, error)
     if not _LABEL.match(s) or len(s) > max_length:
         raise error(
-            f"{what} {shown(s)} is not a label: expected a letter or digit, then letters, digits or '_', '.', '+', '|', '-', "
+            f"{what} {shown(s)} is not a label{_folded(s)}: expected a letter or digit, then letters, digits or '_', '.', '+', '|', '-', "
             f"at most {max_length} characters"
         )
     return s

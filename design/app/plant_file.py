@@ -213,6 +213,13 @@ class _Section:
             return default
         return self.doc[key]
 
+    def text(self, key: str, default: str) -> str:
+        """A string (``default`` when the key is absent): a number, a list or a table is refused, never turned into text."""
+        v = self.get(key, default)
+        if not isinstance(v, str):
+            raise SpecError(f"{self.where}.{key} must be a string (text in quotes), got {type(v).__name__} {shown(v)}")
+        return v
+
     def entries(self, key: str) -> list[Any]:
         """A list (default empty), e.g. of tables."""
         v = self.get(key, [])
@@ -246,11 +253,12 @@ class _Section:
         v = self.get(key, default, required=required)
         if v is None:
             return None
+        label = f"{self.where}.{self.aliases.get(key, key)}"
         x = real_number(v)
         if x is None:
-            raise SpecError(f"{self.where}.{key} must be a number, got {shown(v)}")
+            raise SpecError(f"{label} must be a number, got {shown(v)}")
         if not math.isfinite(x):
-            raise SpecError(f"{self.where}.{key} must be a finite number, got {shown(v)}")
+            raise SpecError(f"{label} must be a finite number, got {shown(v)}")
         return x
 
     def vector(self, key: str, size: int) -> np.ndarray:
@@ -288,6 +296,9 @@ class _Section:
             a = a.reshape(-1, 1) if key in ("B", "E", "Fx") else a.reshape(1, -1)
         if a.ndim != 2:
             raise SpecError(f"{label} must be a matrix (a list of rows), got {shown(v)}")
+        if not np.all(np.isfinite(a)):  # here, where the key the file wrote (Bu, Bd, Bf) is known
+            bad = tuple(int(i) for i in np.argwhere(~np.isfinite(a))[0])
+            raise SpecError(f"{label} must hold finite numbers; entry {list(bad)} is {float(a[bad])!r}")
         return a
 
 
@@ -338,7 +349,12 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
     """The problem a parsed plant file describes (``path`` names it in errors and in the gain file)."""
     top = _Section(doc, str(path), {"name", "title", "signals", "model", "design", "simulation", "scenarios"})
     name = check_diagnoser_name(top.get("name", required=True), f"{path}: name", error=SpecError)
-    if isinstance(top.get("model"), Mapping) and top.get("model").get("time") == "nonlinear":
+    model = top.get("model", required=True)
+    if not isinstance(model, Mapping):
+        raise SpecError(f"{path} [model] must be a table (key = value pairs), got {shown(model)}")
+    if model.get("time", "continuous") not in ("continuous", "discrete", "nonlinear"):
+        raise SpecError(f"{path} [model].time must be 'continuous', 'discrete' or 'nonlinear', got {shown(model.get('time'))}")
+    if model.get("time") == "nonlinear":
         return _nonlinear_problem(path, top, name)
     sig = _Section(top.get("signals", {}), f"{path} [signals]", {"states", "inputs", "unknown_inputs", "outputs", "component_faults"})
     given = {f"[signals].{k}": check_signal_names(v, f"{path} [signals].{k}", error=SpecError) for k, v in sig.doc.items()}
@@ -453,7 +469,7 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
         _check_fault_window(w, fname, onset, end, duration, bool(cfs or sfs))
         scenarios[sname] = Scenario(
             name=sname,
-            description=str(sc.get("description", "")),
+            description=sc.text("description", ""),
             duration=duration,
             fault=fname,
             onset=onset,
@@ -477,7 +493,7 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
 
     return Problem(
         name=name,
-        title=str(top.get("title", name)),
+        title=top.text("title", name),
         summary=f"Plant described by {path.name}; design method {method.name}.",
         designs={method.name: design_fn},
         default_design=method.name,
@@ -647,7 +663,7 @@ def _nonlinear_problem(path: Path, top: _Section, name: str) -> Problem:
             raise SpecError(f"{w}: a scenario with parameter faults needs an onset")
         scen = Scenario(
             name=_scenario_name(sc.get("name", required=True), scenarios, w),
-            description=str(sc.get("description", "")),
+            description=sc.text("description", ""),
             duration=sc.duration("duration", Ts=step_ts),
             fault="+".join(sizes) if sizes else None,
             onset=onset if sizes else None,
@@ -690,7 +706,7 @@ def _nonlinear_problem(path: Path, top: _Section, name: str) -> Problem:
 
     return Problem(
         name=name,
-        title=str(top.get("title", name)),
+        title=top.text("title", name),
         summary=f"Nonlinear plant described by {path.name}; the adaptive fault detection filter (NAFDF, Zhou, Xi & Zhang 1991).",
         designs={method.name: design_fn},
         default_design=method.name,

@@ -68,6 +68,7 @@ import keyword
 import math
 import re
 import tokenize
+import unicodedata
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -415,6 +416,11 @@ def _operator_count(text: str) -> int:
     return count
 
 
+_NON_ASCII = re.compile(r"[^\x00-\x7f]")
+_DECIMAL = re.compile(r"(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+_WORD = re.compile(r"\w+")  # a run of (Unicode) identifier characters: what the parser would read as one name
+
+
 class _ExpressionCompiler:
     """Turns one arithmetic expression string into an SX expression, refusing anything else.
 
@@ -439,6 +445,7 @@ class _ExpressionCompiler:
             raise ArgumentError(
                 f"{self.where}: the expression has {len(text)} characters; at most {MAX_EXPRESSION_CHARS} are allowed"
             )
+        self._refuse_non_ascii(text)
         # '^' is power in plant files; Python would parse it as xor with the wrong precedence
         self.source = text.strip().replace("^", "**")
         ops = _operator_count(self.source)
@@ -456,10 +463,32 @@ class _ExpressionCompiler:
             raise ArgumentError(f"{self.where}: cannot parse expression {shown(text)}: {type(exc).__name__}") from None
         return self._evaluate(tree.body)
 
+    def _refuse_non_ascii(self, text: str) -> None:
+        """Refuse any character beyond ASCII, naming the name it would become.
+
+        Python's parser folds every identifier by Unicode NFKC, so a fullwidth
+        ``ｘ`` or a ligature would silently be read as the name ``x``. Names are
+        compared exactly: an expression is ASCII (names, numbers, operators)."""
+        bad = _NON_ASCII.search(text)
+        if bad is None:
+            return
+        word = next((w.group() for w in _WORD.finditer(text) if w.start() <= bad.start() < w.end()), bad.group())
+        folded = unicodedata.normalize("NFKC", word)
+        if folded != word and folded.isascii() and folded in (*self.symbols, *self.constants):
+            raise ArgumentError(
+                f"{self.where}: {word!r} in {shown(text)} is not the name {folded!r} (it reads as {folded!r} only after "
+                f"Unicode NFKC normalisation); names are compared exactly and hold ASCII letters, digits and '_': write {folded!r}"
+            )
+        ch = bad.group()
+        raise ArgumentError(
+            f"{self.where}: {word!r} in {shown(text)} holds the non-ASCII character {ch!r} (U+{ord(ch):04X}); expected ASCII "
+            "names (letters, digits, '_'), numbers and the operators + - * / ^ ** ( )"
+        )
+
     def _fail_nonsmooth(self, what: str) -> NonDifferentiableError:
         return NonDifferentiableError(
             f"{self.where}: expression {shown(self.text)} uses {what}, which is not differentiable everywhere; "
-            f"expected only smooth operations ({', '.join(sorted(SMOOTH_FUNCTIONS))}, +, −, *, /, ^ or **), "
+            f"expected only smooth operations ({', '.join(sorted(SMOOTH_FUNCTIONS))}, +, -, *, /, ^ or **), "
             "because every Jacobian comes from automatic differentiation"
         )
 
@@ -507,6 +536,13 @@ class _ExpressionCompiler:
         elif isinstance(node, ast.Constant):
             if isinstance(node.value, bool) or not isinstance(node.value, (int, float)):
                 raise ArgumentError(f"{self.where}: constant {shown(node.value)} in {shown(self.text)} is not a real number")
+            seg = ast.get_source_segment(self.source, node)
+            if seg is None or not _DECIMAL.fullmatch(seg):
+                # Python also reads 1_0 as 10 and 0x10 as 16: a plant file's numbers are plain decimals
+                raise ArgumentError(
+                    f"{self.where}: the number {shown(seg)} in {shown(self.text)} is not a decimal numeral; expected digits "
+                    "with an optional decimal point and exponent, such as 0.58 or 1e-3 (no '_', no 0x, 0o or 0b prefix)"
+                )
         elif isinstance(node, ast.Name):
             if node.id not in self.symbols and node.id not in self.constants:
                 allowed = sorted([*self.symbols, *self.constants])
@@ -680,7 +716,7 @@ class NonlinearPlant:
         """Build a plant from one next-state expression per state and one expression per output.
 
         Expressions are arithmetic in the state, input, parameter and constant
-        names (``+ − * / ^ **``, parentheses, numbers, ``pi``) and the smooth
+        names (``+ - * / ^ **``, parentheses, numbers, ``pi``) and the smooth
         functions of :data:`SMOOTH_FUNCTIONS`. The output expressions may not
         use inputs (the measurement of eq. (2.1) is ``H(θ) X``, no feedthrough).
 

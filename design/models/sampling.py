@@ -13,18 +13,37 @@ import numpy as np
 import scipy.linalg as sla
 from fdisyn.numerics.linalg import as_matrix
 from fdisyn.runtime.errors import ArgumentError
+from fdisyn.runtime.names import shown
+from fdisyn.runtime.values import real_number
 
 __all__ = ["zoh", "van_loan", "check_sample_time", "EXP_LIMIT"]
 
 
-def check_sample_time(h: float, name: str = "Ts") -> float:
-    """Return ``h`` as a float, refusing non-finite or non-positive values."""
-    try:
-        hf = float(h)
-    except (TypeError, ValueError):
-        raise ArgumentError(f"{name} must be a positive number of seconds; got {h!r}") from None
+def check_sample_time(h: object, name: str = "Ts") -> float:
+    """``h`` as a float if it is a positive, finite sample time in seconds.
+
+    Parameters
+    ----------
+    h : object
+        The sample time as given: a real number (:func:`~fdisyn.runtime.values.real_number`); a string
+        such as ``"1_0"`` or ``"１"`` and a boolean are refused, never converted.
+    name : str
+        How the message names it (the key or keyword the caller wrote).
+
+    Returns
+    -------
+    float
+
+    Raises
+    ------
+    ArgumentError
+        ``h`` is not a number, or not positive and finite.
+    """
+    hf = real_number(h)
+    if hf is None:
+        raise ArgumentError(f"{name} must be a positive number of seconds; got {type(h).__name__} {shown(h)}")
     if not np.isfinite(hf) or hf <= 0.0:
-        raise ArgumentError(f"{name} must be a positive, finite number of seconds; got {h!r}")
+        raise ArgumentError(f"{name} must be a positive, finite number of seconds; got {shown(h)}")
     return hf
 
 

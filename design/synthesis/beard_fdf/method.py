@@ -12,11 +12,12 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
+from fdisyn.runtime.errors import ArgumentError
 from fdisyn.runtime.gainfile import GainFile
 from fdisyn.synthesis.beard_fdf.options import BEARD_OPTIONS
 from fdisyn.synthesis.beard_fdf.payload import beard_from_gain_file
 from fdisyn.synthesis.beard_fdf.step import beard_step_function
-from fdisyn.synthesis.registry import Method, register
+from fdisyn.synthesis.registry import Method, at, register
 
 __all__ = ["BEARD_OPTIONS", "BEARD_FDF", "beard_recovery_samples"]
 
@@ -30,6 +31,15 @@ def _design(plant: Any, *, name: str, problem: str | None = None, record: Mappin
     from fdisyn.synthesis.beard_fdf.design import design_beard_fdf
 
     return design_beard_fdf(plant, name=name, problem=problem, record=record, where=where, **options)
+
+
+def _check(plant: Any, options: Mapping[str, Any], where: str) -> None:
+    """Options that would be read for nothing: ``fault_free`` records only estimate ``h`` and ``explicit_level``."""
+    if options.get("fault_free") is not None and options.get("h") is not None and options.get("explicit_level") is not None:
+        raise ArgumentError(
+            f"{at(where, 'fault_free')}: the records only estimate h and explicit_level, and both are given; "
+            "remove fault_free, or leave out h or explicit_level to estimate it from the records"
+        )
 
 
 def settling_samples(G: np.ndarray, level: float = SETTLED) -> int:
@@ -65,6 +75,7 @@ BEARD_FDF = register(
         diagnoser_kind="beard_fdf",
         step_builder=beard_step_function,
         recovery_samples=beard_recovery_samples,
+        check=_check,
         samples_itself=True,
     )
 )

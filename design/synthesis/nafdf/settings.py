@@ -290,6 +290,11 @@ def _settings(plant: NonlinearPlant, **kw: Any) -> NafdfSettings:
     min_shift = _number(kw.get("min_shift", 1.0), "min_shift")
     if not (math.isfinite(min_shift) and min_shift > 0):
         raise ArgumentError(f"min_shift must be a positive finite number of standard deviations; got {shown(kw.get('min_shift'))}")
+    if detector != "cusum" and min_shift != 1.0:  # 1.0: the default, what a design without the option records
+        raise ArgumentError(
+            f"min_shift = {shown(kw.get('min_shift'))} is read only by the detector 'cusum' (its designed shift); the detector "
+            f"here is {detector!r}: remove min_shift, or choose detector = 'cusum'"
+        )
     arl0 = None if kw.get("arl0") is None else _number(kw["arl0"], "arl0")
     p_f = kw["false_alarm_probability"]
     if arl0 is not None:
