@@ -23,7 +23,7 @@ import numpy as np
 from fdisyn.models.sampling import check_sample_time, van_loan, zoh
 from fdisyn.numerics.linalg import as_matrix, as_square, as_symmetric, frozen_array, real_array
 from fdisyn.runtime.errors import ArgumentError, ShapeError
-from fdisyn.runtime.names import check_distinct, check_signal_names
+from fdisyn.runtime.names import check_distinct, check_signal_names, shown
 
 __all__ = ["LinearPlant", "identifier_names"]
 
@@ -217,6 +217,9 @@ class LinearPlant:
 
     def select_outputs(self, idx: Sequence[int]) -> LinearPlant:
         """The plant seen through a subset of its sensors (rows of ``C``, ``D``, ``R``)."""
+        bad = [i for i in idx if isinstance(i, bool) or not isinstance(i, (int, np.integer))]
+        if bad:  # int() would read the string "1" (and "１") and truncate 1.5
+            raise ArgumentError(f"output indices must be whole numbers; got {shown(bad)}")
         ii = [int(i) for i in idx]
         for i in ii:
             if not 0 <= i < self.p:

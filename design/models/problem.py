@@ -11,6 +11,7 @@ code and never the other way round.
 from __future__ import annotations
 
 import importlib
+import math
 import pkgutil
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -20,6 +21,7 @@ import numpy as np
 from fdisyn.runtime.errors import ArgumentError, SpecError
 from fdisyn.runtime.gainfile import GainFile
 from fdisyn.runtime.names import shown
+from fdisyn.runtime.values import real_number
 from fdisyn.runtime.trace import Trace
 from fdisyn.synthesis.registry import check_option
 
@@ -43,6 +45,16 @@ class Scenario:
     onset: float | None = None
     end: float | None = None
     params: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        # times are numbers as they are given: "1_0" or True would be read as 10 or 1 by float() downstream
+        for key in ("duration", "onset", "end"):
+            value = getattr(self, key)
+            if value is None and key != "duration":
+                continue
+            x = real_number(value)
+            if x is None or not math.isfinite(x):
+                raise ArgumentError(f"scenario {self.name!r}: {key} must be a finite number of seconds; got {shown(value)}")
 
     def active(self, t: np.ndarray) -> np.ndarray:
         """Boolean mask of the samples where the fault is active."""

@@ -179,3 +179,21 @@ def test_nafdf_min_shift_without_the_cusum_is_refused_from_python() -> None:
 
     with pytest.raises(ArgumentError, match=r"^min_shift = 0.5 is read only by the detector 'cusum' .* the detector here is 'wssr'"):
         nafdf(sp.plant(), x0=[0.0], P0=100.0, theta0=[0.0, 0.0], min_shift=0.5)
+
+
+@pytest.mark.parametrize(("kw", "key"), [({"duration": "1_0"}, "duration"), ({"onset": "1"}, "onset"), ({"end": True}, "end"),
+                                          ({"duration": math.nan}, "duration")])
+def test_a_scenario_time_that_is_not_a_number_is_refused(kw: dict[str, Any], key: str) -> None:
+    from fdisyn.models.problem import Scenario
+
+    args = {"duration": 10.0, "fault": "y", "onset": 5.0, **kw}
+    with pytest.raises(ArgumentError, match=rf"scenario 's': {key} must be a finite number of seconds; got "):
+        Scenario("s", "a scenario", **args)
+
+
+@pytest.mark.parametrize("idx", [["0"], ["１"], [True], [0.0]])
+def test_output_indices_that_are_not_whole_numbers_are_refused(idx: list[Any]) -> None:
+    plant = LinearPlant.create(A=[[-1.0]], C=[[1.0], [2.0]])
+    with pytest.raises(ArgumentError, match="output indices must be whole numbers"):
+        plant.select_outputs(idx)
+    assert plant.select_outputs([np.int64(1)]).outputs == ("y1",)

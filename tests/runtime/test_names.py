@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 from fdisyn.runtime.errors import ArgumentError, GainFileError, SpecError
@@ -132,3 +134,19 @@ def test_distinct_names_both_places():
     with pytest.raises(ArgumentError, match=r"the name 'w' is used by the states and by the outputs; names must be distinct across the states, inputs, outputs \(one CSV\)"):
         check_distinct({"states": ("x", "w"), "inputs": ("u",), "outputs": ("w",)}, why="one CSV")
     check_distinct({"states": ("x",), "outputs": ("y",)}, why="one CSV")  # nothing shared: no error
+
+
+@pytest.mark.parametrize(
+    ("check", "name", "folded"),
+    [(check_signal_name, "ｘ", "x"), (check_signal_name, "ﬂow", "flow"), (check_fault_name, "ｙ1+y2", "y1+y2"),
+     (check_diagnoser_name, "ｍotor", "motor"), (check_label, "ｐlant", "plant")],
+)
+def test_a_name_that_folds_into_another_says_so(check, name: str, folded: str) -> None:  # noqa: ANN001
+    """Names are compared exactly: a compatibility character (fullwidth, ligature) is never the ASCII name it resembles."""
+    with pytest.raises(ArgumentError, match=rf"reads as '{re.escape(folded)}' only after Unicode NFKC normalisation, and names are compared exactly"):
+        check(name, "name")
+
+
+def test_a_non_ascii_name_that_folds_into_nothing_valid_is_refused_plainly() -> None:
+    with pytest.raises(ArgumentError, match=r"'é' is not a signal name \(it holds non-ASCII characters\): expected a letter"):
+        check_signal_name("é", "name")
