@@ -69,6 +69,7 @@ __all__ = [
     "write_trace",
     "parse_field",
     "replay_csv",
+    "shown_path",
     "write_replay_csv",
 ]
 
@@ -133,6 +134,69 @@ def _shown(value: bytes, limit: int = 32) -> str:
     """
     out = "".join(chr(c) if 0x20 <= c < 0x7F and c not in b"\\'" else f"\\x{c:02x}" for c in value[:limit])
     return out + ("..." if len(value) > limit else "")
+
+
+# Code points kept in a shown path besides printable ASCII: everything from U+00A1 except characters that
+# are invisible, reorder the text (bidirectional controls) or are blanks a reader would take for spaces.
+_PATH_HIDDEN = ((0xAD, 0xAD), (0x1680, 0x1680), (0x2000, 0x200F), (0x2028, 0x202F), (0x205F, 0x206F), (0x3000, 0x3000),
+                (0xFEFF, 0xFEFF), (0xFFF9, 0xFFFB))
+
+
+def shown_path(path: str | os.PathLike[str]) -> str:
+    """A file name as both replays print it in a message: one line, the same text from Python and from C.
+
+    The name's bytes (``os.fsencode``: the bytes the system and the C
+    program see) are read as UTF-8; printable ASCII is kept, and so is a
+    space between two other characters; a character from U+00A1 on is kept
+    unless it is invisible, a bidirectional control or a blank (U+00AD,
+    U+1680, U+2000–U+200F, U+2028–U+202F, U+205F–U+206F, U+3000, U+FEFF,
+    U+FFF9–U+FFFB). Every other byte — control characters, a backslash,
+    DEL, C1, U+00A0, bytes that are not UTF-8, a space at either end or
+    beside another — is written ``\\xHH``. The generated C program applies
+    the same rule (``shown_path`` in ``replay.c``).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The name as the user gave it (undecodable bytes as surrogate escapes).
+
+    Returns
+    -------
+    str
+        The name as quoted in messages.
+    """
+    try:
+        raw = os.fsencode(path)
+    except UnicodeEncodeError:  # a lone surrogate that no system name holds: shown by its UTF-8 bytes
+        raw = os.fspath(path).encode("utf-8", "surrogatepass")
+    n = len(raw)
+    out: list[str] = []
+    i = 0
+    while i < n:
+        c = raw[i]
+        if c < 0x80:
+            if c == 0x20:
+                keep = 0 < i < n - 1 and raw[i - 1] != 0x20 and raw[i + 1] != 0x20
+            else:
+                keep = 0x20 < c < 0x7F and c != 0x5C
+            out.append(chr(c) if keep else f"\\x{c:02x}")
+            i += 1
+            continue
+        size = 2 if 0xC2 <= c <= 0xDF else 3 if 0xE0 <= c <= 0xEF else 4 if 0xF0 <= c <= 0xF4 else 0
+        try:
+            cp = ord(raw[i : i + size].decode("utf-8")) if size else -1
+        except UnicodeDecodeError:
+            cp = -1
+        if cp < 0:
+            out.append(f"\\x{c:02x}")
+            i += 1
+            continue
+        if cp < 0xA1 or any(lo <= cp <= hi for lo, hi in _PATH_HIDDEN):
+            out.extend(f"\\x{b:02x}" for b in raw[i : i + size])
+        else:
+            out.append(chr(cp))
+        i += size
+    return "".join(out)
 
 
 def _shown_name(name: str) -> str:
@@ -248,11 +312,12 @@ class TraceReader:
     """Streams the columns ``t``, inputs and outputs of a trace CSV in blocks of samples.
 
     Reads the file in chunks of 1 MiB, so memory does not grow with the file.
-    ``source`` is the name used in messages (as the user typed it).
+    ``source`` is the name used in messages (as the user typed it; shown by :func:`shown_path`).
     """
 
     def __init__(self, fh: IO[bytes], source: str, *, inputs: Sequence[str], outputs: Sequence[str]) -> None:
         self.source = source
+        self._shown_source = shown_path(source)
         self.names = ("t", *inputs, *outputs)
         self.lineno = 0
         self._cells: list[bytes] = []  # fields read from the rows not yet handed out, row after row
@@ -286,14 +351,14 @@ class TraceReader:
         """Refuse the file at the current line, unless a row before it already holds a refused field."""
         lineno = self.lineno
         self._check_pending()
-        raise TraceError(f"{self.source} line {lineno}: {msg}")
+        raise TraceError(f"{self._shown_source} line {lineno}: {msg}")
 
     def _read(self) -> bytes:
         try:
             return self._fh.read(_CHUNK)
         except OSError as exc:
             self._check_pending()  # the rows read before come first, as in the C program
-            raise OSError(exc.errno, f"cannot read {self.source}: {exc.strerror or exc}") from exc
+            raise OSError(exc.errno, f"cannot read {self._shown_source}: {exc.strerror or exc}") from exc
 
     def _physical_lines(self) -> Iterator[bytes]:
         """Lines without their LF or CRLF, counted in ``lineno``; a line over the limit is refused when reached."""
@@ -399,7 +464,7 @@ def _open_input(source: str | Path) -> IO[bytes]:
     try:
         return open(source, "rb")  # noqa: SIM115 - the caller closes it
     except OSError as exc:
-        raise OSError(exc.errno, f"cannot read {source}: {exc.strerror or exc}") from exc
+        raise OSError(exc.errno, f"cannot read {shown_path(source)}: {exc.strerror or exc}") from exc
 
 
 def read_trace(path: str | Path, *, inputs: Sequence[str], outputs: Sequence[str]) -> Trace:
@@ -464,7 +529,7 @@ class _AtomicOutput:
             # the rename replaces the name itself: a symbolic link (/dev/stdout), a device node (/dev/full)
             # or a FIFO would become a plain file
             raise TraceError(
-                f"{self.target} is not a regular file (a symbolic link, a device, a FIFO or a socket); "
+                f"{shown_path(self.target)} is not a regular file (a symbolic link, a device, a FIFO or a socket); "
                 "expected the path of a file to create or replace"
             )
         folder, base = os.path.split(self.target)
@@ -483,7 +548,7 @@ class _AtomicOutput:
             raise self._error(exc) from exc
 
     def _error(self, exc: OSError) -> OSError:
-        return OSError(exc.errno, f"cannot write {self.target}: {exc.strerror or exc}")
+        return OSError(exc.errno, f"cannot write {shown_path(self.target)}: {exc.strerror or exc}")
 
     def write(self, text: str) -> None:
         try:

@@ -20,14 +20,19 @@ written into C goes through :func:`c_string_literal` (string literals) or
 :func:`c_comment_text` (comments), so whatever a name holds it cannot end its
 literal or comment. The templates are filled in one pass, so a value that
 looks like a placeholder stays text. The library carries the gain file's
-content hash (``<prefix>_gain_file_sha256()``) and ``codegen`` writes a build
+content hash after a build mark (``<prefix>_gain_file_sha256()``,
+:data:`fdisyn.runtime.compiled.BUILD_MARK`) and ``codegen`` writes a build
 manifest next to it (:func:`fdisyn.runtime.compiled.write_manifest`): the
 loader refuses a library built from another gain file, or one that changed
-since it was built, before ``dlopen`` ever sees it.
+since it was built, before ``dlopen`` ever sees it. ``replay`` carries the
+sha256 of the bytes of the ``gains.json`` that ``codegen`` read and refuses to
+run beside another one, with the line ``fdisyn replay`` prints
+(:data:`fdisyn.runtime.compiled.STALE_BUILD`).
 """
 
 from __future__ import annotations
 
+import hashlib
 import os
 import re
 import shlex
@@ -43,9 +48,9 @@ import casadi as ca
 import fdisyn.runtime
 import numpy as np
 from fdisyn.codegen.step import step_function
-from fdisyn.runtime.compiled import library_path, write_manifest
+from fdisyn.runtime.compiled import BUILD_MARK, STALE_BUILD, library_path, write_manifest
 from fdisyn.runtime.errors import BuildError, GainFileError
-from fdisyn.runtime.gainfile import FORMAT, GainFile, check_limits, gain_file_sha256, read_gain_file
+from fdisyn.runtime.gainfile import FORMAT, LIMITS, GainFile, check_limits, gain_file_sha256, read_gain_file, read_regular_file
 from fdisyn.runtime.names import check_diagnoser_name
 
 __all__ = [
@@ -244,13 +249,35 @@ def casadi_step(gf: GainFile, step: ca.Function | None = None) -> ca.Function:
     return ca.Function(f"{gf.name}_casadi_step", ins, fn.call(ins), list(fn.name_in()), list(fn.name_out()))
 
 
-def generate_sources(gf: GainFile, c_dir: str | Path, *, step: ca.Function | None = None) -> Path:
+def generate_sources(gf: GainFile, c_dir: str | Path, *, step: ca.Function | None = None, gain_file_bytes_sha256: str | None = None) -> Path:
     """Write the C sources of ``gf``'s step into ``c_dir``; return the header path.
 
     Refuses, before writing anything, a ``name`` that cannot prefix the C API
     (a :class:`GainFile` built around the reader must not reach identifiers),
     a file beyond the size limits and a step whose stack frame would exceed
     :data:`STACK_LIMIT_BYTES`.
+
+    Parameters
+    ----------
+    gf : GainFile
+        The diagnoser.
+    c_dir : str or Path
+        Where the sources go (``DIR/c``).
+    step : casadi.Function, optional
+        The step to generate (default :func:`step_function` of ``gf``).
+    gain_file_bytes_sha256 : str, optional
+        The sha256 of the bytes of the ``gains.json`` ``gf`` was read from: ``replay.c`` refuses to run beside
+        any other. ``None`` (a gain file that is not on disk): the replay program refuses to run at all.
+
+    Returns
+    -------
+    Path
+        The header ``c_dir/<name>.h``.
+
+    Raises
+    ------
+    GainFileError, BuildError
+        A name or size the C cannot take, a stack frame too large, a folder that is a link.
     """
     check_diagnoser_name(gf.name, "name", error=GainFileError)
     check_limits(gf)
@@ -272,7 +299,13 @@ def generate_sources(gf: GainFile, c_dir: str | Path, *, step: ca.Function | Non
     cg = ca.CodeGenerator(f"{gf.name}_casadi.c", {"with_header": True, "with_export": False, "verbose": False})
     cg.add(named)
     cg.generate(str(c_dir) + os.sep)
-    extra = {"GAIN_FILE_SHA256": c_string_literal(gain_file_sha256(gf)), "STACK_BYTES": str(stack)}
+    extra = {
+        "GAIN_FILE_SHA256": c_string_literal(gain_file_sha256(gf)),
+        "BUILD_MARK": c_string_literal(BUILD_MARK.decode("ascii")),
+        "GAIN_FILE_BYTES_SHA256": c_string_literal(gain_file_bytes_sha256 or ""),
+        "STALE_BUILD": c_string_literal(STALE_BUILD),
+        "STACK_BYTES": str(stack),
+    }
     for template, out in (
         ("diagnoser.h.in", f"{gf.name}.h"),
         ("diagnoser.c.in", f"{gf.name}.c"),
@@ -342,13 +375,14 @@ def _finish(proc: subprocess.Popen[str], argv: list[str], what: str) -> None:
         )
 
 
-def compile_sources(gf: GainFile, c_dir: str | Path, out_dir: str | Path) -> tuple[Path, Path]:
+def compile_sources(gf: GainFile, c_dir: str | Path, out_dir: str | Path, *, gain_file_bytes_sha256: str | None = None) -> tuple[Path, Path]:
     """Compile the shared library (:func:`~fdisyn.runtime.compiled.library_path`) and the ``replay`` program;
     return their paths.
 
     Paths are made absolute, so a folder named like an option (``-o…``)
     never reaches the compiler as one. The library's build manifest (its
-    sha256 and the gain file's) is written next to it. The two compiles are
+    sha256, the gain file's content hash and ``gain_file_bytes_sha256``, the hash of the bytes of the
+    ``gains.json`` it was read from, as given to :func:`generate_sources`) is written next to it. The two compiles are
     independent, so they run side by side (a core each where there are two)
     and are judged and logged in turn, the library first: a failure of the
     library is the one reported (the other compile is waited for, not killed,
@@ -367,7 +401,7 @@ def compile_sources(gf: GainFile, c_dir: str | Path, out_dir: str | Path) -> tup
     try:
         started.append(_start(replay_argv, str(replay)))
         _finish(started[0], lib_argv, str(lib))
-        write_manifest(lib, gain_file_sha256(gf))
+        write_manifest(lib, gain_file_sha256(gf), gain_file_bytes_sha256)
     except Exception:  # the first failure is reported; the other compile is waited for, not killed
         for proc in started:
             proc.communicate()
@@ -389,11 +423,30 @@ def compile_bench(gf: GainFile, c_dir: str | Path, out: str | Path) -> Path:
     return out
 
 
+def _gain_file_bytes(path: Path) -> bytes | None:
+    """The bytes of the gain file at ``path``, or None when they cannot be read (:func:`read_gain_file` says why)."""
+    try:
+        return read_regular_file(path, LIMITS["file_bytes"], "a gain file")
+    except (OSError, GainFileError):
+        return None
+
+
 def codegen(directory: str | Path) -> CodegenResult:
-    """``fdisyn codegen DIR``: generate and compile everything for ``DIR/gains.json``."""
+    """``fdisyn codegen DIR``: generate and compile everything for ``DIR/gains.json``.
+
+    The file's bytes are read before and after it is parsed: the sha256 compiled into ``replay`` and
+    recorded in the manifest is that of the bytes the diagnoser was generated from (a file rewritten
+    meanwhile is refused).
+    """
     d = Path(directory)
-    gf = read_gain_file(d / "gains.json")
+    p = d / "gains.json"
+    before = _gain_file_bytes(p)
+    gf = read_gain_file(p)
+    after = _gain_file_bytes(p)
+    if before is None or before != after:
+        raise BuildError(f"{p} changed while `fdisyn codegen` read it; expected a gain file that stays as it is: run `fdisyn codegen {d}` again")
+    bytes_sha = hashlib.sha256(after).hexdigest()
     c_dir = d / "c"
-    header = generate_sources(gf, c_dir)
-    lib, replay = compile_sources(gf, c_dir, d)
+    header = generate_sources(gf, c_dir, gain_file_bytes_sha256=bytes_sha)
+    lib, replay = compile_sources(gf, c_dir, d, gain_file_bytes_sha256=bytes_sha)
     return CodegenResult(directory=d, c_dir=c_dir, header=header, library=lib, replay=replay)

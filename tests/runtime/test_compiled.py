@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import ctypes
+import hashlib
 import json
 import re
+import shutil
 import subprocess
 import sys
 
@@ -12,7 +14,7 @@ import numpy as np
 import pytest
 from fdisyn.app.cli import main
 from fdisyn.codegen.library import codegen
-from fdisyn.runtime.compiled import CompiledDiagnoser, library_suffix, manifest_path
+from fdisyn.runtime.compiled import BUILD_MARK, CompiledDiagnoser, file_sha256, library_suffix, manifest_path
 from fdisyn.runtime.errors import ArgumentError, BuildError, ShapeError
 from fdisyn.runtime.gainfile import (
     Decision,
@@ -66,7 +68,9 @@ def test_the_library_carries_the_hash_of_its_gain_file(wt_built):
     fn.restype = ctypes.c_char_p
     assert fn().decode() == want
     man = json.loads(manifest_path(wt_built.artifacts.library).read_text())
-    assert man["gain_file_sha256"] == want and man["format"] == "fdisyn.build/1"
+    assert man["gain_file_sha256"] == want and man["format"] == "fdisyn.build/2"
+    assert man["gain_file_bytes_sha256"] == hashlib.sha256((wt_built.directory / "gains.json").read_bytes()).hexdigest()
+    assert wt_built.artifacts.library.read_bytes().count(BUILD_MARK + want.encode()) == 1  # found before dlopen
     header = (wt_built.artifacts.c_dir / f"{gf_disk.name}.h").read_text()
     assert f"const char *{gf_disk.name}_gain_file_sha256(void);" in header
 
@@ -78,23 +82,31 @@ def test_a_rewritten_gain_file_is_refused_until_codegen(built_copy, wt_trace, ca
     doc = json.loads(p.read_text())
     doc["evaluators"][0]["threshold"] *= 10.0
     p.write_text(json.dumps(doc, indent=1))
-    with pytest.raises(BuildError, match=rf"libwind_turbine_kalman_uio{SO} was built from another gain file \(sha256 [0-9a-f]{{16}}…; this gain file has [0-9a-f]{{16}}…\); run `fdisyn codegen {built_copy}`"):
+    with pytest.raises(BuildError, match=rf"^{built_copy}/gains.json is not the gain file the compiled diagnoser in {built_copy} was built from \(sha256 of its bytes [0-9a-f]{{16}}…, built from [0-9a-f]{{16}}…\): .*; run `fdisyn codegen {built_copy}`$"):
         Monitor.from_directory(built_copy)
     _, U, Y = wt_trace
     trace = _trace_csv(read_gain_file(p), U[:200], Y[:200], built_copy / "in.csv")
     assert main(["replay", str(built_copy), trace, str(built_copy / "out.csv")]) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "was built from another gain file" in err and "run `fdisyn codegen" in err
+    assert err.count("\n") == 1 and "is not the gain file the compiled diagnoser in" in err and "run `fdisyn codegen" in err
     assert Monitor.from_directory(built_copy, backend="reference").backend == "reference"  # the reference needs no library
     assert main(["codegen", str(built_copy)]) == 0
     mon = Monitor.from_directory(built_copy)
     assert mon.backend == "compiled" and mon.impl.gf.evaluators[0].threshold == doc["evaluators"][0]["threshold"]
 
 
-def test_layout_and_key_order_do_not_matter(built_copy):
+def test_layout_and_key_order_matter_beside_the_build_but_not_to_the_content_hash(built_copy, tmp_path):
+    """The pure-C replay can only compare the bytes of the gains.json beside it, so both replays do: a
+    re-laid-out file is refused until `fdisyn codegen`. A GainFile read elsewhere runs by its content hash."""
     p = built_copy / "gains.json"
     doc = json.loads(p.read_text())
-    p.write_text(json.dumps(dict(reversed(list(doc.items()))), indent=7))
+    (tmp_path / "elsewhere.json").write_text(json.dumps(dict(reversed(list(doc.items()))), indent=7))
+    lib = built_copy / f"libwind_turbine_kalman_uio{SO}"
+    assert CompiledDiagnoser(lib, read_gain_file(tmp_path / "elsewhere.json")).gf.name == "wind_turbine_kalman_uio"
+    shutil.copy(tmp_path / "elsewhere.json", p)
+    with pytest.raises(BuildError, match="gains.json is not the gain file the compiled diagnoser in"):
+        Monitor.from_directory(built_copy)
+    assert main(["codegen", str(built_copy)]) == 0
     assert Monitor.from_directory(built_copy).backend == "compiled"
 
 
@@ -302,8 +314,8 @@ def test_design_without_codegen_leaves_a_library_that_is_refused(built_copy, tmp
     capsys.readouterr()
     assert main(["replay", str(d), trace, str(tmp_path / "out.csv")]) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "was built from another gain file" in err and f"run `fdisyn codegen {d}`" in err
-    assert not (tmp_path / "out.csv").exists()
+    assert err.count("\n") == 1 and f"{d}/gains.json is not the gain file the compiled diagnoser in {d} was built from" in err
+    assert err.rstrip().endswith(f"run `fdisyn codegen {d}`") and not (tmp_path / "out.csv").exists()
 
 
 def test_a_rebuilt_library_is_not_confused_with_the_one_already_loaded(built_copy):
@@ -315,10 +327,99 @@ def test_a_rebuilt_library_is_not_confused_with_the_one_already_loaded(built_cop
     doc["decision"]["persistence"] = 3
     (built_copy / "gains.json").write_text(json.dumps(doc))
     assert main(["codegen", str(built_copy)]) == 0
-    with pytest.raises(BuildError, match=rf"this process already runs an older build of .*libwind_turbine_kalman_uio{SO} .* start a new process"):
+    with pytest.raises(BuildError, match=rf"this process already loaded .*libwind_turbine_kalman_uio{SO} when it was built from another gain file \(sha256 [0-9a-f]{{16}}…\), .*rebuilt since .*; start a new process$"):
         Monitor.from_directory(built_copy)
     proc = subprocess.run(  # a new process loads the new build
         [sys.executable, "-c", f"from fdisyn.runtime.monitor import Monitor; print(Monitor.from_directory({str(built_copy)!r}).impl.gf.decision.persistence)"],
         capture_output=True, text=True, timeout=120,
     )
     assert proc.returncode == 0 and proc.stdout.strip() == "3", proc.stderr
+
+
+# ------------------------------------------------------------------ a replaced library never reaches dlopen
+def _replace_library(directory, new_library) -> None:  # noqa: ANN001 - paths
+    """Put ``new_library`` in place of the wind-turbine library and rewrite the manifest to match its bytes:
+    the manifest's hashes are public, so this is what a careless (or any) writer can do."""
+    lib = directory / f"libwind_turbine_kalman_uio{SO}"
+    shutil.copy(new_library, lib)
+    man = json.loads(manifest_path(lib).read_text())
+    man["library_sha256"] = file_sha256(lib)
+    manifest_path(lib).write_text(json.dumps(man))
+
+
+def _tiny_library(tmp_path, name: str, code: str):  # noqa: ANN001, ANN202 - a path
+    """A small shared library whose constructor creates ``<name>.ran``, plus ``code``."""
+    from fdisyn.codegen.library import compiler, shared_library_flags
+
+    src = tmp_path / f"{name}.c"
+    ran = tmp_path / f"{name}.ran"
+    src.write_text(
+        "#include <stdio.h>\n"
+        f'__attribute__((constructor)) static void ran(void) {{ FILE *f = fopen("{ran}", "w"); if (f) fclose(f); }}\n{code}\n'
+    )
+    out = tmp_path / f"lib{name}{SO}"
+    subprocess.run([*compiler(), *shared_library_flags(), str(src), "-o", str(out)], check=True, capture_output=True, timeout=120)
+    return out, ran
+
+
+def _never_loaded(monkeypatch) -> None:  # noqa: ANN001 - pytest's monkeypatch
+    def refuse(*_args: object, **_kw: object) -> None:
+        raise AssertionError("the library reached dlopen")
+
+    monkeypatch.setattr(ctypes, "CDLL", refuse)
+
+
+def test_a_library_built_from_another_gain_file_is_refused_before_dlopen(built_copy, motor_built, monkeypatch):
+    """Another design's library under this one's name, with a manifest rewritten to its hash."""
+    _replace_library(built_copy, motor_built.artifacts.library)
+    _never_loaded(monkeypatch)
+    gf = read_gain_file(built_copy / "gains.json")
+    other = gain_file_sha256(motor_built.gain_file)
+    with pytest.raises(BuildError, match=(
+        rf"^{built_copy}/libwind_turbine_kalman_uio{SO} holds the diagnoser of another gain file \(its build mark: sha256 {other[:16]}…; "
+        rf"this gain file has {gain_file_sha256(gf)[:16]}…\): the library file was replaced or built from another gain file, and "
+        rf"was not loaded; run `fdisyn codegen {built_copy}`$"
+    )):
+        Monitor.from_directory(built_copy)
+
+
+@pytest.mark.parametrize("mark", ["none", "another gain file", "cut short"])
+def test_a_replaced_library_never_runs_its_constructor(built_copy, tmp_path, mark):
+    want = gain_file_sha256(read_gain_file(built_copy / "gains.json"))
+    text = {"none": "no mark", "another gain file": BUILD_MARK.decode() + "0" * 64, "cut short": BUILD_MARK.decode() + want[:10]}[mark]
+    fake, ran = _tiny_library(tmp_path, "fake", f'const char *fake_text(void) {{ return "{text}"; }}')
+    _replace_library(built_copy, fake)
+    message = "carries no fdisyn build mark" if mark == "none" else "holds the diagnoser of another gain file"
+    with pytest.raises(BuildError, match=message):
+        Monitor.from_directory(built_copy)
+    proc = _cli("replay", str(built_copy), str(tmp_path / "in.csv"), str(tmp_path / "out.csv"))  # and in a fresh process
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and message in proc.stderr, proc.stderr
+    assert not ran.exists(), "the replaced library's code ran"
+
+
+def test_a_library_forged_with_the_right_mark_is_loaded_the_limit_of_the_check(built_copy, tmp_path):
+    """Anyone who can write the folder can forge the mark: its code then runs (the README says so). The checks
+    after loading still refuse it, worded for what they see."""
+    want = gain_file_sha256(read_gain_file(built_copy / "gains.json"))
+    fake, ran = _tiny_library(tmp_path, "forged", f'const char *fake_text(void) {{ return "{BUILD_MARK.decode()}{want}"; }}')
+    _replace_library(built_copy, fake)
+    with pytest.raises(BuildError, match="is not the library of diagnoser 'wind_turbine_kalman_uio'"):
+        Monitor.from_directory(built_copy)
+    assert ran.exists()
+    p = "wind_turbine_kalman_uio"
+    code = (
+        f'const char *{p}_gain_file_sha256(void) {{ return "{"f" * 64}"; }}\n'  # reports another gain file once loaded
+        f'const char *keep_mark(void) {{ return "{BUILD_MARK.decode()}{want}"; }}\n'
+        f"void {p}_init(double *s) {{ (void)s; }}\nint {p}_step(void) {{ return 0; }}\nlong {p}_run(void) {{ return 0; }}\n"
+        f"void {p}_dims(int *d) {{ (void)d; }}\n"
+    )
+    fake2, _ = _tiny_library(tmp_path, "forged2", code)
+    d2 = tmp_path / "second"
+    shutil.copytree(built_copy, d2)
+    _replace_library(d2, fake2)
+    with pytest.raises(BuildError, match=(
+        rf"^the library loaded from {d2}/libwind_turbine_kalman_uio{SO} reports the gain file sha256 f{{16}}…, though its file "
+        rf"carries {want[:16]}…: this process had loaded another library from that path, or the file changed while it was "
+        rf"loaded; start a new process"
+    )):
+        Monitor.from_directory(d2)

@@ -316,6 +316,60 @@ def test_io_errors_end_with_status_1_and_the_same_line(motor_built, tmp_path):
         assert sorted(os.listdir(tmp_path)) == ["adir", "good.csv"] and os.listdir(tmp_path / "adir") == []
 
 
+ODD_NAMES = {
+    "a line feed": b"bad\nname.csv",
+    "a carriage return": b"cr\rname.csv",
+    "a byte that is not UTF-8": b"a\xffb.csv",
+    "a UTF-8 sequence cut short": b"x\xc3.csv",
+    "an encoded surrogate": b"s\xed\xa0\x80.csv",
+    "a tab": b"tab\there.csv",
+    "two spaces": b"two  spaces.csv",
+    "a leading space": b" lead.csv",
+    "a trailing space": b"trail.csv ",
+    "a backslash": b"back\\slash.csv",
+    "a terminal escape": b"esc\x1b[31m.csv",
+    "NEL (C1)": "nel\u0085.csv".encode(),
+    "a line separator": "ls\u2028.csv".encode(),
+    "a bidirectional override": "bidi\u202evsc.csv".encode(),
+    "a no-break space": "nb\u00a0sp.csv".encode(),
+    "accents and fullwidth letters": "données ｘ.csv".encode(),
+}
+
+
+@pytest.mark.parametrize("case", list(ODD_NAMES))
+def test_odd_file_names_are_shown_alike_by_both_replays(motor_built, tmp_path, case):
+    """A file name is shown by one rule (trace.shown_path) on both sides: the same single line."""
+    odd = tmp_path / os.fsdecode(ODD_NAMES[case])  # the name's bytes, as the system and the C program see them
+    odd.write_bytes(csv(*ROWS, header=b"t,x"))
+    good = tmp_path / "good.csv"
+    good.write_bytes(csv(*ROWS))
+    missing = tmp_path / (odd.name + ".missing")
+    link = tmp_path / (odd.name + ".link")
+    link.symlink_to(good)
+    shown = trace.shown_path
+    cases = [
+        (odd, tmp_path / "o.csv", 2, f"{shown(str(odd))} line 1: no column 'voltage' (input 0); expected a header naming t and every input and output"),
+        (missing, tmp_path / "o.csv", 1, f"cannot read {shown(str(missing))}: No such file or directory"),
+        (good, odd / "o.csv", 1, f"cannot write {shown(str(odd / 'o.csv'))}: Not a directory"),
+        (good, link, 2, f"{shown(str(link))} is not a regular file (a symbolic link, a device, a FIFO or a socket); expected the path of a file to create or replace"),
+    ]
+    for src, out, status, message in cases:
+        c, p = replay_c(motor_built, src, out), replay_py(motor_built, src, out)
+        assert (c.status, c.message) == (p.status, p.message) == (status, message), case
+        assert message.isprintable() and message == " ".join(message.split())
+    assert good.read_bytes() == csv(*ROWS) and not (tmp_path / "o.csv").exists()  # nothing written anywhere
+    named = tmp_path / (odd.name + ".out")  # and an odd name that works
+    c, p = replay_c(motor_built, good, named), replay_py(motor_built, good, named)
+    assert c.status == p.status == 0 and named.read_bytes() == csv_out_of(motor_built, good, tmp_path)
+
+
+def csv_out_of(motor_built, src: Path, tmp: Path) -> bytes:
+    """What both replays write for ``src`` under a plain name."""
+    res = replay_c(motor_built, src, tmp / "plain-out.csv")
+    assert res.status == 0 and res.output is not None
+    return res.output
+
+
 def test_usage_error_is_status_2(motor_built, tmp_path):
     proc = subprocess.run([str(motor_built.artifacts.replay), "only-one"], capture_output=True, text=True)
     assert proc.returncode == 2 and proc.stderr.startswith("usage: ")
