@@ -49,7 +49,7 @@ from pathlib import Path
 
 import numpy as np
 from fdisyn.runtime.errors import BuildError
-from fdisyn.runtime.gainfile import GainFile, gain_file_sha256, read_regular_file
+from fdisyn.runtime.gainfile import GainFile, gain_file_sha256, parse_json_data, read_regular_file
 from fdisyn.runtime.reference import RunResult, StepOutput, sample_block, sample_vector, step_state
 from fdisyn.runtime.trace import shown_path
 
@@ -221,7 +221,8 @@ def _check_before_loading(path: Path, gain_sha: str, *, gain_file: Path | None =
     if not path.is_file():
         raise BuildError(f"{path} is not a regular file (a device, a FIFO or a directory); {again}")
     try:
-        doc = json.loads(read_regular_file(man, _MANIFEST_BYTES, "a build manifest", error=BuildError).decode("utf-8"))
+        text = read_regular_file(man, _MANIFEST_BYTES, "a build manifest", error=BuildError).decode("utf-8")
+        doc = parse_json_data(text, str(man), "a build manifest", error=BuildError)
     except BuildError as exc:
         raise BuildError(f"{exc}; {again}") from None
     except FileNotFoundError:

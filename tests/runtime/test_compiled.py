@@ -116,7 +116,9 @@ def test_layout_and_key_order_matter_beside_the_build_but_not_to_the_content_has
         ("truncate", "is not the library `fdisyn codegen` built .*truncated, corrupted or replaced; run `fdisyn codegen"),
         ("flip", "is not the library `fdisyn codegen` built"),
         ("no manifest", "has no build manifest libwind_turbine_kalman_uio.manifest.json"),
-        ("bad manifest", "cannot read the build manifest"),
+        ("bad manifest", r"manifest.json is not valid JSON \(line 1, column 2\).*; run `fdisyn codegen"),
+        # a repeated key would let the last value win: "library_sha256" written twice, the second forged
+        ("manifest repeats a key", r"key 'library_sha256' appears more than once at the top level; a build manifest holds each key once"),
         # links to a device: hashing or reading them would never end
         ("library a device", rf"libwind_turbine_kalman_uio{SO} is not a regular file \(a device, a FIFO or a directory\); run `fdisyn codegen"),
         ("manifest a device", r"manifest.json is not a regular file .*expected a build manifest; run `fdisyn codegen"),
@@ -137,6 +139,10 @@ def test_a_damaged_library_never_reaches_dlopen(built_copy, wt_trace, damage, me
     elif damage == "manifest a device":
         manifest_path(lib).unlink()
         manifest_path(lib).symlink_to("/dev/zero")
+    elif damage == "manifest repeats a key":
+        text = manifest_path(lib).read_text()
+        doc = json.loads(text)
+        manifest_path(lib).write_text(text.rstrip().rstrip("}") + f', "library_sha256": "{doc["library_sha256"]}"}}')
     else:
         manifest_path(lib).write_text("{")
     _, U, Y = wt_trace
