@@ -75,11 +75,17 @@ class Monitor:
         Raises
         ------
         ArgumentError
-            ``backend`` is none of the three (it is never guessed).
+            ``backend`` is none of the three (it is never guessed), or a ``library`` is given with
+            ``backend="reference"`` (it would not run).
         BuildError
             ``"compiled"`` without a library, or a library not built from ``gf``.
         """
         backend = _backend(backend)
+        if backend == "reference" and library is not None:
+            raise ArgumentError(
+                f"library = {shown(str(library))} with backend = 'reference': the NumPy reference runs no library; "
+                "give backend = 'compiled' (or 'auto') to run it, or leave library out"
+            )
         self.gf = gf
         if backend == "reference" or (backend == "auto" and library is None):
             self.impl: CompiledDiagnoser | LinearReference = LinearReference(gf)

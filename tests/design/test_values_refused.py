@@ -197,3 +197,9 @@ def test_output_indices_that_are_not_whole_numbers_are_refused(idx: list[Any]) -
     with pytest.raises(ArgumentError, match="output indices must be whole numbers"):
         plant.select_outputs(idx)
     assert plant.select_outputs([np.int64(1)]).outputs == ("y1",)
+
+
+def test_a_library_given_to_the_reference_backend_is_refused_not_dropped(tmp_path: Path) -> None:
+    # the NumPy reference would run and the library named beside it would be ignored without a word
+    with pytest.raises(ArgumentError, match=r"^library = .* with backend = 'reference': the NumPy reference runs no library"):
+        Monitor(toy(), library=tmp_path / "libx.so", backend="reference")
