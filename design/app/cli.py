@@ -17,9 +17,13 @@
 
 ``MONTE CARLO`` is ``[--workers N] [--scheduler local|dask] [--address
 tcp://HOST:PORT]``: the runs spread over N local processes (default: every
-core), or over a Dask cluster (the scheduler at ``--address``, else a local
-one of N processes). ``fdisyn --quiet <command>`` shows no progress bar (there
-is none either when stderr is not a terminal).
+core; more than the cores is run as that many, said in one line), or over a
+Dask cluster (the scheduler at ``--address``, else a local one of N
+processes). ``fdisyn --quiet <command>`` shows no progress bar (there is none
+either when stderr is not a terminal) and no note. Every whole-number
+argument (``--runs``, ``--seed``, ``--workers``, ``--mc-runs``,
+``--rss-runs``) is the digits 0–9 alone: no sign, ``_``, blank or other
+script's digits.
 
 ``SPEC`` is a built-in problem name (``fdisyn list``) or the path of a TOML
 plant file (see the README); ``fdisyn <command> --help`` describes every
@@ -36,6 +40,8 @@ is a bug: an :class:`InternalError` or any other exception ends with status
 3 and one line, ``fdisyn <command>: internal error: … — please report;
 FDISYN_DEBUG=1 shows the traceback`` (with
 ``FDISYN_DEBUG=1`` in the environment the traceback is printed before it).
+Ctrl-C ends every command with status 130 and one line, ``fdisyn <command>:
+interrupted``, after the Monte Carlo's worker processes are ended.
 """
 
 from __future__ import annotations
@@ -44,6 +50,7 @@ import argparse
 import errno
 import json
 import os
+import re
 import sys
 import textwrap
 import traceback
@@ -56,6 +63,7 @@ from typing import Any, NoReturn
 from fdisyn import __version__
 from fdisyn.app import DESIGN_EXTRA, WORKDIR, missing_design_package
 from fdisyn.runtime.errors import ArgumentError, FdisynError, FileError, InternalError
+from fdisyn.runtime.names import shown
 
 __all__ = ["main"]
 
@@ -86,13 +94,21 @@ def _options(pairs: Sequence[str] | None) -> dict[str, Any]:
     return out
 
 
+_DIGITS = re.compile(r"[0-9]+")
+"""A whole number on the command line: ASCII digits alone (no sign, blank, ``_``, or other script's digits, which
+``int()`` would read)."""
+
+
 def _whole(text: str, least: int, what: str) -> int:
+    """A whole-number argument: ``text`` in the digits 0–9 alone, at least ``least``, else argparse's one-line error."""
+    if _DIGITS.fullmatch(text) is None:
+        raise argparse.ArgumentTypeError(f"expected {what} written in the digits 0–9 alone, got {shown(text)}")
     try:
         value = int(text)
-    except ValueError:
-        value = least - 1
+    except ValueError:  # more digits than Python converts (sys.get_int_max_str_digits)
+        raise argparse.ArgumentTypeError(f"expected {what}, got a number of {len(text)} digits") from None
     if value < least:
-        raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}")
+        raise argparse.ArgumentTypeError(f"expected {what}, got {shown(text)}")
     return value
 
 
@@ -109,6 +125,17 @@ def _run_list(text: str) -> list[int]:
 def _workers(text: str) -> int:
     """``--workers``: processes running the Monte Carlo, a whole number ≥ 1."""
     return _whole(text, 1, "a whole number of worker processes ≥ 1")
+
+
+def _address(text: str) -> str:
+    """``--address``: a Dask scheduler's address (:func:`~fdisyn.evaluation.campaign.scheduler_address`), checked
+    before anything runs or connects."""
+    from fdisyn.evaluation.campaign import scheduler_address
+
+    try:
+        return scheduler_address(text)
+    except FdisynError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def _seed(text: str) -> int:
@@ -250,10 +277,22 @@ def _monte_carlo(a: argparse.Namespace) -> Iterator[dict[str, Any]]:
 
     if a.address is not None and a.scheduler != "dask":
         raise ArgumentError(f"--address {a.address} needs --scheduler dask")
+    if a.address is not None and a.workers is not None:
+        raise ArgumentError(
+            f"--workers {a.workers} with --address {a.address}: the scheduler's cluster has its own workers; "
+            "give --workers for local processes or a local Dask cluster only"
+        )
+    cores = local_cores()
+    workers = a.workers
+    if workers is not None and workers > cores:
+        if not a.quiet:
+            print(f"fdisyn {a.command}: note: --workers {workers} is more than the {cores} cores this process may run on; "
+                  f"running {cores} worker processes", file=sys.stderr)
+        workers = cores
     if a.scheduler != "dask":
-        yield {"workers": a.workers}
+        yield {"workers": workers}
         return
-    client = dask_client(a.address, a.workers or local_cores())()
+    client = dask_client(a.address, workers or cores)()
     try:
         yield {"client": client}
     finally:
@@ -446,13 +485,19 @@ def _parser() -> argparse.ArgumentParser:
         p.add_argument(
             "--workers", type=_workers, default=None, metavar="N",
             help="local processes running the Monte Carlo, ≥ 1 (default: every core; 1: this process only); for a Dask "
-            "scheduler without an address, the processes of a local Dask cluster",
+            "scheduler without an address, the processes of a local Dask cluster; at most the cores this process may "
+            "run on (more is run as that many, said in one line on stderr) and never more than the campaign's chunks",
         )
         p.add_argument(
             "--scheduler", choices=("local", "dask"), default="local",
             help="where the runs go: local processes (default) or a Dask cluster (pip install 'fdisyn[dask]')",
         )
-        p.add_argument("--address", default=None, metavar="tcp://HOST:PORT", help="the Dask scheduler to use (with --scheduler dask)")
+        p.add_argument(
+            "--address", type=_address, default=None, metavar="tcp://HOST:PORT",
+            help="the Dask scheduler to join (with --scheduler dask): tcp://HOST:PORT (HOST:PORT alone is tcp), or "
+            "tls://HOST:PORT with the client's certificate in Dask's configuration (DASK_DISTRIBUTED__COMM__TLS__CA_FILE, "
+            "…__CLIENT__CERT, …__CLIENT__KEY); other transports (ucx, inproc, ws) are refused",
+        )
 
     p = command(
         "design",
@@ -623,7 +668,8 @@ def _debug() -> bool:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run one command; return its exit status: 0, 2 after a one-line error on stderr, 3 after a bug.
+    """Run one command; return its exit status: 0, 2 after a one-line error on stderr, 3 after a bug, 130 after
+    Ctrl-C (one line, ``fdisyn <command>: interrupted``).
 
     An :class:`FdisynError` is the user's to act on (status 2); an
     :class:`InternalError` or any other exception is a bug (status 3, one
@@ -649,6 +695,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                 print(f"fdisyn {args.command}: error: {_one_line(exc)}", file=sys.stderr)
                 return 2
             return _internal_error(args.command, exc, str(exc))
+        except KeyboardInterrupt:  # Ctrl-C: the workers are ended where they were started, the outputs left as they were
+            print(f"fdisyn {args.command}: interrupted", file=sys.stderr)
+            return 130
         except ModuleNotFoundError as exc:
             package = missing_design_package(exc)
             if package is None:

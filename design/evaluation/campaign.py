@@ -24,8 +24,12 @@ import importlib
 import multiprocessing
 import os
 import pickle
+import re
+import signal
+import threading
 from collections import deque
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field, replace
@@ -36,6 +40,7 @@ import numpy as np
 from fdisyn.evaluation.metrics import MetricsPlan, RunSummaries, extra_values, summarise_runs
 from fdisyn.models.problem import Batch, Problem, Scenario
 from fdisyn.runtime.errors import ArgumentError, FdisynError, MonteCarloError
+from fdisyn.runtime.names import shown
 
 if TYPE_CHECKING:
     from fdisyn.evaluation.evaluate import Built
@@ -48,6 +53,7 @@ __all__ = [
     "Campaign",
     "CampaignSpec",
     "ChunkTask",
+    "ChunkPlan",
     "ChunkSummary",
     "RunFailure",
     "chunk_runs",
@@ -59,6 +65,7 @@ __all__ = [
     "remote_chunk",
     "run_tasks",
     "dask_client",
+    "scheduler_address",
 ]
 
 CHUNK_SAMPLES = 500_000
@@ -147,6 +154,33 @@ class ChunkTask:
     start: int
     seeds: tuple[int, ...]
     keep_batch: bool = False
+
+
+@dataclass(frozen=True)
+class ChunkPlan:
+    """The chunks of a campaign in run order, each :class:`ChunkTask` made (its seeds drawn) only when it is
+    reached: the plan itself holds a few numbers whatever ``runs`` is, so a campaign's memory does not grow with its
+    runs and its first chunk starts at once.
+
+    Iterating gives, scenario after scenario, the chunks of runs ``0 … runs − 1``; run ``i`` of the scenario at
+    position ``s`` gets :func:`run_seed` ``(seed0, s, i)``, the first chunk of each scenario keeps its batch (run 0:
+    the figures' example). ``len()`` is the number of chunks.
+    """
+
+    seed0: int
+    runs: int
+    """Runs per scenario."""
+    scenarios: tuple[tuple[str, int, int], ...]
+    """``(name, position in problem.scenarios, runs per chunk)`` of each scenario, in the order they are run."""
+
+    def __len__(self) -> int:
+        return sum(-(-self.runs // size) for _, _, size in self.scenarios)
+
+    def __iter__(self) -> Iterator[ChunkTask]:
+        for name, s, size in self.scenarios:
+            for start in range(0, self.runs, size):
+                seeds = tuple(run_seed(self.seed0, s, i) for i in range(start, min(self.runs, start + size)))
+                yield ChunkTask(scenario=name, scenario_index=s, start=start, seeds=seeds, keep_batch=start == 0)
 
 
 @dataclass(frozen=True, eq=False)
@@ -367,6 +401,9 @@ class _Serial:
     def reset(self) -> bool:
         return False
 
+    def abort(self, pending: Iterable[Any]) -> None:
+        pass
+
 
 _POOLS: dict[int, ProcessPoolExecutor] = {}
 """The process pools of this process, by size: kept between campaigns, so each worker loads a campaign once."""
@@ -374,12 +411,42 @@ _POOLS: dict[int, ProcessPoolExecutor] = {}
 
 def _context() -> Any:
     """Worker processes start from a fork server that has imported fdisyn (no fork of a threaded parent), else
-    spawned."""
+    spawned. The fork server is started with Ctrl-C ignored (a disposition kept across ``exec`` and restored in
+    every process it forks), so that SIGINT, which a terminal sends to the whole process group, reaches the parent
+    alone: it stops the workers itself (:func:`run_tasks`), and no worker prints a traceback."""
     if "forkserver" in multiprocessing.get_all_start_methods():
+        from multiprocessing import forkserver
+
         ctx = multiprocessing.get_context("forkserver")
         ctx.set_forkserver_preload(["fdisyn.evaluation.campaign", "fdisyn.evaluation.evaluate"])
+        with _sigint_ignored():
+            forkserver.ensure_running()
         return ctx
     return multiprocessing.get_context("spawn")  # pragma: no cover - not POSIX
+
+
+@contextmanager
+def _sigint_ignored() -> Iterator[None]:
+    """SIGINT ignored meanwhile by this process and whatever it starts (only the main thread may change it;
+    elsewhere nothing changes). It is blocked too, so that a Ctrl-C that came meanwhile is kept pending and raised
+    after, not lost."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+        try:
+            yield
+        finally:
+            signal.signal(signal.SIGINT, old)
+    finally:
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+
+
+def _ignore_sigint() -> None:
+    """A worker process's initializer: Ctrl-C is the parent's to handle (it stops the workers)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 class _Processes:
@@ -393,7 +460,7 @@ class _Processes:
     def _pool(self) -> ProcessPoolExecutor:
         pool = _POOLS.get(self.workers)
         if pool is None:
-            pool = _POOLS[self.workers] = ProcessPoolExecutor(self.workers, mp_context=_context())
+            pool = _POOLS[self.workers] = ProcessPoolExecutor(self.workers, mp_context=_context(), initializer=_ignore_sigint)
         return pool
 
     def submit(self, task: ChunkTask) -> Future[ChunkSummary]:
@@ -405,6 +472,20 @@ class _Processes:
         self.pool.shutdown(wait=False, cancel_futures=True)
         self.pool = self._pool()
         return True
+
+    def abort(self, pending: Iterable[Any]) -> None:
+        """The campaign stopped early (Ctrl-C, an error): the chunks in flight dropped and the worker processes
+        ended and waited for (none is left behind); the next campaign starts a new pool."""
+        _POOLS.pop(self.workers, None)
+        processes = list((getattr(self.pool, "_processes", None) or {}).values())
+        self.pool.shutdown(wait=False, cancel_futures=True)
+        for proc in processes:
+            proc.terminate()
+        for proc in processes:
+            proc.join(5)
+            if proc.is_alive():  # pragma: no cover - a worker stuck in a system call
+                proc.kill()
+                proc.join(5)
 
 
 class _Dask:
@@ -420,18 +501,58 @@ class _Dask:
     def reset(self) -> bool:
         return False
 
+    def abort(self, pending: Iterable[Any]) -> None:
+        """The campaign stopped early: its chunks still queued or running on the cluster cancelled."""
+        futures = list(pending)
+        if futures:
+            try:
+                self.client.cancel(futures)
+            except Exception:  # noqa: BLE001 - the cluster already gone: nothing left to cancel
+                pass
+
 
 def run_tasks(
-    tasks: Sequence[ChunkTask],
+    tasks: Sequence[ChunkTask] | ChunkPlan,
     *,
     campaign: Campaign,
     spec: CampaignSpec | None,
     workers: int,
     client: Any = None,
 ) -> Iterator[ChunkSummary]:
-    """The chunks' summaries in task order, run here (``workers == 1`` or no ``spec``), over ``workers`` local
-    processes, or on ``client``. At most a few chunks per worker are in flight (memory stays bounded); a chunk that
-    fails is run once more, and a second failure is a :class:`MonteCarloError` naming its run."""
+    """The chunks' summaries in task order, run here (``workers == 1`` or no ``spec``), over
+    ``min(workers, len(tasks))`` local processes, or on ``client``.
+
+    ``tasks`` is read one task at a time as chunks are submitted (a :class:`ChunkPlan` draws each chunk's seeds
+    then), and at most two chunks per worker are in flight, so memory does not grow with the number of chunks. A
+    chunk that fails is run once more, and a second failure is a :class:`MonteCarloError` naming its run. When the
+    caller stops early (Ctrl-C, an exception, the generator closed) the chunks in flight are dropped and the worker
+    processes ended.
+
+    Parameters
+    ----------
+    tasks : sequence of ChunkTask or ChunkPlan
+        The chunks in run order; ``len(tasks)`` is used, no list of them is made.
+    campaign : Campaign
+        Runs the chunks in this process.
+    spec : CampaignSpec or None
+        Rebuilds the campaign in a worker; ``None``: every chunk runs here.
+    workers : int
+        Local worker processes at most (``1``: here).
+    client : dask.distributed.Client, optional
+        Run the chunks on this cluster instead.
+
+    Returns
+    -------
+    iterator of ChunkSummary
+        One per task, in task order.
+
+    Raises
+    ------
+    MonteCarloError
+        A chunk failed twice.
+    ArgumentError
+        ``client`` without ``spec``.
+    """
     runner: Any
     if client is not None:
         if spec is None:
@@ -451,22 +572,30 @@ def run_tasks(
                 return
             pending.append((task, runner.submit(task), False))
 
-    fill()
-    while pending:
-        task, fut, retried = pending.popleft()
-        try:
-            result = fut.result()
-        except Exception as exc:
-            if retried:
-                if isinstance(exc, BrokenProcessPool):
-                    runner.reset()  # the next campaign finds a working pool
-                raise _failure(exc, task) from None
-            if isinstance(exc, BrokenProcessPool) and runner.reset():  # a worker died: every chunk in flight again
-                pending = deque((t, runner.submit(t), r) for t, _, r in pending)
-            pending.appendleft((task, runner.submit(task), True))
-            continue
-        yield result
+    finished = False
+    try:
         fill()
+        while pending:
+            task, fut, retried = pending[0]
+            try:
+                result = fut.result()
+            except Exception as exc:
+                pending.popleft()
+                if retried:
+                    if isinstance(exc, BrokenProcessPool):
+                        runner.reset()  # the next campaign finds a working pool
+                    raise _failure(exc, task) from None
+                if isinstance(exc, BrokenProcessPool) and runner.reset():  # a worker died: every chunk in flight again
+                    pending = deque((t, runner.submit(t), r) for t, _, r in pending)
+                pending.appendleft((task, runner.submit(task), True))
+                continue
+            pending.popleft()
+            yield result
+            fill()
+        finished = True
+    finally:
+        if not finished:
+            runner.abort(fut for _, fut, _ in pending)
 
 
 _NO_SOURCE = (
@@ -484,22 +613,110 @@ def _failure(exc: BaseException, task: ChunkTask) -> MonteCarloError:
     return MonteCarloError(f"a Monte Carlo run failed twice: {what}")
 
 
+_SCHEDULER_FORMS = "tcp://HOST:PORT (HOST:PORT alone is tcp), or tls://HOST:PORT with Dask's TLS configuration"
+"""The scheduler addresses ``--address`` takes."""
+
+_TLS_NEEDS = (
+    "a TLS scheduler needs the client's certificate and its authority in Dask's configuration "
+    "(DASK_DISTRIBUTED__COMM__TLS__CA_FILE, DASK_DISTRIBUTED__COMM__TLS__CLIENT__CERT and __CLIENT__KEY in the environment, "
+    "or distributed.comm.tls in a Dask config file)"
+)
+
+_OTHER_SCHEMES = {
+    "ucx": "the UCX transport is not supported (it needs distributed-ucxx and a UCX network)",
+    "inproc": "an inproc:// scheduler lives inside one Python process, which a command cannot join",
+    "ws": "the websocket transport is not supported",
+    "wss": "the websocket transport is not supported",
+}
+
+_HOST_PORT = re.compile(r"(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9](?:[A-Za-z0-9.-]*[A-Za-z0-9])?):([0-9]+)")
+
+
+def scheduler_address(address: str) -> str:
+    """``address`` checked as the address of a Dask scheduler this process can join, before anything connects.
+
+    Parameters
+    ----------
+    address : str
+        ``tcp://HOST:PORT``, ``HOST:PORT`` (tcp) or ``tls://HOST:PORT``; ``HOST`` a name, an IPv4 address or an IPv6
+        address in brackets, ``PORT`` 1–65535 in ASCII digits.
+
+    Returns
+    -------
+    str
+        The address with its scheme (``tcp://`` added to ``HOST:PORT``).
+
+    Raises
+    ------
+    ArgumentError
+        Another scheme (``ucx://``, ``inproc://``, …), no host or port, a port out of range, or ``tls://`` without
+        the client's certificates in Dask's configuration; the line names the address, what is wrong and the forms
+        taken.
+    MonteCarloError
+        ``tls://`` and Dask is not installed.
+    """
+    text = shown(address)
+    if not isinstance(address, str):
+        raise ArgumentError(f"{text}: expected a scheduler address, {_SCHEDULER_FORMS}")
+    scheme, sep, rest = address.partition("://")
+    if not sep:
+        scheme, rest = "tcp", address
+    scheme = scheme.lower()
+    if scheme not in ("tcp", "tls"):
+        why = _OTHER_SCHEMES.get(scheme, f"scheme {shown(scheme)} is not one fdisyn joins")
+        raise ArgumentError(f"{text}: {why}; expected {_SCHEDULER_FORMS}")
+    m = _HOST_PORT.fullmatch(rest)
+    if m is None:
+        raise ArgumentError(f"{text}: expected {_SCHEDULER_FORMS}; HOST is a name, an IPv4 address or [an IPv6 address]")
+    digits = m.group(2)
+    if len(digits) > 5 or not 1 <= int(digits) <= 65535:
+        port = digits if len(digits) <= 12 else f"of {len(digits)} digits"
+        raise ArgumentError(f"{text}: port {port} is out of range; expected a port 1–65535 in {_SCHEDULER_FORMS}")
+    if scheme == "tls" and not _tls_configured():
+        raise ArgumentError(f"{text}: {_TLS_NEEDS} and none is set; or use a tcp://HOST:PORT scheduler")
+    return f"{scheme}://{rest}"
+
+
+def _tls_configured() -> bool:
+    """Dask's configuration gives a client its TLS context (certificate and authority files that load), or names a
+    security loader."""
+    try:
+        import dask
+        from distributed.security import Security
+    except ImportError:
+        raise MonteCarloError(_NO_DASK) from None
+    if dask.config.get("distributed.client.security-loader", None):
+        return True
+    try:
+        return Security().get_connection_args("client").get("ssl_context") is not None
+    except (OSError, ValueError) as exc:  # ssl.SSLError is an OSError: a file missing, not PEM, a key that does not fit
+        raise ArgumentError(f"Dask's TLS configuration cannot be used: {_describe(exc)}; {_TLS_NEEDS}") from None
+
+
+_NO_DASK = "--scheduler dask needs Dask: pip install 'fdisyn[dask]'"
+
+
 def dask_client(address: str | None, workers: int) -> Callable[[], Any]:
-    """A factory of the Dask client of ``fdisyn … --scheduler dask``: the scheduler at ``address``, else a local
-    cluster of ``workers`` processes of one thread. Dask missing or the scheduler unreachable: a
-    :class:`MonteCarloError` in one line."""
+    """A factory of the Dask client of ``fdisyn … --scheduler dask``: the scheduler at ``address``
+    (:func:`scheduler_address`, checked here before the factory is made), else a local cluster of ``workers``
+    processes of one thread. Dask missing or the scheduler unreachable: a :class:`MonteCarloError` in one line."""
+    if address is not None:
+        try:
+            address = scheduler_address(address)
+        except ArgumentError as exc:
+            raise ArgumentError(f"--address {exc}") from None
 
     def connect() -> Any:
         try:
             from dask.distributed import Client, LocalCluster
         except ImportError:
-            raise MonteCarloError("--scheduler dask needs Dask: pip install 'fdisyn[dask]'") from None
+            raise MonteCarloError(_NO_DASK) from None
         if address is None:
             return Client(LocalCluster(n_workers=workers, threads_per_worker=1, dashboard_address=None))
         try:
             return Client(address, timeout=10)
         except (OSError, TimeoutError, ValueError) as exc:
             raise MonteCarloError(f"--address {address}: cannot reach a Dask scheduler there ({_describe(exc)}); "
-                                  "expected tcp://HOST:PORT of a running dask scheduler") from None
+                                  f"expected a running Dask scheduler at {_SCHEDULER_FORMS}") from None
 
     return connect

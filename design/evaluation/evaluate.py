@@ -19,17 +19,16 @@ from fdisyn.codegen.library import CodegenResult, codegen
 from fdisyn.evaluation.campaign import (
     Campaign,
     CampaignSpec,
-    ChunkTask,
+    ChunkPlan,
     chunk_runs,
     extra_hooks,
     load_source,
     local_cores,
     problem_source,
-    run_seed,
     run_tasks,
 )
 from fdisyn.evaluation.metrics import MetricsAccumulator, MetricsPlan, ScenarioMetrics
-from fdisyn.evaluation.progress import bar
+from fdisyn.evaluation.progress import bar, note
 from fdisyn.models.problem import Batch, Problem
 from fdisyn.runtime.compiled import CompiledDiagnoser, file_sha256, library_path
 from fdisyn.runtime.errors import ArgumentError
@@ -37,7 +36,14 @@ from fdisyn.runtime.gainfile import GainFile, read_gain_file, write_gain_file
 from fdisyn.runtime.reference import RunResult
 from fdisyn.synthesis.registry import false_alarm_budget, lorden_bound
 
-__all__ = ["Built", "build", "load_built", "Evaluation", "evaluate"]
+__all__ = ["Built", "build", "load_built", "Evaluation", "evaluate", "HUGE_CAMPAIGN"]
+
+PLANT_STEPS_PER_CORE_HOUR = 3.6e10
+"""The order of the compiled Monte Carlo's speed (10⁷ plant steps per second on one core, ``reports/bench.md``)."""
+
+HUGE_CAMPAIGN = 10**12
+"""Plant steps (runs × samples over every scenario) from which :func:`evaluate` first says on stderr how long the
+campaign is (about a core-day): such a campaign is run, its memory flat, not refused."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -128,6 +134,13 @@ def evaluate(
     here. The metrics are the same, to the last bit, however the runs are spread. ``progress``: a bar per
     scenario (:mod:`fdisyn.evaluation.progress`). ``compiled``: simulate and diagnose each chunk in one generated C
     call where the problem has a sample model (``False``: its Python simulator, NumPy's random numbers).
+
+    The chunks are planned lazily (:class:`~fdisyn.evaluation.campaign.ChunkPlan`): each chunk's seeds are drawn
+    when it is submitted, so memory does not grow with ``runs`` and the first chunk starts at once; a campaign of
+    :data:`HUGE_CAMPAIGN` plant steps or more is announced in one line on stderr first (with ``progress``, unless
+    :func:`~fdisyn.evaluation.progress.set_quiet`). ``workers`` is bounded by the campaign's chunks, not by the
+    cores (the command line caps it there). Interrupted (Ctrl-C) or failing, the campaign's chunks in flight are
+    dropped and its worker processes ended before the exception propagates.
     """
     if isinstance(runs, bool) or not isinstance(runs, int) or runs < 1:
         raise ArgumentError(f"runs must be a whole number ≥ 1; got {runs!r}")
@@ -160,45 +173,49 @@ def evaluate(
         )
     campaign = Campaign(problem, built, options, extra_hooks(problem, built), compiled=compiled)
     ts = min((b.gain_file.Ts for b in built.values()), default=1.0)
-    tasks, samples = [], {}
-    for sname in names:
-        samples[sname] = int(problem.scenario(sname).duration / ts) + 1
-        size = chunk or chunk_runs(samples[sname])
-        s_idx = order.index(sname)
-        for start in range(0, runs, size):
-            seeds = tuple(run_seed(seed0, s_idx, i) for i in range(start, min(runs, start + size)))
-            tasks.append(ChunkTask(scenario=sname, scenario_index=s_idx, start=start, seeds=seeds, keep_batch=start == 0))
+    samples = {sname: int(problem.scenario(sname).duration / ts) + 1 for sname in names}
+    tasks = ChunkPlan(seed0, runs, tuple((sname, order.index(sname), chunk or chunk_runs(samples[sname])) for sname in names))
+    steps = runs * sum(samples.values())
+    if progress and steps >= HUGE_CAMPAIGN:
+        note(f"{problem.name}: {runs:,} runs of each of {len(names)} scenarios, {steps:.1e} plant steps in all, about "
+             f"{steps / PLANT_STEPS_PER_CORE_HOUR:,.0f} core-hours at 10⁷ steps per second and core; memory stays flat, "
+             "Ctrl-C stops it")
     metrics: dict[str, dict[str, ScenarioMetrics]] = {d: {} for d in built}
     examples: dict[str, dict[str, RunResult]] = {d: {} for d in built}
     batches: dict[str, Batch] = {}
     acc: dict[str, MetricsAccumulator] = {}
     done = {sname: 0 for sname in names}
     results = run_tasks(tasks, campaign=campaign, spec=spec, workers=local_cores() if workers is None else workers, client=client)
-    for sname in names:
-        sc = problem.scenario(sname)
-        with bar(runs, f"{problem.name} {sname}", "run", shown=progress) as shown:
-            while done[sname] < runs:
-                res = next(results)
-                assert res.task.scenario == sname, "chunks arrive in task order"
-                if res.batch is not None:
-                    batches[sname] = res.batch
-                    for d, b in built.items():
-                        examples[d][sname] = b.diagnoser.run(res.batch.U[0], res.batch.Y[0])
-                for d, summary in res.summaries.items():
-                    if d not in acc:
-                        acc[d] = MetricsAccumulator(MetricsPlan.of(sc, built[d].gain_file, res.t, campaign.extra.get(d)), len(res.t))
-                    acc[d].add(summary)
-                done[sname] += len(res.task.seeds)
-                shown.update(len(res.task.seeds))
-        for d, b in built.items():
-            gf = b.gain_file
-            a = acc.pop(d)
-            m = a.result(scenario=sname, fault=sc.fault, P_f=[e.P_f for e in gf.evaluators], Ts=gf.Ts,
-                         budget_s=false_alarm_budget(gf), lorden=_lorden(gf, a.sums))
-            hook = campaign.extra.get(d)
-            if hook is not None:
-                m = replace(m, extra=dict(hook.reduce(sc, gf, a.extra)))
-            metrics[d][sname] = m
+    try:
+        for sname in names:
+            sc = problem.scenario(sname)
+            with bar(runs, f"{problem.name} {sname}", "run", shown=progress) as shown:
+                while done[sname] < runs:
+                    res = next(results)
+                    assert res.task.scenario == sname, "chunks arrive in task order"
+                    if res.batch is not None:
+                        batches[sname] = res.batch
+                        for d, b in built.items():
+                            examples[d][sname] = b.diagnoser.run(res.batch.U[0], res.batch.Y[0])
+                    for d, summary in res.summaries.items():
+                        if d not in acc:
+                            acc[d] = MetricsAccumulator(MetricsPlan.of(sc, built[d].gain_file, res.t, campaign.extra.get(d)), len(res.t))
+                        acc[d].add(summary)
+                    done[sname] += len(res.task.seeds)
+                    shown.update(len(res.task.seeds))
+            for d, b in built.items():
+                gf = b.gain_file
+                a = acc.pop(d)
+                m = a.result(scenario=sname, fault=sc.fault, P_f=[e.P_f for e in gf.evaluators], Ts=gf.Ts,
+                             budget_s=false_alarm_budget(gf), lorden=_lorden(gf, a.sums))
+                hook = campaign.extra.get(d)
+                if hook is not None:
+                    m = replace(m, extra=dict(hook.reduce(sc, gf, a.extra)))
+                metrics[d][sname] = m
+        leftover = next(results, None)  # the generator ends: the pool is kept for the next campaign
+        assert leftover is None, "every chunk was merged"
+    finally:
+        results.close()  # stopped early (Ctrl-C, an error): the chunks in flight dropped, the workers ended
     return Evaluation(
         problem=problem.name,
         runs=runs,

@@ -14,7 +14,7 @@ from typing import Any, TypeVar
 
 T = TypeVar("T")
 
-__all__ = ["bar", "tracked", "set_quiet", "quiet"]
+__all__ = ["bar", "tracked", "set_quiet", "quiet", "note"]
 
 _QUIET = [False]
 
@@ -27,6 +27,19 @@ def set_quiet(value: bool = True) -> None:
 def quiet() -> bool:
     """Whether bars are off: :func:`set_quiet`, or stderr is not a terminal."""
     return _QUIET[0] or not (hasattr(sys.stderr, "isatty") and sys.stderr.isatty())
+
+
+def note(text: str) -> None:
+    """One line ``text`` on stderr, a terminal or not, unless :func:`set_quiet` (``fdisyn --quiet``): what a long
+    step is about to do, where a bar would be too late or is not drawn.
+
+    Parameters
+    ----------
+    text : str
+        The line, without its line break.
+    """
+    if not _QUIET[0]:
+        print(text, file=sys.stderr, flush=True)
 
 
 @contextmanager

@@ -8,12 +8,13 @@ import dataclasses
 import json
 import multiprocessing
 import os
+import tracemalloc
 from pathlib import Path
 
 import numpy as np
 import pytest
 from fdisyn.app.cli import main
-from fdisyn.evaluation.campaign import Campaign, ChunkTask, DesignRuns, run_seed
+from fdisyn.evaluation.campaign import Campaign, ChunkPlan, ChunkTask, DesignRuns, run_seed, run_tasks
 from fdisyn.evaluation.evaluate import build, evaluate
 from fdisyn.evaluation.metrics import MetricsAccumulator, MetricsPlan, scenario_metrics, summarise_runs
 from fdisyn.evaluation.progress import quiet
@@ -45,6 +46,68 @@ def test_a_runs_seed_is_its_seed_sequence_word() -> None:
         assert run_seed(seed0, s, i) == want and 0 <= want < 2**63
     seeds = {run_seed(0, s, i) for s in range(4) for i in range(100)}
     assert len(seeds) == 400  # no two runs of a campaign share a seed
+
+
+def _eager_tasks(seed0: int, runs: int, scenarios: tuple[tuple[str, int, int], ...]) -> list[ChunkTask]:
+    """The chunks as the campaign built them before the plan was lazy: every run's seed drawn up front."""
+    tasks = []
+    for name, s, size in scenarios:
+        for start in range(0, runs, size):
+            seeds = tuple(run_seed(seed0, s, i) for i in range(start, min(runs, start + size)))
+            tasks.append(ChunkTask(scenario=name, scenario_index=s, start=start, seeds=seeds, keep_batch=start == 0))
+    return tasks
+
+
+@pytest.mark.parametrize(("seed0", "runs", "scenarios"), [
+    (0, 1, (("a", 0, 25),)),
+    (3, 7, (("fault_free", 0, 3), ("f1", 2, 1), ("f0", 1, 7))),
+    (2**40, 103, (("x", 4, 25), ("y", 0, 10))),
+])
+def test_the_plan_draws_the_seeds_the_eager_list_did(seed0: int, runs: int, scenarios: tuple) -> None:
+    plan = ChunkPlan(seed0, runs, scenarios)
+    eager = _eager_tasks(seed0, runs, scenarios)
+    assert list(plan) == eager and list(plan) == eager  # the same tasks, and the plan can be read again
+    assert len(plan) == len(eager)
+
+
+class _Instant:
+    """A campaign whose chunks cost nothing: it records the tasks it was given."""
+
+    def __init__(self) -> None:
+        self.seen: list[ChunkTask] = []
+
+    def run_or_locate(self, task: ChunkTask) -> ChunkTask:
+        self.seen.append(task)
+        return task
+
+
+def _first_chunks(runs: int, pulled: int) -> tuple[int, list[ChunkTask], int]:
+    """Pull the first chunks of a campaign of ``runs`` runs per scenario: the peak memory allocated meanwhile, the
+    tasks run, the chunks planned."""
+    campaign = _Instant()
+    plan = ChunkPlan(0, runs, (("fault_free", 0, 25), ("fault", 1, 25)))
+    tracemalloc.start()
+    try:
+        results = run_tasks(plan, campaign=campaign, spec=None, workers=1)  # type: ignore[arg-type]
+        first = [next(results) for _ in range(pulled)]
+        results.close()
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert first == campaign.seen[:pulled]
+    return peak, campaign.seen, len(plan)
+
+
+def test_the_first_chunks_of_a_huge_campaign_cost_what_those_of_a_small_one_do() -> None:
+    """The chunks are made as they are submitted: 10⁹ runs per scenario (4·10⁷ chunks each) start as 10³ do, with
+    the same few tasks made and the same memory, nothing allocated per run of the campaign."""
+    small_peak, small_seen, small_len = _first_chunks(10**3, 5)
+    huge_peak, huge_seen, huge_len = _first_chunks(10**9, 5)
+    assert (small_len, huge_len) == (80, 80_000_000)
+    assert huge_seen == small_seen and len(huge_seen) <= 5 + 2  # a task is made when a slot frees, not before
+    assert huge_peak < small_peak + 64 * 1024, (small_peak, huge_peak)
+    assert len(ChunkPlan(0, 10**12, (("a", 0, 25),))) == 4 * 10**10  # counted, not listed
+    assert next(iter(ChunkPlan(0, 10**12, (("a", 0, 25),)))).seeds == tuple(run_seed(0, 0, i) for i in range(25))
 
 
 # --------------------------------------------------------------------------- the summaries against the reference
@@ -293,3 +356,45 @@ def test_the_monte_carlo_options_and_their_errors(tmp_path: Path, capsys: pytest
     assert json.loads((tmp_path / "m.json").read_text()) == one
     assert capsys.readouterr().err == ""  # no bar where stderr is not a terminal
     assert quiet()
+
+
+def test_more_workers_than_cores_run_as_many_as_the_cores_said_in_one_line(tmp_path: Path, capsys, monkeypatch) -> None:
+    """``--workers`` above the cores this process may run on is run as that many processes, said in one line on
+    stderr (none with --quiet); the campaign's own chunks bound them again (below)."""
+    from types import SimpleNamespace
+
+    import fdisyn.evaluation.campaign as campaign
+    import fdisyn.evaluation.evaluate as evaluation
+
+    seen: list = []
+    monkeypatch.setattr(campaign, "local_cores", lambda: 3)
+    monkeypatch.setattr(evaluation, "build", lambda *a, **k: SimpleNamespace(gain_file=SimpleNamespace(name="g")))
+    monkeypatch.setattr(evaluation, "evaluate", lambda prob, built, **kw: seen.append(kw) or SimpleNamespace(to_dict=dict))
+    argv = ["evaluate", "sampled_data_example", "--runs", "2", "--out", str(tmp_path / "m.json"), "--workdir", str(tmp_path / "b")]
+    assert main([*argv, "--workers", "8"]) == 0
+    assert capsys.readouterr().err == (
+        "fdisyn evaluate: note: --workers 8 is more than the 3 cores this process may run on; running 3 worker processes\n"
+    )
+    assert main(["--quiet", *argv, "--workers", "8"]) == 0
+    assert main([*argv, "--workers", "3"]) == 0
+    assert main(argv) == 0
+    assert capsys.readouterr().err == ""
+    assert [kw["workers"] for kw in seen] == [3, 3, 3, None]
+
+
+def test_a_pool_has_no_more_processes_than_chunks(monkeypatch) -> None:
+    import fdisyn.evaluation.campaign as campaign
+
+    sizes: list[int] = []
+
+    class Pool(campaign._Serial):
+        def __init__(self, spec, workers: int) -> None:  # noqa: ANN001 - a CampaignSpec
+            sizes.append(workers)
+            super().__init__(_Instant())  # type: ignore[arg-type]
+
+    monkeypatch.setattr(campaign, "_Processes", Pool)
+    plan = ChunkPlan(0, 30, (("a", 0, 25), ("b", 1, 25)))  # 4 chunks
+    spec = campaign.CampaignSpec("sampled_data_example", (), ())
+    assert len(list(run_tasks(plan, campaign=None, spec=spec, workers=18))) == 4  # type: ignore[arg-type]
+    assert len(list(run_tasks(plan, campaign=None, spec=spec, workers=2))) == 4  # type: ignore[arg-type]
+    assert sizes == [4, 2]

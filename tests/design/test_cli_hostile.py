@@ -146,6 +146,17 @@ ARGUMENT_CASES: list[tuple[str, Callable[[Path], list[str]], tuple[str, ...]]] =
     ("evaluate --runs -5", lambda tmp: ["evaluate", "wind_turbine", "--runs", "-5", "--out", str(tmp / "m.json")], ("got '-5'",)),
     ("evaluate --runs 2.5", lambda tmp: ["evaluate", "wind_turbine", "--runs", "2.5", "--out", str(tmp / "m.json")], ("got '2.5'",)),
     ("report --runs 0", lambda tmp: ["report", "wind_turbine", "--runs", "0", "--reports", str(tmp)], ("argument --runs: expected a whole number of runs ≥ 1",)),
+    ("evaluate --runs 1_0", lambda tmp: ["evaluate", "wind_turbine", "--runs", "1_0", "--out", str(tmp / "m.json")], ("argument --runs: expected a whole number of runs ≥ 1 written in the digits 0–9 alone, got '1_0'",)),
+    ("evaluate --runs Arabic-Indic 1", lambda tmp: ["evaluate", "wind_turbine", "--runs", "\u0661", "--out", str(tmp / "m.json")], ("argument --runs: expected a whole number of runs ≥ 1 written in the digits 0–9 alone, got '\u0661'",)),
+    ("evaluate --runs +5", lambda tmp: ["evaluate", "wind_turbine", "--runs", "+5", "--out", str(tmp / "m.json")], ("digits 0–9 alone, got '+5'",)),
+    ("evaluate --runs blank", lambda tmp: ["evaluate", "wind_turbine", "--runs", " 5", "--out", str(tmp / "m.json")], ("digits 0–9 alone, got ' 5'",)),
+    ("evaluate --runs 5000 digits", lambda tmp: ["evaluate", "wind_turbine", "--runs", "9" * 5000, "--out", str(tmp / "m.json")], ("argument --runs: expected a whole number of runs ≥ 1, got a number of 5000 digits",)),
+    ("evaluate --workers fullwidth 2", lambda tmp: ["evaluate", "wind_turbine", "--workers", "\uff12", "--out", str(tmp / "m.json")], ("argument --workers: expected a whole number of worker processes ≥ 1 written in the digits 0–9 alone, got '\uff12'",)),
+    ("evaluate --seed Devanagari 3", lambda tmp: ["evaluate", "wind_turbine", "--seed", "\u0969", "--out", str(tmp / "m.json")], ("argument --seed: expected a whole number ≥ 0 (NumPy seeds are non-negative) written in the digits 0–9 alone",)),
+    ("simulate --seed 1_0", lambda tmp: ["simulate", "wind_turbine", "--scenario", "fault_free", "--seed", "1_0", "--out", str(tmp / "t.csv")], ("argument --seed:", "got '1_0'")),
+    ("report --runs fullwidth", lambda tmp: ["report", "wind_turbine", "--runs", "\uff15", "--reports", str(tmp)], ("argument --runs:", "digits 0–9 alone")),
+    ("bench --mc-runs 1_0", lambda tmp: ["bench", "--monte-carlo", "--mc-runs", "1_0", "--out", str(tmp / "b.md")], ("argument --mc-runs:", "got '1_0'")),
+    ("bench --rss-runs Arabic-Indic", lambda tmp: ["bench", "--monte-carlo", "--rss-runs", "100,\u0661\u0660", "--out", str(tmp / "b.md")], ("argument --rss-runs:", "digits 0–9 alone")),
     ("simulate --seed -1", lambda tmp: ["simulate", "wind_turbine", "--scenario", "fault_free", "--seed", "-1", "--out", str(tmp / "t.csv")], ("argument --seed: expected a whole number ≥ 0",)),
     ("unknown scenario", lambda tmp: ["simulate", "wind_turbine", "--scenario", "storm", "--out", str(tmp / "t.csv")], ("has no scenario 'storm'",)),
     ("missing --out", lambda tmp: ["design", "wind_turbine"], ("the following arguments are required: --out",)),
@@ -154,6 +165,95 @@ ARGUMENT_CASES: list[tuple[str, Callable[[Path], list[str]], tuple[str, ...]]] =
     ("SPEC empty", lambda tmp: ["design", "", "--out", str(tmp / "d")], ("no built-in problem ''",)),
     ("SPEC missing file", lambda tmp: ["design", str(tmp / "none.toml"), "--out", str(tmp / "d")], ("no plant file at",)),
 ]
+
+
+_FORMS = "expected tcp://HOST:PORT (HOST:PORT alone is tcp), or tls://HOST:PORT with Dask's TLS configuration"
+
+
+def _dask(address: str, *extra: str) -> Callable[[Path], list[str]]:
+    return lambda tmp: ["evaluate", "sampled_data_example", "--runs", "2", "--out", str(tmp / "m.json"), "--workdir", str(tmp / "b"),
+                        "--scheduler", "dask", "--address", address, *extra]
+
+
+ADDRESS_CASES: list[tuple[str, Callable[[Path], list[str]], tuple[str, ...]]] = [
+    ("tls without certificates", _dask("tls://127.0.0.1:9"), (
+        "argument --address: 'tls://127.0.0.1:9': a TLS scheduler needs the client's certificate and its authority in "
+        "Dask's configuration (DASK_DISTRIBUTED__COMM__TLS__CA_FILE, DASK_DISTRIBUTED__COMM__TLS__CLIENT__CERT and "
+        "__CLIENT__KEY in the environment, or distributed.comm.tls in a Dask config file) and none is set; or use a "
+        "tcp://HOST:PORT scheduler",)),
+    ("ucx", _dask("ucx://127.0.0.1:9"), ("'ucx://127.0.0.1:9': the UCX transport is not supported", _FORMS)),
+    ("inproc", _dask("inproc://192.168.0.1/1/2"), ("an inproc:// scheduler lives inside one Python process", _FORMS)),
+    ("websocket", _dask("ws://127.0.0.1:9"), ("the websocket transport is not supported", _FORMS)),
+    ("other scheme", _dask("http://127.0.0.1:9"), ("scheme 'http' is not one fdisyn joins", _FORMS)),
+    ("empty", _dask(""), ("argument --address: '': " + _FORMS,)),
+    ("garbage", _dask("garbage"), ("argument --address: 'garbage': " + _FORMS,)),
+    ("no port", _dask("tcp://127.0.0.1"), ("'tcp://127.0.0.1': " + _FORMS,)),
+    ("a path after the port", _dask("tcp://127.0.0.1:8786/x"), (_FORMS,)),
+    ("a fullwidth port", _dask("tcp://127.0.0.1:\uff18\uff17"), (_FORMS,)),
+    ("port out of range", _dask("tcp://127.0.0.1:99999"), ("'tcp://127.0.0.1:99999': port 99999 is out of range; expected a port 1–65535",)),
+    ("port 0", _dask("tcp://127.0.0.1:0"), ("port 0 is out of range",)),
+    ("port of 30 digits", _dask("tcp://127.0.0.1:" + "9" * 30), ("port of 30 digits is out of range",)),
+    ("a line break", _dask("tcp://127.0.0.1:8786\n"), ("'tcp://127.0.0.1:8786\\n': " + _FORMS,)),
+    ("workers with an address", _dask("tcp://127.0.0.1:9", "--workers", "2"), (
+        "--workers 2 with --address tcp://127.0.0.1:9: the scheduler's cluster has its own workers",)),
+    ("an address without dask", lambda tmp: ["evaluate", "sampled_data_example", "--out", str(tmp / "m.json"), "--address", "127.0.0.1:9"],
+     ("--address tcp://127.0.0.1:9 needs --scheduler dask",)),
+]
+
+
+@pytest.mark.parametrize(("argv", "expected"), [c[1:] for c in ADDRESS_CASES], ids=[c[0] for c in ADDRESS_CASES])
+def test_every_scheduler_address_form_is_refused_in_one_line_before_any_connection(tmp_path, capsys, monkeypatch, argv, expected) -> None:
+    """No case reaches the network: the address is checked before a client exists (a client made would fail the
+    test), and nothing is designed or built."""
+    pytest.importorskip("dask.distributed")
+    import distributed
+
+    def no_client(*args, **kwargs):  # noqa: ANN002, ANN003, ANN202
+        raise AssertionError("a Dask client was made")
+
+    monkeypatch.setattr(distributed, "Client", no_client)
+    for name in [k for k in os.environ if k.startswith("DASK_DISTRIBUTED__COMM__TLS") or k.startswith("DASK_DISTRIBUTED__CLIENT")]:
+        monkeypatch.delenv(name)
+    _fails_with(capsys, argv(tmp_path), *expected)
+    assert not (tmp_path / "b").exists()
+
+
+def test_a_tls_address_is_taken_with_dasks_tls_configuration(tmp_path) -> None:
+    """tls:// works when Dask's configuration gives the client its certificate; a configuration whose files do
+    not load is one line naming the error. Nothing connects: the address is checked alone."""
+    import shutil
+    import subprocess
+
+    dask = pytest.importorskip("dask")
+    pytest.importorskip("dask.distributed")
+    from fdisyn.evaluation.campaign import scheduler_address
+
+    if shutil.which("openssl") is None:
+        pytest.skip("openssl makes the test certificate")
+    cert, key = tmp_path / "c.pem", tmp_path / "k.pem"
+    subprocess.run(["openssl", "req", "-x509", "-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1", "-nodes",
+                    "-keyout", str(key), "-out", str(cert), "-days", "1", "-subj", "/CN=localhost"], check=True, capture_output=True)
+    tls = {"distributed.comm.tls.ca-file": str(cert), "distributed.comm.tls.client.cert": str(cert),
+           "distributed.comm.tls.client.key": str(key)}
+    with dask.config.set(tls):
+        assert scheduler_address("tls://127.0.0.1:8786") == "tls://127.0.0.1:8786"
+    with dask.config.set({**tls, "distributed.comm.tls.ca-file": str(tmp_path / "none.pem")}):
+        with pytest.raises(ArgumentError, match=r"^Dask's TLS configuration cannot be used: FileNotFoundError"):
+            scheduler_address("tls://127.0.0.1:8786")
+    assert scheduler_address("127.0.0.1:8786") == "tcp://127.0.0.1:8786"
+    assert scheduler_address("TCP://[::1]:8786") == "tcp://[::1]:8786"
+    assert scheduler_address("tcp://scheduler.example.org:8786") == "tcp://scheduler.example.org:8786"
+
+
+def test_option_values_read_only_ascii_digits_as_numbers() -> None:
+    """``--option`` values are JSON, whose numbers are ASCII digits: other scripts' digits, ``_`` and a sign ``+``
+    stay the strings written (the option's check then refuses them by their type)."""
+    from fdisyn.app.cli import _options
+
+    odd = ["\u0661", "1\u0661", "\uff12", "1_0", "+5", "1e\u0661", "1.\u0665", "0x10"]
+    got = _options([f"k{i}={v}" for i, v in enumerate(odd)])
+    assert got == {f"k{i}": v for i, v in enumerate(odd)}
+    assert _options(["a=10", "b=-0", "c=[1, 2]"]) == {"a": 10, "b": 0, "c": [1, 2]}
 
 
 @pytest.mark.parametrize(("argv", "expected"), [c[1:] for c in ARGUMENT_CASES], ids=[c[0] for c in ARGUMENT_CASES])
