@@ -40,6 +40,7 @@ import scipy.stats
 from fdisyn.evaluators.chi2 import chi2_evaluator
 from fdisyn.runtime.errors import ArgumentError, ExistenceError, ShapeError, SolverError
 from fdisyn.runtime.gainfile import Evaluator
+from fdisyn.runtime.names import shown
 
 __all__ = [
     "cusum_arl",
@@ -52,6 +53,8 @@ __all__ = [
     "cusum_evaluator",
     "glr_evaluator",
     "ARL_RTOL",
+    "MAX_ARL_SAMPLES",
+    "check_arl_samples",
 ]
 
 ARL_RTOL = 1e-6
@@ -59,7 +62,21 @@ ARL_RTOL = 1e-6
 deviation of the increment on the continuation region; the tests compare it with twice as many nodes and with
 Siegmund's approximation, which is within a few per cent)."""
 
+MAX_ARL_SAMPLES = 1e300
+"""Largest mean run length (samples) of one statistic whose threshold is computed: a false-alarm rate of
+``1e-300`` per sample. The run-length laws are evaluated in log-space there (thresholds near 690 nats); beyond
+it ``1/ARL`` leaves the normal range of a double (a gain file stores the rate ``P_f = 1/ARL``)."""
+
+_NYSTROM_TRUSTED = 1e8
+"""Largest ``ARL₀`` the direct Nyström solve of Page's equation (:func:`cusum_arl`) is taken from: its system
+has a condition number of the order of the run length, so beyond ``1e8`` samples round-off reaches
+:data:`ARL_RTOL`; the run length is then computed from the renewal form with the exponential change of
+measure (:func:`_cusum_log_arl0_tilted`), whose systems stay well conditioned. A threshold search for a run
+length up to ``1e8`` (:func:`cusum_threshold`, :func:`cusum_evaluator`) takes the direct values wherever the
+solve succeeds: the root lies where they are accurate, and longer run lengths only steer the bracket."""
+
 _NODES = 96
+_LOG_MAX = math.log(float(np.finfo(float).max))
 _DIFFUSION_BEYOND = 30.0
 """``h/σ`` beyond which :func:`cusum_arl` uses Siegmund's approximation (a Nyström system of ``8 h/σ`` nodes
 would grow past 240; the increment is then a small fraction of the threshold, where the corrected diffusion is
@@ -73,24 +90,130 @@ def _positive(value: float, name: str) -> float:
     return v
 
 
+def check_arl_samples(arl_samples: float, what: str) -> float:
+    """``arl_samples`` if it is a mean run length the thresholds are computed for: finite, ``≥ 1`` sample's
+    fraction above 0 and at most :data:`MAX_ARL_SAMPLES`; else an :class:`ArgumentError` that names ``what``
+    (the user's option and value) and the working domain.
+
+    Parameters
+    ----------
+    arl_samples : float
+        The mean run length of one statistic, in samples.
+    what : str
+        How the message names the value, e.g. ``"PATH [design].arl0 = 1e+308 s"``.
+
+    Returns
+    -------
+    float
+        ``arl_samples``.
+
+    Raises
+    ------
+    ArgumentError
+        Outside ``(0, MAX_ARL_SAMPLES]``.
+    """
+    v = float(arl_samples)
+    if not (v > 0.0 and v <= MAX_ARL_SAMPLES):  # NaN fails too
+        raise ArgumentError(
+            f"{what} is a mean run length of {v:.3g} samples per statistic; the thresholds are computed up to "
+            f"{MAX_ARL_SAMPLES:g} samples (a false-alarm rate of {1.0 / MAX_ARL_SAMPLES:g} per sample): give a smaller value"
+        )
+    return v
+
+
 def cusum_arl(h: float, information: float, *, shift: float = 0.0, nodes: int = _NODES) -> float:
     """Mean run length (samples) of the CUSUM ``S = max(0, S + s)`` from ``S = 0`` to ``S > h``.
 
     ``s ~ N(−I + 2 I·shift, 2I)``: ``shift = 0`` is no fault (``ARL₀``), ``shift = 1`` the fault the CUSUM is
     tuned to (its mean delay from ``S = 0``, ``ARL₁``). Page's integral equation on ``[0, h]``, solved by
     Nyström's method on Gauss–Legendre nodes (the kernel is smooth; the atom at 0 is the ``L(0) F(−x)`` term).
+    An ``ARL₀`` beyond :data:`_NYSTROM_TRUSTED` comes from the renewal form instead (:func:`_cusum_log_arl0_tilted`);
+    one beyond the double range is ``inf`` (:func:`cusum_log_arl` gives its logarithm).
     """
+    log_scale, value = _cusum_run_length(h, information, shift, nodes, _NYSTROM_TRUSTED)
+    if not log_scale:
+        return value
+    return math.exp(value) if value < _LOG_MAX else math.inf
+
+
+
+def cusum_log_arl(h: float, information: float, *, shift: float = 0.0, nodes: int = _NODES) -> float:
+    """``ln`` of :func:`cusum_arl`, finite however long the run length (``math.log`` of it where that is finite)."""
+    log_scale, value = _cusum_run_length(h, information, shift, nodes, _NYSTROM_TRUSTED)
+    return value if log_scale else math.log(value)
+
+
+def _cusum_run_length(h: float, information: float, shift: float, nodes: int, trusted: float) -> tuple[bool, float]:
+    """``(False, ARL)`` from the Nyström solve of Page's equation, or ``(True, ln ARL)`` where that is not used:
+    a threshold of many increments (Siegmund's approximation), or an ``ARL₀`` beyond ``trusted`` or whose solve
+    failed (:func:`_cusum_log_arl0_tilted`)."""
+    i = _positive(information, "information")
+    if not math.isfinite(h) or h < 0.0:
+        raise ArgumentError(f"h must be a finite threshold ≥ 0; got {h!r}")
+    if h > 0.0 and h / math.sqrt(2.0 * i) > _DIFFUSION_BEYOND:
+        # a threshold of many increment deviations: Siegmund's corrected diffusion is accurate to O(σ²) there
+        value = cusum_arl_siegmund(h, i, shift=shift)
+        return (False, value) if math.isfinite(value) else (True, _siegmund_log_arl(h, i, shift))
+    if float(shift) != 0.0 or h == 0.0:
+        return False, _cusum_arl_nystrom(h, i, shift, nodes)
+    try:
+        direct = _cusum_arl_nystrom(h, i, 0.0, nodes)
+    except SolverError:  # the solve lost every digit to round-off: a very long run length
+        direct = math.nan
+    if 1.0 <= direct <= trusted:
+        return False, direct
+    return True, _cusum_log_arl0_tilted(h, i, nodes)
+
+
+def _cusum_log_arl0_tilted(h: float, information: float, nodes: int = _NODES) -> float:
+    """``ln ARL₀`` of the CUSUM by its renewal form with an exponential change of measure, for long run lengths.
+
+    The CUSUM restarts from 0 whenever ``S`` falls to 0, so ``ARL₀ = N(0)/P(0)`` (Page, Biometrika 41(1/2), 1954):
+    ``N(x)`` is the mean length of an excursion of the random walk from ``x`` until it leaves ``(0, h]`` and
+    ``P(x)`` the probability that it leaves above ``h``. ``s`` is a log-likelihood ratio, so under the fault's
+    law (increments ``N(+I, 2I)``) ``P(x) = E₁[e^{−(S_τ − x)}; S_τ > h] = e^{x−h} G(x)`` with
+    ``G(x) = E₁[e^{−(S_τ − h)}; S_τ > h] ≤ 1`` (Wald's likelihood-ratio identity; Siegmund, Sequential Analysis,
+    Springer 1985, ch. 2). ``N`` (drift down) and ``G`` (drift up) solve integral equations with no atom, whose
+    Nyström systems are well conditioned whatever the run length, and ``ln ARL₀ = ln N(0) + h − ln G(0)``.
+    """
+    i = _positive(information, "information")
+    sd = math.sqrt(2.0 * i)
+    top = h / sd
+    count = int(max(int(nodes), math.ceil(8.0 * top)))
+    t, w = np.polynomial.legendre.leggauss(count)
+    x = 0.5 * top * (t + 1.0)
+    w = 0.5 * top * w
+    pts = np.concatenate([[0.0], x])
+
+    def kernel(mean: float) -> np.ndarray:
+        dz = x[None, :] - pts[:, None] - mean
+        return np.exp(-0.5 * dz * dz) * (w[None, :] / math.sqrt(2.0 * math.pi))
+
+    k0, k1 = kernel(-0.5 * sd), kernel(0.5 * sd)
+    eye = np.eye(count)
+    n = np.linalg.solve(eye - k0[1:], np.ones(count))
+    n0 = 1.0 + float(k0[0] @ n)
+    # the overshoot term: E[e^{−σ(z − top)}; z > top] for z ~ N(x + σ/2, 1), in closed form
+    gap = top - (pts + 0.5 * sd)
+    over = np.exp(sd * gap + 0.5 * sd * sd + scipy.special.log_ndtr(-(gap + sd)))
+    g = np.linalg.solve(eye - k1[1:], over[1:])
+    g0 = float(over[0] + k1[0] @ g)
+    if not (n0 >= 1.0 and g0 > 0.0 and math.isfinite(n0) and math.isfinite(g0)):
+        raise SolverError(f"the CUSUM run length for h = {h:g}, I = {i:g} could not be computed (N(0) = {n0!r}, G(0) = {g0!r})")
+    return math.log(n0) + h - math.log(g0)
+
+
+def _cusum_arl_nystrom(h: float, information: float, shift: float, nodes: int) -> float:
+    """:func:`cusum_arl` by the Nyström solve of Page's equation with its atom at 0."""
     i = _positive(information, "information")
     if not math.isfinite(h) or h < 0.0:
         raise ArgumentError(f"h must be a finite threshold ≥ 0; got {h!r}")
     # in units of the increment's standard deviation σ = √(2I): s/σ ~ N(−σ/2 + σ·shift, 1) on [0, h/σ]
     sd = math.sqrt(2.0 * i)
     mean, top = (-i + 2.0 * i * float(shift)) / sd, h / sd
-    if h == 0.0:
-        return 1.0 / float(scipy.stats.norm.sf(0.0, mean, 1.0))
-    if top > _DIFFUSION_BEYOND:
-        # a threshold of many increment deviations: Siegmund's corrected diffusion is accurate to O(σ²) there
-        return cusum_arl_siegmund(h, i, shift=shift)
+    if h == 0.0:  # every sample above 0 alarms: a geometric run length (longer than any double: inf)
+        above = float(scipy.stats.norm.sf(0.0, mean, 1.0))
+        return 1.0 / above if above > 0.0 else math.inf
     # the kernel has unit width: a few nodes per unit of the interval keep the quadrature exact to round-off
     count = int(max(int(nodes), math.ceil(8.0 * top)))
     t, w = np.polynomial.legendre.leggauss(count)
@@ -114,28 +237,55 @@ def cusum_arl(h: float, information: float, *, shift: float = 0.0, nodes: int = 
 
 def cusum_arl_siegmund(h: float, information: float, *, shift: float = 0.0) -> float:
     """Siegmund's approximation of :func:`cusum_arl`: with the increments standardised (``σ = √(2I)``, mean
-    ``Δ``), ``ARL ≈ (exp(−2Δb) + 2Δb − 1) / (2Δ²)``, ``b = h/σ + 1.166`` (Siegmund 1985, eq. (2.56))."""
+    ``Δ``), ``ARL ≈ (exp(−2Δb) + 2Δb − 1) / (2Δ²)``, ``b = h/σ + 1.166`` (Siegmund 1985, eq. (2.56)); ``inf``
+    beyond the double range (:func:`_siegmund_log_arl` gives its logarithm)."""
     i = _positive(information, "information")
     sd = math.sqrt(2.0 * i)
     delta = (-i + 2.0 * i * float(shift)) / sd
     b = h / sd + 1.166
     if abs(delta) < 1e-12:
         return b * b
+    if -2.0 * delta * b > _LOG_MAX - 1.0:
+        log_arl = _siegmund_log_arl(h, i, shift)
+        return math.exp(log_arl) if log_arl < _LOG_MAX else math.inf
     return (math.exp(-2.0 * delta * b) + 2.0 * delta * b - 1.0) / (2.0 * delta * delta)
+
+
+def _siegmund_log_arl(h: float, information: float, shift: float = 0.0) -> float:
+    """``ln`` of :func:`cusum_arl_siegmund`, in log-space where its exponential overflows (the same number
+    elsewhere): with ``z = −2Δb > 0``, ``ARL = e^z (1 − (z + 1) e^{−z}) / (2Δ²)``."""
+    i = _positive(information, "information")
+    sd = math.sqrt(2.0 * i)
+    delta = (-i + 2.0 * i * float(shift)) / sd
+    z = -2.0 * delta * (h / sd + 1.166)
+    if abs(delta) < 1e-12 or z <= _LOG_MAX - 1.0:
+        return math.log(cusum_arl_siegmund(h, i, shift=shift))
+    return z + math.log1p(-(z + 1.0) * math.exp(-z)) - math.log(2.0 * delta * delta)
 
 
 def cusum_threshold(arl0: float, information: float) -> float:
     """The CUSUM threshold ``h`` with ``ARL₀(h) = arl0`` samples (:func:`cusum_arl`, root on ``ln ARL``)."""
-    target = _positive(arl0, "arl0")
+    target = check_arl_samples(_positive(arl0, "arl0"), f"arl0 = {shown(arl0)}")
     i = _positive(information, "information")
     if target <= cusum_arl(0.0, i):
         return 0.0
+    trusted = _trusted(target)
+
+    def log_arl(h: float) -> float:
+        log_scale, value = _cusum_run_length(h, i, 0.0, _NODES, trusted)
+        return value if log_scale else math.log(value)
+
     lo, hi = 0.0, 1.0
-    while math.log(cusum_arl(hi, i)) < math.log(target):
+    while log_arl(hi) < math.log(target):
         lo, hi = hi, 2.0 * hi
         if hi > 1e4:
             raise SolverError(f"no CUSUM threshold reaches ARL₀ = {target:g} samples for I = {i:g}")
-    return float(scipy.optimize.brentq(lambda h: math.log(cusum_arl(h, i)) - math.log(target), lo, hi, xtol=1e-10, rtol=1e-12))
+    return float(scipy.optimize.brentq(lambda h: log_arl(h) - math.log(target), lo, hi, xtol=1e-10, rtol=1e-12))
+
+
+def _trusted(target: float) -> float:
+    """The largest direct Nyström value a search for run length ``target`` takes (:data:`_NYSTROM_TRUSTED`)."""
+    return math.inf if target <= _NYSTROM_TRUSTED else _NYSTROM_TRUSTED
 
 
 def _overshoot(x: float) -> float:
@@ -153,8 +303,33 @@ def glr_arl(h: float, window: int) -> float:
 
         ARL₀ ≈ √(2π) e^{c²/2} / (c ∫_{c√(2/M)}^{c√2} x ν(x)² dx),   c = √(2h).
 
-    The integral runs over the onsets ``n = 1 … M`` (``x = c √(2/n)``).
+    The integral runs over the onsets ``n = 1 … M`` (``x = c √(2/n)``). ``inf`` beyond the double range
+    (:func:`glr_log_arl` gives its logarithm).
     """
+    m, integral = _glr_integral(h, window)
+    if h > _LOG_MAX - 10.0:
+        log_arl = glr_log_arl(h, m)
+        return math.exp(log_arl) if log_arl < _LOG_MAX else math.inf
+    c = math.sqrt(2.0 * h)
+    # the first onset (n = 1) alone is a χ²₁ test: the run length is at most 1/P(χ²₁ > 2h)
+    bound = 1.0 / float(scipy.stats.chi2.sf(2.0 * h, 1))
+    return min(math.sqrt(2.0 * math.pi) * math.exp(0.5 * c * c) / (c * integral), bound) if integral > 0 else bound
+
+
+def glr_log_arl(h: float, window: int) -> float:
+    """``ln`` of :func:`glr_arl`, finite however long the run length (``math.log`` of it where that is finite)."""
+    m, integral = _glr_integral(h, window)
+    if h <= _LOG_MAX - 10.0:
+        return math.log(glr_arl(h, m))
+    c = math.sqrt(2.0 * h)
+    log_bound = -float(scipy.stats.chi2.logsf(2.0 * h, 1))
+    if integral <= 0:
+        return log_bound
+    return min(0.5 * math.log(2.0 * math.pi) + 0.5 * c * c - math.log(c * integral), log_bound)
+
+
+def _glr_integral(h: float, window: int) -> tuple[int, float]:
+    """The window and the overshoot integral ``∫ x ν(x)² dx`` of :func:`glr_arl` (arguments checked)."""
     m = int(window)
     if m < 1:
         raise ArgumentError(f"window must be ≥ 1; got {window!r}")
@@ -164,23 +339,20 @@ def glr_arl(h: float, window: int) -> float:
     lo, hi = c * math.sqrt(2.0 / m), c * math.sqrt(2.0)
     xs, ws = np.polynomial.legendre.leggauss(64)
     xs = 0.5 * (hi - lo) * (xs + 1.0) + lo
-    integral = float(np.sum(0.5 * (hi - lo) * ws * xs * np.array([_overshoot(x) ** 2 for x in xs])))
-    # the first onset (n = 1) alone is a χ²₁ test: the run length is at most 1/P(χ²₁ > 2h)
-    bound = 1.0 / float(scipy.stats.chi2.sf(2.0 * h, 1))
-    return min(math.sqrt(2.0 * math.pi) * math.exp(0.5 * c * c) / (c * integral), bound) if integral > 0 else bound
+    return m, float(np.sum(0.5 * (hi - lo) * ws * xs * np.array([_overshoot(x) ** 2 for x in xs])))
 
 
 def glr_threshold(arl0: float, window: int) -> float:
     """The GLR threshold ``h`` with :func:`glr_arl` ``(h, window) = arl0`` samples."""
-    target = _positive(arl0, "arl0")
+    target = check_arl_samples(_positive(arl0, "arl0"), f"arl0 = {shown(arl0)}")
     lo, hi = 1e-3, 1.0
-    while math.log(glr_arl(hi, window)) < math.log(target):
+    while glr_log_arl(hi, window) < math.log(target):
         lo, hi = hi, 2.0 * hi
         if hi > 1e4:
             raise SolverError(f"no GLR threshold reaches ARL₀ = {target:g} samples for window {window}")
-    if math.log(glr_arl(lo, window)) > math.log(target):
+    if glr_log_arl(lo, window) > math.log(target):
         return lo
-    return float(scipy.optimize.brentq(lambda h: math.log(glr_arl(h, window)) - math.log(target), lo, hi, xtol=1e-10, rtol=1e-12))
+    return float(scipy.optimize.brentq(lambda h: glr_log_arl(h, window) - math.log(target), lo, hi, xtol=1e-10, rtol=1e-12))
 
 
 def lorden_delay(arl0: float, information: float) -> float:
@@ -202,24 +374,31 @@ def split_budget(arl0_samples: float, parts: int) -> float:
 
 
 def _union_threshold(
-    arl_samples: float, arl_of: Callable[[float], float], what: str, approx: Callable[[float], float] | None = None
+    arl_samples: float, log_arl_of: Callable[[float], float], what: str, approx: Callable[[float], float] | None = None
 ) -> float:
-    """``h`` with ``Σ_i 1/ARL_i(h) = 1/arl_samples`` (``arl_of(h)`` returns ``1/Σ_i 1/ARL_i(h)``); ``approx``, a
-    cheap approximation of ``arl_of``, brackets the root first."""
-    target = math.log(_positive(arl_samples, "arl0"))
+    """``h`` with ``Σ_i 1/ARL_i(h) = 1/arl_samples`` (``log_arl_of(h)`` returns ``−ln Σ_i 1/ARL_i(h)``); ``approx``,
+    a cheap approximation of ``log_arl_of``, brackets the root first."""
+    target = math.log(check_arl_samples(_positive(arl_samples, "arl0"), f"a {what} statistic's run length"))
     if approx is not None:
         guess = _union_threshold(arl_samples, approx, what)
         lo, hi = 0.8 * guess, 1.25 * guess
-        if math.log(arl_of(lo)) < target < math.log(arl_of(hi)):
-            return float(scipy.optimize.brentq(lambda h: math.log(arl_of(h)) - target, lo, hi, xtol=1e-10, rtol=1e-12))
+        if log_arl_of(lo) < target < log_arl_of(hi):
+            return float(scipy.optimize.brentq(lambda h: log_arl_of(h) - target, lo, hi, xtol=1e-10, rtol=1e-12))
     lo, hi = 1e-3, 1.0
-    while math.log(arl_of(hi)) < target:
+    while log_arl_of(hi) < target:
         lo, hi = hi, 2.0 * hi
         if hi > 1e4:
             raise SolverError(f"no {what} threshold reaches a mean run length of {arl_samples:g} samples")
-    if math.log(arl_of(lo)) >= target:
+    if log_arl_of(lo) >= target:
         return lo
-    return float(scipy.optimize.brentq(lambda h: math.log(arl_of(h)) - target, lo, hi, xtol=1e-10, rtol=1e-12))
+    return float(scipy.optimize.brentq(lambda h: log_arl_of(h) - target, lo, hi, xtol=1e-10, rtol=1e-12))
+
+
+def _log_union(counts: Sequence[tuple[float, float]]) -> float:
+    """``−ln Σ_i c_i e^{−L_i}`` for pairs ``(c_i, L_i)``: the log run length of a union of statistics from theirs."""
+    terms = [math.log(c) - log_arl for c, log_arl in counts]
+    top = max(terms)
+    return -(top + math.log(sum(math.exp(t - top) for t in terms)))
 
 
 ALIKE_COSINE = 0.99
@@ -279,13 +458,21 @@ def cusum_evaluator(
     for i in drift:
         counts[i] = counts.get(i, 0) + 2  # both signs
 
-    def arl(h: float) -> float:
-        return 1.0 / sum(c / cusum_arl(h, i) for i, c in counts.items())
+    trusted = _trusted(float(arl_samples))
+
+    def log_arl(h: float) -> float:
+        runs = [(c, _cusum_run_length(h, i, 0.0, _NODES, trusted)) for i, c in counts.items()]
+        if not any(log_scale for _, (log_scale, _) in runs):
+            return math.log(1.0 / sum(c / value for c, (_, value) in runs))
+        return _log_union([(c, value if log_scale else math.log(value)) for c, (log_scale, value) in runs])
 
     def siegmund(h: float) -> float:
-        return 1.0 / sum(c / cusum_arl_siegmund(h, i) for i, c in counts.items())
+        values = [(c, cusum_arl_siegmund(h, i)) for i, c in counts.items()]
+        if all(math.isfinite(v) for _, v in values):
+            return math.log(1.0 / sum(c / v for c, v in values))
+        return _log_union([(c, _siegmund_log_arl(h, i)) for i, c in counts.items()])
 
-    h = _union_threshold(arl_samples, arl, "CUSUM", siegmund)
+    h = _union_threshold(arl_samples, log_arl, "CUSUM", siegmund)
     return replace(
         base,
         kind="cusum",
@@ -321,7 +508,13 @@ def glr_evaluator(
     if not rows:
         raise ExistenceError(f"generator {generator} has no fault signature to run a GLR on")
     count = len(rows)
-    h = _union_threshold(arl_samples, lambda h: glr_arl(h, m) / count, "GLR")
+
+    def log_arl(h: float) -> float:
+        if h <= _LOG_MAX - 10.0:
+            return math.log(glr_arl(h, m) / count)
+        return glr_log_arl(h, m) - math.log(count)
+
+    h = _union_threshold(arl_samples, log_arl, "GLR")
     return replace(
         base,
         kind="glr",

@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 from fdisyn.codegen.step import linear_step_function
 from fdisyn.evaluators.chi2 import chi2_evaluator
-from fdisyn.evaluators.sequential import cusum_evaluator, glr_evaluator, lorden_delay, split_budget
+from fdisyn.evaluators.sequential import MAX_ARL_SAMPLES, cusum_evaluator, glr_evaluator, lorden_delay, split_budget
 from fdisyn.evaluators.wssr import wssr_evaluator
 from fdisyn.models.linear import LinearPlant
 from fdisyn.numerics.certificate import Certificate, Check
@@ -176,6 +176,7 @@ def linear_diagnoser(
             "itself; use persistence 1 (set the false-alarm budget with arl0)"
         )
     gens = list(generators)
+    check_budget(evaluator, P_f, arl0, float(plant.Ts or 1.0), len(gens), "")
     arl_stat = split_budget(arl0 / float(plant.Ts or 1.0), len(gens)) if arl0 is not None else 1.0 / float(P_f)
     sequential_info: dict[str, Any] = {}
     if evaluator in SEQUENTIAL_KINDS:
@@ -711,6 +712,53 @@ def chosen_detector(detector: str | None, evaluator: str, where: str, default: s
     return detector if detector is not None else evaluator
 
 
+def check_budget(kind: str, P_f: float, arl0: float | None, Ts: float, statistics: int, where: str) -> None:
+    """Refuse a false-alarm budget whose thresholds cannot be computed, naming the option as the user wrote it.
+
+    Each statistic's share is ``statistics · arl0 / Ts`` samples (:func:`~fdisyn.evaluators.sequential.split_budget`),
+    or ``1/P_f``; a share beyond :data:`~fdisyn.evaluators.sequential.MAX_ARL_SAMPLES` (a false-alarm rate of
+    1e-300 per sample), or of at most one sample with ``arl0``, is refused with the largest (smallest) ``arl0`` or
+    the smallest ``P_f`` that works.
+
+    Parameters
+    ----------
+    kind : str
+        The detector (``'chi2'``, ``'wssr'``, ``'cusum'`` or ``'glr'``).
+    P_f : float
+        The false-alarm probability per statistic and sample (read when ``arl0`` is None).
+    arl0 : float or None
+        The diagnoser's mean time between false alarms (s).
+    Ts : float
+        The diagnoser's sample time (s).
+    statistics : int
+        The statistics that share the budget (one per generator).
+    where : str
+        Prefixes the message (see :func:`fdisyn.synthesis.registry.at`; empty: ``option arl0``).
+
+    Raises
+    ------
+    ArgumentError
+        The budget is outside the domain the thresholds are computed on.
+    """
+    label = (lambda key: at(where, key)) if where else (lambda key: f"option {key}")
+    most = MAX_ARL_SAMPLES
+    if arl0 is not None:
+        share = statistics * (float(arl0) / Ts)  # inf when it overflows: refused below, the value shown as given
+        if not 1.0 < share <= most:
+            low = share <= 1.0
+            raise ArgumentError(
+                f"{label('arl0')} = {shown(arl0)} s gives each of the {statistics} statistics a mean run length of "
+                f"{'more than ' + format(most, 'g') if share > most else format(share, '.3g')} samples at Ts = {Ts:g} s; expected "
+                + (f"arl0 > {Ts / statistics:.6g} s (one sample per statistic)" if low else
+                   f"arl0 ≤ {most * Ts / statistics:.6g} s (thresholds are computed up to {most:g} samples per statistic)")
+            )
+    elif kind in SEQUENTIAL_KINDS and not float(P_f) * most >= 1.0:
+        raise ArgumentError(
+            f"{label('P_f')} = {shown(P_f)} with detector {kind!r} is a mean run length of more than {most:g} samples; "
+            f"expected P_f ≥ {1.0 / most:g} (the thresholds are computed up to {most:g} samples)"
+        )
+
+
 def check_min_fault(kind: str, min_fault: object, where: str) -> None:
     """Refuse ``min_fault`` for a detector that does not read it.
 
@@ -774,6 +822,10 @@ def linear_method(
         check_min_fault(kind, opts.get("min_fault"), where)
         if not sampled_data:
             _check_ts(plant, opts, where)
+        ts = opts.get("Ts") if not (isinstance(plant, LinearPlant) and plant.is_discrete) else plant.Ts
+        if ts is not None:
+            bank = opts.get("bank")
+            check_budget(kind, opts.get("P_f", P_F.default), opts.get("arl0"), float(ts), len(bank) if bank else 1, where)
         if check is not None:
             check(plant, opts, where)
 

@@ -418,7 +418,7 @@ ARL0 = Option(
     "arl0",
     None,
     "the diagnoser's mean time between false alarms (s): sets every threshold from its statistic's law, in place of P_f",
-    "a positive number of seconds",
+    "a positive number of seconds (each statistic's share at most 1e300 samples: the thresholds' working domain)",
     lambda v: is_real(v) and v > 0,
 )
 WINDOW = Option("window", 10, "WSSR window N in samples (Zhou, Xi & Zhang c. 1991, eq. (2.4))", "a whole number of samples ≥ 1", is_count)

@@ -18,6 +18,7 @@ Steps (each documented where it is computed):
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -35,15 +36,21 @@ from fdisyn.numerics.robust_cones import (
     subspace_angle,
 )
 from fdisyn.runtime.errors import ArgumentError, ExistenceError
-from fdisyn.runtime.gainfile import GainFile
+from fdisyn.runtime.gainfile import LIMITS, MAX_MAGNITUDE, GainFile
+from fdisyn.runtime.names import shown
 from fdisyn.synthesis.beard_fdf.eigenstructure import optimise_eigenstructure, residual_covariance_trace
-from fdisyn.synthesis.beard_fdf.payload import BeardFilter, beard_gain_file
+from fdisyn.synthesis.beard_fdf.payload import NSTATE_MARGIN, BeardFilter, beard_gain_file
 from fdisyn.synthesis.beard_fdf.reference import beard_reference_run
 from fdisyn.synthesis.registry import at
 
 __all__ = ["design_beard_fdf", "fault_directions", "cone_geometry"]
 
 _INVARIANCE_TOL = 1e-9
+_DRAW_ENTRIES = 2**24
+"""Most numbers the drawn model errors may hold at once (``draws × n²``, 128 MiB)."""
+_DECAY_MIN = 1e-6
+"""Smallest ``decay_rate·Ts``: the certificate checks the spectral radius against ``e^(−decay_rate·Ts) + 1e-7``,
+and the gain file needs it below 1."""
 _DIRECTION_TOL = 1e-8
 
 
@@ -90,6 +97,21 @@ def cone_geometry(axes: Sequence[np.ndarray], Y: np.ndarray) -> dict[str, Any]:
         "rho_disjoint_max": (float(np.max(rho_min[off])) if np.all(np.isfinite(rho_min[off])) else None) if k > 1 else 1.0,
         "overlapping_pairs": overlapping,
     }
+
+
+def _check_sizes(pd: LinearPlant, window: int, where: str) -> None:
+    """The window the diagnoser state can hold, refused before anything is allocated for it.
+
+    The state holds ``window·p + n + 5`` entries and a gain file at most ``LIMITS["nstate"]`` with a margin of
+    :data:`~fdisyn.synthesis.beard_fdf.payload.NSTATE_MARGIN` (:func:`~fdisyn.synthesis.beard_fdf.payload.beard_from_gain_file`).
+    """
+    n, p = int(pd.A.shape[0]), int(pd.C.shape[0])
+    most = (LIMITS["nstate"] - NSTATE_MARGIN - n) // max(p, 1)
+    if window > most:
+        raise ArgumentError(
+            f"{at(where, 'window')} = {window}: the diagnoser state holds window × outputs + states + 5 entries, at most "
+            f"{LIMITS['nstate'] - NSTATE_MARGIN + 5}; expected window ≤ {max(most, 0)} for {p} outputs and {n} states"
+        )
 
 
 def _levels_from_records(flt: BeardFilter, records: Sequence[tuple[np.ndarray, np.ndarray]], P_f: float, where: str) -> tuple[float, float]:
@@ -153,6 +175,12 @@ def design_beard_fdf(
             raise ArgumentError(f"{at(where, 'Ts')}: a continuous plant needs the sample time Ts of the filter")
         pd, ts_c = plant.discretise(Ts), float(Ts)
     ts = float(pd.Ts)  # type: ignore[arg-type]
+    _check_sizes(pd, int(window), where)
+    if decay_rate is not None and not float(decay_rate) * ts >= _DECAY_MIN:
+        raise ArgumentError(
+            f"{at(where, 'decay_rate')} = {shown(decay_rate)}: the decay bound e^(−decay_rate·Ts) is 1 to within {_DECAY_MIN:g}, "
+            f"no stable filter is told apart from it; expected decay_rate ≥ {_DECAY_MIN / ts:.3g} 1/s at Ts = {ts:g} s"
+        )
     groups, fault_names = fault_directions(pd, sensor_faults)
     ad, c = np.asarray(pd.A), np.asarray(pd.C)
     numbered = ", ".join(f"{i + 1} = {n!r}" for i, n in enumerate(fault_names))
@@ -212,9 +240,20 @@ def design_beard_fdf(
     g = ad - gain @ c
 
     # the implicit thresholds and their sampled check
-    sigma_d = sampled_model_error(plant.A, ts_c, float(sigma))
+    with np.errstate(over="ignore", invalid="ignore"):
+        sigma_d = sampled_model_error(plant.A, ts_c, float(sigma))
+    if not (math.isfinite(sigma_d) and sigma_d <= MAX_MAGNITUDE):
+        raise ArgumentError(
+            f"{at(where, 'sigma')} = {shown(sigma)}: the bound it gives on the sampled model error overflows "
+            f"(it grows as e^(sigma·Ts)); expected a model error well below {min(MAX_MAGNITUDE, 700.0 / (ts_c or 1.0)):.3g}"
+        )
     bound = implicit_thresholds(g, c, spaces, sigma_d)
     y_th = bound.Y
+    if sigma > 0 and draws * ad.shape[0] ** 2 > _DRAW_ENTRIES:
+        raise ArgumentError(
+            f"{at(where, 'draws')} = {draws}: the model errors drawn hold draws × states² = {draws * ad.shape[0] ** 2} numbers; "
+            f"expected draws ≤ {_DRAW_ENTRIES // ad.shape[0] ** 2} for {ad.shape[0]} states"
+        )
     if sigma > 0 and draws > 0:
         ang = sampled_angles(plant.A, ts_c, gain, c, spaces, bound, float(sigma), draws=draws, seed=0)
         worst_angle = ang.max(axis=0)

@@ -6,11 +6,24 @@ from dataclasses import replace
 from typing import Any
 
 from fdisyn.runtime.errors import ArgumentError
+from fdisyn.runtime.gainfile import LIMITS, MAX_MAGNITUDE
 from fdisyn.runtime.names import shown
 from fdisyn.synthesis.linear_diagnoser import TS
-from fdisyn.synthesis.registry import P_F, PERSISTENCE, WINDOW, Option, at, is_real
+from fdisyn.synthesis.registry import P_F, PERSISTENCE, WINDOW, Option, at, is_count, is_real
 
-__all__ = ["BEARD_OPTIONS"]
+__all__ = ["BEARD_OPTIONS", "MAX_DRAWS", "MAX_NOISE_GAIN", "MAX_WINDOW"]
+
+MAX_WINDOW = LIMITS["nstate"] - 9
+"""Largest window whatever the plant: the state holds ``N·p + n + 5`` entries and the gain file allows
+``N·p + n + 8 ≤ LIMITS["nstate"]`` (one state, one output); the design checks ``⌊(nstate − 8 − n)/p⌋`` for its plant."""
+
+MAX_NOISE_GAIN = 1e6
+"""Largest ``noise_gain``: the optimised filter's noise bound ``noise_gain² ×`` the plain one's residual variance
+enters the NLP as a constraint; beyond a millionfold it bounds nothing and only spoils the NLP's scaling."""
+
+MAX_DRAWS = 10_000
+"""Most random model errors drawn to check the implicit bound: each costs a matrix exponential and an
+eigendecomposition of the plant's ``A`` (tens of milliseconds for a few states), so 10 000 draws take minutes."""
 
 
 def _number(v: Any) -> bool:
@@ -36,6 +49,11 @@ def _positive_or_none(v: Any) -> bool:
     return is_real(v) and v > 0
 
 
+def _level(v: Any) -> bool:
+    """A positive number the gain file can hold (at most :data:`~fdisyn.runtime.gainfile.MAX_MAGNITUDE`)."""
+    return is_real(v) and 0 < v <= MAX_MAGNITUDE
+
+
 BEARD_OPTIONS: tuple[Option, ...] = (
     TS,
     Option("decay_rate", None, "every eigenvalue of A − L C inside |z| ≤ e^(−decay_rate·Ts) (1/s); needed unless eigenvalues are given",
@@ -52,23 +70,25 @@ BEARD_OPTIONS: tuple[Option, ...] = (
     Option("sigma", 0.0, "model-error bound ‖δA‖₂ ≤ sigma on the plant's A (the implicit thresholds)", "a number ≥ 0",
            lambda v: is_real(v) and v >= 0),
     Option("rho", None, "a fixed ratio ‖m‖/ε̄ at which the cones are taken (X_th = asin(1/rho)); default: monitored online",
-           "a number > 1", lambda v: is_real(v) and v > 1),
+           f"a number > 1, at most {MAX_MAGNITUDE:g}", lambda v: is_real(v) and 1 < v <= MAX_MAGNITUDE),
     Option("explicit_level", None, "ε̄: bound on the fault-free window-mean residual norm; default: its 1 − P_f quantile "
-           "from fault_free records or from the law under the design noise", "a positive number", _positive_or_none),
+           "from fault_free records or from the law under the design noise", f"a positive number, at most {MAX_MAGNITUDE:g}", _level),
     Option("h", None, "magnitude threshold on the window RMS of the residual; default: its 1 − P_f quantile (as explicit_level)",
-           "a positive number", _positive_or_none),
-    replace(WINDOW, default=20, doc="window N (samples) of the RMS and the mean of the residual"),
+           f"a positive number, at most {MAX_MAGNITUDE:g}", _level),
+    replace(WINDOW, default=20, doc="window N (samples) of the RMS and the mean of the residual",
+            kind=f"a whole number of samples in 1..{MAX_WINDOW} (at most (2040 − states) / outputs: the state limit)",
+            accepts=lambda v: is_count(v) and v <= MAX_WINDOW),
     replace(P_F, doc="false-alarm probability per sample of the magnitude test, and the quantile of the explicit level"),
     PERSISTENCE,
     Option("noise_gain", 2.0, "the optimised filter's residual RMS under the design noise at most noise_gain × the plain one's",
-           "a number ≥ 1", lambda v: is_real(v) and v >= 1),
+           f"a number in [1, {MAX_NOISE_GAIN:g}]", lambda v: is_real(v) and 1 <= v <= MAX_NOISE_GAIN),
     Option("separation", 0.02, "the optimised eigenvalues are real and at least this far apart (z-plane)", "a number in (0, 1)",
            lambda v: is_real(v) and 0 < v < 1),
     Option("sensor_faults", (), "outputs whose sensor faults the filter also isolates (each a plane of residual directions)",
            "a list of output names", lambda v: isinstance(v, (list, tuple)) and all(isinstance(s, str) for s in v),
            refine=_sensor_faults),
     Option("fault_free", None, "fault-free records [(U, Y), …] to estimate h and explicit_level from (Python API)",
-           "a list of (U, Y) array pairs", lambda v: isinstance(v, (list, tuple))),
-    Option("draws", 200, "random model errors drawn to check the implicit bound", "a whole number ≥ 0",
-           lambda v: isinstance(v, int) and not isinstance(v, bool) and v >= 0),
+           "a non-empty list of (U, Y) array pairs", lambda v: isinstance(v, (list, tuple)) and len(v) > 0),
+    Option("draws", 200, "random model errors drawn to check the implicit bound", f"a whole number in 0..{MAX_DRAWS}",
+           lambda v: isinstance(v, int) and not isinstance(v, bool) and 0 <= v <= MAX_DRAWS),
 )

@@ -28,7 +28,8 @@ from fdisyn.synthesis.nafdf.payload import (
     nafdf_lorden_bound,
     nafdf_lorden_window,
 )
-from fdisyn.synthesis.registry import ARL0, DETECTOR, P_F, WINDOW, Method, Option, at, register
+from fdisyn.synthesis.nafdf.settings import MAX_CLASSIFIER_WINDOW, MAX_COUNT, MAX_WINDOW, MIN_SHIFT_RANGE
+from fdisyn.synthesis.registry import ARL0, DETECTOR, P_F, WINDOW, Method, Option, at, is_count, is_real, register
 
 __all__ = ["NAFDF_OPTIONS", "NAFDF"]
 
@@ -66,7 +67,8 @@ def _per(name: str, doc: str, kind: str) -> Option:
 
 NAFDF_OPTIONS: tuple[Option, ...] = (
     replace(P_F, default=0.01, doc="false-alarm probability of the WSSR test per sample under H0 (threshold rule 'chi2'); for CUSUM and GLR 1/ARL₀ in samples"),
-    replace(WINDOW, doc="WSSR window N in samples (Zhou, Xi & Zhang c. 1991, eq. (2.4)), or the GLR's onset window (detector 'glr')"),
+    replace(WINDOW, doc="WSSR window N in samples (Zhou, Xi & Zhang c. 1991, eq. (2.4)), or the GLR's onset window (detector 'glr')",
+            kind=f"a whole number of samples in 1..{MAX_WINDOW}", accepts=lambda v: is_count(v) and v <= MAX_WINDOW),
     replace(
         DETECTOR,
         default="wssr",
@@ -78,7 +80,8 @@ NAFDF_OPTIONS: tuple[Option, ...] = (
     replace(ARL0, doc="the diagnoser's mean time between false alarms (s): the detector's rate 1/(arl0/Ts − 2·classifier_window) per sample, in place of P_f"),
     Option(
         "min_shift", 1.0, "the CUSUM's designed change: a mean shift of this many standard deviations in one normalised EKF innovation",
-        "a positive number", lambda v: isinstance(v, (int, float)) and not isinstance(v, bool) and 0 < v < float("inf"),
+        f"a number of standard deviations in [{MIN_SHIFT_RANGE[0]:g}, {MIN_SHIFT_RANGE[1]:g}]",
+        lambda v: is_real(v) and MIN_SHIFT_RANGE[0] <= v <= MIN_SHIFT_RANGE[1],
     ),
     Option("threshold_rule", "chi2", "the WSSR threshold: the chi2 quantile for P_f, or the paper's fixed beta0", "'chi2' or 'beta0'", lambda v: v in ("chi2", "beta0")),
     Option("beta0", None, "the paper's fixed WSSR threshold (threshold rule 'beta0')", "a positive finite number"),
@@ -91,11 +94,11 @@ NAFDF_OPTIONS: tuple[Option, ...] = (
     Option("forgetting_final", 0.99, "final forgetting factor λ∞ of the NF", "a number in (0, 1]"),
     _per("theta_lower", "lower bounds of the parameter box (projection of the NF step); default -inf", "one number per parameter"),
     _per("theta_upper", "upper bounds of the parameter box; default +inf", "one number per parameter"),
-    Option("nominal_samples", 200, "N1 of eq. (2.6): samples that learn the nominal spread of θ̂", "a whole number ≥ 1"),
-    Option("classifier_window", 50, "N2 of eq. (2.7), also the convergence window", "a whole number ≥ 1"),
+    Option("nominal_samples", 200, "N1 of eq. (2.6): samples that learn the nominal spread of θ̂", f"a whole number in 1..{MAX_COUNT}"),
+    Option("classifier_window", 50, "N2 of eq. (2.7), also the convergence window", f"a whole number in 1..{MAX_CLASSIFIER_WINDOW}"),
     Option("W1", 50.0, "Bayes-distance threshold of a fault class (eq. (2.7))", "a number with 0 ≤ W1 < W2"),
     Option("W2", 350.0, "Bayes-distance threshold of a certain fault class (eq. (2.7))", "a finite number > W1"),
-    Option("T1", 50, "samples the classifier waits after the NF converged", "a whole number ≥ 1"),
+    Option("T1", 50, "samples the classifier waits after the NF converged", f"a whole number in 1..{MAX_COUNT}"),
     _per(
         "isolable_jump",
         "smallest jump of θ_i to isolate: the NF converges only when W1·σ_i² ≤ isolable_jump_i² (σ_i from its own covariance); default 50 % of |θ0_i|",

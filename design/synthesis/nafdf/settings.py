@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 import numpy as np
+from fdisyn.evaluators.sequential import MAX_ARL_SAMPLES
 from fdisyn.models.nonlinear import NonlinearPlant
 from fdisyn.numerics.linalg import as_covariance, as_vector, frozen_array, real_array
 from fdisyn.runtime.errors import ArgumentError, ShapeError
@@ -16,7 +17,7 @@ from fdisyn.runtime.layout import StateLayout
 from fdisyn.runtime.names import shown
 from fdisyn.runtime.values import real_number
 
-__all__ = ['MAX_CLASSIFIER_WINDOW', 'MAX_COUNT', 'MAX_DIMENSION', 'MAX_STATE', 'MAX_STEP_INSTRUCTIONS', 'MAX_STEP_WORK', 'MAX_WINDOW', 'NafdfSettings']
+__all__ = ['MIN_SHIFT_RANGE', 'MAX_CLASSIFIER_WINDOW', 'MAX_COUNT', 'MAX_DIMENSION', 'MAX_STATE', 'MAX_STEP_INSTRUCTIONS', 'MAX_STEP_WORK', 'MAX_WINDOW', 'NafdfSettings']
 
 # Resource limits (module docstring).
 MAX_DIMENSION = 30
@@ -27,6 +28,11 @@ MAX_WINDOW = 1000
 """Largest WSSR window ``N``: the window costs ~16 operations per sample (shift, sum, threshold lookup)."""
 MAX_CLASSIFIER_WINDOW = 1000
 """Largest ``N2``: the classifier and convergence windows cost ~35 operations per sample and parameter."""
+MIN_SHIFT_RANGE = (1e-6, 1e6)
+"""The CUSUM's designed shift ``min_shift`` (standard deviations of a normalised innovation): its drift
+``½ min_shift²`` and increments ``min_shift·w`` (``w`` capped at 1e150) stay within a double, and a shift beyond
+a millionfold the noise is detected at its first sample by any threshold; below a millionth, the CUSUM would
+accumulate for longer than any run length the thresholds are computed for."""
 MAX_COUNT = 10**9
 """Largest ``N1`` and ``T1``: sample counters held in doubles (exact to 2⁵³)."""
 MAX_STATE = 4096
@@ -288,8 +294,11 @@ def _settings(plant: NonlinearPlant, **kw: Any) -> NafdfSettings:
     if rule == "beta0" and detector != "wssr":
         raise ArgumentError(f"threshold_rule 'beta0' is the paper's WSSR threshold; detector {detector!r} takes its threshold from P_f or arl0")
     min_shift = _number(kw.get("min_shift", 1.0), "min_shift")
-    if not (math.isfinite(min_shift) and min_shift > 0):
-        raise ArgumentError(f"min_shift must be a positive finite number of standard deviations; got {shown(kw.get('min_shift'))}")
+    if not (math.isfinite(min_shift) and MIN_SHIFT_RANGE[0] <= min_shift <= MIN_SHIFT_RANGE[1]):
+        raise ArgumentError(
+            f"min_shift must be a number of standard deviations in [{MIN_SHIFT_RANGE[0]:g}, {MIN_SHIFT_RANGE[1]:g}]; "
+            f"got {shown(kw.get('min_shift'))}"
+        )
     if detector != "cusum" and min_shift != 1.0:  # 1.0: the default, what a design without the option records
         raise ArgumentError(
             f"min_shift = {shown(kw.get('min_shift'))} is read only by the detector 'cusum' (its designed shift); the detector "
@@ -297,8 +306,15 @@ def _settings(plant: NonlinearPlant, **kw: Any) -> NafdfSettings:
         )
     arl0 = None if kw.get("arl0") is None else _number(kw["arl0"], "arl0")
     p_f = kw["false_alarm_probability"]
+    # the detector's statistics share its run length: 2p one-sided CUSUMs, p GLRs, one WSSR
+    shares = {"cusum": 2 * plant.p, "glr": plant.p}.get(detector, 1)
     if arl0 is not None:
-        p_f = _budget_rate(arl0, float(plant.Ts or 1.0), n2)
+        p_f = _budget_rate(arl0, float(plant.Ts or 1.0), n2, shares)
+    elif real_number(p_f) is not None and 0.0 < float(p_f) < 1.0 and not float(p_f) * MAX_ARL_SAMPLES >= shares:
+        raise ArgumentError(
+            f"false_alarm_probability (P_f) = {shown(p_f)} with detector {detector!r} gives its {shares} statistics a mean run "
+            f"length of more than {MAX_ARL_SAMPLES:g} samples each; expected P_f ≥ {shares / MAX_ARL_SAMPLES:g}"
+        )
     lo = np.full(l, -np.inf) if kw["theta_lower"] is None else _vec(kw["theta_lower"], "theta_lower", l)
     hi = np.full(l, np.inf) if kw["theta_upper"] is None else _vec(kw["theta_upper"], "theta_upper", l)
     if np.any(np.isnan(lo)) or np.any(np.isnan(hi)) or np.any(lo >= hi) or np.any(lo == np.inf) or np.any(hi == -np.inf):
@@ -345,16 +361,23 @@ def _settings(plant: NonlinearPlant, **kw: Any) -> NafdfSettings:
     return settings
 
 
-def _budget_rate(arl0: float, ts: float, n2: int) -> float:
+def _budget_rate(arl0: float, ts: float, n2: int, shares: int = 1) -> float:
     """The detector's false-alarm rate per sample for a diagnoser budget of ``arl0`` seconds: ``1/(arl0/Ts − 2 N2)``.
 
     A false alarm opens an episode that the dismissal closes no sooner than ``2 N2`` samples later (``N2`` until
     the test may start, ``N2`` passing windows), and the detector cannot alarm again inside it: the time between
-    false alarms is the detector's run length plus the episode.
+    false alarms is the detector's run length plus the episode. Its ``shares`` statistics each run ``shares``
+    times as long: at most :data:`~fdisyn.evaluators.sequential.MAX_ARL_SAMPLES` samples.
     """
     if not (math.isfinite(arl0) and arl0 > 0):
         raise ArgumentError(f"arl0 must be a positive finite number of seconds; got {shown(arl0)}")
     run = arl0 / ts - 2 * n2
+    if not run * shares <= MAX_ARL_SAMPLES:  # inf when arl0/Ts overflows: the value is shown as given
+        raise ArgumentError(
+            f"arl0 = {shown(arl0)} s gives each of the detector's {shares} statistics a mean run length of more than "
+            f"{MAX_ARL_SAMPLES:g} samples; expected arl0 ≤ {(MAX_ARL_SAMPLES / shares + 2 * n2) * ts:.6g} s "
+            "(the thresholds are computed up to that run length)"
+        )
     if run < 2.0:
         raise ArgumentError(
             f"arl0 = {arl0:g} s leaves no time between false alarms: an episode lasts at least 2·classifier_window = {2 * n2} "
