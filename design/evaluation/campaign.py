@@ -21,6 +21,7 @@ seed and the error (:class:`~fdisyn.runtime.errors.MonteCarloError`).
 from __future__ import annotations
 
 import importlib
+import logging
 import multiprocessing
 import os
 import pickle
@@ -428,8 +429,9 @@ def _context() -> Any:
 @contextmanager
 def _sigint_ignored() -> Iterator[None]:
     """SIGINT ignored meanwhile by this process and whatever it starts (only the main thread may change it;
-    elsewhere nothing changes). It is blocked too, so that a Ctrl-C that came meanwhile is kept pending and raised
-    after, not lost."""
+    elsewhere nothing changes). It is blocked in this thread, and in the threads started meanwhile, so that a Ctrl-C
+    that came meanwhile is kept pending and raised after (a thread that was already running may still take and
+    drop it)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -712,7 +714,11 @@ def dask_client(address: str | None, workers: int) -> Callable[[], Any]:
         except ImportError:
             raise MonteCarloError(_NO_DASK) from None
         if address is None:
-            return Client(LocalCluster(n_workers=workers, threads_per_worker=1, dashboard_address=None))
+            with _sigint_ignored():  # the cluster's processes ignore Ctrl-C: the command closes the cluster itself
+                # no log on the terminal: a failing chunk is reported by the campaign itself, and stopping the
+                # command cancels chunks and cuts heartbeats, which Dask would log as warnings and errors
+                return Client(LocalCluster(n_workers=workers, threads_per_worker=1, dashboard_address=None,
+                                           silence_logs=logging.CRITICAL))
         try:
             return Client(address, timeout=10)
         except (OSError, TimeoutError, ValueError) as exc:

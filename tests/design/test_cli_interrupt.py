@@ -79,29 +79,52 @@ def _alive(pid: int) -> bool:
     return stat[stat.rindex(")") + 2] != "Z"
 
 
+def _spawned(tree: dict[int, int]) -> list[int]:
+    """The processes of ``tree`` started by multiprocessing's spawn (a local Dask cluster's workers)."""
+    out = []
+    for pid in tree:
+        try:
+            if b"spawn_main" in Path(f"/proc/{pid}/cmdline").read_bytes():
+                out.append(pid)
+        except OSError:
+            continue
+    return out
+
+
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads the process tree from /proc (Linux)")
-@pytest.mark.skipif(local_cores() < 2, reason="needs two cores for a pool of two worker processes")
-def test_ctrl_c_during_a_pooled_monte_carlo_is_one_line_and_leaves_no_process(tmp_path: Path) -> None:
-    """``fdisyn evaluate`` of a long campaign over two worker processes, in its own process group: SIGINT to the
-    whole group (what a terminal's Ctrl-C does) once the workers run chunks ends it with status 130, exactly one
-    line on stderr, and no process of its tree left."""
+@pytest.mark.skipif(local_cores() < 2, reason="needs two cores for two worker processes")
+@pytest.mark.parametrize("scheduler", ["local", "dask"])
+def test_ctrl_c_during_a_monte_carlo_on_workers_is_one_line_and_leaves_no_process(tmp_path: Path, scheduler: str) -> None:
+    """``fdisyn evaluate`` of a long campaign over two worker processes (a pool, or a local Dask cluster), in its own
+    process group: SIGINT to the whole group (what a terminal's Ctrl-C does) once the workers run ends it with
+    status 130, exactly one line on stderr, and no process of its tree left."""
+    if scheduler == "dask":
+        pytest.importorskip("dask.distributed")
     spec = tmp_path / "dc_motor.toml"
     spec.write_text((EXAMPLES / "dc_motor.toml").read_text(encoding="utf-8"), encoding="utf-8")
     argv = [sys.executable, "-m", "fdisyn.app.cli", "--quiet", "evaluate", str(spec), "--runs", "1000000", "--workers", "2",
-            "--out", str(tmp_path / "m.json"), "--workdir", str(tmp_path / "wd")]
+            "--scheduler", scheduler, "--out", str(tmp_path / "m.json"), "--workdir", str(tmp_path / "wd")]
     proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True, cwd=tmp_path)
     seen: dict[int, int] = {}
+
+    def working(tree: dict[int, int]) -> bool:
+        if scheduler == "local":  # a worker: a process forked by the fork server
+            return bool(_workers(tree))
+        # the cluster is up before the design is built: its library means the runs are about to start
+        return bool(_spawned(tree)) and any((tmp_path / "wd").rglob("*.so"))
+
     try:
         deadline = time.monotonic() + 240  # design and compile on a loaded machine: bounded, not timed
         while time.monotonic() < deadline and proc.poll() is None:
             tree = _descendants(proc.pid)
             seen.update(tree)
-            if _workers(tree):
+            if working(tree):
                 break
             time.sleep(0.1)
         assert proc.poll() is None, proc.communicate()
-        assert _workers(seen), "no worker process started"
+        assert working(seen), "no worker process started"
         time.sleep(0.5)  # let the workers start on their chunks (what is tested holds whenever the signal comes)
+        seen.update(_descendants(proc.pid))
         os.killpg(proc.pid, signal.SIGINT)
         out, err = proc.communicate(timeout=120)
     finally:
