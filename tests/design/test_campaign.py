@@ -342,7 +342,11 @@ def _one_line(capsys: pytest.CaptureFixture[str], argv: list[str], *parts: str) 
     return lines[0]
 
 
-def test_the_monte_carlo_options_and_their_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_the_monte_carlo_options_and_their_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch) -> None:
+    import fdisyn.evaluation.campaign as campaign
+
+    cores = campaign.local_cores()
+    monkeypatch.setattr(campaign, "local_cores", lambda: max(2, cores))  # --workers 2 below is no more than the cores
     base = ["evaluate", "sampled_data_example", "--runs", "2", "--out", str(tmp_path / "m.json"), "--workdir", str(tmp_path / "b")]
     _one_line(capsys, [*base, "--workers", "0"], "fdisyn evaluate: error: argument --workers", "worker processes ≥ 1")
     _one_line(capsys, [*base, "--scheduler", "spark"], "argument --scheduler: invalid choice")
