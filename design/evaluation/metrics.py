@@ -413,9 +413,9 @@ def extra_values(plan: MetricsPlan, runs: Any, scenario: Any = None, gf: Any = N
 class MetricsAccumulator:
     """The metrics of one design in one scenario, merged chunk by chunk in run order (:meth:`add`, :meth:`result`).
 
-    It holds counts, the residual sums and, per run, the detection delay and the
-    extra figures' value: its size does not grow with the samples, and by a few
-    numbers per run with the runs. Sums of floating-point numbers are added run
+    It holds counts (the detection delays as a count per delay), the residual
+    sums and, per run, the extra figures' value (designs with extra figures
+    only): its size does not grow with the runs but by those values. Sums of floating-point numbers are added run
     by run in run order, so the result does not depend on how the runs were
     chunked or where they ran.
     """
@@ -428,7 +428,10 @@ class MetricsAccumulator:
         self.quiet_alarms = self.quiet_runs = self.episodes = 0
         self.exceed = np.zeros(nj, dtype=np.int64)
         self.detected = self.alarmed_fault = self.first_correct = self.mode_correct = self.mode_wrong = self.correct_isolated = 0
-        self.delays: list[int] = []
+        active = np.flatnonzero(plan.active)
+        self.delays = np.zeros(int(active[-1] - active[0] + 1) if active.size else 0, dtype=np.int64)
+        """How many runs first alarmed ``k`` samples after the fault's onset, for each ``k``: a size set by the
+        samples, not the runs."""
         self.sums: list[Any] | None = None
         self.nonfinite = 0
         self.histogram: list[np.ndarray] | None = None
@@ -446,7 +449,7 @@ class MetricsAccumulator:
         self.alarmed_fault += int(s.alarmed_fault.sum())
         idx = np.flatnonzero(p.active)
         if idx.size:
-            self.delays += [int(x) for x in idx[s.first_alarm[s.first_alarm >= 0]] - idx[0]]
+            self.delays += np.bincount(idx[s.first_alarm[s.first_alarm >= 0]] - idx[0], minlength=self.delays.size)
         if p.fault_index is not None:
             self.first_correct += int(np.sum(s.first_isolation == p.fault_index))
             self.mode_correct += int(np.sum(s.mode_isolation == p.fault_index))
@@ -490,11 +493,14 @@ class MetricsAccumulator:
         if n_active:
             md = 1.0 - self.detected / runs
             maf = 1.0 - self.alarmed_fault / (runs * n_active)
-            if self.delays:
-                delays = np.asarray(self.delays)
-                ds_mean = float(delays.mean())
-                ds_max = int(delays.max())
-                d_mean, d_med, d_max = ds_mean * Ts, float(np.median(delays)) * Ts, ds_max * Ts
+            count = int(self.delays.sum())
+            if count:  # what mean, median and max of the delays give, from their counts (sums of integers: exact)
+                ks = np.flatnonzero(self.delays)
+                ds_mean = float(np.float64(int(ks @ self.delays[ks])) / np.float64(count))
+                ds_max = int(ks[-1])
+                below = np.cumsum(self.delays)
+                lo, hi = (int(np.searchsorted(below, m, side="right")) for m in ((count - 1) // 2, count // 2))
+                d_mean, d_med, d_max = ds_mean * Ts, float((np.float64(lo) + np.float64(hi)) / 2) * Ts, ds_max * Ts
             if p.fault_index is not None:
                 first_acc = self.first_correct / runs
                 iso_acc = self.mode_correct / runs

@@ -402,3 +402,30 @@ def test_a_pool_has_no_more_processes_than_chunks(monkeypatch) -> None:
     assert len(list(run_tasks(plan, campaign=None, spec=spec, workers=18))) == 4  # type: ignore[arg-type]
     assert len(list(run_tasks(plan, campaign=None, spec=spec, workers=2))) == 4  # type: ignore[arg-type]
     assert sizes == [4, 2]
+
+
+def test_the_merged_metrics_hold_as_much_after_many_runs_as_after_few() -> None:
+    """The detection delays are kept as a count per delay: the accumulator of 10⁴ runs is the size of that of 10."""
+    import pickle
+
+    rng = np.random.default_rng(5)
+    R, N = 10, 60
+    active = np.zeros(N, dtype=bool)
+    active[20:50] = True
+    alarm = rng.random((R, N)) < 0.1
+    runs = DesignRuns(r=rng.normal(size=(R, N, 2)), J=rng.random((R, N, 1)), alarm=alarm,
+                      isolated=np.where(alarm, 0, -1).astype(np.int32), status=np.zeros((R, N), dtype=np.int8))
+    plan = MetricsPlan(active=active, quiet=~active, on=active, fault_index=0, thresholds=(0.5,))
+    summary = summarise_runs(plan, runs)
+    acc = MetricsAccumulator(plan, N)
+    acc.add(summary)
+    few = len(pickle.dumps(acc))
+    for _ in range(999):
+        acc.add(summary)
+    assert len(pickle.dumps(acc)) < few + 100 and acc.runs == 10_000  # counters a few bytes longer, nothing per run
+    got = acc.result(scenario="s", fault="f", P_f=[0.01], Ts=0.5)
+    stacked = DesignRuns(*(np.concatenate([getattr(runs, f.name)] * 1000) for f in dataclasses.fields(DesignRuns)))
+    want = scenario_metrics(scenario="s", fault="f", fault_index=0, active=active, alarm=stacked.alarm, isolated=stacked.isolated,
+                            J=stacked.J, thresholds=[0.5], P_f=[0.01], Ts=0.5, recovery=0, nonfinite=0)
+    for key in ("detection_delay_mean_samples", "detection_delay_median_s", "detection_delay_max_s", "detection_delay_mean_s"):
+        assert got.to_dict()[key] == want.to_dict()[key], key
