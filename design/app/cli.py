@@ -41,7 +41,8 @@ is a bug: an :class:`InternalError` or any other exception ends with status
 FDISYN_DEBUG=1 shows the traceback`` (with
 ``FDISYN_DEBUG=1`` in the environment the traceback is printed before it).
 Ctrl-C ends every command with status 130 and one line, ``fdisyn <command>:
-interrupted``, after the Monte Carlo's worker processes are ended.
+interrupted``, after the Monte Carlo's worker processes are ended; SIGTERM
+likewise with status 143 and ``fdisyn <command>: terminated``.
 """
 
 from __future__ import annotations
@@ -51,8 +52,10 @@ import errno
 import json
 import os
 import re
+import signal
 import sys
 import textwrap
+import threading
 import traceback
 import warnings
 from collections.abc import Iterator, Sequence
@@ -669,7 +672,7 @@ def _debug() -> bool:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run one command; return its exit status: 0, 2 after a one-line error on stderr, 3 after a bug, 130 after
-    Ctrl-C (one line, ``fdisyn <command>: interrupted``).
+    Ctrl-C (one line, ``fdisyn <command>: interrupted``), 143 after SIGTERM (``fdisyn <command>: terminated``).
 
     An :class:`FdisynError` is the user's to act on (status 2); an
     :class:`InternalError` or any other exception is a bug (status 3, one
@@ -686,7 +689,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     from fdisyn.evaluation.progress import set_quiet
 
     set_quiet(args.quiet)
-    with warnings.catch_warnings(record=True) as caught:
+    with warnings.catch_warnings(record=True) as caught, _terminate_as_exception():
         warnings.simplefilter("default")
         try:
             args.fn(args)
@@ -698,6 +701,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         except KeyboardInterrupt:  # Ctrl-C: the workers are ended where they were started, the outputs left as they were
             print(f"fdisyn {args.command}: interrupted", file=sys.stderr)
             return 130
+        except _Terminated:  # SIGTERM (kill, timeout, a batch system): the same, with the signal's status
+            print(f"fdisyn {args.command}: terminated", file=sys.stderr)
+            return 128 + signal.SIGTERM
         except ModuleNotFoundError as exc:
             package = missing_design_package(exc)
             if package is None:
@@ -713,6 +719,29 @@ def main(argv: Sequence[str] | None = None) -> int:
     for text in dict.fromkeys(f"{w.category.__name__}: {_one_line(w.message)}" for w in caught):
         print(f"fdisyn {args.command}: warning: {text}", file=sys.stderr)
     return 0
+
+
+class _Terminated(BaseException):
+    """SIGTERM arrived: raised where the command was, so that it stops as after Ctrl-C (its worker processes ended,
+    one line); a ``BaseException``, so that no ``except Exception`` takes it for an error."""
+
+
+def _raise_terminated(signum: int, frame: object) -> None:
+    raise _Terminated
+
+
+@contextmanager
+def _terminate_as_exception() -> Iterator[None]:
+    """SIGTERM raises :class:`_Terminated` meanwhile (in the main thread only; the previous handler restored after):
+    without it the process would die at once and leave its worker processes running."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, _raise_terminated)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def _internal_error(command: str, exc: BaseException, what: str) -> int:

@@ -1,5 +1,5 @@
 """Ctrl-C: every command ends with status 130 and one line, ``fdisyn <command>: interrupted``; during the Monte
-Carlo the worker processes are ended too, none printing a traceback and none left behind."""
+Carlo the worker processes are ended too, none printing a traceback and none left behind. SIGTERM likewise (143)."""
 
 from __future__ import annotations
 
@@ -93,11 +93,12 @@ def _spawned(tree: dict[int, int]) -> list[int]:
 
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads the process tree from /proc (Linux)")
 @pytest.mark.skipif(local_cores() < 2, reason="needs two cores for two worker processes")
-@pytest.mark.parametrize("scheduler", ["local", "dask"])
-def test_ctrl_c_during_a_monte_carlo_on_workers_is_one_line_and_leaves_no_process(tmp_path: Path, scheduler: str) -> None:
+@pytest.mark.parametrize(("scheduler", "how"), [("local", "ctrl-c"), ("dask", "ctrl-c"), ("local", "sigterm")])
+def test_ctrl_c_during_a_monte_carlo_on_workers_is_one_line_and_leaves_no_process(tmp_path: Path, scheduler: str, how: str) -> None:
     """``fdisyn evaluate`` of a long campaign over two worker processes (a pool, or a local Dask cluster), in its own
     process group: SIGINT to the whole group (what a terminal's Ctrl-C does) once the workers run ends it with
-    status 130, exactly one line on stderr, and no process of its tree left."""
+    status 130, exactly one line on stderr, and no process of its tree left; SIGTERM to the command alone (kill,
+    timeout) likewise with status 143."""
     if scheduler == "dask":
         pytest.importorskip("dask.distributed")
     spec = tmp_path / "dc_motor.toml"
@@ -125,14 +126,18 @@ def test_ctrl_c_during_a_monte_carlo_on_workers_is_one_line_and_leaves_no_proces
         assert working(seen), "no worker process started"
         time.sleep(0.5)  # let the workers start on their chunks (what is tested holds whenever the signal comes)
         seen.update(_descendants(proc.pid))
-        os.killpg(proc.pid, signal.SIGINT)
+        if how == "ctrl-c":
+            os.killpg(proc.pid, signal.SIGINT)
+        else:
+            os.kill(proc.pid, signal.SIGTERM)
         out, err = proc.communicate(timeout=120)
     finally:
         if proc.poll() is None:  # pragma: no cover - the test failed: leave nothing running
             os.killpg(proc.pid, signal.SIGKILL)
             proc.communicate()
-    assert proc.returncode == 130, err.decode()
-    assert err.decode() == "fdisyn evaluate: interrupted\n"
+    status, line = (130, "interrupted") if how == "ctrl-c" else (143, "terminated")
+    assert proc.returncode == status, err.decode()
+    assert err.decode() == f"fdisyn evaluate: {line}\n"
     assert out == b"" and not (tmp_path / "m.json").exists()
     deadline = time.monotonic() + 30  # the fork server leaves when the command has gone
     while time.monotonic() < deadline and any(_alive(pid) for pid in seen):
