@@ -472,8 +472,7 @@ def gos(
         },
         P_f=P_f,
         persistence=persistence,
-        evaluator="wssr",
-        detector=detector,
+        detector=detector,  # None: the bank's default, the paper's WSSR
         arl0=arl0,
         # the problem's window is the WSSR's: a sequential detector chooses its own (GLR) or has none (CUSUM)
         window=window if detector in (None, "wssr") else None,

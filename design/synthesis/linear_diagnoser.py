@@ -141,6 +141,7 @@ def linear_diagnoser(
     arl0: float | None = None,
     min_fault: Mapping[str, float] | None = None,
     options: Mapping[str, object] | None = None,
+    where: str = "",
 ) -> GainFile:
     """Build and check the gain file of a bank of linear residual generators.
 
@@ -156,7 +157,8 @@ def linear_diagnoser(
     between false alarms and sets every threshold in place of ``P_f``: each
     statistic gets an equal share (:func:`~fdisyn.evaluators.sequential.split_budget`),
     ``Ts / (n · arl0)`` per sample for χ² and WSSR. ``faults`` name the fault
-    classes to isolate; their signatures must be nonzero and distinct.
+    classes to isolate; their signatures must be nonzero and distinct. ``where`` prefixes the refusal of a
+    budget out of range (:func:`check_budget`: ``PATH [design].arl0``; empty: ``option arl0``).
     """
     if not plant.is_discrete:
         raise ArgumentError("linear_diagnoser needs the discrete plant the generators were designed on")
@@ -176,7 +178,7 @@ def linear_diagnoser(
             "itself; use persistence 1 (set the false-alarm budget with arl0)"
         )
     gens = list(generators)
-    check_budget(evaluator, P_f, arl0, float(plant.Ts or 1.0), len(gens), "")
+    check_budget(evaluator, P_f, arl0, float(plant.Ts or 1.0), len(gens), where)
     arl_stat = split_budget(arl0 / float(plant.Ts or 1.0), len(gens)) if arl0 is not None else 1.0 / float(P_f)
     sequential_info: dict[str, Any] = {}
     if evaluator in SEQUENTIAL_KINDS:
@@ -596,8 +598,8 @@ TS = Option(
 )
 EVALUATOR = Option(
     "evaluator",
-    "chi2",
-    "the statistic of each generator (the same option as detector, its earlier name)",
+    None,
+    "the statistic of each generator (the same option as detector, its earlier name; default 'chi2')",
     "'chi2', 'wssr', 'cusum' or 'glr'",
     lambda v: v in EVALUATOR_KINDS,
 )
@@ -655,7 +657,7 @@ def bank_diagnoser(
     P_f: float,
     persistence: int,
     bank: Mapping[str, Sequence[int]] | None,
-    evaluator: str = "chi2",
+    evaluator: str | None = None,
     window: int | None = None,
     detector: str | None = None,
     arl0: float | None = None,
@@ -701,15 +703,43 @@ def bank_diagnoser(
         arl0=arl0,
         min_fault=min_fault,
         options=record,
+        where=where,
     )
 
 
-def chosen_detector(detector: str | None, evaluator: str, where: str, default: str = "chi2") -> str:
-    """``detector``, or ``evaluator`` (its earlier name, ``default`` when not given) when it is not given; both
-    given and different is an error."""
-    if detector is not None and evaluator not in (default, detector):
-        raise ArgumentError(f"{at(where, 'detector')} = {detector!r} but evaluator = {evaluator!r}: they are the same option, give one")
-    return detector if detector is not None else evaluator
+def chosen_detector(detector: str | None, evaluator: str | None, where: str, default: str = "chi2") -> str:
+    """The statistic of a linear method's bank, from its two names.
+
+    ``detector`` and ``evaluator`` (its earlier name) are one option: ``None`` means not given, and neither given
+    is the method's ``default``. Both given and different is refused, whichever of them equals the default (a
+    default written out is no weaker a choice than another value).
+
+    Parameters
+    ----------
+    detector : str or None
+        The option ``detector`` as given.
+    evaluator : str or None
+        The option ``evaluator`` as given.
+    where : str
+        Prefixes the message (see :func:`fdisyn.synthesis.registry.at`).
+    default : str
+        The statistic when neither is given (``'chi2'``; ``'wssr'`` for ``kalman_uio_gos``).
+
+    Returns
+    -------
+    str
+        The chosen statistic.
+
+    Raises
+    ------
+    ArgumentError
+        ``detector`` and ``evaluator`` both given and different.
+    """
+    if detector is not None and evaluator is not None and detector != evaluator:
+        raise ArgumentError(
+            f"{at(where, 'detector')} = {shown(detector)} but evaluator = {shown(evaluator)}: they are the same option, give one"
+        )
+    return detector if detector is not None else evaluator if evaluator is not None else default
 
 
 def check_budget(kind: str, P_f: float, arl0: float | None, Ts: float, statistics: int, where: str) -> None:
@@ -808,7 +838,7 @@ def linear_method(
     """
 
     def checks(plant: Any, opts: Mapping[str, Any], where: str) -> None:
-        kind = chosen_detector(opts.get("detector"), opts.get("evaluator", "chi2"), where)
+        kind = chosen_detector(opts.get("detector"), opts.get("evaluator"), where)
         if kind in ("chi2", "cusum") and opts.get("window") not in (None, 1):
             raise ArgumentError(
                 f"{at(where, 'window')} = {shown(opts['window'])} needs detector = 'wssr' or 'glr' "

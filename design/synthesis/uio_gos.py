@@ -58,13 +58,14 @@ from fdisyn.synthesis.linear_diagnoser import (
     FaultClass,
     _sensor_indices,
     budget_seconds,
+    check_budget,
     check_min_fault,
     chosen_detector,
     default_fault_classes,
     linear_diagnoser,
     lorden_bound,
 )
-from fdisyn.synthesis.registry import Option, at
+from fdisyn.synthesis.registry import P_F, Option, at
 from fdisyn.synthesis.residual import internal_form
 from fdisyn.synthesis.uio import kalman_uio
 
@@ -414,10 +415,11 @@ def gos_diagnoser(
     arl0: float | None = None,
     min_fault: Mapping[str, float] | None = None,
     options: Mapping[str, object] | None = None,
+    where: str = "",
 ) -> GainFile:
     """The gain file of the generalised observer scheme: :func:`gos_bank` with the linear diagnoser's statistics.
 
-    Faults default to one class per diagnosed sensor, named after it.
+    Faults default to one class per diagnosed sensor, named after it; ``where`` prefixes a refused budget.
     """
     gens, sigmas, certs = gos_bank(plant, groups, sensors=sensors)
     if faults is None:
@@ -439,6 +441,7 @@ def gos_diagnoser(
         arl0=arl0,
         min_fault=min_fault,
         options=options,
+        where=where,
     )
 
 
@@ -488,14 +491,18 @@ def _training_option(value: Any, where: str, plant: LinearPlant | None) -> Any:
     return str(value)
 
 
-def _detector(detector: str | None, evaluator: str | None, where: str) -> str:
-    """The statistic: ``detector`` or its earlier name ``evaluator`` (default ``'wssr'``); both given and different
-    is refused, whichever of them equals the default."""
-    return chosen_detector(detector, evaluator or detector or "wssr", where, default="")
+DEFAULT_DETECTOR = "wssr"
+"""The bank's statistic when neither ``detector`` nor ``evaluator`` is given: the paper's WSSR."""
+
+
+def _statistics(plant: LinearPlant, groups: Sequence[Sequence[int]], sensors: Sequence[int] | None) -> int:
+    """The statistics of the bank :func:`gos_bank` builds: one per diagnosed sensor of each group."""
+    want = set(range(plant.p) if sensors is None else sensors)
+    return sum(1 for g in groups for s in g if s in want)
 
 
 def _check(plant: Any, opts: Mapping[str, Any], where: str) -> None:
-    kind = _detector(opts.get("detector"), opts["evaluator"], where)
+    kind = chosen_detector(opts.get("detector"), opts.get("evaluator"), where, default=DEFAULT_DETECTOR)
     if kind in ("chi2", "cusum") and opts["window"] not in (None, 1):
         raise ArgumentError(f"{at(where, 'window')} = {shown(opts['window'])} needs detector = 'wssr' or 'glr' (the {kind!r} statistic has no window)")
     check_min_fault(kind, opts.get("min_fault"), where)
@@ -513,6 +520,14 @@ def _check(plant: Any, opts: Mapping[str, Any], where: str) -> None:
             raise ArgumentError(f"{where}: the UIO bank needs the unknown-input matrix E: give [model].E, or the option training to estimate it")
     if opts["training"] is None and opts["virtual_outputs"] != "auto":
         raise ArgumentError(f"{at(where, 'virtual_outputs')} is read only with the option training (they observe d₁ while E is estimated)")
+    ts = plant.Ts if isinstance(plant, LinearPlant) and plant.is_discrete else opts.get("Ts")
+    if ts is not None:
+        # the bank's size is known here when the groups are given; with 'auto' only P_f is checked (gos_design
+        # checks arl0 once the groups are chosen, naming it the same way)
+        groups = opts.get("groups")
+        count = _statistics(plant, groups, opts.get("sensors")) if isinstance(plant, LinearPlant) and groups != "auto" else None
+        if count or opts.get("arl0") is None:
+            check_budget(kind, opts.get("P_f", P_F.default), opts.get("arl0"), float(ts), count or 1, where)
 
 
 def _training_data(training: Any, plant: LinearPlant, virtual: Sequence[int], Ts: float, where: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -626,7 +641,7 @@ def gos_design(
     on it). Without ``training`` the plant's own ``E`` is decoupled.
     """
     where = where or "method 'kalman_uio_gos'"
-    evaluator = _detector(detector, evaluator, where)
+    evaluator = chosen_detector(detector, evaluator, where, default=DEFAULT_DETECTOR)
     if window is None:
         window = {"wssr": 25, "glr": None}.get(evaluator, 1)
     want = tuple(range(plant.p)) if sensors is None else tuple(sensors)
@@ -644,6 +659,8 @@ def gos_design(
                 "(or leave them out with the option sensors)"
             )
     ts = plant.Ts if plant.is_discrete else Ts
+    if ts is not None:  # the budget against the bank's size, before E is estimated
+        check_budget(evaluator, P_f, arl0, float(ts), _statistics(plant, grouping, want), where)
     est, virt = None, None
     model = plant
     if training is not None:
@@ -704,6 +721,7 @@ def gos_design(
         arl0=arl0,
         min_fault=min_fault,
         options={**(record or {}), "chosen": info},
+        where=where,
     )
     return GosDesign(gain_file=gf, groups=grouping, virtual=virt, estimate=est, plant=discrete)
 
@@ -718,7 +736,7 @@ def _register() -> None:
         ARL0,
         PERSISTENCE,
         replace(DETECTOR, doc=DETECTOR.doc.replace("(default: evaluator's value)", "(default: evaluator's value, 'wssr')")),
-        replace(EVALUATOR, default=None, doc="the statistic of each generator (the same option as detector, its earlier name; default 'wssr')"),
+        replace(EVALUATOR, doc="the statistic of each generator (the same option as detector, its earlier name; default 'wssr')"),
         replace(LINEAR_WINDOW, default=None, doc="WSSR window N in samples, or the GLR's onset window (default 25 for 'wssr', chosen for 'glr')"),
         MIN_FAULT,
         FAULTS,

@@ -91,10 +91,11 @@ def test_detector_and_evaluator_that_disagree_are_refused(given: dict[str, str],
 @pytest.mark.parametrize(("given", "kind"), [({}, "wssr"), ({"evaluator": "chi2"}, "chi2"), ({"detector": "chi2"}, "chi2"),
                                              ({"detector": "wssr", "evaluator": "wssr"}, "wssr")])
 def test_one_name_or_two_that_agree_choose_the_detector(given: dict[str, str], kind: str) -> None:
-    from fdisyn.synthesis.uio_gos import _detector
+    from fdisyn.synthesis.linear_diagnoser import chosen_detector
+    from fdisyn.synthesis.uio_gos import DEFAULT_DETECTOR
 
     opts = check_options(get_method("kalman_uio_gos"), {"P_f": 1e-4, "Ts": TS, "training": "t.csv", **given}, plant=PLANT)
-    assert _detector(opts["detector"], opts["evaluator"], "") == kind
+    assert chosen_detector(opts["detector"], opts["evaluator"], "", default=DEFAULT_DETECTOR) == kind
 
 
 @pytest.mark.parametrize("detector", ["chi2", "wssr"])

@@ -1,0 +1,68 @@
+"""Option values that were accepted without a word, refused by an unrelated message, or refused with a raw
+exception: each now designs as documented or is refused in one line naming the key as the user wrote it."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import pytest
+from fdisyn.runtime.errors import ArgumentError
+from fdisyn.synthesis.registry import check_options, get_method
+
+from tests.design.test_cli_hostile import _fails_with
+from tests.design.test_option_domains import BASE
+from tests.design.test_uio_gos_plant_file import _plant_file
+
+LINEAR = ["kalman_uio", "kalman_uio_paper", "kalman_uio_gos", "uio_pole_placement", "lmi", "sampled_data_observer"]
+
+
+def _linear(method: str, **given: Any) -> dict[str, Any]:
+    make, base = BASE[method]
+    return check_options(get_method(method), {**base, **given}, plant=make())
+
+
+# --------------------------------------------------------------------------- detector and evaluator, one option
+
+
+@pytest.mark.parametrize("method", LINEAR)
+@pytest.mark.parametrize(("detector", "evaluator"), [("wssr", "chi2"), ("chi2", "wssr"), ("cusum", "chi2"), ("glr", "wssr")])
+def test_a_detector_and_an_evaluator_that_disagree_are_refused_by_every_linear_method(method: str, detector: str, evaluator: str) -> None:
+    with pytest.raises(ArgumentError, match=rf"option detector = '{detector}' but evaluator = '{evaluator}': they are the same option, give one"):
+        _linear(method, detector=detector, evaluator=evaluator)
+
+
+@pytest.mark.parametrize("method", LINEAR)
+def test_either_name_or_both_agreeing_choose_the_detector(method: str) -> None:
+    import fdisyn
+
+    make, base = BASE[method]
+    default = "wssr" if method == "kalman_uio_gos" else "chi2"
+    for given, kind in (({}, default), ({"evaluator": "wssr"}, "wssr"), ({"detector": "wssr"}, "wssr"),
+                        ({"detector": "chi2", "evaluator": "chi2"}, "chi2")):
+        _linear(method, **given)
+        if method == "kalman_uio":  # the bank's statistic itself (a cheap design)
+            gf = fdisyn.design(make(), method=method, **base, **given)
+            assert {e.kind for e in gf.evaluators} == {kind}, (given, kind)
+
+
+def test_a_plant_file_names_both_keys_of_a_disagreeing_pair(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    spec = _plant_file(tmp_path, 'detector = "wssr"\nevaluator = "chi2"', with_e=True)
+    _fails_with(capsys, ["design", spec, "--out", str(tmp_path / "o")], "[design].detector = 'wssr' but evaluator = 'chi2'")
+
+
+# --------------------------------------------------------------------------- kalman_uio_gos: its budget named as written
+
+
+@pytest.mark.parametrize(("design", "expected"), [
+    ("arl0 = 1e308", "[design].arl0 = 1e+308 s gives each of the 8 statistics a mean run length of more than 1e+300 samples"),
+    ("arl0 = 1e-3", "[design].arl0 = 0.001 s gives each of the 8 statistics a mean run length of 0.16 samples"),
+    ('arl0 = 1e308\ngroups = [["y1", "y2", "y3", "y4"], ["y5", "y2", "y3", "y4"]]',
+     "[design].arl0 = 1e+308 s gives each of the 8 statistics"),
+    ('detector = "cusum"\nP_f = 1e-310', "[design].P_f = 1e-310 with detector 'cusum'"),
+])
+def test_the_gos_budget_is_refused_naming_the_plant_file_key(tmp_path: Path, capsys: pytest.CaptureFixture[str], design: str, expected: str) -> None:
+    spec = _plant_file(tmp_path, design, with_e=True)
+    if "P_f = 1e-310" in design:  # the plant file's own P_f line replaced
+        Path(spec).write_text(Path(spec).read_text(encoding="utf-8").replace("P_f = 1e-4\n", ""), encoding="utf-8")
+    _fails_with(capsys, ["design", spec, "--out", str(tmp_path / "o")], expected)
