@@ -81,7 +81,11 @@ def _options(pairs: Sequence[str] | None) -> dict[str, Any]:
 
     Only the syntax is checked here; the problem validates each value against
     the option's type and domain (:meth:`~fdisyn.models.problem.Problem.check_options`).
+    An object or a list is data, read strictly (:func:`~fdisyn.runtime.gainfile.parse_json_data`):
+    a key repeated in one of its objects (JSON would keep the last) is refused naming the option.
     """
+    from fdisyn.runtime.gainfile import parse_json_data
+
     out: dict[str, Any] = {}
     for pair in pairs or []:
         k, eq, v = pair.partition("=")
@@ -94,6 +98,9 @@ def _options(pairs: Sequence[str] | None) -> dict[str, Any]:
             out[k] = json.loads(v)
         except (json.JSONDecodeError, RecursionError):  # RecursionError: JSON nested too deep to be an option value
             out[k] = v
+            continue
+        if isinstance(out[k], (dict, list)):
+            out[k] = parse_json_data(v, f"--option {k}", "an option value", error=ArgumentError)
     return out
 
 

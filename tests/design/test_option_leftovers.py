@@ -66,3 +66,29 @@ def test_the_gos_budget_is_refused_naming_the_plant_file_key(tmp_path: Path, cap
     if "P_f = 1e-310" in design:  # the plant file's own P_f line replaced
         Path(spec).write_text(Path(spec).read_text(encoding="utf-8").replace("P_f = 1e-4\n", ""), encoding="utf-8")
     _fails_with(capsys, ["design", spec, "--out", str(tmp_path / "o")], expected)
+
+
+# --------------------------------------------------------------------------- --option values read strictly
+
+
+@pytest.mark.parametrize(("value", "key"), [('{"a": 1, "a": 2}', "'a'"), ('[{"b": {"c": 1, "c": 1}}]', "'c'")])
+def test_an_option_value_with_a_repeated_key_is_refused(value: str, key: str) -> None:
+    from fdisyn.app.cli import _options
+
+    with pytest.raises(ArgumentError, match=rf"^--option bank: key {key} appears more than once"):
+        _options([f"bank={value}"])
+
+
+def test_option_values_are_read_as_before_otherwise() -> None:
+    import math
+
+    from fdisyn.app.cli import _options
+
+    got = _options(["a=1e-3", "b=[1, 2]", 'c={"x": 1, "y": [2]}', "d=paper", "e=NaN", 'f="x"'])
+    assert {k: v for k, v in got.items() if k != "e"} == {"a": 1e-3, "b": [1, 2], "c": {"x": 1, "y": [2]}, "d": "paper", "f": "x"}
+    assert math.isnan(got["e"])  # refused by the option's domain, as written (`option P_f = nan`)
+
+
+def test_a_repeated_key_in_an_option_is_one_line_and_status_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    _fails_with(capsys, ["design", "wind_turbine", "--out", str(tmp_path / "d"), "--option", 'P_f={"a": 1, "a": 2}'],
+                "--option P_f: key 'a' appears more than once")
