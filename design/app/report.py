@@ -38,7 +38,8 @@ import numpy as np
 from fdisyn.codegen.library import CFLAGS
 from fdisyn.evaluation.metrics import DEFINITIONS
 from fdisyn.models.problem import Problem
-from fdisyn.runtime.gainfile import write_gain_file
+from fdisyn.runtime.errors import FileError
+from fdisyn.runtime.gainfile import parse_json_data, write_gain_file
 from fdisyn.synthesis.registry import recovery_samples
 from matplotlib.figure import Figure
 
@@ -1260,7 +1261,7 @@ def write_report(problem: Problem, variants: Sequence[Any], directory: Path) -> 
 def _documents(reports: Path, names: Sequence[str] | None = None) -> list[dict[str, Any]]:
     """The ``metrics.json`` of every problem under ``reports`` (or of ``names``), by name."""
     paths = [reports / n / "metrics.json" for n in names] if names is not None else sorted(reports.glob("*/metrics.json"))
-    return [json.loads(p.read_text(encoding="utf-8")) for p in paths if p.is_file()]
+    return [parse_json_data(p.read_text(encoding="utf-8"), str(p), "a report's metrics", error=FileError) for p in paths if p.is_file()]
 
 
 def _verdict_line(doc: Mapping[str, Any]) -> str:

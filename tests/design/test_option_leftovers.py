@@ -92,3 +92,18 @@ def test_option_values_are_read_as_before_otherwise() -> None:
 def test_a_repeated_key_in_an_option_is_one_line_and_status_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     _fails_with(capsys, ["design", "wind_turbine", "--out", str(tmp_path / "d"), "--option", 'P_f={"a": 1, "a": 2}'],
                 "--option P_f: key 'a' appears more than once")
+
+
+def test_a_metrics_document_with_a_repeated_key_is_refused(tmp_path: Path) -> None:
+    from fdisyn.app.report import summary_table, write_index
+    from fdisyn.runtime.errors import FileError
+
+    (tmp_path / "p").mkdir()
+    doc = tmp_path / "p" / "metrics.json"
+    doc.write_text('{"problem": "p", "verdict": {"title": "t", "claims": 1, "reproduced": 0, "reproduced": 1}, "summary": []}\n',
+                   encoding="utf-8")
+    for read in (lambda: write_index(tmp_path), lambda: summary_table(tmp_path, ["p"])):
+        with pytest.raises(FileError, match=r"metrics\.json: key 'reproduced' appears more than once in verdict"):
+            read()
+    doc.write_text('{"problem": "p", "verdict": {"title": "t", "claims": 1, "reproduced": 1}, "summary": []}\n', encoding="utf-8")
+    assert "1 of 1 claims reproduced" in write_index(tmp_path).read_text(encoding="utf-8")
