@@ -153,6 +153,8 @@ def as_covariance(value: object, name: str, n: int, *, definite: bool = False) -
     asymmetry or a negative (``definite``: a non-positive) eigenvalue.
     """
     a = real_array(value, name)  # numbers only: "1e-2" or true are refused, not converted
+    if a.ndim <= 1 and not np.all(np.isfinite(a)):  # before the arithmetic: inf · I would put nan off the diagonal
+        raise ArgumentError(f"{name} must hold finite variances; got {shown(value)}")
     if a.ndim == 0:
         a = float(a) * np.eye(n)
     elif a.ndim == 1 and a.size == n:

@@ -107,3 +107,30 @@ def test_a_metrics_document_with_a_repeated_key_is_refused(tmp_path: Path) -> No
             read()
     doc.write_text('{"problem": "p", "verdict": {"title": "t", "claims": 1, "reproduced": 1}, "summary": []}\n', encoding="utf-8")
     assert "1 of 1 claims reproduced" in write_index(tmp_path).read_text(encoding="utf-8")
+
+
+# --------------------------------------------------------------------------- covariances: finiteness before arithmetic
+
+
+@pytest.mark.parametrize("value", [float("inf"), -float("inf"), float("nan"), [1.0, float("inf")]])
+def test_a_non_finite_covariance_is_refused_without_a_numpy_warning(value: object) -> None:
+    import warnings
+
+    from fdisyn.numerics.linalg import as_covariance
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a RuntimeWarning from inf · I would fail here
+        with pytest.raises(ArgumentError, match=r"^Q must hold finite variances; got "):
+            as_covariance(value, "Q", 2)
+
+
+def test_a_non_finite_noise_in_a_plant_is_one_line_without_a_warning() -> None:
+    import warnings
+
+    from fdisyn.models.nonlinear import NonlinearPlant
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(ArgumentError, match=r"Q must hold finite variances; got inf"):
+            NonlinearPlant.from_expressions(states=["x", "z"], inputs=[], outputs=["y"], parameters=["a"], nominal={"a": -0.5},
+                                            f={"x": "a*x", "z": "a*z"}, h={"y": "x"}, Q=float("inf"), R=[[0.01]])
