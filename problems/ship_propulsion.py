@@ -238,7 +238,7 @@ STANDARD_FAULTS: Sequence[tuple[str, Mapping[str, float]]] = (
 
 
 def design(
-    *, false_alarm_probability: float = 1e-4, window: int = 10, detector: str = "wssr", arl0: float | None = None, min_shift: float = 1.0
+    *, false_alarm_probability: float = 1e-4, window: int = 10, detector: str = "wssr", arl0: float | None = None, min_shift: float | None = None
 ) -> NafdfDesign:
     """The recommended NAFDF for this plant (every number below is a documented choice).
 

@@ -167,7 +167,7 @@ def input_signal(length: int) -> np.ndarray:
 
 
 def design(
-    *, false_alarm_probability: float = 1e-4, detector: str = "wssr", arl0: float | None = None, window: int = 50, min_shift: float = 1.0
+    *, false_alarm_probability: float = 1e-4, detector: str = "wssr", arl0: float | None = None, window: int = 50, min_shift: float | None = None
 ) -> NafdfDesign:
     """A NAFDF for the efficiency fault (every number is a documented choice).
 

@@ -134,3 +134,91 @@ def test_a_non_finite_noise_in_a_plant_is_one_line_without_a_warning() -> None:
         with pytest.raises(ArgumentError, match=r"Q must hold finite variances; got inf"):
             NonlinearPlant.from_expressions(states=["x", "z"], inputs=[], outputs=["y"], parameters=["a"], nominal={"a": -0.5},
                                             f={"x": "a*x", "z": "a*z"}, h={"y": "x"}, Q=float("inf"), R=[[0.01]])
+
+
+# --------------------------------------------------------------------------- NAFDF min_shift
+
+
+def _nafdf(**options: Any) -> Any:
+    import fdisyn
+
+    make, base = BASE["nafdf"]
+    return fdisyn.design(make(), method="nafdf", **{**base, **options})
+
+
+@pytest.mark.parametrize("detector", ["wssr", "glr"])
+@pytest.mark.parametrize("value", [1.0, 1, 2.0])
+def test_any_min_shift_with_a_detector_that_does_not_read_it_is_refused(detector: str, value: float) -> None:
+    with pytest.raises(ArgumentError, match=rf"min_shift = {value} is read only by the detector 'cusum' .*the detector here is '{detector}'"):
+        _nafdf(detector=detector, min_shift=value)
+
+
+def test_the_cusum_reads_min_shift_and_its_default_is_one() -> None:
+    default, given = _nafdf(detector="cusum"), _nafdf(detector="cusum", min_shift=1.0)
+    assert default.extensions["nafdf"]["settings"]["min_shift"] == given.extensions["nafdf"]["settings"]["min_shift"] == 1.0
+    assert default.extensions["nafdf"]["detector_thresholds"] == given.extensions["nafdf"]["detector_thresholds"]
+    assert _nafdf(detector="cusum", min_shift=2.0).extensions["nafdf"]["settings"]["min_shift"] == 2.0
+
+
+@pytest.mark.parametrize("detector", ["wssr", "glr"])
+def test_designs_without_the_cusum_record_the_default_shift_and_read_back(detector: str, tmp_path: Path) -> None:
+    from fdisyn.runtime.gainfile import read_gain_file, write_gain_file
+    from fdisyn.synthesis.nafdf.payload import nafdf_from_gain_file
+
+    gf = _nafdf(detector=detector)
+    assert gf.extensions["nafdf"]["settings"]["min_shift"] == 1.0  # the format every earlier gain file has
+    write_gain_file(gf, tmp_path / "gains.json")
+    assert nafdf_from_gain_file(read_gain_file(tmp_path / "gains.json")).settings.min_shift == 1.0
+
+
+def test_a_stored_shift_other_than_the_default_without_the_cusum_is_refused(tmp_path: Path) -> None:
+    import json
+
+    from fdisyn.runtime.errors import GainFileError
+    from fdisyn.runtime.gainfile import gain_file_from_dict, write_gain_file
+    from fdisyn.synthesis.nafdf.payload import nafdf_from_gain_file
+
+    write_gain_file(_nafdf(detector="wssr"), tmp_path / "gains.json")
+    doc = json.loads((tmp_path / "gains.json").read_text(encoding="utf-8"))
+    doc["extensions"]["nafdf"]["settings"]["min_shift"] = 2.0
+    with pytest.raises((GainFileError, ArgumentError), match="min_shift = 2.0 is read only by the detector 'cusum'"):
+        nafdf_from_gain_file(gain_file_from_dict(doc))
+
+
+def test_a_plant_file_min_shift_with_the_wssr_is_refused_even_at_the_default_value() -> None:
+    from tests.design.test_values_refused import _example, _refused
+
+    doc = _example("ship")
+    doc["design"].update({"min_shift": 1.0, "detector": "wssr"})
+    _refused(doc, "min_shift = 1.0 is read only by the detector 'cusum'", "the detector here is 'wssr'", design=True)
+
+
+@pytest.mark.parametrize(("options", "bound"), [
+    ({"min_shift": 5.2}, "expected min_shift < 5.151 for this budget"),
+    ({"min_shift": 1e6, "P_f": 1e-6}, "expected min_shift < 9.783 "),
+])
+def test_a_shift_that_one_sample_detects_within_the_budget_is_refused_naming_the_bound(options: dict[str, float], bound: str) -> None:
+    given = options.get("P_f", 0.01)
+    with pytest.raises(ArgumentError, match=rf"min_shift = {options['min_shift']!r} with P_f = {given!r}: the CUSUM's threshold would be 0"):
+        _nafdf(detector="cusum", **options)
+    with pytest.raises(ArgumentError, match=bound):
+        _nafdf(detector="cusum", **options)
+
+
+def test_the_largest_shift_shown_designs_and_the_bound_is_the_zero_threshold_law() -> None:
+    import math
+
+    from fdisyn.evaluators.sequential import cusum_arl, cusum_threshold
+    from fdisyn.synthesis.nafdf.settings import largest_min_shift
+
+    most = largest_min_shift(0.01, 2)
+    assert cusum_arl(0.0, 0.5 * most**2) == pytest.approx(2 / 0.01, rel=1e-9)  # h = 0 there: a run of 1/Q(δ/2)
+    assert cusum_threshold(2 / 0.01, 0.5 * 5.151**2) > 0.0
+    gf = _nafdf(detector="cusum", min_shift=5.151)
+    assert 0.0 < gf.extensions["nafdf"]["detector_thresholds"][0] < 1e-2
+    assert math.isclose(largest_min_shift(1e-300, 1), 74.1, rel_tol=1e-3)
+
+
+def test_an_arl0_budget_is_named_as_written() -> None:
+    with pytest.raises(ArgumentError, match=r"min_shift = 8.0 with arl0 = 1000.0 s: the CUSUM's threshold would be 0 .*expected min_shift < "):
+        _nafdf(detector="cusum", min_shift=8.0, arl0=1000.0)

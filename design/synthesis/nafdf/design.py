@@ -379,7 +379,7 @@ def nafdf(
     convergence_tolerance: object | None = None,
     u0: object | None = None,
     detector: Literal["wssr", "cusum", "glr"] = "wssr",
-    min_shift: float = 1.0,
+    min_shift: float | None = None,
     arl0: float | None = None,
     name: str = "nafdf",
 ) -> NafdfDesign:
@@ -401,7 +401,9 @@ def nafdf(
 
     ``detector`` is the fast detection's statistic on the EKF innovations: ``"wssr"`` (the paper's (2.4),
     ``window`` its length), ``"cusum"`` (Page's CUSUM on each normalised innovation and sign, tuned to a mean
-    shift of ``min_shift`` standard deviations) or ``"glr"`` (the windowed GLR of each normalised innovation
+    shift of ``min_shift`` standard deviations, default 1; given with another detector it is refused, and at or
+    beyond :func:`~fdisyn.synthesis.nafdf.settings.largest_min_shift` of the budget, where the threshold would be 0)
+    or ``"glr"`` (the windowed GLR of each normalised innovation
     over ``window`` onsets). ``arl0`` (seconds), when given, is the diagnoser's mean time between false alarms
     and sets the detector's false-alarm rate in place of ``false_alarm_probability``: ``1/(arl0/Ts − 2 N2)``
     per sample (a false alarm's episode lasts ``2 N2`` samples before its dismissal).

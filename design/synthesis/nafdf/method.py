@@ -79,8 +79,10 @@ NAFDF_OPTIONS: tuple[Option, ...] = (
     ),
     replace(ARL0, doc="the diagnoser's mean time between false alarms (s): the detector's rate 1/(arl0/Ts − 2·classifier_window) per sample, in place of P_f"),
     Option(
-        "min_shift", 1.0, "the CUSUM's designed change: a mean shift of this many standard deviations in one normalised EKF innovation",
-        f"a number of standard deviations in [{MIN_SHIFT_RANGE[0]:g}, {MIN_SHIFT_RANGE[1]:g}]",
+        "min_shift", None, "the CUSUM's designed change: a mean shift of this many standard deviations in one normalised EKF "
+        "innovation (detector 'cusum' only; default 1)",
+        f"a number of standard deviations in [{MIN_SHIFT_RANGE[0]:g}, {MIN_SHIFT_RANGE[1]:g}] and below 2·Q⁻¹(P_f/2p), where one "
+        "sample meets the budget (Q the normal tail, p the outputs: 5.15 at P_f = 0.01 and p = 1; 74.1 at most)",
         lambda v: is_real(v) and MIN_SHIFT_RANGE[0] <= v <= MIN_SHIFT_RANGE[1],
     ),
     Option("threshold_rule", "chi2", "the WSSR threshold: the chi2 quantile for P_f, or the paper's fixed beta0", "'chi2' or 'beta0'", lambda v: v in ("chi2", "beta0")),

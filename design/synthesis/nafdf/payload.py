@@ -22,7 +22,7 @@ from fdisyn.runtime.names import shown
 from fdisyn.runtime.values import real_number
 from fdisyn.synthesis.linear_diagnoser import provenance
 from fdisyn.synthesis.nafdf.design import NafdfDesign, _design, _init_state, _names_r_J, detector_thresholds
-from fdisyn.synthesis.nafdf.settings import _IDENT, _MAX_NAME, MAX_DIMENSION, NafdfSettings, _layout, _settings
+from fdisyn.synthesis.nafdf.settings import _IDENT, _MAX_NAME, DEFAULT_MIN_SHIFT, MAX_DIMENSION, NafdfSettings, _layout, _settings
 
 __all__ = ['PAYLOAD_FORMAT', 'PAYLOAD_VERSION', 'nafdf_budget_seconds', 'nafdf_from_gain_file', 'nafdf_lorden_bound', 'nafdf_lorden_window', 'nafdf_from_payload', 'nafdf_gain_file', 'nafdf_payload', 'step_from_payload']
 
@@ -300,7 +300,10 @@ def _read_payload(payload: object, where: str, *, gain_file: bool) -> _Payload:
     }
     if not v3:
         raw["detector"] = sf.string("detector")
+        # the CUSUM's shift; the other detectors record the default, which stands for "not given"
         raw["min_shift"] = sf.number("min_shift")
+        if raw["detector"] != "cusum" and raw["min_shift"] == DEFAULT_MIN_SHIFT:
+            raw["min_shift"] = None
         raw["arl0"] = sf.number("arl0", allow_none=True)
     settings: NafdfSettings = _wrap(f"{where}.settings", _settings, plant, **raw)
     if settings.arl0 is not None and not math.isclose(raw["false_alarm_probability"], settings.false_alarm_probability, rel_tol=_TABLE_RTOL):

@@ -17,7 +17,7 @@ from fdisyn.runtime.layout import StateLayout
 from fdisyn.runtime.names import shown
 from fdisyn.runtime.values import real_number
 
-__all__ = ['MIN_SHIFT_RANGE', 'MAX_CLASSIFIER_WINDOW', 'MAX_COUNT', 'MAX_DIMENSION', 'MAX_STATE', 'MAX_STEP_INSTRUCTIONS', 'MAX_STEP_WORK', 'MAX_WINDOW', 'NafdfSettings']
+__all__ = ['DEFAULT_MIN_SHIFT', 'MIN_SHIFT_RANGE', 'largest_min_shift', 'MAX_CLASSIFIER_WINDOW', 'MAX_COUNT', 'MAX_DIMENSION', 'MAX_STATE', 'MAX_STEP_INSTRUCTIONS', 'MAX_STEP_WORK', 'MAX_WINDOW', 'NafdfSettings']
 
 # Resource limits (module docstring).
 MAX_DIMENSION = 30
@@ -30,9 +30,11 @@ MAX_CLASSIFIER_WINDOW = 1000
 """Largest ``N2``: the classifier and convergence windows cost ~35 operations per sample and parameter."""
 MIN_SHIFT_RANGE = (1e-6, 1e6)
 """The CUSUM's designed shift ``min_shift`` (standard deviations of a normalised innovation): its drift
-``½ min_shift²`` and increments ``min_shift·w`` (``w`` capped at 1e150) stay within a double, and a shift beyond
-a millionfold the noise is detected at its first sample by any threshold; below a millionth, the CUSUM would
-accumulate for longer than any run length the thresholds are computed for."""
+``½ min_shift²`` and increments ``min_shift·w`` (``w`` capped at 1e150) stay within a double; below a millionth, the
+CUSUM would accumulate for longer than any run length the thresholds are computed for. The budget bounds it further
+(:func:`largest_min_shift`: below 74.1 for every budget the thresholds are computed for)."""
+DEFAULT_MIN_SHIFT = 1.0
+"""The CUSUM's designed shift when ``min_shift`` is not given (one standard deviation); what every design records."""
 MAX_COUNT = 10**9
 """Largest ``N1`` and ``T1``: sample counters held in doubles (exact to 2⁵³)."""
 MAX_STATE = 4096
@@ -100,8 +102,9 @@ class NafdfSettings:
     """Significance of the two tests of the convergence check: the drift of ``θ̂`` and the NF innovations."""
     detector: Literal["wssr", "cusum", "glr"] = "wssr"
     """The fast detection's statistic on the EKF innovations (module :mod:`fdisyn.synthesis.nafdf.design`)."""
-    min_shift: float = 1.0
-    """The CUSUM's designed change: a mean shift of this many standard deviations in one normalised innovation."""
+    min_shift: float = DEFAULT_MIN_SHIFT
+    """The CUSUM's designed change: a mean shift of this many standard deviations in one normalised innovation
+    (the default for the other detectors, which do not read it)."""
     arl0: float | None = None
     """The diagnoser's mean time between false alarms (seconds), when the thresholds were set from it."""
     u0: np.ndarray = field(default_factory=lambda: np.zeros(0))
@@ -293,16 +296,17 @@ def _settings(plant: NonlinearPlant, **kw: Any) -> NafdfSettings:
         raise ArgumentError(f"threshold_rule must be 'chi2' or 'beta0'; got {shown(rule)}")
     if rule == "beta0" and detector != "wssr":
         raise ArgumentError(f"threshold_rule 'beta0' is the paper's WSSR threshold; detector {detector!r} takes its threshold from P_f or arl0")
-    min_shift = _number(kw.get("min_shift", 1.0), "min_shift")
+    given_shift = kw.get("min_shift")  # None: not given (the CUSUM's default, DEFAULT_MIN_SHIFT)
+    if given_shift is not None and detector != "cusum":  # any value, the default's too: it would be ignored
+        raise ArgumentError(
+            f"min_shift = {shown(given_shift)} is read only by the detector 'cusum' (its designed shift); the detector "
+            f"here is {detector!r}: remove min_shift, or choose detector = 'cusum'"
+        )
+    min_shift = DEFAULT_MIN_SHIFT if given_shift is None else _number(given_shift, "min_shift")
     if not (math.isfinite(min_shift) and MIN_SHIFT_RANGE[0] <= min_shift <= MIN_SHIFT_RANGE[1]):
         raise ArgumentError(
             f"min_shift must be a number of standard deviations in [{MIN_SHIFT_RANGE[0]:g}, {MIN_SHIFT_RANGE[1]:g}]; "
-            f"got {shown(kw.get('min_shift'))}"
-        )
-    if detector != "cusum" and min_shift != 1.0:  # 1.0: the default, what a design without the option records
-        raise ArgumentError(
-            f"min_shift = {shown(kw.get('min_shift'))} is read only by the detector 'cusum' (its designed shift); the detector "
-            f"here is {detector!r}: remove min_shift, or choose detector = 'cusum'"
+            f"got {shown(given_shift)}"
         )
     arl0 = None if kw.get("arl0") is None else _number(kw["arl0"], "arl0")
     p_f = kw["false_alarm_probability"]
@@ -315,6 +319,9 @@ def _settings(plant: NonlinearPlant, **kw: Any) -> NafdfSettings:
             f"false_alarm_probability (P_f) = {shown(p_f)} with detector {detector!r} gives its {shares} statistics a mean run "
             f"length of more than {MAX_ARL_SAMPLES:g} samples each; expected P_f ≥ {shares / MAX_ARL_SAMPLES:g}"
         )
+    if detector == "cusum" and real_number(p_f) is not None and 0.0 < float(p_f) < 1.0:
+        _check_shift(min_shift, given_shift, float(p_f), 2 * plant.p, "P_f" if arl0 is None else "arl0",
+                     kw["false_alarm_probability"] if arl0 is None else kw["arl0"])
     lo = np.full(l, -np.inf) if kw["theta_lower"] is None else _vec(kw["theta_lower"], "theta_lower", l)
     hi = np.full(l, np.inf) if kw["theta_upper"] is None else _vec(kw["theta_upper"], "theta_upper", l)
     if np.any(np.isnan(lo)) or np.any(np.isnan(hi)) or np.any(lo >= hi) or np.any(lo == np.inf) or np.any(hi == -np.inf):
@@ -359,6 +366,47 @@ def _settings(plant: NonlinearPlant, **kw: Any) -> NafdfSettings:
             f"[{shown(lo.tolist())}, {shown(hi.tolist())}]"
         )
     return settings
+
+
+def largest_min_shift(rate: float, statistics: int) -> float:
+    """The supremum of the CUSUM shifts whose threshold is positive at a false-alarm ``rate`` per sample.
+
+    Page's CUSUM with increment ``δw − δ²/2`` and threshold ``h = 0`` alarms whenever ``w > δ/2``: its run length
+    is ``1/Q(δ/2)`` samples (``Q`` the standard normal tail; :func:`~fdisyn.evaluators.sequential.cusum_arl` at
+    ``h = 0``). When that already meets each statistic's share ``statistics/rate``, no positive threshold is
+    needed and the design has none (the certificate wants ``h > 0``): ``δ < 2 Q⁻¹(rate/statistics)``.
+
+    Parameters
+    ----------
+    rate : float
+        The detector's false-alarm rate per sample (``P_f``, or the one ``arl0`` gives), in (0, 1).
+    statistics : int
+        The one-sided CUSUMs sharing it (two per output).
+
+    Returns
+    -------
+    float
+        ``2 Q⁻¹(rate/statistics)`` (0 when the share is at least one half).
+    """
+    from scipy.stats import norm
+
+    return max(0.0, 2.0 * float(norm.isf(rate / statistics)))
+
+
+def _check_shift(min_shift: float, given: object, rate: float, statistics: int, key: str, budget: object) -> None:
+    """Refuse a CUSUM shift at or beyond :func:`largest_min_shift`, naming it and the budget as they were given."""
+    most = largest_min_shift(rate, statistics)
+    if min_shift < most:
+        return
+    head = (
+        f"min_shift = {'1 (its default)' if given is None else shown(given)} with {key} = {shown(budget)}{' s' if key == 'arl0' else ''}: the CUSUM's threshold "
+        f"would be 0 (one normalised innovation beyond min_shift/2 already meets the budget of its {statistics} one-sided statistics)"
+    )
+    if most <= MIN_SHIFT_RANGE[0]:
+        remedy = "a smaller P_f" if key == "P_f" else "a larger arl0"
+        raise ArgumentError(f"{head}; no min_shift ≥ {MIN_SHIFT_RANGE[0]:g} works at so high a false-alarm rate: give {remedy}")
+    step = 10.0 ** (math.floor(math.log10(most)) - 3)  # the bound shown rounded down to 4 digits: it works as written
+    raise ArgumentError(f"{head}; expected min_shift < {math.floor(most / step) * step:.4g} for this budget")
 
 
 def _budget_rate(arl0: float, ts: float, n2: int, shares: int = 1) -> float:
