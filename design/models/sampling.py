@@ -16,7 +16,7 @@ from fdisyn.runtime.errors import ArgumentError
 from fdisyn.runtime.names import shown
 from fdisyn.runtime.values import real_number
 
-__all__ = ["zoh", "van_loan", "check_sample_time", "EXP_LIMIT"]
+__all__ = ["zoh", "van_loan", "check_sample_time", "EXP_LIMIT", "RESOLUTION"]
 
 
 def check_sample_time(h: object, name: str = "Ts") -> float:
@@ -52,23 +52,55 @@ EXP_LIMIT = float(np.log(np.finfo(float).max))
 so ``max |Re λ(A)| · h`` must stay below it."""
 
 
+RESOLUTION = float(np.finfo(float).eps)
+"""≈ 2.2e-16, the double's resolution beside 1. When ``‖A‖₂ · h`` is below it, every entry of ``A h`` is lost
+beside the identity: ``e^{A h}`` is ``I`` to the last bit of its diagonal (every pole at 1) and the plant's
+dynamics are gone from the sampled model. Sampling needs ``‖A‖₂ · h ≥ RESOLUTION``."""
+
+
+def _works(a: np.ndarray, lam: np.ndarray, name: str, short: bool) -> str:
+    """The sample times that sample ``a`` (eigenvalues ``lam``), the violated bound first (``short``: the lower):
+    ``lo`` = :data:`RESOLUTION` / ‖A‖₂ (the identity, below) and ``hi`` = :data:`EXP_LIMIT` / max |Re λ| (overflow,
+    beyond)."""
+    size = float(np.linalg.norm(a, 2)) if a.size and np.all(np.isfinite(a)) else 0.0
+    rate = float(np.max(np.abs(lam.real), initial=0.0))
+    lo = f"{name} ≥ {RESOLUTION / size:.4g} s" if size > 0 else ""
+    hi = f"{name} < {EXP_LIMIT / rate:.4g} s" if rate > 0 else ""
+    first, then = (lo, hi) if short else (hi, lo)
+    if not first:
+        return f"expected a {'longer' if short else 'shorter'} {name}"
+    return f"expected {first}" + (f" (and {then.split(' ', 1)[1]})" if then else "")
+
+
 def _expm(big: np.ndarray, a: np.ndarray, h: float, name: str) -> np.ndarray:
-    """``expm(big · h)``, refused by name when it overflows.
+    """``expm(big · h)``, refused by name when it overflows or when ``h`` is too short to carry ``A``.
 
     ``big`` holds ``A`` (and, for Van Loan, ``−A``): a sample time so long that
     ``e^{|Re λ| h}`` exceeds the largest double gives infinities (and NumPy
-    warnings) instead of a model. The error names ``name`` and its bound
-    ``h ≤ EXP_LIMIT / max |Re λ(A)|``.
+    warnings) instead of a model; one so short that ``‖A‖₂·h`` is below
+    :data:`RESOLUTION` gives ``e^{A h} = I`` to rounding (the plant's dynamics are
+    lost). The error names ``name`` and the range of sample times that works.
     """
-    with np.errstate(over="ignore", invalid="ignore"):
-        e = sla.expm(big * h)
-    if not np.all(np.isfinite(e)):
-        rate = float(np.max(np.abs(np.linalg.eigvals(a).real), initial=0.0)) if np.all(np.isfinite(a)) else float("inf")
-        bound = EXP_LIMIT / rate if rate > 0 else float("inf")
+    shown_h = f"{h:g}"  # finite and positive: as written, never an overflow of it
+    finite = bool(a.size) and bool(np.all(np.isfinite(a)))
+    size = float(np.linalg.norm(a, 2)) if finite else 0.0
+    lam = np.linalg.eigvals(a) if finite else np.zeros(0, dtype=complex)
+    if size > 0 and size * h < RESOLUTION:
         raise ArgumentError(
-            f"{name} = {h:g} s is too long to sample this model: e^(±A·{name}) overflows (the fastest mode has "
-            f"|Re λ| = {rate:.4g} 1/s, and |Re λ|·{name} = {rate * h:.3g} > {EXP_LIMIT:.0f}); expected {name} < {bound:.4g} s"
+            f"{name} = {shown_h} s is too short to sample this model: e^(A·{name}) rounds to the identity (‖A‖ = "
+            f"{size:.4g} 1/s, and ‖A‖·{name} = {size * h:.3g} is below the double's resolution {RESOLUTION:.3g}: the "
+            f"sampled model loses the plant's dynamics); {_works(a, lam, name, True)}"
         )
+    with np.errstate(over="ignore", invalid="ignore"):
+        try:
+            e = sla.expm(big * h)
+        except (ValueError, np.linalg.LinAlgError):  # big · h already overflowed to inf
+            e = np.full(big.shape, np.inf)
+    if not np.all(np.isfinite(e)):
+        rate = float(np.max(np.abs(lam.real), initial=0.0))
+        why = (f"e^(±A·{name}) overflows (the fastest mode has |Re λ| = {rate:.4g} 1/s, and |Re λ|·{name} must stay below "
+               f"{EXP_LIMIT:.0f})" if rate > 0 else "the entries of the sampled matrices overflow")
+        raise ArgumentError(f"{name} = {shown_h} s is too long to sample this model: {why}; {_works(a, lam, name, False)}")
     return e
 
 

@@ -222,3 +222,40 @@ def test_the_largest_shift_shown_designs_and_the_bound_is_the_zero_threshold_law
 def test_an_arl0_budget_is_named_as_written() -> None:
     with pytest.raises(ArgumentError, match=r"min_shift = 8.0 with arl0 = 1000.0 s: the CUSUM's threshold would be 0 .*expected min_shift < "):
         _nafdf(detector="cusum", min_shift=8.0, arl0=1000.0)
+
+
+# --------------------------------------------------------------------------- sample times that lose the plant or overflow
+
+
+@pytest.mark.parametrize("method", ["lmi", "sampled_data_observer"])
+def test_a_huge_sample_time_shows_its_value_and_the_range_that_works(method: str) -> None:
+    import fdisyn
+
+    make, base = BASE[method]
+    with pytest.raises(ArgumentError) as info:
+        fdisyn.design(make(), method=method, **{**base, "Ts": 1e308})
+    line = str(info.value)
+    assert "Ts = 1e+308 s is too long to sample this model" in line and "inf" not in line, line
+    assert line.endswith("expected Ts < 354.9 s (and ≥ 4.063e-17 s)"), line
+
+
+@pytest.mark.parametrize("ts", [1e-300, 1e-17])
+def test_a_sample_time_that_loses_the_plant_is_refused_naming_ts(ts: float) -> None:
+    import fdisyn
+
+    make, base = BASE["beard_fdf"]
+    with pytest.raises(ArgumentError) as info:  # a decay rate that keeps the bound below 1: only Ts is wrong
+        fdisyn.design(make(), method="beard_fdf", **{**base, "Ts": ts, "decay_rate": 1e-6 / ts})
+    line = str(info.value)
+    assert f"Ts = {ts:g} s is too short to sample this model: e^(A·Ts) rounds to the identity" in line, line
+    assert "zero column" not in line and line.endswith("expected Ts ≥ 1.57e-16 s (and < 709.8 s)"), line
+
+
+def test_the_shortest_sample_time_shown_samples_the_plant() -> None:
+    make, _ = BASE["beard_fdf"]
+    plant = make()
+    import numpy as np
+
+    assert np.any(plant.discretise(1.58e-16).A != np.eye(3))  # the sampled model still moves
+    with pytest.raises(ArgumentError, match=r"^Ts = 1e-16 s is too short"):
+        plant.discretise(1e-16)
