@@ -259,3 +259,30 @@ def test_the_shortest_sample_time_shown_samples_the_plant() -> None:
     assert np.any(plant.discretise(1.58e-16).A != np.eye(3))  # the sampled model still moves
     with pytest.raises(ArgumentError, match=r"^Ts = 1e-16 s is too short"):
         plant.discretise(1e-16)
+
+
+# --------------------------------------------------------------------------- beard_fdf: a model error below round-off
+
+
+@pytest.mark.parametrize("sigma", [1e-300, 1e-30])
+def test_a_model_error_below_round_off_designs_like_none(sigma: float) -> None:
+    import fdisyn
+    import numpy as np
+
+    make, base = BASE["beard_fdf"]
+    none, tiny = (fdisyn.design(make(), method="beard_fdf", **{**base, "sigma": s}) for s in (0.0, sigma))
+    a, b = none.extensions["beard_fdf"], tiny.extensions["beard_fdf"]
+    np.testing.assert_array_equal(np.asarray(a["L"]), np.asarray(b["L"]))
+    assert a["h"] == b["h"] and a["explicit_level"] == b["explicit_level"]
+    y = np.asarray(b["Y_th"])  # a bound ∝ sigma where it is informative (π/2 where the eigen-directions are not Lipschitz)
+    assert np.all((y < 1e-12) | (y == np.pi / 2)) and np.any(y < 1e-12)
+    (ratio,) = [c["value"] for c in tiny.certificate["beard_fdf"]["checks"] if c["name"].startswith("largest sampled residual-direction angle")]
+    assert 0.0 <= ratio <= 1.0  # checked, and passed: round-off angles against the bound with round-off's model error
+
+
+def test_a_model_error_that_matters_is_still_checked_against_its_own_bound() -> None:
+    import fdisyn
+
+    make, base = BASE["beard_fdf"]
+    gf = fdisyn.design(make(), method="beard_fdf", **{**base, "sigma": 1e-4})
+    assert gf.certificate["passed"]

@@ -260,8 +260,17 @@ def design_beard_fdf(
     else:
         worst_angle = np.zeros(k)
     informative = y_th < HALF_PI
-    excess = max([float(worst_angle[j] / y_th[j]) for j in range(k) if informative[j] and y_th[j] > 0], default=0.0)
-    tightness = [float(worst_angle[j] / y_th[j]) if informative[j] and y_th[j] > 0 else None for j in range(k)]
+    # The sampled angles are computed (expm, the Sylvester solve of the continued subspace, eig), each backward
+    # stable: they are the exact angles of a model off by round-off, an error of about n·ε·‖G‖₂ on top of the
+    # model error drawn. So the angle they may show is the bound at σ_d plus that error, not at σ_d alone: else a
+    # tiny sigma compares round-off angles with a threshold ∝ sigma and fails by a nonsense ratio. For any sigma
+    # that matters the floor moves the bound by ~1e-15 relative; a sigma below round-off checks like sigma = 0.
+    y_check = y_th
+    if sigma > 0 and draws > 0 and np.any(informative):
+        rounding = ad.shape[0] * float(np.finfo(float).eps) * max(float(np.linalg.norm(g, 2)), float(np.linalg.norm(ad, 2)))
+        y_check = np.maximum(y_th, implicit_thresholds(g, c, spaces, sigma_d + rounding).Y)
+    excess = max([float(worst_angle[j] / y_check[j]) for j in range(k) if informative[j] and y_check[j] > 0], default=0.0)
+    tightness = [float(worst_angle[j] / y_check[j]) if informative[j] and y_check[j] > 0 else None for j in range(k)]
 
     # the explicit level and the magnitude threshold
     provisional = BeardFilter(
