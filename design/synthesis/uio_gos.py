@@ -524,8 +524,8 @@ def _check(plant: Any, opts: Mapping[str, Any], where: str) -> None:
     if ts is not None:
         # the bank's size is known here when the groups are given; with 'auto' only P_f is checked (gos_design
         # checks arl0 once the groups are chosen, naming it the same way)
-        groups = opts.get("groups")
-        count = _statistics(plant, groups, opts.get("sensors")) if isinstance(plant, LinearPlant) and groups != "auto" else None
+        groups = opts["groups"]
+        count = _statistics(plant, groups, opts["sensors"]) if isinstance(plant, LinearPlant) and groups != "auto" else None
         if count or opts.get("arl0") is None:
             check_budget(kind, opts.get("P_f", P_F.default), opts.get("arl0"), float(ts), count or 1, where)
 
