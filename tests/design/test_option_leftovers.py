@@ -264,13 +264,12 @@ def test_the_shortest_sample_time_shown_samples_the_plant() -> None:
 # --------------------------------------------------------------------------- beard_fdf: a model error below round-off
 
 
-@pytest.mark.parametrize("sigma", [1e-300, 1e-30])
-def test_a_model_error_below_round_off_designs_like_none(sigma: float) -> None:
+def test_a_model_error_below_round_off_designs_like_none() -> None:
     import fdisyn
     import numpy as np
 
     make, base = BASE["beard_fdf"]
-    none, tiny = (fdisyn.design(make(), method="beard_fdf", **{**base, "sigma": s}) for s in (0.0, sigma))
+    none, tiny = (fdisyn.design(make(), method="beard_fdf", **{**base, "sigma": s, "draws": 20}) for s in (0.0, 1e-300))
     a, b = none.extensions["beard_fdf"], tiny.extensions["beard_fdf"]
     np.testing.assert_array_equal(np.asarray(a["L"]), np.asarray(b["L"]))
     assert a["h"] == b["h"] and a["explicit_level"] == b["explicit_level"]
@@ -284,5 +283,5 @@ def test_a_model_error_that_matters_is_still_checked_against_its_own_bound() -> 
     import fdisyn
 
     make, base = BASE["beard_fdf"]
-    gf = fdisyn.design(make(), method="beard_fdf", **{**base, "sigma": 1e-4})
+    gf = fdisyn.design(make(), method="beard_fdf", **{**base, "sigma": 1e-4, "draws": 20})
     assert gf.certificate["passed"]
