@@ -8,6 +8,7 @@ The public Python API (see the README's "Python" section)::
     fdisyn.export(gf, "motor")                                  # gains.json, C sources, library, replay
     mon = fdisyn.load("motor")                                  # a Monitor
     fdisyn.methods()                                            # the registered method names
+    fdisyn.fault_account(gf)                                    # what it can see (also gf.account)
 
 The package root is light: the names above are imported on first use, so
 ``fdisyn.runtime`` (which never imports the design side) loads without CasADi
@@ -29,6 +30,7 @@ _PUBLIC = {
     "export": "fdisyn.app.api",
     "load": "fdisyn.app.api",
     "methods": "fdisyn.app.api",
+    "fault_account": "fdisyn.numerics.account",
     "LinearPlant": "fdisyn.models.linear",
     "NonlinearPlant": "fdisyn.models.nonlinear",
     "SampledDataPlant": "fdisyn.models.sampled_data",
@@ -40,6 +42,7 @@ __all__ = ["__version__", *_PUBLIC]
 
 if TYPE_CHECKING:
     from fdisyn.app.api import design, export, load, methods  # noqa: F401
+    from fdisyn.numerics.account import fault_account  # noqa: F401
     from fdisyn.models.linear import LinearPlant  # noqa: F401
     from fdisyn.models.nonlinear import NonlinearPlant  # noqa: F401
     from fdisyn.models.sampled_data import SampledDataPlant  # noqa: F401

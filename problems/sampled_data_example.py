@@ -32,6 +32,7 @@ from fdisyn.models.linear import LinearPlant
 from fdisyn.models.problem import Batch, Problem, Scenario
 from fdisyn.models.sampled_data import SampledDataPlant
 from fdisyn.models.sampling import van_loan
+from fdisyn.numerics.account import with_account
 from fdisyn.runtime.gainfile import GainFile
 from fdisyn.synthesis.linear_diagnoser import FaultClass, linear_diagnoser
 from fdisyn.synthesis.lmi_observer import lmi_diagnostic_observer
@@ -94,7 +95,7 @@ def noise_plant(plant: SampledDataPlant = PLANT) -> LinearPlant:
 def _diagnoser(design: str, observer: Any, *, P_f: float, detector: str | None = None, arl0: float | None = None) -> GainFile:
     dplant = noise_plant()
     gen = observer.generator(name=design)
-    return linear_diagnoser(
+    gf = linear_diagnoser(
         name=f"sampled_data_example_{design}" + ("" if detector is None else f"_{detector}"),
         problem="sampled_data_example",
         design=design,
@@ -109,6 +110,7 @@ def _diagnoser(design: str, observer: Any, *, P_f: float, detector: str | None =
         arl0=arl0,
         options={"P_f": P_f, "J": dict(observer.J), "h": PLANT.Ts, **({"detector": detector, "arl0": arl0} if detector else {})},  # "h": the key gain files have always held
     )
+    return with_account(gf, dplant)  # what it can see: the fault f, its smallest size
 
 
 def _designs() -> dict[str, Callable[..., GainFile]]:

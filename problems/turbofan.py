@@ -41,6 +41,7 @@ import scipy.linalg
 from fdisyn.evaluation.compiled_simulation import NAMES_IN, NAMES_OUT, SampleModel
 from fdisyn.models.linear import LinearPlant
 from fdisyn.models.problem import Batch, Problem, Scenario
+from fdisyn.numerics.account import with_account
 from fdisyn.runtime.errors import ArgumentError
 from fdisyn.runtime.gainfile import GainFile
 from fdisyn.runtime.trace import Trace
@@ -488,11 +489,11 @@ def gos(
 def _designs() -> dict[str, Any]:
     def grouped(*, P_f: float, persistence: int, window: int, detector: str | None = None, arl0: float | None = None) -> GainFile:
         """The paper's two groups (the search's best, checked by a test), one UIO per sensor in each."""
-        return gos(PAPER_GROUPS, P_f=P_f, persistence=persistence, window=window, name="grouped", detector=detector, arl0=arl0).gain_file
+        return with_account(gos(PAPER_GROUPS, P_f=P_f, persistence=persistence, window=window, name="grouped", detector=detector, arl0=arl0).gain_file)
 
     def ungrouped(*, P_f: float, persistence: int, window: int, detector: str | None = None, arl0: float | None = None) -> GainFile:
         """The bank without grouping: UIO i reads every output but sensor i (eight outputs of rank seven or eight)."""
-        return gos((OUTPUTS,), P_f=P_f, persistence=persistence, window=window, name="ungrouped", detector=detector, arl0=arl0).gain_file
+        return with_account(gos((OUTPUTS,), P_f=P_f, persistence=persistence, window=window, name="ungrouped", detector=detector, arl0=arl0).gain_file)
 
     return {"grouped": grouped, "ungrouped": ungrouped}
 

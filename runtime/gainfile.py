@@ -96,6 +96,8 @@ __all__ = [
     "parse_json_data",
     "glr_weights",
     "release_level",
+    "ACCOUNT_FORMAT",
+    "ACCOUNT_EFFECTS",
 ]
 
 FORMAT = "fdisyn.gains/1"
@@ -145,6 +147,11 @@ the reader parses at all. ``persistence`` ≤ 10⁹ consecutive exceedances: the
 step counts them in a double, and beyond 2⁵³ a count no longer grows, so a
 larger one could never alarm (10⁹, like the NAFDF's sample counters, is 11
 days of samples at 1 kHz). Other kinds add their own limits to their payload."""
+
+ACCOUNT_FORMAT = 1
+"""Format of a gain file's optional ``account`` block (what the design can see; see :func:`_validate_account`)."""
+ACCOUNT_EFFECTS = ("zero", "transient", "persistent")
+"""A fault's effect on a residual in the ``account`` block: none, its onset only (zero steady-state gain), or lasting."""
 
 MAX_MAGNITUDE = 1e150
 """Largest magnitude of a number in a gain file's matrices and numeric fields (every kind's payload too).
@@ -378,6 +385,10 @@ class GainFile:
     provenance: Mapping[str, Any] = field(default_factory=dict)
     extensions: Mapping[str, Any] = field(default_factory=dict)
     format: str = FORMAT
+    account: Mapping[str, Any] | None = None
+    """What the design can see (optional; written by the design side, ``fdisyn.numerics.account``): each fault's
+    effect on the residuals, its smallest detectable size and the fault classes the diagnoser can tell apart.
+    A file without it (written before it existed) reads and hashes as before."""
 
     def __post_init__(self) -> None:
         _validate(self)
@@ -457,6 +468,8 @@ class GainFile:
         doc["certificate"] = to_jsonable(dict(self.certificate))
         doc["provenance"] = to_jsonable(dict(self.provenance))
         doc["extensions"] = to_jsonable(dict(self.extensions))
+        if self.account is not None:  # absent: the document (and its content hash) is what it was without the block
+            doc["account"] = to_jsonable(dict(self.account))
         return doc
 
 
@@ -755,6 +768,7 @@ def gain_file_from_dict(doc: object, *, source: str = "gain file") -> GainFile:
             certificate=certificate,
             provenance=r.obj("provenance"),
             extensions=r.obj("extensions") if "extensions" in doc else {},
+            account=r.obj("account") if "account" in doc else None,
             **kwargs,
         )
     except GainFileError as exc:
@@ -929,6 +943,81 @@ def _validate(gf: GainFile) -> None:
         _fail(f"diagnoser kind {gf.kind!r} needs its payload in extensions[{gf.kind!r}]")
     else:
         _validate_extension_thresholds(gf)
+    if gf.account is not None:
+        _validate_account(gf)
+
+
+def _validate_account(gf: GainFile) -> None:
+    """The optional ``account`` block: informational, but what a page and a terminal show of it must be sound.
+
+    ``format`` :data:`ACCOUNT_FORMAT`; ``faults`` one entry per fault (at most the file's outputs and
+    :data:`LIMITS` ``["faults"]`` component faults), each with a fault ``name``, ``type`` ``"sensor"`` (an output of
+    the file) or ``"component"``, ``unit`` text or null, ``effect`` one of :data:`ACCOUNT_EFFECTS`, ``size`` and
+    ``size_50`` null or finite non-negative numbers, ``seen_by`` and ``persistent_in`` lists of generator labels, and
+    per generator ``effect``, ``peak_gain`` and ``dc_gain`` (null or finite ≥ 0); ``classes.groups`` lists of fault
+    names of the block with a ``reason``, ``classes.unseen`` fault names. Anything else is refused naming the field.
+    """
+    acc = gf.account
+    w = "account"
+    if not isinstance(acc, Mapping):
+        _fail(f"{w} must be an object, found {type(acc).__name__}")
+    if acc.get("format") != ACCOUNT_FORMAT or isinstance(acc.get("format"), bool):
+        _fail(f"{w}.format must be {ACCOUNT_FORMAT}, found {shown(acc.get('format'))}; write the file again with `fdisyn design`")
+    faults = acc.get("faults")
+    if not isinstance(faults, list) or len(faults) > len(gf.outputs) + LIMITS["faults"]:
+        _fail(f"{w}.faults must be a list of at most {len(gf.outputs) + LIMITS['faults']} faults, found {shown(faults)}")
+
+    def number(v: object, where: str) -> None:
+        x = real_number(v) if type(v) in (int, float) else None
+        if v is not None and (x is None or not 0.0 <= x <= MAX_MAGNITUDE):
+            _fail(f"{where} must be null or a finite number ≥ 0, found {shown(v)}")
+
+    def labels(v: object, where: str) -> list[str]:
+        if not isinstance(v, list) or not all(isinstance(s, str) for s in v):
+            _fail(f"{where} must be a list of names, found {shown(v)}")
+        for i, s in enumerate(v):
+            check_label(s, f"{where}[{i}]", error=GainFileError)
+        return v
+
+    names: list[str] = []
+    for i, f in enumerate(faults):
+        fw = f"{w}.faults[{i}]"
+        if not isinstance(f, Mapping):
+            _fail(f"{fw} must be an object, found {type(f).__name__}")
+        name = check_fault_name(f.get("name"), f"{fw}.name", error=GainFileError)
+        names.append(name)
+        if f.get("type") not in ("sensor", "component") or (f.get("type") == "sensor" and name not in gf.outputs):
+            _fail(f"{fw}.type must be 'sensor' (an output of the file) or 'component', found {shown(f.get('type'))} for {shown(name)}")
+        if f.get("unit") is not None and not isinstance(f.get("unit"), str):
+            _fail(f"{fw}.unit must be text or null, found {shown(f.get('unit'))}")
+        if f.get("effect") not in ACCOUNT_EFFECTS:
+            _fail(f"{fw}.effect must be one of {', '.join(map(repr, ACCOUNT_EFFECTS))}, found {shown(f.get('effect'))}")
+        for key in ("size", "size_50"):
+            number(f.get(key), f"{fw}.{key}")
+        labels(f.get("seen_by"), f"{fw}.seen_by")
+        labels(f.get("persistent_in"), f"{fw}.persistent_in")
+        gens = f.get("generators")
+        if not isinstance(gens, Mapping):
+            _fail(f"{fw}.generators must be an object, found {shown(gens)}")
+        for g, v in gens.items():
+            if not isinstance(v, Mapping) or v.get("effect") not in ACCOUNT_EFFECTS:
+                _fail(f"{fw}.generators.{shown(g)} must hold an effect of {', '.join(map(repr, ACCOUNT_EFFECTS))}, found {shown(v)}")
+            number(v.get("peak_gain"), f"{fw}.generators.{shown(g)}.peak_gain")
+            number(v.get("dc_gain"), f"{fw}.generators.{shown(g)}.dc_gain")
+    if len(set(names)) != len(names):
+        _fail(f"{w}.faults names a fault twice: {sorted({n for n in names if names.count(n) > 1})}")
+    classes = acc.get("classes")
+    if not isinstance(classes, Mapping) or not isinstance(classes.get("groups"), list):
+        _fail(f"{w}.classes must be an object with a list 'groups', found {shown(classes)}")
+    for i, grp in enumerate(classes["groups"]):
+        if not isinstance(grp, Mapping) or not isinstance(grp.get("reason"), str):
+            _fail(f"{w}.classes.groups[{i}] must be an object with 'faults' and a 'reason', found {shown(grp)}")
+        members = labels(grp.get("faults"), f"{w}.classes.groups[{i}].faults")
+        if len(members) < 2 or any(m not in names for m in members):
+            _fail(f"{w}.classes.groups[{i}].faults must name two or more faults of {w}.faults, found {shown(members)}")
+    for m in labels(classes.get("unseen", []), f"{w}.classes.unseen"):
+        if m not in names:
+            _fail(f"{w}.classes.unseen names {shown(m)}, not a fault of {w}.faults")
 
 
 def _validate_names(gf: GainFile) -> None:

@@ -234,6 +234,9 @@ def _cmd_design(a: argparse.Namespace) -> None:
         path = write_gain_file(gf, out / "gains.json")
     what = f"{len(gf.generators)} generators" if gf.kind == "linear" else f"a {gf.kind} step with {gf.step.nstate} states"
     print(f"wrote {path} ({gf.name}: {what}, certificate passed)")
+    from fdisyn.numerics.account import account_lines
+
+    print("\n".join(account_lines(gf.account, gf.kind)))
 
 
 def _cmd_codegen(a: argparse.Namespace) -> None:

@@ -362,9 +362,60 @@ def _design_rows(problem: Problem, variant: Any) -> str:
     )
 
 
+def _account_html(gf: Any, problem: Problem | None = None) -> str:
+    """What the design can see (the gain file's ``account`` block), folded: per fault its effect, smallest detectable
+    size and the generators that see it, then the faults the bank cannot tell apart; for a kind without an account,
+    why (:data:`fdisyn.numerics.account.NOT_COMPUTED`)."""
+    from fdisyn.numerics.account import NOT_COMPUTED
+
+    acc = getattr(gf, "account", None)
+    if acc is None:
+        why = NOT_COMPUTED.get(gf.kind)
+        return f'<p class="small">What the design can see: not computed — {html.escape(why)}.</p>' if why else ""
+    kinds = sorted({s["kind"] for s in acc["statistics"]})
+    rules = {
+        "chi2": "χ²: the statistic exceeds its threshold with probability 95 % (50 %) on a sample",
+        "wssr": "WSSR: with probability 95 % (50 %) over a window (four-moment law of Liu, Tang &amp; Zhang 2009)",
+        "glr": "GLR: its full-window term alone exceeds the threshold with probability 95 % (50 %)",
+        "cusum": "CUSUM: the size above which its sum drifts upward, so the fault is detected with probability 1",
+        "rms": "window RMS: exceeds h with probability 95 % (50 %) over a window",
+    }
+    rows = []
+    for e in acc["faults"]:
+        unit = e.get("unit") or f"units of {label(problem, e['name'])}"
+        size = {"zero": "undetectable", "transient": "none at steady state"}.get(e["effect"])
+        rows.append(
+            [
+                f"{label(problem, e['name'])} ({e['type']})",
+                e["effect"],
+                size or (f"{fmt(e['size'])} ({unit})" if e["size"] is not None else "—"),
+                "—" if e.get("size_50") is None or size else fmt(e["size_50"]),
+                ", ".join(label(problem, g) for g in e["seen_by"]) or "no generator",
+            ]
+        )
+    body = (
+        '<p class="small">A step (bias) fault in steady state, before any Monte Carlo. Effect: zero (its transfer to '
+        "every residual cancels, to round-off), transient (only its onset shows: zero steady-state gain) or "
+        "persistent. Smallest detectable size, at the design's own statistics and thresholds — "
+        + "; ".join(rules[k] for k in kinds)
+        + ".</p>"
+        + table(["fault", "effect", "smallest size (95 %)", "50 %", "seen by"], rows, left=2)
+    )
+    groups = acc["classes"]["groups"]
+    body += '<p class="small">' + (
+        "Faults the bank cannot tell apart: " + "; ".join(html.escape(g["reason"]) for g in groups) + "."
+        if groups
+        else "Every fault it sees has its own signature."
+    )
+    if acc["classes"].get("unseen"):
+        body += " No generator sees " + ", ".join(html.escape(label(problem, n)) for n in acc["classes"]["unseen"]) + "."
+    body += "".join(f" {html.escape(n)}." for n in acc.get("notes", [])) + "</p>"
+    return folded(body, "What the design can see")
+
+
 def _certificate_html(gf: Any, problem: Problem | None = None) -> str:
-    """A design's certificate table, with the smallest detectable biases of a linear bank."""
-    out = [_certificate_table(gf, problem)]
+    """A design's certificate table, with the smallest detectable biases of a linear bank and what it can see."""
+    out = [_certificate_table(gf, problem), _account_html(gf, problem)]
     if gf.kind != "linear":
         return "".join(out)
     mdb = gf.certificate["bank"].get("info", {}).get("min_detectable_bias", {})

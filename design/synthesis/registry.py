@@ -21,7 +21,7 @@ import json
 import math
 import pkgutil
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -228,8 +228,27 @@ def register(method: Method) -> Method:
                 f"method {method.name!r} has diagnoser kind {method.diagnoser_kind!r} like {other.name!r} but another "
                 "step builder, recovery window or extra metrics; one kind, one of each"
             )
+    method = replace(method, design=_accounted(method.design))
     _METHODS[method.name] = method
     return method
+
+
+def _accounted(design: Callable[..., GainFile]) -> Callable[..., GainFile]:
+    """``design`` followed by the account of what its diagnoser can see (:func:`fdisyn.numerics.account.with_account`,
+    from the plant it was given: its component faults and units), stored in the gain file's ``account`` block.
+    Every way of designing through a method (``fdisyn.design``, plant files, the problems) goes through here."""
+    if getattr(design, "accounted", False):
+        return design
+
+    def run(plant: Any, **options: Any) -> GainFile:
+        from fdisyn.numerics.account import with_account
+
+        return with_account(design(plant, **options), plant)
+
+    run.accounted = True  # type: ignore[attr-defined]
+    run.__wrapped__ = design  # type: ignore[attr-defined]
+    run.__doc__ = design.__doc__
+    return run
 
 
 def _discover() -> None:

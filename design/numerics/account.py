@@ -1,0 +1,587 @@
+"""The design-time account of what a linear diagnoser can see: each fault's effect, smallest size, and the classes.
+
+Before any Monte Carlo, for each fault — an additive bias on each sensor, and each component fault (a column of the
+plant's ``Fx``) — the account states:
+
+* its **effect** on each generator's residual, from the fault→residual transfer of plant and generator (the internal
+  form ``[x; ξ]``, or the generator alone for a sensor fault): ``"zero"`` (its peak gain over the unit circle is
+  below :data:`ZERO_RTOL` of the size of the terms it is made of: what an exact cancellation leaves in floating
+  point), ``"transient"`` (it moves the residual, but its steady-state (DC) gain is below :data:`ZERO_RTOL` of its
+  terms: only the onset of a bias shows, e.g. a sensor bias that looks like a constant unknown input) or
+  ``"persistent"`` (a nonzero DC gain; also a fault that drives a mode on or outside the unit circle that the residual
+  sees: its effect grows);
+* its **smallest detectable size**: the size ``a`` of a step (bias) fault, in the fault's own units, whose steady-state
+  residual shift ``a·G(1)`` makes the design's own statistic exceed its own threshold with probability 95 % (and 50 %)
+  on a sample in steady state — the noncentral χ² law of ``J = rᵀ W r`` (χ²), the law of the windowed sum (WSSR:
+  the window's stacked covariance from the residual's autocovariance, its noncentral quadratic form by the
+  four-moment approximation of Liu, Tang & Zhang, Computational Statistics & Data Analysis 53(4), 2009), the GLR's
+  full-window term ``d²/(2c)`` (a lower bound on ``J``: the size is an upper bound); for the CUSUM, the size above
+  which its sum drifts upward (its mean increment turns positive), so that the fault is detected with probability
+  one, after a mean delay of about ``h / (mean increment)``; the Beard filter's window RMS against ``h``. The bank's
+  size is the smallest over its statistics;
+* the **fault classes**: each fault's signature (the generators that see it persistently, and those that see it at
+  all), the groups of faults with equal signatures — the bank cannot tell them apart — with the reason, and the
+  classes of the gain file's decision table.
+
+The numbers are computed here from the gain file (generators, evaluators, design model) and, for component faults,
+the plant's ``Fx`` — independently of the design's own computations (a direct solve of ``(I − A) x = b`` for the DC
+gain, a frequency grid for the peak gain, SciPy's noncentral χ²). The account is stored in the gain file's optional
+``account`` block (:func:`with_account`); :func:`account_lines` renders it as ``fdisyn design`` prints it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+import scipy.linalg
+import scipy.optimize
+import scipy.stats
+from fdisyn.runtime.errors import ArgumentError
+from fdisyn.runtime.gainfile import ACCOUNT_EFFECTS, ACCOUNT_FORMAT, GainFile
+
+__all__ = ["fault_account", "with_account", "account_lines", "ZERO_RTOL", "PROBABILITIES", "NOT_COMPUTED"]
+
+ZERO_RTOL = 1e-8
+"""A transfer (peak or DC gain) counts as zero below this fraction of the size of its terms,
+``‖C‖·‖(zI − A)⁻¹ b‖ + ‖d‖``. An exact cancellation (a decoupled fault, a bias that looks like a constant unknown
+input) computes to round-off of those terms, ~1e-16 times the conditioning of the generator (up to ~1e6 for the
+designs fdisyn certifies); a fault that is seen at all is seen at far more than 1e-8 of them. The same rule
+separates "reaches" from "cancels" in the design's own signature check."""
+
+PROBABILITIES = (0.95, 0.5)
+"""The per-sample detection probabilities of the two smallest sizes (``size``, ``size_50``)."""
+
+NOT_COMPUTED = {
+    "nafdf": "the account is computed for linear diagnosers only: the NAFDF's parameter faults act through a "
+    "nonlinear model, so their effect depends on the operating point (the report's Monte Carlo and fault-size "
+    "sweep measure it)",
+}
+"""Why the account is not computed for a diagnoser kind (printed by ``fdisyn design``, shown on the report)."""
+
+_GRID = 257
+"""Frequencies ``ω ∈ [0, π]`` of the peak-gain grid: a rational transfer of the orders fdisyn designs (at most a few
+hundred states) is nonzero on almost all of them if it is nonzero at all."""
+_UNIT_RTOL = 1e-9
+"""A mode on or outside the unit circle: ``|λ| ≥ 1 − 1e-9`` (an integrator sampled exactly may come out at 1 − eps)."""
+_WINDOW_MAX = 2000
+"""Largest ``window · residuals`` of a WSSR statistic whose stacked covariance is formed (dense products of that
+order); beyond it the size is not computed (said in the account)."""
+
+
+# --------------------------------------------------------------------------- transfers
+def _stable_part(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """``(A, B, C)`` restricted to the modes that matter: the whole system when ``A`` is Schur stable; otherwise the
+    quotient without the modes on or outside the unit circle, when ``C`` does not see them (``C U₁ = 0``, Schur form
+    with them first) or ``B`` does not excite them (``U₂ᵀ B = 0``, Schur form with them last). ``None`` when an
+    unstable mode is both excited and seen (the output grows without bound)."""
+    n = a.shape[0]
+    if n == 0:
+        return a, b, c
+    if float(np.max(np.abs(np.linalg.eigvals(a)))) < 1.0 - _UNIT_RTOL:
+        return a, b, c
+    outside = lambda re, im: re * re + im * im >= (1.0 - _UNIT_RTOL) ** 2  # noqa: E731
+    inside = lambda re, im: re * re + im * im < (1.0 - _UNIT_RTOL) ** 2  # noqa: E731
+    t, u, k = scipy.linalg.schur(a, output="real", sort=outside)
+    if float(np.linalg.norm(c @ u[:, :k])) <= _UNIT_RTOL * max(float(np.linalg.norm(c)), 1e-300):
+        return t[k:, k:], (u.T @ b)[k:], (c @ u)[:, k:]
+    t, u, k = scipy.linalg.schur(a, output="real", sort=inside)
+    if float(np.linalg.norm((u.T @ b)[k:])) <= _UNIT_RTOL * max(float(np.linalg.norm(b)), 1e-300):
+        return t[:k, :k], (u.T @ b)[:k], (c @ u)[:, :k]
+    return None
+
+
+def _gains(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray) -> dict[str, Any]:
+    """Peak gain over the frequency grid, DC gain (vector) and the effect class of the transfer ``(a, b, c, d)``
+    (one input column ``b``)."""
+    part = _stable_part(a, b, c)
+    if part is None:
+        return {"effect": "persistent", "peak_gain": None, "dc_gain": None, "dc": None}
+    a2, b2, c2 = part
+    n = a2.shape[0]
+    b2, d = b2.reshape(n, 1), d.reshape(-1, 1)
+    nc = float(np.linalg.norm(c2, 2)) if c2.size else 0.0
+    z = np.exp(1j * np.linspace(0.0, math.pi, _GRID))
+    if n:
+        x = np.linalg.solve(z[:, None, None] * np.eye(n) - a2, np.broadcast_to(b2, (_GRID, n, 1)))
+        g = np.einsum("ij,fjk->fik", c2, x) + d
+        peak = float(np.max(np.linalg.norm(g[:, :, 0], axis=1)))
+        ref = float(np.max(nc * np.linalg.norm(x[:, :, 0], axis=1))) + float(np.linalg.norm(d))
+    else:
+        peak = ref = float(np.linalg.norm(d))
+    x1 = np.linalg.solve(np.eye(n) - a2, b2) if n else np.zeros((0, 1))
+    dc = (c2 @ x1 + d).ravel().real
+    ref_dc = nc * float(np.linalg.norm(x1)) + float(np.linalg.norm(d))
+    if not peak > ZERO_RTOL * ref:
+        effect = "zero"
+    elif not float(np.linalg.norm(dc)) > ZERO_RTOL * ref_dc:
+        effect = "transient"
+    else:
+        effect = "persistent"
+    return {"effect": effect, "peak_gain": peak, "dc_gain": float(np.linalg.norm(dc)) if effect == "persistent" else 0.0, "dc": dc if effect == "persistent" else None}
+
+
+def _internal(gen: Any, plant: Mapping[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """``(A_i, C_i)`` of plant + generator on the state ``[x; ξ]``: ``x⁺ = A x``, ``ξ⁺ = Ar ξ + By C x``,
+    ``r = Dy C x + Cr ξ``."""
+    a, c = plant["A"], plant["C"]
+    n, ns = a.shape[0], gen.n_state
+    ai = np.block([[a, np.zeros((n, ns))], [gen.By @ c, gen.Ar]])
+    ci = np.hstack([gen.Dy @ c, gen.Cr])
+    return ai, ci
+
+
+def _fault_path(gen: Any, plant: Mapping[str, np.ndarray], kind: str, column: np.ndarray | int) -> tuple[np.ndarray, ...]:
+    """``(A, b, C, d)`` from one fault to ``gen``'s residual: a sensor bias ``y + e_j a`` enters the generator alone
+    (``Ar, By e_j, Cr, Dy e_j``); a component fault ``x⁺ = … + f a`` the internal form (``[f; 0]``, no feedthrough)."""
+    if kind == "sensor":
+        j = int(column)  # type: ignore[arg-type]
+        return gen.Ar, gen.By[:, j], gen.Cr, gen.Dy[:, j]
+    ai, ci = _internal(gen, plant)
+    b = np.concatenate([np.asarray(column, dtype=float), np.zeros(gen.n_state)])
+    return ai, b, ci, np.zeros(ci.shape[0])
+
+
+# --------------------------------------------------------------------------- sizes
+def _ncx2_lambda(threshold: float, dof: float, p: float) -> float:
+    """The noncentrality ``λ`` with ``P(χ²_dof(λ) > threshold) = p``."""
+    sf = lambda lam: float(scipy.stats.ncx2.sf(threshold, dof, lam)) if lam > 0 else float(scipy.stats.chi2.sf(threshold, dof))  # noqa: E731
+    if sf(0.0) >= p:
+        return 0.0
+    hi = max(1.0, threshold)
+    while sf(hi) < p:
+        hi *= 2.0
+    return float(scipy.optimize.brentq(lambda lam: sf(lam) - p, 0.0, hi, xtol=1e-12 * hi, rtol=1e-10))
+
+
+def _ltz_sf(x: float, c: Sequence[float]) -> float:
+    """``P(Q > x)`` for a noncentral Gaussian quadratic form from its ``c_k = Σ λ_i^k + k Σ λ_i^k δ_i²``, ``k = 1…4``
+    (Liu, Tang & Zhang, Computational Statistics & Data Analysis 53(4), 2009, eqs. (4)–(11))."""
+    c1, c2, c3, c4 = c
+    s1, s2 = c3 / c2**1.5, c4 / c2**2
+    if s1 * s1 > s2:
+        a = 1.0 / (s1 - math.sqrt(s1 * s1 - s2))
+        delta = max(s1 * a**3 - a * a, 0.0)
+        dof = a * a - 2.0 * delta
+    else:
+        a, delta, dof = 1.0 / s1, 0.0, 1.0 / (s1 * s1)
+    t = (x - c1) / math.sqrt(2.0 * c2)
+    arg = t * math.sqrt(2.0) * a + dof + delta
+    return float(scipy.stats.ncx2.sf(arg, dof, delta)) if delta > 0 else float(scipy.stats.chi2.sf(arg, dof))
+
+
+def _autocovariances(gen: Any, plant: Mapping[str, np.ndarray], lags: int) -> np.ndarray | None:
+    """``R(τ)``, ``τ = 0…lags−1``, of ``gen``'s residual under the design model's noise ``Q``, ``R`` (the internal form
+    driven by ``[w; v]``); ``None`` when the residual sees a mode on or outside the unit circle (no stationary law)."""
+    ai, ci = _internal(gen, plant)
+    n, p = plant["A"].shape[0], plant["C"].shape[0]
+    k = np.vstack([np.hstack([np.eye(n), np.zeros((n, p))]), np.hstack([np.zeros((gen.n_state, n)), gen.By])])
+    dn = np.hstack([np.zeros((gen.n_residual, n)), gen.Dy])
+    w = scipy.linalg.block_diag(plant["Q"], plant["R"])
+    part = _stable_part(ai, k, ci)
+    if part is None:
+        return None
+    a, kk, c = part
+    if a.shape[0] and float(np.max(np.abs(np.linalg.eigvals(a)))) >= 1.0 - _UNIT_RTOL:
+        return None
+    pw = scipy.linalg.solve_discrete_lyapunov(a, kk @ w @ kk.T) if a.shape[0] else np.zeros((0, 0))
+    out = np.empty((lags, gen.n_residual, gen.n_residual))
+    out[0] = c @ pw @ c.T + dn @ w @ dn.T
+    cross = pw @ c.T  # E[z(k) r(k)ᵀ] part from the state; plus the feedthrough's K W Dnᵀ one step later
+    m = kk @ w @ dn.T
+    ak = np.eye(a.shape[0])
+    for tau in range(1, lags):
+        out[tau] = c @ ak @ (a @ cross + m)
+        ak = ak @ a
+    return out
+
+
+def _window_operator(ev: Any, acov: np.ndarray) -> tuple[np.ndarray, list[float]]:
+    """``(𝒲𝒮, [tr((𝒲𝒮)^k), k = 1…4])`` of a WSSR statistic: ``𝒮`` the stacked covariance of its window (block
+    Toeplitz of the residual's autocovariances), ``𝒲 = I ⊗ W``."""
+    n_w, nr = int(ev.window), acov.shape[1]
+    big = np.empty((n_w * nr, n_w * nr))
+    for i in range(n_w):
+        for j in range(n_w):
+            big[i * nr : (i + 1) * nr, j * nr : (j + 1) * nr] = acov[i - j] if i >= j else acov[j - i].T
+    ws = np.kron(np.eye(n_w), ev.W) @ big
+    t, pk = [], np.eye(n_w * nr)
+    for _ in range(4):
+        pk = pk @ ws
+        t.append(float(np.trace(pk)))
+    return ws, t
+
+
+def _window_moments(g: np.ndarray, ev: Any, op: tuple[np.ndarray, list[float]]) -> tuple[list[float], list[float]]:
+    """``(t_k, q_k)``, ``k = 1…4``: ``c_k(a) = t_k + k a² q_k`` are the moments of Liu, Tang & Zhang of the WSSR ``J``
+    in steady state under the residual shift ``a·g`` (``q_k = 𝗺ᵀ(𝒲𝒮)^(k−1)𝒲𝗺``, ``𝗺 = 1 ⊗ g``)."""
+    ws, t = op
+    n_w = int(ev.window)
+    m = np.tile(g, n_w)
+    q, v = [], np.kron(np.ones(n_w), ev.W @ g)
+    for _ in range(4):
+        q.append(float(m @ v))
+        v = ws @ v
+    return t, q
+
+
+def _size_for(prob: Any, p: float) -> float | None:
+    """The smallest ``a > 0`` with ``prob(a) ≥ p`` (monotone in ``a``), by bracketing then bisection."""
+    lo, hi = 0.0, 1.0
+    if prob(hi) < p:
+        for _ in range(400):
+            lo, hi = hi, hi * 2.0
+            if prob(hi) >= p:
+                break
+        else:
+            return None
+    else:
+        for _ in range(400):
+            if prob(hi / 2.0) < p:
+                lo = hi / 2.0
+                break
+            hi /= 2.0
+        else:
+            return None
+    return float(scipy.optimize.brentq(lambda a: prob(a) - p, lo, hi, xtol=1e-12 * hi, rtol=1e-9))
+
+
+def _statistic_sizes(ev: Any, g: np.ndarray, acov: Any) -> tuple[float | None, float | None, str | None]:
+    """``(size at 95 %, size at 50 %, why not)`` of one statistic for a fault whose unit step shifts its residual by
+    ``g`` in steady state (see the module docstring for each kind's definition)."""
+    energy = float(g @ ev.W @ g)
+    if not energy > 0:
+        return None, None, "its steady-state shift lies where the statistic has no weight"
+    if ev.kind == "chi2":
+        sizes = [math.sqrt(_ncx2_lambda(float(ev.threshold), int(ev.dof), p) / energy) for p in PROBABILITIES]
+        return sizes[0], sizes[1], None
+    if ev.kind == "wssr":
+        if acov is None:
+            return None, None, "the residual has no stationary law on the design model (a mode on the unit circle)"
+        if isinstance(acov, str):
+            return None, None, f"the window's stacked covariance would be of order {int(ev.window) * g.shape[0]} (> {_WINDOW_MAX})"
+        t, q = _window_moments(g, ev, acov)  # acov: the statistic's window operator (_window_operator)
+        law = lambda a: _ltz_sf(float(ev.threshold), [t[k] + (k + 1) * a * a * q[k] for k in range(4)])  # noqa: E731
+        s95, s50 = (_size_for(law, p) for p in PROBABILITIES)
+        return s95, s50, None
+    if ev.kind == "glr":
+        m = int(ev.window)
+        rows = np.asarray(ev.directions).reshape(-1, m, g.shape[0])
+        info = np.asarray(ev.information).reshape(-1, m)[:, -1]
+        best = max(float((rows[i] @ g).sum()) ** 2 / float(info[i]) for i in range(rows.shape[0]))
+        if not best > 0:
+            return None, None, "no hypothesis of the GLR is aligned with its steady-state shift"
+        sizes = [math.sqrt(_ncx2_lambda(2.0 * float(ev.threshold), 1, p) / best) for p in PROBABILITIES]
+        return sizes[0], sizes[1], None
+    # CUSUM: the size above which its best sum's mean increment a·(a_iᵀ g) − drift_i is positive
+    rows = np.asarray(ev.directions)
+    drift = np.asarray(ev.drift)
+    bounds = [float(drift[i]) / abs(float(rows[i] @ g)) for i in range(rows.shape[0]) if abs(float(rows[i] @ g)) > 0]
+    if not bounds:
+        return None, None, "no hypothesis of the CUSUM is aligned with its steady-state shift"
+    return min(bounds), None, None
+
+
+# --------------------------------------------------------------------------- the account
+def _design_plant(gf: GainFile, plant: Any) -> tuple[Any, str | None]:
+    """``plant`` sampled like the gain file's design model (ZOH at ``gf.Ts`` when continuous: exact for a step
+    fault, held over the sample) when it is that model (the same ``A`` and ``C``), else ``None`` and why not."""
+    if plant is None:
+        return None, None
+    if getattr(plant, "Ts", None) is None and hasattr(plant, "discretise"):
+        plant = plant.discretise(float(gf.Ts))
+    model = gf.plant if gf.kind == "linear" else {k: np.asarray(gf.extensions[gf.kind][k], dtype=float) for k in ("A", "C")}
+    try:
+        a, c = np.asarray(plant.A, dtype=float), np.asarray(plant.C, dtype=float)
+    except (AttributeError, TypeError, ValueError):
+        return None, f"the plant given is a {type(plant).__name__}, not a LinearPlant"
+    same = a.shape == model["A"].shape and c.shape == model["C"].shape
+    if same:
+        same = float(np.linalg.norm(a - model["A"])) <= 1e-8 * max(float(np.linalg.norm(a)), 1e-300) and float(
+            np.linalg.norm(c - model["C"])
+        ) <= 1e-8 * max(float(np.linalg.norm(c)), 1e-300)
+    if not same:
+        return None, "the plant given is not the design model of the gain file (other states or sample time)"
+    return plant, None
+
+
+def _beard_generator(gf: GainFile) -> Any:
+    """The Beard filter as a canonical generator: ``x̂⁺ = (A − L C) x̂ + (B − L D) u + L y``, ``ε = y − C x̂ − D u``."""
+    from fdisyn.runtime.gainfile import Generator
+
+    p = gf.extensions[gf.kind]
+    a, b, c, d, lg = (np.asarray(p[k], dtype=float) for k in ("A", "B", "C", "D", "L"))
+    return Generator.from_canonical(
+        name="filter", outputs_used=range(c.shape[0]), Ar=a - lg @ c, Bu=b - lg @ d, By=lg, Cr=-c, Du=-d, Dy=np.eye(c.shape[0])
+    )
+
+
+class _RmsStatistic:
+    """The Beard filter's window RMS as a WSSR-like statistic: ``Σ_{l<N} ‖ε‖² > N h²`` (``W = I``)."""
+
+    kind = "wssr"
+
+    generator = 0
+
+    def __init__(self, window: int, h: float, nr: int) -> None:
+        self.window, self.threshold, self.W, self.dof = window, window * h * h, np.eye(nr), nr
+
+
+def fault_account(gf: GainFile, plant: Any = None) -> dict[str, Any] | None:
+    """What a diagnoser can see, before any Monte Carlo: each fault's effect, its smallest detectable size, the classes.
+
+    Parameters
+    ----------
+    gf : GainFile
+        A linear or ``beard_fdf`` diagnoser. Without ``plant``, a gain file that holds an account returns it.
+    plant : LinearPlant, optional
+        The plant the design was made for (discrete, or continuous: then ZOH-sampled at ``gf.Ts``): its ``Fx`` gives
+        the component faults, its ``units`` the faults' units, its ``Q`` and ``R`` the Beard filter's noise. Without
+        it, the account covers the sensor faults only (and, for a Beard filter, no sizes).
+
+    Returns
+    -------
+    dict or None
+        The ``account`` block of the gain file (see the README's gain-file section): ``faults`` (per fault: ``name``,
+        ``type``, ``unit``, ``effect``, ``size``, ``size_50``, ``seen_by`` and per generator ``effect``, ``peak_gain``,
+        ``dc_gain``), ``statistics`` (the definition of each statistic's size), ``classes`` (``groups`` of faults the
+        bank cannot tell apart with their ``reason``, ``unseen`` faults, the ``decision`` table's classes), ``notes``.
+        ``None`` for a kind the account does not cover (:data:`NOT_COMPUTED` says why).
+
+    Raises
+    ------
+    ArgumentError
+        ``gf`` is not a :class:`GainFile`.
+    """
+    if not isinstance(gf, GainFile):
+        raise ArgumentError(f"gf must be a GainFile (from fdisyn.design or read_gain_file); got {type(gf).__name__}")
+    if plant is None and gf.account is not None:
+        return dict(gf.account)
+    if gf.kind not in ("linear", "beard_fdf"):
+        return None
+    notes: list[str] = []
+    units = dict(getattr(plant, "units", {}) or {})
+    comp_names = list(getattr(plant, "component_faults", ()) or ())
+    design, why = _design_plant(gf, plant)
+    if why is not None:
+        notes.append(f"component faults {comp_names} not accounted for: {why}" if comp_names else why)
+    fx = np.asarray(design.Fx, dtype=float) if design is not None and comp_names else None
+    if gf.kind == "linear":
+        gens: list[Any] = list(gf.generators)
+        evs: list[Any] = list(gf.evaluators)
+        model = dict(gf.plant)
+        stat_names = list(gf.step.statistic_names)
+        persistence = int(gf.decision.persistence) if gf.decision is not None else 1
+    else:
+        pay = gf.extensions[gf.kind]
+        gens = [_beard_generator(gf)]
+        evs = [_RmsStatistic(int(pay["window"]), float(pay["h"]), gens[0].n_residual)]
+        stat_names = [gf.step.statistic_names[0]]
+        persistence = int(pay.get("persistence", 1))
+        model = {k: np.asarray(pay[k], dtype=float) for k in ("A", "C")}
+        if design is not None:
+            model.update(Q=np.asarray(design.Q, dtype=float), R=np.asarray(design.R, dtype=float))
+        else:
+            notes.append("no smallest sizes: the Beard filter's gain file holds no noise model (give its plant)")
+    faults: list[tuple[str, str, Any]] = [(o, "sensor", j) for j, o in enumerate(gf.outputs)]
+    if fx is not None:
+        faults += [(c, "component", fx[:, k]) for k, c in enumerate(comp_names)]
+    acov: dict[int, Any] = {}
+    entries = []
+    for name, ftype, col in faults:
+        per_gen: dict[str, dict[str, Any]] = {}
+        dcs: dict[int, Any] = {}
+        for gi, gen in enumerate(gens):
+            gain = _gains(*_fault_path(gen, model, ftype, col))
+            dcs[gi] = gain.pop("dc")
+            per_gen[gen.name] = gain
+        sizes: list[tuple[float, float | None, str]] = []
+        reasons: list[str] = []
+        for si, ev in enumerate(evs):
+            gi = int(ev.generator)
+            if per_gen[gens[gi].name]["effect"] != "persistent":
+                continue
+            if dcs[gi] is None:
+                sizes.append((0.0, 0.0, stat_names[si]))
+                reasons.append(f"{stat_names[si]}: its effect grows without bound (any size is detected)")
+                continue
+            if "Q" not in model:
+                continue
+            if ev.kind == "wssr" and si not in acov:
+                ac = _autocovariances(gens[gi], model, int(ev.window))
+                small = ac is not None and int(ev.window) * gens[gi].n_residual <= _WINDOW_MAX
+                acov[si] = _window_operator(ev, ac) if small and ac is not None else (None if ac is None else "large")
+            s95, s50, why_not = _statistic_sizes(ev, dcs[gi], acov.get(si))
+            if s95 is None:
+                reasons.append(f"{stat_names[si]}: {why_not}")
+            else:
+                sizes.append((s95, s50, stat_names[si]))
+        seen = [g for g, v in per_gen.items() if v["effect"] != "zero"]
+        effects = {v["effect"] for v in per_gen.values()}
+        effect = "persistent" if "persistent" in effects else ("transient" if "transient" in effects else "zero")
+        best = min(sizes, key=lambda s: s[0]) if sizes else None
+        s50s = [s[1] for s in sizes if s[1] is not None]
+        entries.append(
+            {
+                "name": name,
+                "type": ftype,
+                "unit": units.get(name),
+                "effect": effect,
+                "size": None if best is None else best[0],
+                "size_50": min(s50s) if s50s else None,
+                "size_by": None if best is None else best[2],
+                "seen_by": seen,
+                "persistent_in": [g for g, v in per_gen.items() if v["effect"] == "persistent"],
+                "generators": per_gen,
+                **({"size_notes": reasons} if reasons else {}),
+            }
+        )
+    return {
+        "format": ACCOUNT_FORMAT,
+        "kind": gf.kind,
+        "zero_rtol": ZERO_RTOL,
+        "persistence": persistence,
+        "statistics": [{"name": stat_names[i], "kind": "rms" if gf.kind != "linear" else ev.kind} for i, ev in enumerate(evs)],
+        "faults": entries,
+        "classes": _classes(gf, entries),
+        "notes": notes,
+    }
+
+
+def _classes(gf: GainFile, entries: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+    """Groups of faults with equal signatures (persistent generators, generators that see them at all), with why."""
+    if gf.kind != "linear":
+        return _beard_classes(gf, entries)
+    groups: dict[tuple[tuple[str, ...], tuple[str, ...]], list[str]] = {}
+    unseen = []
+    for e in entries:
+        if not e["seen_by"]:
+            unseen.append(e["name"])
+            continue
+        groups.setdefault((tuple(e["persistent_in"]), tuple(e["seen_by"])), []).append(e["name"])
+    merged = []
+    for (pers, seen), names in groups.items():
+        if len(names) < 2:
+            continue
+        quoted = " and ".join(f"'{n}'" for n in names) if len(names) == 2 else ", ".join(f"'{n}'" for n in names)
+        if pers and tuple(pers) == tuple(seen):
+            why = f"{quoted}: all seen persistently by the same generators ({', '.join(pers)})"
+        elif pers:
+            why = f"{quoted}: all seen persistently by {', '.join(pers)} and transiently by the same others"
+        else:
+            why = f"{quoted}: all seen only transiently, by the same generators ({', '.join(seen)})"
+        merged.append({"faults": names, "reason": why})
+    decision = []
+    if gf.kind == "linear" and gf.decision is not None:
+        for f, row in zip(gf.faults, np.asarray(gf.decision.signatures, dtype=int), strict=True):
+            decision.append({"name": f, "statistics": [gf.step.statistic_names[j] for j in np.flatnonzero(row)]})
+    else:
+        decision = [{"name": f, "statistics": []} for f in gf.faults]
+    return {"groups": merged, "unseen": unseen, "decision": decision}
+
+
+def _beard_classes(gf: GainFile, entries: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+    """A Beard filter's classes are its component faults, told apart by the direction of the residual (each fault's
+    output subspace and its decision cone): those whose cones overlap (the design's cone geometry) merge."""
+    pay = gf.extensions[gf.kind]
+    cones = (pay.get("design") or {}).get("cones") or {}
+    angles = cones.get("axis_angles_deg") or []
+    merged = []
+    for i, j in cones.get("overlapping_pairs") or []:
+        a, b = gf.faults[int(i)], gf.faults[int(j)]
+        apart = f", output directions {float(angles[i][j]):.3g}° apart" if angles else ""
+        merged.append({"faults": [a, b], "reason": f"'{a}' and '{b}': their decision cones overlap{apart}"})
+    names = {e["name"] for e in entries}
+    merged = [g for g in merged if all(f in names for f in g["faults"])]
+    unseen = [e["name"] for e in entries if not e["seen_by"]]
+    return {"groups": merged, "unseen": unseen, "decision": [{"name": f, "statistics": []} for f in gf.faults]}
+
+
+def with_account(gf: GainFile, plant: Any = None) -> GainFile:
+    """``gf`` with its ``account`` block (:func:`fault_account`); unchanged for a kind the account does not cover.
+
+    Parameters
+    ----------
+    gf : GainFile
+        The certified gain file a design returned.
+    plant : LinearPlant, optional
+        The plant it was designed for (see :func:`fault_account`).
+
+    Returns
+    -------
+    GainFile
+        The same diagnoser (same generators, thresholds and certificate) with ``account`` set.
+    """
+    if gf.kind not in ("linear", "beard_fdf"):
+        return gf
+    return replace(gf, account=fault_account(replace(gf, account=None) if gf.account is not None else gf, plant))
+
+
+def _unit(e: Mapping[str, Any]) -> str:
+    return str(e["unit"]) if e.get("unit") else f"in the units of {e['name']}"
+
+
+def account_lines(account: Mapping[str, Any] | None, kind: str = "linear") -> list[str]:
+    """The account as ``fdisyn design`` prints it: a table (fault, effect, smallest size with its unit, the
+    generators that see it) and the classes that merge.
+
+    Parameters
+    ----------
+    account : Mapping or None
+        A gain file's ``account`` block; ``None``: the kind is not covered (the line says why).
+    kind : str
+        The diagnoser kind (for the line of an uncovered kind).
+
+    Returns
+    -------
+    list of str
+        Lines without trailing newlines.
+    """
+    if account is None:
+        return [f"what the design can see: not computed — {NOT_COMPUTED.get(kind, 'not a linear diagnoser')}"]
+    kinds = sorted({s["kind"] for s in account["statistics"]})
+    rule = {
+        "chi2": "χ²: P(J > threshold) = 95 % per sample",
+        "wssr": "WSSR: P(J > threshold) = 95 % per window",
+        "glr": "GLR: P(full-window term > threshold) = 95 %",
+        "cusum": "CUSUM: the size above which its sum drifts up (detected with probability 1)",
+        "rms": "window RMS: P(RMS > h) = 95 % per window",
+    }
+    out = [
+        "what the design can see (a step fault in steady state; smallest size: " + "; ".join(rule[k] for k in kinds) + "):",
+    ]
+    rows = [("fault", "effect", "smallest size", "seen by")]
+    for e in account["faults"]:
+        size = "—" if e["size"] is None else f"{e['size']:.3g} ({_unit(e)})"
+        if e["effect"] == "transient":
+            size = "none at steady state"
+        elif e["effect"] == "zero":
+            size = "undetectable"
+        seen = e["seen_by"]
+        by = ", ".join(seen) if len(seen) <= 3 else f"{len(seen)} generators ({', '.join(seen[:2])}, …)"
+        rows.append((f"{e['name']} ({e['type']})", e["effect"], size, by or "no generator"))
+    widths = [max(len(r[i]) for r in rows) for i in range(3)]
+    out += ["  " + "  ".join(r[i].ljust(widths[i]) for i in range(3)) + "  " + r[3] for r in rows]
+    groups = account["classes"]["groups"]
+    if groups:
+        out.append("faults the bank cannot tell apart:")
+        out += [f"  {g['reason']}" for g in groups]
+    else:
+        out.append("faults the bank cannot tell apart: none (every seen fault has its own signature)")
+    decision = account["classes"].get("decision", [])
+    if decision and account["kind"] == "linear":
+        out.append("the decision table isolates: " + ", ".join(f"'{c['name']}'" for c in decision))
+        effect = {e["name"]: e["effect"] for e in account["faults"]}
+        onset = [c["name"] for c in decision if c["name"] in effect and effect[c["name"]] != "persistent"]
+        if onset:
+            out.append(
+                "  of them seen at the onset only (no steady-state effect): " + ", ".join(f"'{n}'" for n in onset)
+                + " — a lasting bias there is alarmed, if at all, only while its transient lasts"
+            )
+    if account["classes"]["unseen"]:
+        out.append(f"faults no generator sees: {', '.join(account['classes']['unseen'])}")
+    out += [f"note: {n}" for n in account.get("notes", [])]
+    return out
