@@ -62,6 +62,9 @@ NOT_COMPUTED = {
 }
 """Why the account is not computed for a diagnoser kind (printed by ``fdisyn design``, shown on the report)."""
 
+_NUMERIC = (np.linalg.LinAlgError, ValueError, ZeroDivisionError, OverflowError, FloatingPointError, RuntimeError)
+"""Numerical failures of one transfer or law: the account says so for that fault; the design stands."""
+
 _GRID = 257
 """Frequencies ``ω ∈ [0, π]`` of the peak-gain grid: a rational transfer of the orders fdisyn designs (at most a few
 hundred states) is nonzero on almost all of them if it is nonzero at all."""
@@ -394,10 +397,14 @@ def fault_account(gf: GainFile, plant: Any = None) -> dict[str, Any] | None:
     for name, ftype, col in faults:
         per_gen: dict[str, dict[str, Any]] = {}
         dcs: dict[int, Any] = {}
-        for gi, gen in enumerate(gens):
-            gain = _gains(*_fault_path(gen, model, ftype, col))
-            dcs[gi] = gain.pop("dc")
-            per_gen[gen.name] = gain
+        try:
+            for gi, gen in enumerate(gens):
+                gain = _gains(*_fault_path(gen, model, ftype, col))
+                dcs[gi] = gain.pop("dc")
+                per_gen[gen.name] = gain
+        except _NUMERIC as exc:  # a transfer that cannot be evaluated: said, never a failed design
+            notes.append(f"fault {name}: its transfer to the residuals could not be evaluated ({type(exc).__name__}: {exc})")
+            continue
         sizes: list[tuple[float, float | None, str]] = []
         reasons: list[str] = []
         for si, ev in enumerate(evs):
@@ -411,10 +418,16 @@ def fault_account(gf: GainFile, plant: Any = None) -> dict[str, Any] | None:
             if "Q" not in model:
                 continue
             if ev.kind == "wssr" and si not in acov:
-                ac = _autocovariances(gens[gi], model, int(ev.window))
+                try:
+                    ac = _autocovariances(gens[gi], model, int(ev.window))
+                except _NUMERIC:
+                    ac = None
                 small = ac is not None and int(ev.window) * gens[gi].n_residual <= _WINDOW_MAX
                 acov[si] = _window_operator(ev, ac) if small and ac is not None else (None if ac is None else "large")
-            s95, s50, why_not = _statistic_sizes(ev, dcs[gi], acov.get(si))
+            try:
+                s95, s50, why_not = _statistic_sizes(ev, dcs[gi], acov.get(si))
+            except _NUMERIC as exc:
+                s95, s50, why_not = None, None, f"its law could not be evaluated ({type(exc).__name__}: {exc})"
             if s95 is None:
                 reasons.append(f"{stat_names[si]}: {why_not}")
             else:
@@ -517,7 +530,14 @@ def with_account(gf: GainFile, plant: Any = None) -> GainFile:
     """
     if gf.kind not in ("linear", "beard_fdf"):
         return gf
-    return replace(gf, account=fault_account(replace(gf, account=None) if gf.account is not None else gf, plant))
+    base = replace(gf, account=None) if gf.account is not None else gf
+    try:
+        block = fault_account(base, plant)
+    except _NUMERIC as exc:  # informational: a design that passed its certificate is not refused for its account
+        block = {"format": ACCOUNT_FORMAT, "kind": gf.kind, "zero_rtol": ZERO_RTOL, "statistics": [], "faults": [],
+                 "classes": {"groups": [], "unseen": [], "decision": []},
+                 "notes": [f"not computed: {type(exc).__name__}: {exc}"]}  # fmt: skip
+    return replace(gf, account=block)
 
 
 def _unit(e: Mapping[str, Any]) -> str:

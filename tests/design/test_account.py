@@ -231,3 +231,18 @@ def test_report_shows_the_account_folded_beside_the_certificate(motor) -> None:
     nafdf = read_gain_file(REPORTS / "ship_propulsion" / "gains" / "ship_propulsion_nafdf.json")
     assert "What the design can see: not computed" in _certificate_html(nafdf)
     assert "What the design can see" not in _certificate_html(replace(gf, account=None), prob)
+
+
+def test_a_transfer_that_cannot_be_evaluated_is_said_not_fatal(motor, monkeypatch) -> None:
+    _, gf = motor
+
+    def broken(*_args: object) -> dict:
+        raise np.linalg.LinAlgError("Singular matrix")
+
+    monkeypatch.setattr(acc_mod, "_gains", broken)
+    a = with_account(gf).account
+    assert a["faults"] == [] and any("could not be evaluated" in n for n in a["notes"])
+    monkeypatch.setattr(acc_mod, "fault_account", lambda *_: (_ for _ in ()).throw(ValueError("bad")))
+    b = with_account(gf).account
+    assert b["faults"] == [] and b["notes"] == ["not computed: ValueError: bad"]
+    assert "not computed" in "\n".join(account_lines(b))
