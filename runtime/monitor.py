@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
+from typing import Literal, cast
 
 import numpy as np
 from fdisyn.runtime.compiled import CompiledDiagnoser, library_path
@@ -51,10 +51,13 @@ BACKENDS = ("auto", "compiled", "reference")
 """What runs the step: ``"compiled"`` the C library, ``"reference"`` the NumPy reference, ``"auto"`` the library when there is one."""
 
 
-def _backend(backend: object) -> str:
-    if not isinstance(backend, str) or backend not in BACKENDS:
-        raise ArgumentError(f"backend = {shown(backend)}: expected 'auto', 'compiled' or 'reference'")
-    return backend
+Backend = Literal["auto", "compiled", "reference"]
+
+
+def _backend(backend: object) -> Backend:
+    if isinstance(backend, str) and backend in BACKENDS:
+        return cast(Backend, backend)
+    raise ArgumentError(f"backend = {shown(backend)}: expected 'auto', 'compiled' or 'reference'")
 
 
 class Monitor:

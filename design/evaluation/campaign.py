@@ -29,7 +29,7 @@ import re
 import signal
 import threading
 from collections import deque
-from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Generator, Iterable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
@@ -520,7 +520,7 @@ def run_tasks(
     spec: CampaignSpec | None,
     workers: int,
     client: Any = None,
-) -> Iterator[ChunkSummary]:
+) -> Generator[ChunkSummary, None, None]:
     """The chunks' summaries in task order, run here (``workers == 1`` or no ``spec``), over
     ``min(workers, len(tasks))`` local processes, or on ``client``.
 

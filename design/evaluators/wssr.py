@@ -17,12 +17,12 @@ import scipy.stats
 from fdisyn.evaluators.chi2 import chi2_evaluator
 from fdisyn.evaluators.window import window_energy_quantile
 from fdisyn.runtime.errors import ArgumentError, ShapeError
-from fdisyn.runtime.gainfile import MAX_WSSR_WINDOW, Evaluator
+from fdisyn.runtime.gainfile import MAX_MAGNITUDE, MAX_WSSR_WINDOW, Evaluator
 from fdisyn.runtime.names import shown
 
 __all__ = ['wssr_threshold_table', 'wssr_evaluator']
 
-# The largest finite double: a threshold that can never be exceeded (JSON has no inf).
+# The largest finite double: what the NAFDF step saturates an overflowed statistic to (JSON has no inf).
 _NEVER = float(np.finfo(float).max)
 
 
@@ -33,7 +33,9 @@ def wssr_threshold_table(
 
     ``"chi2"``: ``χ²_{1−P_f}(k p) / k`` — the exact ``(1 − P_f)`` quantile of
     ``L`` under H0 (``k L ~ χ²(k p)``). ``"beta0"``: the paper's ``β0`` on a
-    full window, never exceeded on a partial one.
+    full window and, on a partial one, the largest number a gain file holds
+    (``MAX_MAGNITUDE``, 1e150): a level no statistic of a filter that has not
+    diverged reaches, so the rule alarms on full windows only.
     """
     ks = np.arange(1, window + 1)
     if rule == "chi2":
@@ -41,7 +43,7 @@ def wssr_threshold_table(
     if rule == "beta0":
         if beta0 is None or not math.isfinite(beta0) or beta0 <= 0:
             raise ArgumentError(f"threshold_rule 'beta0' needs a positive finite beta0; got {beta0!r}")
-        return np.where(ks == window, float(beta0), _NEVER)
+        return np.where(ks == window, float(beta0), MAX_MAGNITUDE)
     raise ArgumentError(f"threshold_rule must be 'chi2' or 'beta0'; got {rule!r}")
 
 

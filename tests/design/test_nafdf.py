@@ -21,7 +21,7 @@ from fdisyn.synthesis.nafdf.payload import nafdf_from_payload, nafdf_payload, st
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-NEVER_ALARM = dict(threshold_rule="beta0", beta0=1e300)  # the WSSR can never exceed it: filters run undisturbed
+NEVER_ALARM = dict(threshold_rule="beta0", beta0=1e150)  # the largest a gain file holds: the WSSR of a working filter never reaches it: filters run undisturbed
 
 
 @pytest.fixture(scope="module")
@@ -144,7 +144,7 @@ def test_threshold_table_rules() -> None:
     np.testing.assert_allclose(chi, [scipy.stats.chi2.isf(1e-3, 2 * k) / k for k in range(1, 6)], rtol=1e-15)
     assert np.all(np.diff(chi) < 0)  # averaging more samples narrows the law
     beta = wssr_threshold_table(window=5, n_outputs=2, rule="beta0", false_alarm_probability=0.5, beta0=0.01)
-    assert beta[-1] == 0.01 and np.all(beta[:-1] > 1e300)  # the paper's rule needs a full window
+    assert beta[-1] == 0.01 and np.all(beta[:-1] == 1e150)  # the paper's rule needs a full window (1e150: the gain file's largest number)
     with pytest.raises(ArgumentError, match="beta0"):
         wssr_threshold_table(window=5, n_outputs=1, rule="beta0", false_alarm_probability=0.5, beta0=None)
 
@@ -410,3 +410,10 @@ def test_certificate_fails_on_a_nan_jacobian_even_past_the_model_check(monkeypat
     pl = NonlinearPlant.from_expressions(**{**sp.MODEL, "f": {"x": "x**x + a*b*u"}})
     with pytest.raises(CertificateError, match=r"AD Jacobians vs central differences at x0 \(max relative\) = nan"):
         nafdf(pl, x0=[0.0], P0=1.0)
+
+
+@pytest.mark.parametrize("kw, key", [(dict(P0=1e200), "P0"), (dict(W2=1e200), "W2"), (dict(x0=[1e160]), "x0")])
+def test_settings_beyond_what_a_gain_file_holds_are_refused_at_design(kw: dict, key: str) -> None:
+    # a design whose gain file the reader would then refuse (numbers beyond 1e150) is refused by its option's name
+    with pytest.raises(ArgumentError, match=rf"^{key} holds .*; a design's numbers must be at most 1e\+150 in magnitude"):
+        nafdf(sp.plant(), **{**dict(x0=[0.0], P0=100.0), **kw})

@@ -13,6 +13,7 @@ from fdisyn.evaluators.sequential import MAX_ARL_SAMPLES
 from fdisyn.models.nonlinear import NonlinearPlant
 from fdisyn.numerics.linalg import as_covariance, as_vector, frozen_array, real_array
 from fdisyn.runtime.errors import ArgumentError, ShapeError
+from fdisyn.runtime.gainfile import MAX_MAGNITUDE
 from fdisyn.runtime.layout import StateLayout
 from fdisyn.runtime.names import shown
 from fdisyn.runtime.values import real_number
@@ -360,6 +361,13 @@ def _settings(plant: NonlinearPlant, **kw: Any) -> NafdfSettings:
         arl0=arl0,
         u0=frozen_array(np.zeros(m) if kw["u0"] is None else _finite_vec(kw["u0"], "u0", m)),
     )
+    for key, value in settings.to_dict().items():  # the gain file holds no number beyond MAX_MAGNITUDE
+        big = [z for z in np.ravel(np.asarray(value, dtype=object)) if isinstance(z, float) and math.isfinite(z) and abs(z) > MAX_MAGNITUDE]
+        if big:
+            raise ArgumentError(
+                f"{key} holds {big[0]!r}; a design's numbers must be at most {MAX_MAGNITUDE:g} in magnitude (its gain file "
+                "holds no larger ones: they would overflow its consistency checks); rescale the model's units"
+            )
     if np.any(settings.theta0 < lo) or np.any(settings.theta0 > hi):
         raise ArgumentError(
             f"theta0 = {shown(settings.theta0.tolist())} lies outside the parameter box "
