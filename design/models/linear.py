@@ -23,6 +23,7 @@ import numpy as np
 from fdisyn.models.sampling import check_sample_time, van_loan, zoh
 from fdisyn.numerics.linalg import as_matrix, as_square, as_symmetric, frozen_array, real_array
 from fdisyn.runtime.errors import ArgumentError, ShapeError
+from fdisyn.runtime.gainfile import MAX_MAGNITUDE
 from fdisyn.runtime.names import check_distinct, check_signal_names, shown
 
 __all__ = ["LinearPlant", "identifier_names"]
@@ -97,6 +98,13 @@ class LinearPlant:
         q = np.zeros((n, n)) if Q is None else as_symmetric(Q, "Q", n, psd=True)
         r = np.zeros((p, p)) if R is None else as_symmetric(R, "R", p, psd=True)
         ts = None if Ts is None else check_sample_time(Ts)
+        for key, mat in (("A", a), ("B", b), ("C", c), ("D", d), ("E", e), ("Fx", fx), ("Q", q), ("R", r)):
+            if mat.size and not np.max(np.abs(mat)) <= MAX_MAGNITUDE:  # its design's gain file could not hold it
+                at = tuple(int(i) for i in np.unravel_index(int(np.argmax(np.abs(mat))), mat.shape))
+                raise ArgumentError(
+                    f"{key}{list(at)} is {float(mat[at]):.3g}; a plant's entries must be at most {MAX_MAGNITUDE:g} in magnitude "
+                    "(a diagnoser's gain file holds no larger numbers): express the signals in larger units"
+                )
         names = {
             "states": identifier_names(states, "state", count=n, prefix="x"),
             "inputs": identifier_names(inputs, "input", count=m, prefix="u"),

@@ -203,3 +203,12 @@ def test_a_library_given_to_the_reference_backend_is_refused_not_dropped(tmp_pat
     # the NumPy reference would run and the library named beside it would be ignored without a word
     with pytest.raises(ArgumentError, match=r"^library = .* with backend = 'reference': the NumPy reference runs no library"):
         Monitor(toy(), library=tmp_path / "libx.so", backend="reference")
+
+
+def test_a_plant_entry_beyond_what_a_gain_file_holds_is_refused_when_the_plant_is_built() -> None:
+    # refused by the plant, with a remedy, not later by the gain-file reader ("write the file again")
+    from fdisyn.models.linear import LinearPlant
+
+    with pytest.raises(ArgumentError, match=r"^B\[0, 0\] is 1e\+160; a plant's entries must be at most 1e\+150 in magnitude"):
+        LinearPlant.create(A=[[0.5, 0.0], [0.0, 0.3]], B=[[1e160], [1.0]], C=[[1.0, 0.0], [0.0, 1.0]], Ts=0.1)
+    LinearPlant.create(A=[[0.5, 0.0], [0.0, 0.3]], B=[[1e150], [1.0]], C=[[1.0, 0.0], [0.0, 1.0]], Ts=0.1)  # at the bound
