@@ -50,6 +50,7 @@ __all__ = [
     "check_output_separability",
     "beard_structure",
     "beard_gain",
+    "plain_eigenvalues",
     "fault_groups",
 ]
 
@@ -82,6 +83,9 @@ class BeardStructure:
     """The eigenvalues of ``A − L C`` that no admissible ``L`` moves (complex)."""
     unobservable: np.ndarray
     """Those of ``fixed`` that are unobservable modes of ``(C, A)`` (complex)."""
+    output_ranks: tuple[int, ...] = ()
+    """Per block (as :attr:`free_counts`), the number of independent outputs that observe its free part: an
+    eigenvalue can be placed at most that many times there (:func:`plain_eigenvalues`)."""
 
 
 @dataclass(frozen=True)
@@ -360,10 +364,11 @@ def _geometry(a: object, c: object, f: object, tol: float | None) -> _Geometry:
 
     # each diagonal block X_b = V̄_bᵀ (Ā − L̄_0 C̄) V̄_b with its output map U_bᵀ C̄ V̄_b; the unobservable part of
     # that pair is fixed (N's modes are fixed as well)
-    pairs = []
+    pairs, ranks = [], []
     for v, u in zip((*vbars, vc), (*outs, uc), strict=True):
         x, cx = v.T @ g @ v, u.T @ cbar @ v
         pairs.append((x, cx, _min_unobservability(_unit(x), _unit(cx), np.zeros((x.shape[0], 0)), tl)))
+        ranks.append(_output_rank(cx @ orth_complement(pairs[-1][2]), tl))
     fixed_blocks = [np.linalg.eigvals(nu.T @ x @ nu) * na for x, _, nu in pairs if nu.shape[1]]
     unobs = np.linalg.eigvals(nb.T @ as_ @ nb) * na if nb.shape[1] else np.zeros(0, dtype=complex)
     structure = BeardStructure(
@@ -371,8 +376,17 @@ def _geometry(a: object, c: object, f: object, tol: float | None) -> _Geometry:
         free_counts=tuple(x.shape[0] - nu.shape[1] for x, _, nu in pairs),
         fixed=np.concatenate([unobs, *fixed_blocks]).astype(complex),
         unobservable=unobs.astype(complex),
+        output_ranks=tuple(ranks),
     )
     return _Geometry(structure, q, abar, cbar, (*vbars, vc), (*outs, uc), tuple(pairs), friend, na, nc, tl)
+
+
+def _output_rank(co: np.ndarray, tol: float) -> int:
+    """The rank :func:`_place_observable_part` compresses the outputs of an observable pair to."""
+    if co.size == 0:
+        return 0
+    ss = np.linalg.svd(co, compute_uv=False)
+    return int(np.sum(ss > tol * float(ss[0]))) if ss[0] > 0 else 0
 
 
 def _unit(m: np.ndarray) -> np.ndarray:
@@ -388,6 +402,39 @@ def beard_structure(a: object, c: object, f: object, *, tol: float | None = None
     :class:`ExistenceError` naming the faults when one fails. See :class:`BeardStructure` and :func:`beard_gain`.
     """
     return _geometry(a, c, f, tol).structure
+
+
+def plain_eigenvalues(structure: BeardStructure, radius: float, spacing: float) -> list[list[float]]:
+    """The plain assignment: every free eigenvalue at ``radius``, repeated no more often than the block's outputs allow.
+
+    A block observed through ``ρ`` independent outputs (:attr:`BeardStructure.output_ranks`) takes an eigenvalue at
+    most ``ρ`` times as a diagonalisable block (Kautsky, Nichols & Van Dooren, International Journal of Control
+    41(5), 1985); more copies would make a Jordan block, whose eigenvalues round-off moves by ``ε^(1/m)`` (a triple
+    pole through one output lands 1e-3 away). So the block's ``m`` eigenvalues are ``radius`` ``ρ`` times, then
+    ``radius − s`` ``ρ`` times, and so on, with ``s = min(spacing, radius / ⌈m/ρ⌉)`` (all within ``[0, radius]``).
+
+    Parameters
+    ----------
+    structure
+        The geometry (:func:`beard_structure`).
+    radius
+        The decay bound ``r`` (z-plane, ``0 < r < 1``).
+    spacing
+        The distance between the copies of different values.
+
+    Returns
+    -------
+    list of list of float
+        One list per block, of lengths :attr:`BeardStructure.free_counts`: the ``eigenvalues`` of :func:`beard_gain`.
+    """
+    ranks = structure.output_ranks or tuple(1 for _ in structure.free_counts)
+    out = []
+    for m, rank in zip(structure.free_counts, ranks, strict=True):
+        rank = max(int(rank), 1)
+        levels = -(-m // rank)
+        step = min(float(spacing), float(radius) / levels) if levels > 1 else 0.0
+        out.append([float(radius) - step * (i // rank) for i in range(m)])
+    return out
 
 
 def beard_gain(
@@ -451,7 +498,9 @@ def beard_gain(
     for b, (v, u, (x, cx, nu)) in enumerate(zip(geo.blocks, geo.outputs, geo.pairs, strict=True)):
         pi = uinv[start : start + u.shape[1]]
         start += u.shape[1]
-        want = _eigenvalue_list(eigenvalues[b], b, k, st.free_counts[b]) / geo.na
+        given = _eigenvalue_list(eigenvalues[b], b, k, st.free_counts[b])
+        _check_multiplicity(given, st.output_ranks[b] if st.output_ranks else given.size, b, k)
+        want = given / geo.na
         gbar = gbar + v @ _place_observable_part(x, cx, nu, want, _block_name(b, k), geo.tol) @ pi
     gain = geo.q @ gbar * (geo.na / geo.nc)
     am, cm = _pair(a, c)
@@ -499,9 +548,31 @@ def _place_observable_part(x: np.ndarray, cx: np.ndarray, nu: np.ndarray, want: 
         try:
             kr = scipy.signal.place_poles(xo.T, cr.T, want).gain_matrix
         except ValueError as exc:
-            raise ArgumentError(f"cannot place the eigenvalues on {label}: {exc}") from exc
+            raise ArgumentError(f"cannot place the eigenvalues asked for on {label} (pole placement: {exc}); "
+                                "expected eigenvalues a few 1e-3 apart") from None
     mo = kr.T  # xo − mo cr
     return ob @ mo @ (np.diag(1.0 / ss[:r]) @ uu[:, :r].T)
+
+
+def _check_multiplicity(ev: np.ndarray, rank: int, b: int, k: int) -> None:
+    """Refuse an eigenvalue asked for more often than the block's outputs can place it (more than once through one
+    output is Ackermann's formula, exact: a single Jordan block)."""
+    if ev.size == 0 or rank <= 1:
+        return
+    values, counts = np.unique(np.round(ev, 12), return_counts=True)
+    if counts.max() > rank:
+        z = complex(values[int(np.argmax(counts))])
+        raise ArgumentError(
+            f"eigenvalues[{b}] ({_block_name(b, k)}): {_shown_complex(z)} is asked for {int(counts.max())} times, but that "
+            f"block is observed through {rank} independent outputs, so one eigenvalue can be placed there at most {rank} "
+            f"times; expected at most {rank} copies of each value (spread the others, e.g. {_shown_complex(z)} and values "
+            "0.01 to 0.05 below it)"
+        )
+
+
+def _shown_complex(z: complex) -> str:
+    z = complex(z)
+    return f"{z.real:.6g}" if z.imag == 0 else f"{z.real:.6g}{z.imag:+.6g}j"
 
 
 def _ackermann(a: np.ndarray, b: np.ndarray, poles: np.ndarray) -> np.ndarray:

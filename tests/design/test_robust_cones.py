@@ -213,11 +213,11 @@ def test_optimised_eigenstructure_beats_the_spread_assignments():
     q = np.diag([0, 0, 1e-8, 1e-8])
     rr = np.diag([1e-8, 1e-8, 1e-9, 1e-9])
     lp = beard_gain(ad, np.eye(4), bd, [[r], [r], [r, r]]).L
-    plain = residual_covariance_trace(ad - lp, lp, np.eye(4), q, rr)
     groups = [bd[:, :1], bd[:, 1:]]
     gains = [float(np.linalg.norm(np.linalg.solve(np.eye(4) - ad + lp, f))) for f in groups]
     res = optimise_eigenstructure(ad, np.eye(4), groups, st_, radius=r, Q=q, R=rr, noise_gain=4.0, separation=0.02,
-                                  plain_trace=plain, plain_fault_gains=gains)
+                                  plain_gain=lp)
+    assert res.source == "ipopt" and res.note is None and res.plain_objective == np.inf
     g = ad - res.L
     eig = np.sort(np.linalg.eigvals(g).real)
     assert np.all(np.abs(np.linalg.eigvals(g).imag) < 1e-12)

@@ -19,13 +19,14 @@ Steps (each documented where it is computed):
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
 from fdisyn.models.linear import LinearPlant
 from fdisyn.numerics.certificate import Certificate, Check
-from fdisyn.numerics.detection_filter import beard_gain, beard_structure
+from fdisyn.numerics.detection_filter import beard_gain, beard_structure, plain_eigenvalues
 from fdisyn.numerics.linalg import spectral_radius
 from fdisyn.numerics.robust_cones import (
     HALF_PI,
@@ -203,7 +204,8 @@ def design_beard_fdf(
     radius = float(np.exp(-float(decay_rate) * ts)) if decay_rate is not None else None
     plain_l = None
     if radius is not None:
-        plain_ev = [[radius] * n for n in st.free_counts]
+        _check_fixed_modes(st.fixed, radius, float(decay_rate), ts, ts_c, where, numbered)  # type: ignore[arg-type]
+        plain_ev = plain_eigenvalues(st, radius, separation)
         try:
             plain_l = beard_gain(ad, c, groups, plain_ev).L
         except ExistenceError as exc:
@@ -217,24 +219,27 @@ def design_beard_fdf(
     elif eigenstructure == "plain":
         assert plain_l is not None
         gain, kind = plain_l, "plain"
-        assigned = np.full(sum(st.free_counts), radius, dtype=complex)
+        assigned = np.concatenate([np.asarray(e, dtype=complex) for e in plain_ev])
     elif eigenstructure == "optimised":
         assert plain_l is not None and radius is not None
-        plain_trace = residual_covariance_trace(ad - plain_l @ c, plain_l, c, np.asarray(pd.Q), np.asarray(pd.R))
-        if not plain_trace > 0:
+        q_d, r_d = np.asarray(pd.Q), np.asarray(pd.R)
+        if not residual_covariance_trace(ad - plain_l @ c, plain_l, c, q_d, r_d) > 0:
             raise ArgumentError(f"{where}: the optimised eigenstructure bounds the residual noise by that of the plain one; give Q or R")
         plain_gains = [float(np.linalg.norm(c @ np.linalg.solve(np.eye(ad.shape[0]) - ad + plain_l @ c, f))) for f in groups]
         res = optimise_eigenstructure(
-            ad, c, groups, st, radius=radius, Q=np.asarray(pd.Q), R=np.asarray(pd.R),
-            noise_gain=noise_gain, separation=separation, plain_trace=plain_trace, plain_fault_gains=plain_gains,
+            ad, c, groups, st, radius=radius, Q=q_d, R=r_d, noise_gain=noise_gain, separation=separation, plain_gain=plain_l,
         )
         gain, kind = res.L, "optimised"
         assigned = np.concatenate(res.eigenvalues).astype(complex)
         info["fault_gain_ratio"] = [
             float(np.linalg.norm(c @ np.linalg.solve(np.eye(ad.shape[0]) - ad + res.L @ c, f))) / gp for f, gp in zip(groups, plain_gains, strict=True)
         ]
-        info["nlp"] = {"objective": res.objective, "noise_ratio": res.noise_ratio, "starts": res.starts,
-                       "iterations": res.iterations, "return_status": res.return_status}
+        info["nlp"] = {"objective": _finite(res.objective), "plain_objective": _finite(res.plain_objective),
+                       "noise_ratio": res.noise_ratio, "starts": res.starts, "iterations": res.iterations,
+                       "return_status": res.return_status, "source": res.source}
+        if res.note is not None:
+            info["nlp"]["note"] = res.note
+            warnings.warn(f"{where}: {res.note}", UserWarning, stacklevel=2)
     else:
         raise ArgumentError(f"{at(where, 'eigenstructure')} must be 'optimised' or 'plain'; got {eigenstructure!r}")
     g = ad - gain @ c
@@ -350,14 +355,41 @@ def design_beard_fdf(
     )
 
 
+def _finite(v: float) -> float | None:
+    return float(v) if math.isfinite(v) else None
+
+
+def _check_fixed_modes(fixed: np.ndarray, radius: float, decay_rate: float, ts: float, ts_c: float | None, where: str,
+                       numbered: str) -> None:
+    """Refuse a decay bound that a fixed mode of ``A − L C`` (no admissible gain moves it) does not meet."""
+    slow = [complex(z) for z in fixed if abs(z) > radius + 1e-9 and abs(z) < 1.0 - 1e-10]
+    if not slow:
+        return
+    worst = max(abs(z) for z in slow)
+    shown_z = ", ".join(f"{z.real:.6g}" if z.imag == 0 else f"{z.real:.6g}{z.imag:+.6g}j" for z in slow)
+    plane = (f" (s = {', '.join(f'{w:.6g}' for w in np.log(np.asarray(slow, dtype=complex)) / ts)} 1/s)") if ts_c is not None else ""
+    raise ExistenceError(
+        f"{at(where, 'decay_rate')} = {shown(decay_rate)}: the eigenvalue(s) {shown_z}{plane} of A − L C are fixed by the "
+        f"geometry (no gain that keeps every detection space invariant moves them) and lie outside the decay bound "
+        f"|z| ≤ e^(−decay_rate·Ts) = {radius:.6g}; expected decay_rate ≤ {-math.log(worst) / ts:.6g} 1/s (faults {numbered})"
+    )
+
+
 def _spectrum_distance(a: np.ndarray, b: np.ndarray) -> float:
+    """Largest distance between the eigenvalues ``a`` and the assigned ``b``, matched one to one, over the simple
+    ones of ``b``: an eigenvalue assigned several times through fewer outputs forms a Jordan block, which round-off
+    splits by ``ε^(1/m)`` — the decay bound checks those."""
     import scipy.optimize
 
     if a.size != b.size:
         return float("inf")
     cost = np.abs(a[:, None] - b[None, :])
     r, c = scipy.optimize.linear_sum_assignment(cost)
-    return float(cost[r, c].max()) if a.size else 0.0
+    if not a.size:
+        return 0.0
+    near = np.abs(b[:, None] - b[None, :]) <= 1e-6 * np.maximum(1.0, np.abs(b))[:, None]
+    simple = near.sum(axis=1) == 1
+    return float(max((cost[i, j] for i, j in zip(r, c, strict=True) if simple[j]), default=0.0))
 
 
 def _simulated_directions(g: np.ndarray, c: np.ndarray, groups: Sequence[np.ndarray], axes: Sequence[np.ndarray], samples: int = 200) -> float:
