@@ -19,10 +19,11 @@ imported when ``design``, ``export`` or ``methods`` is first called, so
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import Any, Literal
 
-from fdisyn.runtime.errors import ArgumentError
+from fdisyn.runtime.errors import ArgumentError, FileError
 from fdisyn.runtime.gainfile import GainFile, write_gain_file
 from fdisyn.runtime.monitor import Monitor
 
@@ -58,15 +59,58 @@ def export(gf: GainFile, directory: str | Path) -> Path:
     ``DIR/lib<name>.so`` with its build manifest and the replay program
     ``DIR/replay``. The generated step is checked against the gain file before
     it is written (see :mod:`fdisyn.codegen.library`).
+
+    Parameters
+    ----------
+    gf : GainFile
+        The diagnoser (from :func:`design` or ``read_gain_file``).
+    directory : str or Path
+        The folder to build in: an existing folder, or one that can be created.
+
+    Returns
+    -------
+    Path
+        ``directory``.
+
+    Raises
+    ------
+    ArgumentError
+        ``gf`` is not a gain file, or ``directory`` is not a path.
+    FileError
+        ``directory`` cannot be written: an existing file, a place that cannot hold a folder (``/proc``), a
+        folder without write permission, or ``gains.json`` in it a folder (the message names the path).
+    BuildError
+        The C compiler failed.
     """
     from fdisyn.codegen.library import codegen
 
     if not isinstance(gf, GainFile):
         raise ArgumentError(f"gf must be a GainFile (from fdisyn.design or read_gain_file); got {type(gf).__name__}")
+    if not isinstance(directory, (str, Path)):
+        raise ArgumentError(f"directory must be a path (str or pathlib.Path); got {type(directory).__name__}")
     d = Path(directory)
-    write_gain_file(gf, d / "gains.json")
+    _writable_folder(d)
+    try:
+        write_gain_file(gf, d / "gains.json")
+    except OSError as exc:
+        raise FileError(f"cannot write {d / 'gains.json'}: {exc.strerror or exc}; expected a folder fdisyn can write in") from exc
     codegen(d)
     return d
+
+
+def _writable_folder(d: Path) -> None:
+    """Refuse an export folder that cannot be written, naming the path, what is wrong and what to give instead."""
+    remedy = "give fdisyn.export a folder you can write in (it is created if missing)"
+    if d.exists() and not d.is_dir():
+        raise FileError(f"export folder {d} is a file; {remedy}")
+    try:
+        d.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise FileError(f"cannot create the export folder {d}: {exc.strerror or exc}; {remedy}") from exc
+    if (d / "gains.json").is_dir():
+        raise FileError(f"{d / 'gains.json'} is a folder, where the diagnoser's gain file goes; remove it or {remedy}")
+    if not os.access(d, os.W_OK | os.X_OK):
+        raise FileError(f"export folder {d} is not writable; {remedy}")
 
 
 def load(directory: str | Path, *, backend: Literal["compiled", "reference", "auto"] = "compiled") -> Monitor:

@@ -447,6 +447,15 @@ def codegen(directory: str | Path) -> CodegenResult:
         raise BuildError(f"{p} changed while `fdisyn codegen` read it; expected a gain file that stays as it is: run `fdisyn codegen {d}` again")
     bytes_sha = hashlib.sha256(after).hexdigest()
     c_dir = d / "c"
-    header = generate_sources(gf, c_dir, gain_file_bytes_sha256=bytes_sha)
-    lib, replay = compile_sources(gf, c_dir, d, gain_file_bytes_sha256=bytes_sha)
+    try:
+        header = generate_sources(gf, c_dir, gain_file_bytes_sha256=bytes_sha)
+        lib, replay = compile_sources(gf, c_dir, d, gain_file_bytes_sha256=bytes_sha)
+    except BuildError:
+        raise
+    except OSError as exc:  # a path in DIR that cannot be written (DIR/c a file, no permission, a full disk)
+        where = exc.filename if exc.filename is not None else d
+        raise BuildError(
+            f"cannot write {where} while building {d}: {exc.strerror or exc}; expected a folder fdisyn can write in "
+            f"(remove what is in the way, or build in another folder)"
+        ) from exc
     return CodegenResult(directory=d, c_dir=c_dir, header=header, library=lib, replay=replay)

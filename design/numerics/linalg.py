@@ -35,6 +35,7 @@ __all__ = [
     "psd_factor",
     "normal_rank",
     "unobservable_modes",
+    "state_balancing",
 ]
 
 
@@ -366,10 +367,21 @@ def unobservable_modes(a: np.ndarray, c: np.ndarray, *, region: str) -> list[com
     (``|λ| ≥ 1``) or ``"all"``. A mode is unobservable when
     ``[λI − A; C]`` loses rank; the smallest singular value is compared with
     ``1e3·max(shape)·eps·σ_max`` (a rank decision with three digits of margin
-    over backward-stable round-off).
+    over backward-stable round-off). The test is made on the pair in the
+    units it is written in no more: each row of ``C`` is divided by its norm
+    (the sensors' units) and the states are balanced first
+    (:func:`state_balancing`, an exact power-of-two similarity), so the
+    answer does not change when a state is measured in mm rather than m.
     """
+    a = np.asarray(a, dtype=float)
+    c = np.asarray(c, dtype=float)
     n = a.shape[0]
     out: list[complex] = []
+    if n and c.size:
+        norms = np.linalg.norm(c, axis=1)
+        c = c[norms > 0] / norms[norms > 0, None]
+        s = state_balancing(a, np.zeros((n, 0)), c)
+        a, c = a / s[:, None] * s[None, :], c * s[None, :]
     for lam in np.linalg.eigvals(a):
         if region == "unstable-continuous" and lam.real < -1e-10 * max(1.0, abs(lam)):
             continue
@@ -380,3 +392,68 @@ def unobservable_modes(a: np.ndarray, c: np.ndarray, *, region: str) -> list[com
         if s[-1] <= 1e3 * max(pbh.shape) * np.finfo(float).eps * max(s[0], np.finfo(float).tiny):
             out.append(complex(lam))
     return out
+
+
+BALANCE_MAX_EXPONENT = 200
+"""The largest power of two (either way) :func:`state_balancing` scales a state by: ``2^±200 ≈ 1.6e±60`` keeps
+every scaled entry of a plant (at most 1e150, :data:`fdisyn.runtime.gainfile.MAX_MAGNITUDE`) far from overflow
+and underflow."""
+
+
+def state_balancing(a: np.ndarray, inputs: np.ndarray, outputs: np.ndarray) -> np.ndarray:
+    """A diagonal state scaling ``s`` (powers of two) that balances ``[[A, inputs], [outputs, 0]]``.
+
+    The Parlett–Reinsch iteration of LAPACK's ``gebal`` (and SLICOT's ``TB01ID``, which balances a system
+    matrix ``[[A, B], [C, 0]]``) on the states alone: in ``x = diag(s) x̃``, the plant's matrices become
+    ``S⁻¹ A S``, ``S⁻¹ B``, ``C S``, and each state ``i`` is rescaled by the power of two that brings the norm
+    of its column (``A`` off the diagonal, then ``outputs``) and of its row (``A`` off the diagonal, then
+    ``inputs``) closest together, as long as that shrinks their sum of squares by 5 % or more; sweeps repeat
+    until no state changes. Powers of two make the similarity exact in floating point (only exponents change),
+    so a design on the scaled plant maps back to the user's states without round-off; and the scaled plant is
+    the iteration's fixed point, so balancing it again gives ``s = 1`` exactly, as does any plant whose states
+    are balanced already. The exponents are kept within ±:data:`BALANCE_MAX_EXPONENT`.
+
+    Parameters
+    ----------
+    a : ndarray
+        ``n × n`` state matrix.
+    inputs : ndarray
+        ``n × k`` columns entering the states (unknown-input and noise directions, each in its own unit).
+    outputs : ndarray
+        ``p × n`` rows reading the states (sensors, each in its own unit).
+
+    Returns
+    -------
+    ndarray
+        ``n`` positive powers of two, the typical state magnitudes ``s`` (``x = diag(s) x̃``).
+    """
+    a = np.abs(np.asarray(a, dtype=float))
+    n = a.shape[0]
+    off = a.copy()
+    np.fill_diagonal(off, 0.0)
+    ins = np.abs(np.asarray(inputs, dtype=float)).reshape(n, -1)
+    outs = np.abs(np.asarray(outputs, dtype=float)).reshape(-1, n)
+    # entries at round-off of the largest are zeros (e^(A Ts) = −I has off-diagonal 1e-16s): balancing them
+    # would scale a state by 2^±200
+    top = max(float(np.max(m, initial=0.0)) for m in (a, ins, outs))
+    tiny = 4.0 * max(n, 1) * np.finfo(float).eps * top
+    off, ins, outs = (np.where(m > tiny, m, 0.0) for m in (off, ins, outs))
+    col_out = np.sum(outs**2, axis=0)
+    row_in = np.sum(ins**2, axis=1)
+    e = np.zeros(n)
+    for _ in range(64 * max(n, 1)):
+        changed = False
+        for i in range(n):
+            s = np.exp2(e)
+            col = float(np.sum((off[:, i] * s[i] / s) ** 2) + col_out[i] * s[i] ** 2)
+            row = float(np.sum((off[i, :] * s / s[i]) ** 2) + row_in[i] / s[i] ** 2)
+            if not (col > 0.0 and row > 0.0 and np.isfinite(col) and np.isfinite(row)):
+                continue
+            k = float(np.round(0.25 * np.log2(row / col)))  # col·4^k ≈ row/4^k
+            k = float(np.clip(e[i] + k, -BALANCE_MAX_EXPONENT, BALANCE_MAX_EXPONENT) - e[i])
+            if k != 0.0 and col * 4.0**k + row / 4.0**k < 0.95 * (col + row):
+                e[i] += k
+                changed = True
+        if not changed:
+            break
+    return np.exp2(e)

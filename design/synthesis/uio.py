@@ -43,8 +43,9 @@ Gains:
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Literal
 
 import casadi as ca
@@ -66,6 +67,8 @@ __all__ = [
     "uio_pole_placement",
     "uio_error_covariance",
     "ce_condition",
+    "design_coordinates",
+    "in_user_states",
 ]
 
 # Tolerances, each with its reason (used in the certificates below).
@@ -442,18 +445,87 @@ def kalman_uio(plant: LinearPlant, *, variant: Literal["optimal", "paper"] = "op
     A failure after the structure is built (solver, certificate) names the
     outputs and, when ``C E`` is weak (:func:`ce_condition`), the likely cause.
     """
-    st = uio_structure(plant)
     if variant not in ("optimal", "paper"):
         raise ArgumentError(f"variant must be 'optimal' or 'paper'; got {variant!r}")
+    work, scale = design_coordinates(plant)
+    st = uio_structure(work)
     try:
-        return _kalman_uio(plant, st, variant)
+        return in_user_states(_kalman_uio(work, st, variant), plant, scale)
     except (SolverError, CertificateError, ExistenceError, np.linalg.LinAlgError) as exc:
-        raise _in_context(exc, plant) from exc
+        raise _in_context(exc, work) from exc
+
+
+def design_coordinates(plant: LinearPlant) -> tuple[LinearPlant, np.ndarray | None]:
+    """The plant a UIO is designed on, and its state scaling (``None``: the plant as given).
+
+    A plant the user scaled (:attr:`~fdisyn.models.linear.LinearPlant.state_scale`, the plant file's
+    ``state_scale``) is designed as given; otherwise in the states of its automatic balancing
+    (:meth:`~fdisyn.models.linear.LinearPlant.balancing`; as given when that is the identity, so a balanced
+    plant's design is the same to the bit). Every existence condition is judged there too: ``rank E``,
+    ``‖C‖‖E‖/σ_min(C E)`` and the PBH test depend on how the states are measured, the UIO does not.
+    """
+    if plant.state_scale is not None:
+        return plant, None
+    s = plant.balancing()
+    if np.all(s == 1.0):
+        return plant, None
+    return plant.scaled(s), s
+
+
+def in_user_states(d: UIODesign, plant: LinearPlant, scale: np.ndarray | None) -> UIODesign:
+    """A UIO designed in scaled states ``x̃ = S⁻¹ x`` (:func:`design_coordinates`), in the user's states ``x``.
+
+    ``ε = S ε̃``: ``F = S F̃ S⁻¹``, ``L = S L̃``, ``K = S K̃``, ``H = S H̃``, ``T = S T̃ S⁻¹``, ``G = S G̃``,
+    ``Σ = S Σ̃ S``; ``M``, ``I − C H`` and ``Σ_r`` are unchanged. With ``S`` a power of two this is exact, and
+    the generator's residual is the scaled design's to the bit. The certificate keeps every check of the
+    scaled design and adds those of what the user runs, in the user's states: ``F`` Schur, the generator's
+    transfers from ``u`` and ``d`` to the residual zero on the user's plant.
+    """
+    if scale is None:
+        return d
+    s = np.asarray(scale, dtype=float)
+    st = d.structure
+
+    def sim(m: np.ndarray) -> np.ndarray:
+        return s[:, None] * m / s[None, :]
+
+    user = UIOStructure(M=st.M, H=s[:, None] * st.H, T=sim(st.T), A1=sim(st.A1), G=s[:, None] * st.G, Cbar=st.Cbar)
+    f = sim(d.F)
+    gen = _canonical(plant, user, s[:, None] * d.L, s[:, None] * d.Sigma * s[None, :], d.method, d.variant, "check", range(plant.p), plant.p)
+    checks = [
+        *d.certificate.checks,
+        Check("user's states: spectral radius of F", spectral_radius(f), 1.0 - STABILITY_MARGIN, "<=", "F must be Schur stable"),
+        *(replace(c, name=f"user's states: {c.name}") for c in _decoupling_checks(plant, gen)),
+    ]
+    info = {**d.certificate.info, "state_scaling": s.tolist()}
+    return UIODesign(
+        plant=plant,
+        structure=user,
+        L=s[:, None] * d.L,
+        F=f,
+        K=s[:, None] * d.K,
+        Sigma=s[:, None] * d.Sigma * s[None, :],
+        Sigma_r=d.Sigma_r,
+        method=d.method,
+        variant=d.variant,
+        certificate=Certificate.of(d.certificate.subject, checks, info).require(),
+    )
 
 
 def _kalman_uio(plant: LinearPlant, st: UIOStructure, variant: str) -> UIODesign:
     c, q, r = np.asarray(plant.C), np.asarray(plant.Q), np.asarray(plant.R)
-    ptruth = solve_filter_dare(st.A1, c, st.T @ q @ st.T.T + st.H @ r @ st.H.T, r)
+    _check_sensor_noise(st, plant)
+    try:
+        ptruth = solve_filter_dare(st.A1, c, st.T @ q @ st.T.T + st.H @ r @ st.H.T, r)
+    except (ExistenceError, SolverError) as exc:
+        silent = [o for o, v in zip(plant.outputs, np.diag(r), strict=True) if v <= 0]
+        if not silent:
+            raise
+        raise ExistenceError(
+            f"the covariance recursion of Hu et al. 2013 (eqs. (14), (16)), the minimum-variance UIO's starting gain, has "
+            f"no steady state: the outputs {silent} have no sensor noise (R_ii = 0); give them their noise variance in R "
+            f"(R > 0 on the outputs used), or choose uio_pole_placement ({exc})"
+        ) from exc
     paper = ptruth.L
     red = _reduce(st, plant)
     truth = solve_filter_dare(red.A, red.C, red.Q, red.R, red.S)
@@ -515,6 +587,24 @@ def _kalman_uio(plant: LinearPlant, st: UIOStructure, variant: str) -> UIODesign
         "paper_gain_excess_trace": float(np.trace(uio_error_covariance(st, paper, q, r, c)[0])) / max(tr_truth, 1e-300) - 1.0,
     }
     return _finish(plant, st, l_nlp, "kalman_uio", "optimal", checks, info)
+
+
+def _check_sensor_noise(st: UIOStructure, plant: LinearPlant) -> None:
+    """The minimum-variance gain needs sensor noise on every direction of the residual: ``R̃ = Ucᵀ(I − CH) R (I −
+    CH)ᵀ Uc ≻ 0`` (:class:`ReducedProblem`); otherwise the DARE's pencil is singular. Refused naming the sensors
+    without noise (``R_ii = 0``) and the remedies, judged relative to ``‖R‖``."""
+    r = np.asarray(plant.R)
+    uc = _range_basis(st.Cbar, plant.p - plant.q, "I − C H")
+    rt = uc.T @ st.Cbar @ r @ st.Cbar.T @ uc
+    lam = np.linalg.eigvalsh(0.5 * (rt + rt.T)) if rt.size else np.ones(1)
+    if lam[0] > 1e3 * rt.shape[0] * np.finfo(float).eps * max(float(np.linalg.norm(r, 2)), np.finfo(float).tiny):
+        return
+    silent = [o for o, v in zip(plant.outputs, np.diag(r), strict=True) if v <= 0]
+    which = f"the outputs {silent} have none (R_ii = 0)" if silent else f"R is singular on the residual's {plant.p - plant.q} directions"
+    raise ExistenceError(
+        f"the minimum-variance UIO needs sensor noise on every residual direction, and {which}: give those sensors "
+        "their noise variance in R (R > 0 on the outputs used), or choose uio_pole_placement (no noise model)"
+    )
 
 
 def _paper_recursion_check(
@@ -630,6 +720,8 @@ def uio_pole_placement(plant: LinearPlant, *, poles: Sequence[complex]) -> UIODe
     dual pair ``(A1ᵀ, Cᵀ)``. ``poles`` must lie strictly inside the unit
     circle, be closed under conjugation and number ``n``.
     """
+    user_plant = plant
+    plant, scale = design_coordinates(plant)
     st = uio_structure(plant)
     try:
         pl = np.asarray(poles, dtype=complex).reshape(-1)
@@ -640,10 +732,13 @@ def uio_pole_placement(plant: LinearPlant, *, poles: Sequence[complex]) -> UIODe
     if np.any(np.abs(pl) >= 1.0):
         raise ArgumentError(f"poles must lie strictly inside the unit circle; got moduli {np.abs(pl)}")
     c = np.asarray(plant.C)
+    _check_assignable(st, c, pl, plant)
     try:
-        res = scipy.signal.place_poles(st.A1.T, c.T, pl)
+        with warnings.catch_warnings():  # KNV's "convergence was not reached": the certificate judges the poles
+            warnings.simplefilter("ignore", UserWarning)
+            res = scipy.signal.place_poles(st.A1.T, c.T, pl)
     except ValueError as exc:
-        raise ExistenceError(f"cannot assign the UIO poles: {exc} ((C, A1) must be observable)") from exc
+        raise ExistenceError(f"the UIO poles {_shown_poles(pl)} cannot be assigned from the outputs {list(plant.outputs)} (SciPy: {exc})") from exc
     gain = np.asarray(res.gain_matrix).T
     achieved = np.sort_complex(np.linalg.eigvals(st.A1 - gain @ c))
     want = np.sort_complex(pl)
@@ -658,9 +753,52 @@ def uio_pole_placement(plant: LinearPlant, *, poles: Sequence[complex]) -> UIODe
         )
     ]
     try:
-        return _finish(plant, st, gain, "uio_pole_placement", "poles", checks, {"poles": [complex(z) for z in pl]})
+        return in_user_states(
+            _finish(plant, st, gain, "uio_pole_placement", "poles", checks, {"poles": [complex(z) for z in pl]}), user_plant, scale
+        )
     except (CertificateError, ExistenceError, np.linalg.LinAlgError) as exc:
         raise _in_context(exc, plant) from exc
+
+
+def _shown_poles(pl: np.ndarray) -> list[float | complex]:
+    return [float(z.real) if z.imag == 0 else complex(z) for z in pl]
+
+
+def _check_assignable(st: UIOStructure, c: np.ndarray, pl: np.ndarray, plant: LinearPlant) -> None:
+    """Refuse poles no output injection ``L`` can give ``A1 − L C``, naming why and poles that work.
+
+    A mode of ``A1`` unobservable from ``C`` (fixed by the decoupling: an invariant zero of the plant from the
+    unknown input) is an eigenvalue of ``A1 − L C`` for every ``L``; and a pole can be repeated at most
+    ``rank C`` times (the multiplicity output injection can place, Kautsky, Nichols & Van Dooren, Int. J.
+    Control 41(5), 1985).
+    """
+    want = list(pl)
+    fixed = unobservable_modes(st.A1, c, region="all")
+    missing = []
+    for lam in fixed:
+        near = [i for i, z in enumerate(want) if abs(z - lam) <= 1e-6 * max(1.0, abs(lam))]
+        if near:
+            want.pop(near[0])
+        else:
+            missing.append(lam)
+    if missing:
+        fix = list(pl)
+        for lam in missing:
+            free = [i for i in range(len(fix)) if all(abs(fix[i] - f) > 1e-6 * max(1.0, abs(f)) for f in fixed)]
+            fix[min(free, key=lambda i: abs(fix[i] - lam))] = lam
+        raise ExistenceError(
+            f"the UIO poles {_shown_poles(pl)} cannot be assigned: the mode(s) {_shown_poles(np.asarray(missing))} of "
+            f"A1 = T A are unobservable from the outputs {list(plant.outputs)} (fixed by decoupling the unknown input: "
+            f"no gain moves them); list them among the poles, e.g. poles = {_shown_poles(np.asarray(fix))}"
+        )
+    r = rank(c)
+    for z in pl:
+        k = int(np.sum(np.abs(pl - z) <= 1e-12 * max(1.0, abs(z))))
+        if k > r:
+            raise ExistenceError(
+                f"the UIO pole {_shown_poles(np.asarray([z]))[0]} is requested {k} times, but the {plant.p} outputs "
+                f"{list(plant.outputs)} (rank C = {r}) can place a pole at most {r} times; give distinct poles"
+            )
 
 
 # --------------------------------------------------------------------------- the methods
