@@ -84,6 +84,11 @@ class Monitor:
             ``"compiled"`` without a library, or a library not built from ``gf``.
         """
         backend = _backend(backend)
+        if not isinstance(gf, GainFile):
+            raise ArgumentError(
+                f"Monitor takes a GainFile (fdisyn.load or fdisyn.design gives one), got {type(gf).__name__}; "
+                "for a folder written by fdisyn export or fdisyn codegen use Monitor.from_directory(path)"
+            )
         if backend == "reference" and library is not None:
             raise ArgumentError(
                 f"library = {shown(str(library))} with backend = 'reference': the NumPy reference runs no library; "

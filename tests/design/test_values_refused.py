@@ -212,3 +212,9 @@ def test_a_plant_entry_beyond_what_a_gain_file_holds_is_refused_when_the_plant_i
     with pytest.raises(ArgumentError, match=r"^B\[0, 0\] is 1e\+160; a plant's entries must be at most 1e\+150 in magnitude"):
         LinearPlant.create(A=[[0.5, 0.0], [0.0, 0.3]], B=[[1e160], [1.0]], C=[[1.0, 0.0], [0.0, 1.0]], Ts=0.1)
     LinearPlant.create(A=[[0.5, 0.0], [0.0, 0.3]], B=[[1e150], [1.0]], C=[[1.0, 0.0], [0.0, 1.0]], Ts=0.1)  # at the bound
+
+
+@pytest.mark.parametrize("gf", ["x", None, {"format": "fdisyn.gains/1"}])
+def test_a_monitor_of_something_other_than_a_gain_file_is_refused(gf: object) -> None:
+    with pytest.raises(ArgumentError, match=r"^Monitor takes a GainFile .*use Monitor.from_directory\(path\)$"):
+        Monitor(gf)  # type: ignore[arg-type]
