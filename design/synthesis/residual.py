@@ -99,15 +99,39 @@ def residual_covariance(gen: Generator, plant: LinearPlant) -> np.ndarray:
 
     From the internal form: ``Σ = A_i Σ A_iᵀ + B_w Q B_wᵀ + B_v R B_vᵀ`` with
     ``B_w = [I; 0]``, ``B_v = [0; By]``; then ``Σ_r = C_i Σ C_iᵀ + Dy R Dyᵀ``
-    (``v(k)`` is independent of the state at ``k``). Needs a stable internal
-    form, i.e. a stable plant; designs of unstable plants state their own.
+    (``v(k)`` is independent of the state at ``k``).
+
+    An unstable plant makes the internal form unstable, yet the residual of an
+    observer-based generator is stationary: it sees only the estimation error,
+    whose dynamics are stable. When the internal form is not Schur stable, the
+    covariance is taken on its stable quotient, the modes on or outside the unit
+    circle removed (:func:`residual_autocovariances`, ``τ = 0``): the residual is
+    exactly the output of that quotient driven by the same noise. A Schur stable
+    internal form is solved as above, unchanged.
+
+    Parameters
+    ----------
+    gen : Generator
+        The residual generator, on the plant's full input and output vectors.
+    plant : LinearPlant
+        The discrete plant with its noise covariances ``Q`` and ``R``.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``Σ_r``, symmetric, ``(nr, nr)``.
+
+    Raises
+    ------
+    ExistenceError
+        When the residual sees a mode of the plant on or outside the unit
+        circle: it then has no stationary law.
     """
     form = internal_form(gen, plant)
     if spectral_radius(form.A) >= 1.0:
-        raise ExistenceError(
-            f"the plant with generator {gen.name!r} has no stationary residual covariance (internal form spectral radius "
-            f"{spectral_radius(form.A):.6g}); use the design's own covariance"
-        )
+        a, k, c, dn, w = _stationary_model(gen, plant)
+        s = c @ dlyap(a, k @ w @ k.T) @ c.T + dn @ w @ dn.T
+        return 0.5 * (s + s.T)
     bw, bv = _noise_inputs(gen, plant)
     sig = dlyap(form.A, bw @ plant.Q @ bw.T + bv @ plant.R @ bv.T)
     s = form.C @ sig @ form.C.T + gen.Dy @ plant.R @ gen.Dy.T

@@ -35,12 +35,6 @@ CASES = all_cases()
 KNOWN_FAILURES: dict[str, str] = {
     "uio_pole_placement-seed0-n12-q1-p3-cont-stab-none-Ts2e-01-spread1e4":
         "CertificateError: method 'uio_pole_placement': option bank[0]: UIO for the outputs ['y0', 'y1', 'y2']: design 'uio_pole_placement/poles' failed its certificate: assigned poles: max |achieved − requested| = 0.000273 (must be <= 1e-06: eigenvalue sensitivity of the assigned closed loop; KNV assignment is accurate well below this);…",
-    "lmi-seed5-n7-q1-p2-cont-unst-Ts8e-01-spread1e4":
-        "ExistenceError: method 'lmi': option bank[0]: the plant with generator 'g0_y0_y1' has no stationary residual covariance (internal form spectral radius 1.00956); use the design's own covariance",
-    "sampled_data_observer-seed0-n5-q2-p3-cont-unst-Ts2e-01-spread1e2":
-        "ExistenceError: method 'sampled_data_observer': option bank[0]: the plant with generator 'g0_y0_y1_y2' has no stationary residual covariance (internal form spectral radius 1.01401); use the design's own covariance",
-    "sampled_data_observer-seed1-n4-q2-p4-cont-unst-Ts4e-03-spread1e4":
-        "ExistenceError: method 'sampled_data_observer': option bank[0]: the plant with generator 'g0_y0_y1_y2_y3' has no stationary residual covariance (internal form spectral radius 1.04769); use the design's own covariance",
     "beard_fdf-seed0-n6-k1-p2-planes1-stab-Ts3e-01-spread1e2":
         "ExistenceError: method 'beard_fdf': faults 1 are not mutually detectable: the eigenvalue(s) -5.60075+0j of A − L C, fixed by the geometry, are not inside the unit circle for any gain that keeps every detection space invariant (faults 1 = 'f0')",
     "beard_fdf-seed1-n2-k2-p2-planes0-unst-Ts6e-01-spread1e6":
