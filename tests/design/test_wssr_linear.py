@@ -237,8 +237,11 @@ def test_reference_casadi_and_compiled_c_agree_on_random_data_with_nan_samples(t
     assert chk.passed, chk.references
     res = built.diagnoser.run(U, Y)
     ref = LinearReference(gf).run(U, Y)
-    for name in ("J", "state"):
+    # check_export above holds r and J to their rounding-error scale; this normwise bound only catches gross
+    # errors: the state to 1e-12, J (a window of 7 squared residuals, each carrying the generator's round-off,
+    # ~κ·ε ≈ 1e3·2.2e-16, twice for the square) to 7·2·2.2e-13 ≈ 3e-12, with a 30× margin
+    for name, tol in (("J", 1e-10), ("state", 1e-12)):
         a, b = getattr(res, name), getattr(ref, name)
-        assert np.linalg.norm(a - b) <= 1e-12 * np.linalg.norm(b), name
+        assert np.linalg.norm(a - b) <= tol * np.linalg.norm(b), name
     np.testing.assert_array_equal(res.alarm, ref.alarm)
     assert linear_recovery_samples(gf) > 6  # the window holds a fault's last samples 6 more samples
