@@ -23,7 +23,31 @@ from typing import Literal
 from fdisyn.runtime.errors import CertificateError
 from fdisyn.runtime.gainfile import to_jsonable
 
-__all__ = ["Check", "Certificate", "worst"]
+__all__ = ["Check", "Certificate", "distinct_digits", "worst"]
+
+
+def distinct_digits(value: float, bound: float) -> tuple[str, str]:
+    """``value`` and ``bound`` with the fewest significant digits (at least 3) that tell them apart.
+
+    A failed check must show its violation: ``0.951 (must be <= 0.951)`` hides it, ``0.9512295 (must be <=
+    0.9512294)`` shows it. Equal numbers (or a NaN) are shown with 3 digits.
+
+    Parameters
+    ----------
+    value, bound
+        The measured value and the bound it was checked against.
+
+    Returns
+    -------
+    tuple of str
+        The two numbers as text, with the same number of significant digits.
+    """
+    v, b = float(value), float(bound)
+    for digits in range(3, 18):
+        sv, sb = f"{v:.{digits}g}", f"{b:.{digits}g}"
+        if sv != sb or not (math.isfinite(v) and math.isfinite(b)) or v == b:
+            return sv, sb
+    return repr(v), repr(b)
 
 
 def worst(*values: float) -> float:
@@ -96,7 +120,7 @@ class Certificate:
         """Return ``self`` if every check passed, else raise :class:`CertificateError`."""
         bad = self.failed()
         if bad:
-            lines = "; ".join(f"{c.name} = {c.value:.3g} (must be {c.relation} {c.bound:.3g}: {c.reason})" for c in bad)
+            lines = "; ".join(f"{c.name} = {v} (must be {c.relation} {b}: {c.reason})" for c in bad for v, b in [distinct_digits(c.value, c.bound)])
             raise CertificateError(f"design {self.subject!r} failed its certificate: {lines}")
         return self
 

@@ -405,13 +405,14 @@ def beard_structure(a: object, c: object, f: object, *, tol: float | None = None
 
 
 def plain_eigenvalues(structure: BeardStructure, radius: float, spacing: float) -> list[list[float]]:
-    """The plain assignment: every free eigenvalue at ``radius``, repeated no more often than the block's outputs allow.
+    """The plain assignment: every free eigenvalue at ``radius`` where that can be placed exactly, else spread below it.
 
-    A block observed through ``ρ`` independent outputs (:attr:`BeardStructure.output_ranks`) takes an eigenvalue at
-    most ``ρ`` times as a diagonalisable block (Kautsky, Nichols & Van Dooren, International Journal of Control
-    41(5), 1985); more copies would make a Jordan block, whose eigenvalues round-off moves by ``ε^(1/m)`` (a triple
-    pole through one output lands 1e-3 away). So the block's ``m`` eigenvalues are ``radius`` ``ρ`` times, then
-    ``radius − s`` ``ρ`` times, and so on, with ``s = min(spacing, radius / ⌈m/ρ⌉)`` (all within ``[0, radius]``).
+    A block whose free part is observed through as many independent outputs as it has free eigenvalues
+    (:attr:`BeardStructure.output_ranks`) takes ``radius`` on all of them exactly (its placement is a scalar
+    block). Any other block gets distinct eigenvalues ``radius, radius − s, radius − 2s, …`` with
+    ``s = min(spacing, radius / m)`` (all within ``(0, radius]``): a repeated eigenvalue there would be a Jordan
+    block or an ill-conditioned one, which round-off moves by ``ε^(1/m)`` (a triple pole through one output lands
+    1e-3 away) — beyond the decay bound it was meant to meet.
 
     Parameters
     ----------
@@ -420,20 +421,18 @@ def plain_eigenvalues(structure: BeardStructure, radius: float, spacing: float) 
     radius
         The decay bound ``r`` (z-plane, ``0 < r < 1``).
     spacing
-        The distance between the copies of different values.
+        The distance between the eigenvalues of a block that cannot take ``radius`` several times.
 
     Returns
     -------
     list of list of float
         One list per block, of lengths :attr:`BeardStructure.free_counts`: the ``eigenvalues`` of :func:`beard_gain`.
     """
-    ranks = structure.output_ranks or tuple(1 for _ in structure.free_counts)
+    ranks = structure.output_ranks or tuple(0 for _ in structure.free_counts)
     out = []
     for m, rank in zip(structure.free_counts, ranks, strict=True):
-        rank = max(int(rank), 1)
-        levels = -(-m // rank)
-        step = min(float(spacing), float(radius) / levels) if levels > 1 else 0.0
-        out.append([float(radius) - step * (i // rank) for i in range(m)])
+        step = 0.0 if rank >= m else min(float(spacing), float(radius) / m)
+        out.append([float(radius) - step * i for i in range(m)])
     return out
 
 

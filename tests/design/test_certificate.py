@@ -45,3 +45,15 @@ def test_co_inner_residual_reports_a_nan_second_term() -> None:
     assert math.isfinite(fac.co_inner_residual())
     broken = dataclasses.replace(fac, G_i=dataclasses.replace(fac.G_i, A=np.full_like(fac.G_i.A, np.nan)))
     assert math.isnan(broken.co_inner_residual())
+
+
+def test_a_failed_check_shows_enough_digits_to_see_its_violation() -> None:
+    from fdisyn.numerics.certificate import distinct_digits
+
+    bound = 0.951229424500714 + 1e-7
+    with pytest.raises(CertificateError) as err:
+        Certificate.of("d", [Check("spectral radius", bound + 2e-9, bound, "<=", "the decay bound")]).require()
+    assert "spectral radius = 0.95122953 (must be <= 0.95122952: the decay bound)" in str(err.value)
+    assert distinct_digits(1e-6, 1e-8) == ("1e-06", "1e-08")  # three digits when they already differ
+    assert distinct_digits(1 + 2**-52, 1.0) == ("1.0000000000000002", "1")
+    assert distinct_digits(float("nan"), 1.0) == ("nan", "1")

@@ -37,16 +37,8 @@ KNOWN_FAILURES: dict[str, str] = {
         "CertificateError: method 'uio_pole_placement': option bank[0]: UIO for the outputs ['y0', 'y1', 'y2']: design 'uio_pole_placement/poles' failed its certificate: assigned poles: max |achieved − requested| = 0.000273 (must be <= 1e-06: eigenvalue sensitivity of the assigned closed loop; KNV assignment is accurate well below this);…",
     "beard_fdf-seed0-n6-k1-p2-planes1-stab-Ts3e-01-spread1e2":
         "ExistenceError: method 'beard_fdf': faults 1 are not mutually detectable: the eigenvalue(s) -5.60075+0j of A − L C, fixed by the geometry, are not inside the unit circle for any gain that keeps every detection space invariant (faults 1 = 'f0')",
-    "beard_fdf-seed1-n2-k2-p2-planes0-unst-Ts6e-01-spread1e6":
-        "SolverError: IPOPT found no admissible eigenstructure from 6 starts (real eigenvalues in [0, 0.851818], 0.02 apart, noise gain ≤ 2.0): raise the decay bound or the noise gain",
-    "beard_fdf-seed2-n7-k3-p3-planes0-stab-Ts3e-03-spread1e0":
-        "SolverError: IPOPT found no admissible eigenstructure from 0 starts (real eigenvalues in [0, 0.765461], 0.02 apart, noise gain ≤ 2.0): raise the decay bound or the noise gain",
     "beard_fdf-seed3-n6-k2-p3-planes0-stab-Ts8e-02-spread1e6":
         "SolverError: IPOPT found no admissible eigenstructure from 6 starts (real eigenvalues in [0, 0.683883], 0.02 apart, noise gain ≤ 2.0): raise the decay bound or the noise gain",
-    "beard_fdf-seed5-n6-k3-p3-planes0-stab-Ts9e-01-spread1e4":
-        "SolverError: IPOPT found no admissible eigenstructure from 0 starts (real eigenvalues in [0, 0.880027], 0.02 apart, noise gain ≤ 2.0): raise the decay bound or the noise gain",
-    "beard_fdf-mass_spring_SI-Ts10ms":
-        "SolverError: IPOPT found no admissible eigenstructure from 6 starts (real eigenvalues in [0, 0.99005], 0.02 apart, noise gain ≤ 2.0): raise the decay bound or the noise gain",
 }
 """Cases where the independent test says a design exists and fdisyn fails today: case id → the cause (the error)."""
 

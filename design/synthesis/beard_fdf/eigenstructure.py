@@ -54,7 +54,8 @@ from fdisyn.numerics.linalg import orth_basis, orth_complement
 from fdisyn.numerics.robust_cones import implicit_thresholds, output_subspaces
 from fdisyn.runtime.errors import ArgumentError
 
-__all__ = ["admissible_gains", "residual_covariance_trace", "EigenstructureResult", "optimise_eigenstructure"]
+__all__ = ["admissible_gains", "residual_covariance_trace", "EigenstructureResult", "effective_separation",
+           "optimise_eigenstructure"]
 
 
 NOISE_WEIGHT = 1e-3
@@ -110,6 +111,17 @@ class EigenstructureResult:
     ``"plain"`` (nothing beat the plain gain) or ``"fixed"`` (no admissible gain has another eigenstructure)."""
     note: str | None = None
     """What could not be improved, and why (``None`` when the NLP converged, or when nothing was free)."""
+
+
+def effective_separation(separation: float, radius: float, noise_gain: float, count: int) -> float:
+    """The NLP's ``δ``: ``separation``, at most ``max(γ − 1, 0.1) (1 − r) / count``.
+
+    The steady gain of a constant fault through an eigenvalue ``λ`` of its detection space grows as ``1/(1 − λ)``,
+    and the NLP keeps it within ``γ`` of the plain filter's (``λ = r``): the ``count`` eigenvalues of the detection
+    spaces fit ``δ`` apart in a band about ``(γ − 1)(1 − r)`` wide below ``r``. A slow filter (``r`` near 1: a short
+    sample time) would find no eigenstructure ``separation`` apart in that band.
+    """
+    return float(min(separation, max(noise_gain - 1.0, 0.1) * (1.0 - radius) / max(count, 1)))
 
 
 def _free_starts(counts: Sequence[int], radius: float, separation: float, limit: int = 6) -> list[list[list[float]]]:
@@ -231,6 +243,8 @@ def optimise_eigenstructure(
     return replace(out, L=out.L.copy(), eigenvalues=tuple(e.copy() for e in out.eigenvalues))
 
 
+_CONVERGED = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
+
 _SOLVED: dict[str, EigenstructureResult] = {}
 """The last few results: a design that runs twice on the same data (levels first, then the gain file) solves once."""
 
@@ -311,6 +325,7 @@ def _optimise(
     blocks = [*spaces, qs]
     dims = [b.shape[1] for b in blocks]
     free = list(structure.free_counts)
+    separation = effective_separation(separation, radius, noise_gain, sum(free[:k]))
     solver, surrogate, lbg, ubg = _nlp(A, C, F, spaces, blocks, free, fixed, l0, basis, radius=radius, Q=Q, R=R,
                              noise_gain=noise_gain, separation=separation, plain_trace=plain_trace, plain_fault=plain_fault)
     nx = len(basis) + sum(free) + sum(d * m for d, m in zip(dims, free, strict=True)) + 1  # θ, λ, the eigenvectors, t
@@ -370,7 +385,7 @@ def _optimise(
             f"IPOPT: {', '.join(dict.fromkeys(statuses)) or 'no start could be placed'}")
     if best_sol is not None and float(best_sol[0]) < plain_objective and (best_start is None or best_sol[0] <= best_start[0]):
         stats = best_sol[3]
-        note = None if any(s == "Solve_Succeeded" for s in statuses) else (
+        note = None if any(s in _CONVERGED for s in statuses) else (
             f"the NLP stopped short of its optimum ({what}): the best of its points is used")
         return result(best_sol[2], best_sol[0], best_sol[1], "ipopt", tried, int(stats.get("iter_count", -1)),
                       str(stats.get("return_status")), note)

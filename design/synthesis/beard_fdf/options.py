@@ -65,8 +65,9 @@ BEARD_OPTIONS: tuple[Option, ...] = (
            lambda v: isinstance(v, (list, tuple)) and all(isinstance(b, (list, tuple)) and all(_number(z) for z in b) for b in v),
            refine=_eigenvalues),
     Option("eigenstructure", "optimised",
-           "the free eigenstructure: 'optimised' (the NLP minimising the implicit cone half-angles) or 'plain' (every "
-           "eigenvalue at the decay bound)", "'optimised' or 'plain'", lambda v: v in ("optimised", "plain")),
+           "the free eigenstructure: 'optimised' (the NLP minimising the implicit cone half-angles, never worse than "
+           "'plain': it keeps the plain one and says so when it finds nothing better) or 'plain' (every eigenvalue at "
+           "the decay bound, spread below it where a block cannot take it more than once)", "'optimised' or 'plain'", lambda v: v in ("optimised", "plain")),
     Option("sigma", 0.0, "model-error bound ‖δA‖₂ ≤ sigma on the plant's A (the implicit thresholds)", "a number ≥ 0",
            lambda v: is_real(v) and v >= 0),
     Option("rho", None, "a fixed ratio ‖m‖/ε̄ at which the cones are taken (X_th = asin(1/rho)); default: monitored online",
@@ -82,7 +83,8 @@ BEARD_OPTIONS: tuple[Option, ...] = (
     PERSISTENCE,
     Option("noise_gain", 2.0, "the optimised filter's residual RMS under the design noise at most noise_gain × the plain one's",
            f"a number in [1, {MAX_NOISE_GAIN:g}]", lambda v: is_real(v) and 1 <= v <= MAX_NOISE_GAIN),
-    Option("separation", 0.02, "the optimised eigenvalues are real and at least this far apart (z-plane)", "a number in (0, 1)",
+    Option("separation", 0.02, "the optimised eigenvalues are real and at least this far apart (z-plane; at most (noise_gain − 1)(1 − "
+           "e^(−decay_rate·Ts)) / the detection spaces' dimension); the plain ones this far apart where spread", "a number in (0, 1)",
            lambda v: is_real(v) and 0 < v < 1),
     Option("sensor_faults", (), "outputs whose sensor faults the filter also isolates (each a plane of residual directions)",
            "a list of output names", lambda v: isinstance(v, (list, tuple)) and all(isinstance(s, str) for s in v),
