@@ -32,6 +32,7 @@ gain, a frequency grid for the peak gain, SciPy's noncentral χ²). The account 
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import replace
 from typing import Any
@@ -149,9 +150,24 @@ def _fault_path(gen: Any, plant: Mapping[str, np.ndarray], kind: str, column: np
 
 
 # --------------------------------------------------------------------------- sizes
+def _ncx2_sf(x: float, dof: float, lam: float) -> float:
+    """``P(χ²_dof(λ) > x)``: SciPy's series, or, where that series does not converge (Boost warns; far tails at
+    a large ``λ``), the normal law of the same mean ``dof + λ`` and variance ``2(dof + 2λ)``, which the noncentral
+    law approaches as ``λ`` grows (Johnson, Kotz & Balakrishnan, Continuous Univariate Distributions 2, 1995,
+    ch. 29) — the sizes only need the crossing of ``p`` to a few digits."""
+    if lam <= 0:
+        return float(scipy.stats.chi2.sf(x, dof))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        value = float(scipy.stats.ncx2.sf(x, dof, lam))
+    if caught or not math.isfinite(value):
+        value = float(scipy.stats.norm.sf((x - dof - lam) / math.sqrt(2.0 * (dof + 2.0 * lam))))
+    return value
+
+
 def _ncx2_lambda(threshold: float, dof: float, p: float) -> float:
     """The noncentrality ``λ`` with ``P(χ²_dof(λ) > threshold) = p``."""
-    sf = lambda lam: float(scipy.stats.ncx2.sf(threshold, dof, lam)) if lam > 0 else float(scipy.stats.chi2.sf(threshold, dof))  # noqa: E731
+    sf = lambda lam: _ncx2_sf(threshold, dof, lam)  # noqa: E731
     if sf(0.0) >= p:
         return 0.0
     hi = max(1.0, threshold)
@@ -173,7 +189,7 @@ def _ltz_sf(x: float, c: Sequence[float]) -> float:
         a, delta, dof = 1.0 / s1, 0.0, 1.0 / (s1 * s1)
     t = (x - c1) / math.sqrt(2.0 * c2)
     arg = t * math.sqrt(2.0) * a + dof + delta
-    return float(scipy.stats.ncx2.sf(arg, dof, delta)) if delta > 0 else float(scipy.stats.chi2.sf(arg, dof))
+    return _ncx2_sf(arg, dof, delta)
 
 
 def _autocovariances(gen: Any, plant: Mapping[str, np.ndarray], lags: int) -> np.ndarray | None:
