@@ -23,7 +23,7 @@ import scipy.linalg
 from fdisyn.evaluators.window import residual_autocovariance
 from fdisyn.models.linear import LinearPlant
 from fdisyn.numerics.linalg import dlyap, spectral_radius, transfer_size
-from fdisyn.runtime.errors import ExistenceError, ShapeError
+from fdisyn.runtime.errors import ExistenceError, ShapeError, SolverError
 from fdisyn.runtime.gainfile import Generator
 
 __all__ = [
@@ -231,7 +231,14 @@ def whitened(gen: Generator, plant: LinearPlant) -> Generator:
             Cr=t @ gen.Cr, Du=t @ gen.Du, Dy=t @ gen.Dy, method={**dict(gen.method), "projection": t},
         )
     a, k, c, dn, w = _stationary_model(gen, plant)
-    sol = solve_filter_dare(a, c, k @ w @ k.T, dn @ w @ dn.T, k @ w @ dn.T)
+    try:
+        sol = solve_filter_dare(a, c, k @ w @ k.T, dn @ w @ dn.T, k @ w @ dn.T)
+    except (ExistenceError, SolverError):
+        # Modes the residual does not see (those a decoupling generator cancels) put pairs λ, 1/λ̄ in the DARE
+        # pencil whose split into stable and unstable is left to round-off; the residual is the output of the
+        # observable part alone, so its predictor is designed there (Anderson & Moore 1979, section 5.3).
+        a, k, c = _observable_part(a, k, c)
+        sol = solve_filter_dare(a, c, k @ w @ k.T, dn @ w @ dn.T, k @ w @ dn.T)
     lg = sol.L
     ns, nz = gen.n_state, a.shape[0]
     ar = np.block([[gen.Ar, np.zeros((ns, nz))], [lg @ gen.Cr, a - lg @ c]])
@@ -246,6 +253,21 @@ def whitened(gen: Generator, plant: LinearPlant) -> Generator:
         Dy=gen.Dy,
         method={**dict(gen.method), "whitening_L": lg},
     )
+
+
+def _observable_part(a: np.ndarray, k: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(a, k, c)`` restricted to the states ``c`` observes: on an orthonormal basis ``V`` of the row space of the
+    observability matrix (its singular values above ``n·ε`` of the largest), the unobserved subspace is
+    ``a``-invariant, so ``z_o⁺ = Vᵀ a V z_o + Vᵀ k n``, ``r = c V z_o + Dn n`` gives the same residual."""
+    n = a.shape[0]
+    blocks, m = [], c
+    for _ in range(n):
+        blocks.append(m)
+        m = m @ a
+    _, sv, vt = np.linalg.svd(np.vstack(blocks))
+    rank = int(np.sum(sv > n * np.finfo(float).eps * max(float(sv[0]), 1e-300))) if sv.size else 0
+    v = vt[:rank].T
+    return v.T @ a @ v, v.T @ k, c @ v
 
 
 def long_run_covariance(gen: Generator, plant: LinearPlant) -> np.ndarray:

@@ -274,9 +274,11 @@ def test_a_model_error_below_round_off_designs_like_none() -> None:
     np.testing.assert_array_equal(np.asarray(a["L"]), np.asarray(b["L"]))
     assert a["h"] == b["h"] and a["explicit_level"] == b["explicit_level"]
     y = np.asarray(b["Y_th"])  # a bound ∝ sigma where it is informative (π/2 where the eigen-directions are not Lipschitz)
-    assert np.all((y < 1e-12) | (y == np.pi / 2)) and np.any(y < 1e-12)
-    (ratio,) = [c["value"] for c in tiny.certificate["beard_fdf"]["checks"] if c["name"].startswith("largest sampled residual-direction angle")]
-    assert 0.0 <= ratio <= 1.0  # checked, and passed: round-off angles against the bound with round-off's model error
+    assert np.all((y < 1e-12) | (y == np.pi / 2))
+    ratios = [c["value"] for c in tiny.certificate["beard_fdf"]["checks"] if c["name"].startswith("largest sampled residual-direction angle")]
+    # where a bound is informative it is checked, and passes: round-off angles against the bound with round-off's
+    # model error (with every bound π/2 there is no angle to check)
+    assert len(ratios) == int(np.any(y < 1e-12)) and all(0.0 <= r <= 1.0 for r in ratios)
 
 
 def test_a_model_error_that_matters_is_still_checked_against_its_own_bound() -> None:
