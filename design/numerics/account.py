@@ -44,7 +44,7 @@ import scipy.stats
 from fdisyn.runtime.errors import ArgumentError
 from fdisyn.runtime.gainfile import ACCOUNT_EFFECTS, ACCOUNT_FORMAT, GainFile
 
-__all__ = ["fault_account", "with_account", "account_lines", "ZERO_RTOL", "PROBABILITIES", "NOT_COMPUTED"]
+__all__ = ["fault_account", "with_account", "account_lines", "default_bank_of", "ZERO_RTOL", "PROBABILITIES", "NOT_COMPUTED"]
 
 ZERO_RTOL = 1e-8
 """A transfer (peak or DC gain) counts as zero below this fraction of the size of its terms,
@@ -468,6 +468,9 @@ def fault_account(gf: GainFile, plant: Any = None) -> dict[str, Any] | None:
                 **({"size_notes": reasons} if reasons else {}),
             }
         )
+    chosen = default_bank_of(gf) if gf.kind == "linear" else None
+    if chosen is not None:
+        notes.insert(0, _bank_note(chosen))
     return {
         "format": ACCOUNT_FORMAT,
         "kind": gf.kind,
@@ -484,6 +487,8 @@ def _classes(gf: GainFile, entries: Sequence[Mapping[str, Any]]) -> dict[str, An
     """Groups of faults with equal signatures (persistent generators, generators that see them at all), with why."""
     if gf.kind != "linear":
         return _beard_classes(gf, entries)
+    chosen = default_bank_of(gf)
+    left_out = {str(d["sensor"]): str(d["reason"]) for key in ("left_out", "narrowed") for d in (chosen or {}).get(key, [])}
     groups: dict[tuple[tuple[str, ...], tuple[str, ...]], list[str]] = {}
     unseen = []
     for e in entries:
@@ -495,13 +500,16 @@ def _classes(gf: GainFile, entries: Sequence[Mapping[str, Any]]) -> dict[str, An
     for (pers, seen), names in groups.items():
         if len(names) < 2:
             continue
-        quoted = " and ".join(f"'{n}'" for n in names) if len(names) == 2 else ", ".join(f"'{n}'" for n in names)
+        quoted = _quoted(names)
         if pers and tuple(pers) == tuple(seen):
             why = f"{quoted}: all seen persistently by the same generators ({', '.join(pers)})"
         elif pers:
             why = f"{quoted}: all seen persistently by {', '.join(pers)} and transiently by the same others"
         else:
             why = f"{quoted}: all seen only transiently, by the same generators ({', '.join(seen)})"
+        missing = [left_out[n] for n in names if n in left_out]
+        if missing:  # a sensor without its generator in a bank built by default: why it merges
+            why += "; " + "; ".join(missing)
         merged.append({"faults": names, "reason": why})
     decision = []
     if gf.kind == "linear" and gf.decision is not None:
@@ -509,7 +517,57 @@ def _classes(gf: GainFile, entries: Sequence[Mapping[str, Any]]) -> dict[str, An
             decision.append({"name": f, "statistics": [gf.step.statistic_names[j] for j in np.flatnonzero(row)]})
     else:
         decision = [{"name": f, "statistics": []} for f in gf.faults]
-    return {"groups": merged, "unseen": unseen, "decision": decision}
+    out: dict[str, Any] = {"groups": merged, "unseen": unseen, "decision": decision}
+    if chosen is not None:
+        # a bank built by default: a decision class merged from look-alikes (the same statistics read them) is said too
+        # when the effects above tell its faults apart (one seen persistently, another at its onset only)
+        known = {e["name"] for e in entries}
+        for f in gf.faults:
+            parts = [n for n in f.split("|") if n in known]
+            if len(parts) < 2 or any(sorted(g["faults"]) == sorted(parts) for g in merged):
+                continue
+            why = f"{_quoted(parts)}: the same statistics read them, so the decision table names them together ('{f}')"
+            missing = [left_out[n] for n in parts if n in left_out]
+            merged.append({"faults": parts, "reason": why + "".join(f"; {m}" for m in missing)})
+        out["bank"] = dict(chosen)
+    return out
+
+
+def _quoted(names: Sequence[str]) -> str:
+    return " and ".join(f"'{n}'" for n in names) if len(names) == 2 else ", ".join(f"'{n}'" for n in names)
+
+
+def default_bank_of(gf: GainFile) -> dict[str, Any] | None:
+    """How a linear method built the bank of ``gf`` when none was given (the provenance's ``bank``, written by
+    :func:`fdisyn.synthesis.linear_diagnoser.default_bank`): ``rule``, ``generators``, ``left_out`` and ``narrowed``
+    (``sensor``, ``outputs``, ``reason``) and ``all_outputs`` (``kept``, ``why``); ``None`` for a bank that was given.
+
+    Parameters
+    ----------
+    gf : GainFile
+        A linear diagnoser.
+
+    Returns
+    -------
+    dict or None
+        The provenance's ``bank`` with its lists checked, or ``None``.
+    """
+    chosen = gf.provenance.get("bank") if isinstance(gf.provenance, Mapping) else None
+    if not isinstance(chosen, Mapping):
+        return None
+    listed = lambda v: [d for d in v if isinstance(d, Mapping) and "sensor" in d and "reason" in d] if isinstance(v, list) else []  # noqa: E731
+    return {**chosen, "left_out": listed(chosen.get("left_out")), "narrowed": listed(chosen.get("narrowed"))}
+
+
+def _bank_note(chosen: Mapping[str, Any]) -> str:
+    """The account's note on a bank built by default: its rule and generators, the sensors without one and why,
+    and whether the generator on all outputs is in it."""
+    text = f"no bank given: {chosen.get('rule', 'built by default')}: {', '.join(map(str, chosen.get('generators', [])))}"
+    text += "".join(f"; {d['reason']}" for key in ("left_out", "narrowed") for d in chosen.get(key, []))
+    whole = chosen.get("all_outputs")
+    if isinstance(whole, Mapping) and whole.get("why"):
+        text += f"; the generator on all outputs {'is in the bank' if whole.get('kept') else 'is not in the bank'}: {whole['why']}"
+    return text
 
 
 def _beard_classes(gf: GainFile, entries: Sequence[Mapping[str, Any]]) -> dict[str, Any]:

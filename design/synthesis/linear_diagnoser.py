@@ -30,7 +30,7 @@ from fdisyn.evaluators.wssr import wssr_evaluator
 from fdisyn.models.linear import LinearPlant
 from fdisyn.numerics.certificate import Certificate, Check
 from fdisyn.numerics.linalg import transfer_size
-from fdisyn.runtime.errors import ArgumentError, ExistenceError, FdisynError, ShapeError
+from fdisyn.runtime.errors import ArgumentError, ExistenceError, FdisynError, ShapeError, SolverError
 from fdisyn.runtime.gainfile import (
     EVALUATOR_KINDS,
     MAX_GLR_WINDOW,
@@ -78,6 +78,8 @@ __all__ = [
     'budget_seconds',
     'design_plant',
     'lorden_bound',
+    'default_bank',
+    'default_bank_size',
     'default_fault_classes',
     'linear_diagnoser',
     'linear_method',
@@ -523,7 +525,10 @@ def _bank(value: Any, where: str, plant: LinearPlant) -> dict[str, tuple[int, ..
     """``bank``: generator name → indices of the outputs it reads."""
     label = at(where, "bank")
     if len(value) == 0:  # not replaced by the default: an empty bank is a mistake
-        raise ArgumentError(f"{label} is empty; expected groups of outputs, one observer each, or no key for one observer on all outputs")
+        raise ArgumentError(
+            f"{label} is empty; expected groups of outputs, one observer each ({[list(plant.outputs)]} for one on all "
+            "outputs), or no key for one per sensor on the other outputs"
+        )
     if isinstance(value, Mapping):
         out: dict[str, tuple[int, ...]] = {}
         for gname, group in value.items():
@@ -575,7 +580,9 @@ def _listed(v: Any) -> bool:
 BANK = Option(
     "bank",
     None,
-    "the outputs of each generator: a list of groups (generators named like g0_y1_y2) or a table name → group; default one on all outputs",
+    "the outputs of each generator: a list of groups (generators named like g0_y1_y2) or a table name → group; "
+    "default: one per sensor on every other output, which isolates each sensor's fault (a sensor without one is named "
+    "with the reason; with none, one on all outputs); one group of all outputs for a single generator",
     "a list of lists of output names, or a table of them",
     _listed,
     lambda v, where, plant: _bank(v, where, plant),
@@ -674,20 +681,27 @@ def bank_diagnoser(
     one ZOH-sampled at ``Ts``). Errors of one generator name its group.
     """
     discrete = plant if plant.is_discrete else plant.discretise(Ts)  # type: ignore[arg-type]
-    groups = bank if bank is not None else {"g0_" + "_".join(plant.outputs): tuple(range(plant.p))}
-    gens, sigmas, certs = [], [], []
-    for gi, (gname, idx) in enumerate(groups.items()):
-        try:
-            if sampled_data:
-                gen, sig, cert = generator(plant, tuple(idx), gname, Ts=Ts, **options)
-            else:
-                gen, sig, cert = generator(discrete, tuple(idx), gname, **options)
-        except FdisynError as exc:  # the same error, naming the group of the bank it concerns
-            raise type(exc)(f"{at(where, f'bank[{gi}]')}: {exc}") from exc
-        gens.append(gen)
-        sigmas.append(sig)
-        certs.append(cert)
-    return linear_diagnoser(
+
+    def one(gname: str, idx: Sequence[int]) -> tuple[Generator, np.ndarray, Certificate]:
+        if sampled_data:
+            return generator(plant, tuple(idx), gname, Ts=Ts, **options)
+        return generator(discrete, tuple(idx), gname, **options)
+
+    chosen: dict[str, object] | None = None
+    if bank is None and plant.p >= 2:
+        designed, chosen = default_bank(discrete, one, faults, where)
+    else:
+        groups = bank if bank is not None else {"g0_" + "_".join(plant.outputs): tuple(range(plant.p))}
+        designed = []
+        for gi, (gname, idx) in enumerate(groups.items()):
+            try:
+                designed.append(one(gname, idx))
+            except FdisynError as exc:  # the same error, naming the group of the bank it concerns
+                raise type(exc)(f"{at(where, f'bank[{gi}]')}: {exc}") from exc
+    gens = [d[0] for d in designed]
+    sigmas = [d[1] for d in designed]
+    certs = [d[2] for d in designed]
+    gf = linear_diagnoser(
         name=name,
         problem=problem or name,
         design=design,
@@ -705,6 +719,155 @@ def bank_diagnoser(
         options=record,
         where=where,
     )
+    if chosen is None:
+        return gf
+    return replace(gf, provenance={**gf.provenance, "bank": chosen})
+
+
+def default_bank_size(plant: Any) -> int:
+    """The generators of a linear method's bank when no ``bank`` is given, before any is designed: one per sensor
+    (:func:`default_bank`) on a plant of two or more outputs, else one (fewer when some cannot be designed, one
+    more when the generator on all outputs is kept; the design checks the budget again on the bank it built)."""
+    p = int(getattr(plant, "p", 1) or 1)
+    return p if p >= 2 else 1
+
+
+def _without(sensor: str, reason: FdisynError) -> str:
+    """Why the generator without ``sensor`` is not in the bank, in one phrase."""
+    verb = "does not exist" if isinstance(reason, ExistenceError) else "could not be designed"
+    return f"the generator without {sensor} {verb}: {str(reason).rstrip('.')}"
+
+
+def default_bank(
+    plant: LinearPlant,
+    design_one: Callable[[str, Sequence[int]], tuple[Generator, np.ndarray, Certificate]],
+    faults: Sequence[FaultClass] | None,
+    where: str = "",
+) -> tuple[list[tuple[Generator, np.ndarray, Certificate]], dict[str, object]]:
+    """The bank a linear method builds when no ``bank`` is given: the one that isolates what the sensors allow.
+
+    The dedicated/generalised observer scheme (Frank, Automatica 26(3), 1990): for each sensor ``k``, one generator
+    ``g<k>_<outputs>`` on every output but ``k``, designed by the method. A sensor fault then raises every statistic
+    but its own, so the sensors' faults have distinct signatures and are isolated. A sensor whose generator does not
+    exist (the method's existence condition fails on the other outputs: :class:`ExistenceError`) or cannot be
+    designed (:class:`SolverError`) is kept in the bank's other generators, and said: its fault then shares the
+    signature of every fault all generators see. A generator whose residual does not depend on some of its outputs
+    (decoupled with the unknown input: their transfer to the residual is below 1e-8, the bank certificate's rule) reads
+    the others only (renamed after them; left out when another generator reads the same). When no sensor has a
+    generator, the bank is the one generator on all outputs (``g0_<outputs>``), as with ``bank = [all outputs]``.
+
+    The generator on all outputs is added to a bank of sensor generators only when it isolates more: when the plant
+    has component faults (or ``faults`` names classes) that the sensor generators leave unseen or cannot tell apart,
+    and with it the fault classes have more distinct signatures. It never separates sensor faults (it reads every
+    sensor), so on a plant without component faults it is not designed at all.
+
+    Parameters
+    ----------
+    plant : LinearPlant
+        The discrete design model (its outputs name the sensors).
+    design_one : callable
+        ``design_one(name, output_indices) -> (generator, residual covariance, certificate)``: the method's design of
+        one generator.
+    faults : sequence of FaultClass or None
+        The fault classes asked for (``None``: one per sensor and component fault).
+    where : str
+        Prefixes the refusal when no generator can be designed at all (see :func:`fdisyn.synthesis.registry.at`).
+
+    Returns
+    -------
+    designed : list of tuple
+        ``(generator, residual covariance, certificate)`` per generator of the bank.
+    chosen : dict
+        What the bank is and why, stored in the gain file's provenance (key ``bank``): ``rule``, ``generators``,
+        ``left_out`` (per sensor without its generator: ``sensor``, ``outputs``, ``reason``), ``narrowed`` (per
+        sensor whose generator reads fewer outputs: the same keys) and ``all_outputs`` (whether the generator on all
+        outputs is in the bank, and why).
+
+    Raises
+    ------
+    FdisynError
+        The generator on all outputs, when no sensor generator exists, fails (its error, naming ``bank``).
+    """
+    names = list(plant.outputs)
+    everything = tuple(range(plant.p))
+    all_name = "g0_" + "_".join(names)
+    designed: list[tuple[Generator, np.ndarray, Certificate]] = []
+    left_out: list[dict[str, object]] = []
+    narrowed: list[dict[str, object]] = []
+    for k, sensor in enumerate(names):
+        idx = tuple(j for j in everything if j != k)
+        try:
+            gen, sig, cert = design_one(f"g{k}_" + "_".join(names[j] for j in idx), idx)
+        except (ExistenceError, SolverError) as exc:  # this sensor's generator only; the others stand
+            left_out.append({"sensor": sensor, "outputs": [names[j] for j in idx], "reason": _without(sensor, exc)})
+            continue
+        # an output decoupled with the unknown input does not reach the residual (the bank's certificate rule): the
+        # generator reads the others only, and its signature must say so
+        deaf = [j for j in gen.outputs_used if not transfer_size(gen.Ar, gen.By[:, [j]], gen.Cr, gen.Dy[:, [j]]) >= 1e-8]
+        if deaf:
+            keep = [j for j in gen.outputs_used if j not in deaf]
+            why = (f"the generator without {sensor} reads {', '.join(names[j] for j in keep) or 'no output'} only: "
+                   f"{', '.join(names[j] for j in deaf)} {'does' if len(deaf) == 1 else 'do'} not reach its residual "
+                   "(decoupled with the unknown input)")
+            twin = next((d[0].name for d in designed if tuple(d[0].outputs_used) == tuple(keep)), None)
+            if not keep or twin is not None:
+                left_out.append({"sensor": sensor, "outputs": [names[j] for j in idx],
+                                 "reason": why + (f", as {twin} does" if twin else "")})
+                continue
+            by, dy = gen.By.copy(), gen.Dy.copy()
+            by[:, deaf], dy[:, deaf] = 0.0, 0.0  # their transfer to the residual is zero: the residual is unchanged
+            gen = Generator.from_canonical(
+                name=f"g{k}_" + "_".join(names[j] for j in keep), outputs_used=keep, Ar=gen.Ar, Bu=gen.Bu, By=by, Cr=gen.Cr,
+                Du=gen.Du, Dy=dy, method=gen.method,
+            )
+            narrowed.append({"sensor": sensor, "outputs": [names[j] for j in keep], "reason": why})
+        designed.append((gen, sig, cert))
+    chosen: dict[str, object] = {
+        "rule": "one generator per sensor on the other outputs (generalised observer scheme)",
+        "left_out": left_out,
+        "narrowed": narrowed,
+    }
+    if not designed:
+        try:
+            designed.append(design_one(all_name, everything))
+        except FdisynError as exc:
+            raise type(exc)(
+                f"{at(where, 'bank')}: none given, and no sensor has a generator on the other outputs; the generator on all "
+                f"outputs: {exc}"
+            ) from exc
+        chosen["all_outputs"] = {"kept": True, "why": "no sensor has a generator on the other outputs"}
+        chosen["generators"] = [all_name]
+        return designed, chosen
+    classes = list(faults) if faults is not None else [FaultClass(o, sensors=(o,)) for o in names] + [
+        FaultClass(c, components=(c,)) for c in plant.component_faults
+    ]
+    gens = [d[0] for d in designed]
+
+    def distinct(bank: Sequence[Generator]) -> set[tuple[int, ...]]:
+        return {sig for f in classes if any(sig := tuple(_expected(f, g, plant) for g in bank))}
+
+    before = distinct(gens)
+    if not any(f.components for f in classes):
+        kept = {"kept": False, "why": "it reads every sensor, so it would tell no sensor faults apart"}
+    elif len(before) == len(classes):
+        kept = {"kept": False, "why": "every fault class has its own signature without it"}
+    else:
+        whole = f"g{plant.p}_" + "_".join(names)
+        try:
+            extra = design_one(whole, everything)
+        except (ExistenceError, SolverError) as exc:
+            verb = "does not exist" if isinstance(exc, ExistenceError) else "could not be designed"
+            kept = {"kept": False, "why": f"it {verb}: {str(exc).rstrip('.')}"}
+        else:
+            after = distinct([*gens, extra[0]])
+            if len(after) > len(before):
+                designed.append(extra)
+                kept = {"kept": True, "why": f"with it the bank tells {len(after)} fault classes apart, {len(before)} without it"}
+            else:
+                kept = {"kept": False, "why": f"it tells no more fault classes apart ({len(before)} without it)"}
+    chosen["all_outputs"] = kept
+    chosen["generators"] = [d[0].name for d in designed]
+    return designed, chosen
 
 
 def chosen_detector(detector: str | None, evaluator: str | None, where: str, default: str = "chi2") -> str:
@@ -855,7 +1018,8 @@ def linear_method(
         ts = opts.get("Ts") if not (isinstance(plant, LinearPlant) and plant.is_discrete) else plant.Ts
         if ts is not None:
             bank = opts.get("bank")
-            check_budget(kind, opts.get("P_f", P_F.default), opts.get("arl0"), float(ts), len(bank) if bank else 1, where)
+            count = len(bank) if bank else (1 if bank is not None else default_bank_size(plant))
+            check_budget(kind, opts.get("P_f", P_F.default), opts.get("arl0"), float(ts), count, where)
         if check is not None:
             check(plant, opts, where)
 

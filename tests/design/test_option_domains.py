@@ -158,7 +158,8 @@ def test_a_long_budget_is_computed_and_a_beyond_range_one_names_the_domain(detec
     assert all(math.isfinite(e.threshold) and e.threshold > 20 for e in gf.evaluators)
     gf = fdisyn.design(_discrete(), method="kalman_uio", detector=detector, P_f=1e-300)
     assert all(650 < e.threshold < 700 for e in gf.evaluators)
-    with pytest.raises(ArgumentError, match=r"option arl0 = 1e\+308 s gives each of the 1 statistics a mean run length of more than 1e\+300 samples"):
+    # no bank: the default one, a generator per sensor on the other outputs (three statistics)
+    with pytest.raises(ArgumentError, match=r"option arl0 = 1e\+308 s gives each of the 3 statistics a mean run length of more than 1e\+300 samples"):
         fdisyn.design(_discrete(), method="kalman_uio", detector=detector, arl0=1e308)
     with pytest.raises(ArgumentError, match=r"option P_f = 1e-310 with detector .* expected P_f ≥ 1e-300"):
         fdisyn.design(_discrete(), method="kalman_uio", detector=detector, P_f=1e-310)
@@ -170,6 +171,9 @@ def test_nafdf_extremes_are_computed_or_refused_with_the_domain() -> None:
     fdisyn.design(_nonlinear(), method="nafdf", detector="cusum", min_shift=1e-6)
     # a shift this large alarms at its first sample: refused before the design, with the largest shift that works
     with pytest.raises(ArgumentError, match=r"min_shift = 1000000.0 with P_f = 0.01: the CUSUM's threshold would be 0 .* expected min_shift < 5.151 "):
+        fdisyn.design(_nonlinear(), method="nafdf", detector="cusum", min_shift=1e6, P_f=0.01)
+    # the same at the default budget (arl0, one hour), saying that it is the default
+    with pytest.raises(ArgumentError, match=r"min_shift = 1000000.0 with arl0 = 3600.0 s: .* expected min_shift < 7.255 .* is the default false-alarm budget"):
         fdisyn.design(_nonlinear(), method="nafdf", detector="cusum", min_shift=1e6)
     with pytest.raises(ArgumentError, match=r"option min_shift = 1e\+308: expected a number of standard deviations in \[1e-06, 1e\+06\]"):
         fdisyn.design(_nonlinear(), method="nafdf", detector="cusum", min_shift=1e308)

@@ -34,7 +34,7 @@ CASES = all_cases()
 
 KNOWN_FAILURES: dict[str, str] = {
     "uio_pole_placement-seed0-n12-q1-p3-cont-stab-none-Ts2e-01-spread1e4":
-        "CertificateError: method 'uio_pole_placement': option bank[0]: UIO for the outputs ['y0', 'y1', 'y2']: design 'uio_pole_placement/poles' failed its certificate: assigned poles: max |achieved − requested| = 0.000273 (must be <= 1e-06: eigenvalue sensitivity of the assigned closed loop; KNV assignment is accurate well below this);…",
+        "CertificateError: method 'uio_pole_placement': option bank: none given, and no sensor has a generator on the other outputs; the generator on all outputs: UIO for the outputs ['y0', 'y1', 'y2']: design 'uio_pole_placement/poles' failed its certificate: assigned poles: max |achieved − requested| = 0.000273 (must be <= 1e-06: eigenvalue sensitivity of the assigned closed loop; KNV assignment is accurate well below this);…",
     "beard_fdf-seed0-n6-k1-p2-planes1-stab-Ts3e-01-spread1e2":
         "ExistenceError: method 'beard_fdf': faults 1 are not mutually detectable: the eigenvalue(s) -5.60075+0j of A − L C, fixed by the geometry, are not inside the unit circle for any gain that keeps every detection space invariant (faults 1 = 'f0')",
     "beard_fdf-seed3-n6-k2-p3-planes0-stab-Ts8e-02-spread1e6":
