@@ -308,7 +308,7 @@ def _bank_design(
             "cond_A_unscaled": float(np.linalg.cond(unscaled.A)),
             "cond_A_scaled": float(np.linalg.cond(plant.A)),
         },
-        P_f=P_f,
+        P_f=P_f if arl0 is None else None,  # the paper's P_f; a variant's arl0 replaces it (a method takes one of them)
         persistence=persistence,
         detector=detector,
         arl0=arl0,

@@ -234,7 +234,10 @@ def _cmd_design(a: argparse.Namespace) -> None:
         path = write_gain_file(gf, out / "gains.json")
     what = f"{len(gf.generators)} generators" if gf.kind == "linear" else f"a {gf.kind} step with {gf.step.nstate} states"
     print(f"wrote {path} ({gf.name}: {what}, certificate passed)")
+    from fdisyn.app.report import budget_line
     from fdisyn.numerics.account import account_lines
+
+    print(budget_line(gf))
 
     print("\n".join(account_lines(gf.account, gf.kind)))
 

@@ -27,7 +27,8 @@ The TOML format (every key is validated; errors name the key)::
 
     [design]                          # the method and its options (``fdisyn methods``, README "Methods")
     method = "kalman_uio"             # default; a linear method (sampled_data_observer, lmi: continuous models)
-    P_f = 0.001                       # false-alarm probability per statistic and sample
+    arl0 = 3600.0                     # mean time between false alarms of the diagnoser (s; default one hour),
+                                      # or P_f = 1e-6: per statistic and sample (give one of them)
     persistence = 1                   # consecutive exceedances before a statistic alarms
     bank = [["y1", "y2"], ["y1", "y3"]]   # one generator per group (default: all outputs)
     faults = [{ name = "y1", sensors = ["y1"] }, { name = "f", components = ["f"] }]
@@ -35,7 +36,7 @@ The TOML format (every key is validated; errors name the key)::
     poles = [0.5, 0.6]                # an option of one method (here uio_pole_placement)
 
 The generalised UIO bank (``method = "kalman_uio_gos"``, Long & Wang,
-Aeroengine 43(5), 2017) reads, besides ``P_f``, ``persistence``, ``faults``::
+Aeroengine 43(5), 2017) reads, besides ``arl0`` (or ``P_f``), ``persistence``, ``faults``::
 
     groups = "auto"                   # or [["y1", "y2"], ["y2", "y3"]]: one UIO per sensor in each group,
                                       # fed the group's other sensors; "auto": fewest groups of independent
@@ -105,7 +106,7 @@ is written with ``time = "nonlinear"`` and designed by the NAFDF::
     R = [[0.01]]                      # covariance of e per sample (the paper's Q1 and Q2 are accepted too)
     [design]
     method = "nafdf"                  # the options of the method nafdf (``fdisyn methods``);
-    P_f = 1e-4                        # x0 defaults to [simulation].x0; per-parameter ones
+    P_f = 1e-4                        # per sample (default: arl0, one hour); x0 defaults to [simulation].x0; per-parameter ones
     window = 10                       # as a list or a table by name
     theta0 = { a = 0.0, b = 0.0 }
     [simulation]

@@ -43,7 +43,8 @@ from fdisyn.runtime.gainfile import parse_json_data, write_gain_file
 from fdisyn.synthesis.registry import recovery_samples
 from matplotlib.figure import Figure
 
-__all__ = ["Claim", "ReportContext", "write_report", "write_index", "summary_table", "subplots", "table", "folded", "fmt", "label"]
+__all__ = ["Claim", "ReportContext", "write_report", "write_index", "summary_table", "subplots", "table", "folded", "fmt", "duration",
+           "false_alarm_time", "false_alarms_pooled", "budget_line", "label"]
 
 _CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;max-width:1150px;margin:2em auto;padding:0 1em;color:#1b1b1b;line-height:1.45}
@@ -95,6 +96,112 @@ def fmt(x: Any, digits: int = SIGNIFICANT_DIGITS, *, interval: tuple[Any, Any] |
         return sign + (text.rstrip("0").rstrip(".") if "." in text else text)
     mantissa = mantissa.rstrip("0").rstrip(".") if "." in mantissa else mantissa
     return f"{sign}{mantissa}·10{str(exponent).translate(_SUPERSCRIPT)}"
+
+
+_DURATION_UNITS = (("s", 1.0), ("min", 60.0), ("h", 3600.0), ("days", 86400.0), ("years", 365.25 * 86400.0))
+"""The units a duration is shown in (:func:`duration`), each from one of itself up."""
+
+
+def duration(seconds: float | None, digits: int = 3) -> str:
+    """A time as an operator reads it, in the largest unit of which it is at least one: ``0.25 s``, ``4.12 s``,
+    ``15 min``, ``1 h``, ``1 day``, ``3.5 days``, ``2 years``; numbers by :func:`fmt` with ``digits`` significant
+    digits, ``—`` for None, ``∞`` for an infinite time.
+
+    Parameters
+    ----------
+    seconds : float or None
+        The duration (s), at least 0.
+    digits : int
+        Significant digits of the number.
+
+    Returns
+    -------
+    str
+        The number and its unit.
+    """
+    if seconds is None:
+        return "—"
+    v = float(seconds)
+    if math.isinf(v):
+        return "∞"
+    unit, size = next(((u, k) for u, k in reversed(_DURATION_UNITS) if abs(v) >= k), _DURATION_UNITS[0])
+    text = fmt(v / size, digits)
+    if text == "1" and unit in ("days", "years"):
+        unit = unit[:-1]
+    return f"{text} {unit}"
+
+
+def false_alarm_time(episodes: int, exposure_s: float) -> str:
+    """The observed mean time between false alarms as an operator reads it: ``one every 4.12 s`` (``exposure_s``
+    of fault-free data over ``episodes`` false-alarm episodes), ``none in 17 min of fault-free data`` when none
+    was seen (a lower bound, not a time between alarms), ``—`` without fault-free data."""
+    if not exposure_s > 0:
+        return "—"
+    if episodes <= 0:
+        return f"none in {duration(exposure_s)} of fault-free data"
+    return f"one every {duration(exposure_s / episodes)}"
+
+
+def false_alarms_pooled(metrics: Iterable[Any]) -> str:
+    """The false alarms of a design over every scenario's fault-free samples (scenario metrics with ``Ts``,
+    ``fault_free_samples``, ``false_alarm_episodes`` and ``false_alarm_rate``): the time between them
+    (:func:`false_alarm_time`) with the rate per sample beside it: ``one every 4.12 s (2.5·10⁻⁴ per sample)``."""
+    ms = list(metrics)
+    n = sum(m.fault_free_samples for m in ms)
+    if not n:
+        return "—"
+    exposure = sum(m.fault_free_samples * m.Ts for m in ms)
+    episodes = sum(m.false_alarm_episodes for m in ms)
+    rate = sum(m.false_alarm_rate * m.fault_free_samples for m in ms) / n
+    text = false_alarm_time(episodes, exposure)
+    return text if episodes == 0 else f"{text} ({fmt(rate)} per sample)"
+
+
+def _design_rates(gf: Any) -> tuple[str | None, list[float]]:
+    """What set a gain file's thresholds (``'arl0'``, ``'P_f'`` or None: given thresholds) and its rates per
+    statistic and sample."""
+    if gf.kind == "linear":
+        info = (gf.certificate.get("bank") or {}).get("info") or {}
+        return ("arl0" if isinstance(info.get("arl0_s"), (int, float)) else "P_f"), [float(e.P_f) for e in gf.evaluators]
+    payload = gf.extensions.get(gf.kind)
+    if gf.kind == "nafdf" and isinstance(payload, Mapping):
+        st = payload.get("settings") or {}
+        return ("arl0" if st.get("arl0") is not None else "P_f"), [float(st["false_alarm_probability"])]
+    if gf.kind == "beard_fdf" and isinstance(payload, Mapping):
+        info = payload.get("design") or {}
+        if isinstance(info.get("P_f"), (int, float)):
+            return ("arl0" if isinstance(info.get("arl0_s"), (int, float)) else "P_f"), [float(info["P_f"])]
+    return None, []
+
+
+def budget_line(gf: Any) -> str:
+    """The design's false-alarm budget for the terminal and the page: ``false-alarm budget: one every 1 h (arl0 =
+    3600 s); P_f = 1.389·10⁻⁷ per statistic and sample (2 statistics)``, or for a design by ``P_f`` ``…: one every
+    5 s (from P_f = 1·10⁻⁴ per statistic and sample, 2 statistics)``; a gain file whose thresholds were given says so.
+
+    Parameters
+    ----------
+    gf : GainFile
+        A certified gain file.
+
+    Returns
+    -------
+    str
+        One line.
+    """
+    from fdisyn.synthesis.registry import false_alarm_budget
+
+    seconds = false_alarm_budget(gf)
+    source, rates = _design_rates(gf)
+    if seconds is None or source is None:
+        return "false-alarm budget: none designed (the thresholds were given)"
+    many = f", {len(rates)} statistics" if len(rates) > 1 else ""
+    same = all(math.isclose(r, rates[0], rel_tol=1e-9) for r in rates)
+    p = f"{fmt(rates[0])}" if same else f"{fmt(min(rates))} to {fmt(max(rates))}"
+    per = "per statistic and sample" if gf.kind == "linear" else "per sample"
+    if source == "arl0":
+        return f"false-alarm budget: one every {duration(seconds)} (arl0 = {fmt(seconds)} s); P_f = {p} {per}{many}"
+    return f"false-alarm budget: one every {duration(seconds)} (from P_f = {p} {per}{many})"
 
 
 def label(problem: Problem | None, name: str) -> str:
@@ -519,11 +626,8 @@ def _glance_section(problem: Problem, variant: Any) -> str:
     faulty = _faulty_scenarios(variant)
     groups = []
     for d in designs:
-        ms = list(ev.metrics[d].values())
-        n = sum(m.fault_free_samples for m in ms)
-        far = sum(m.false_alarm_rate * m.fault_free_samples for m in ms) / n if n else None
-        groups.append((f'<span>{html.escape(label(problem, d))}<br><span class="small">{defined("false alarms", "false-alarm rate")}: '
-                       f"{html.escape(fmt(far))} per sample</span></span>", 3))
+        groups.append((f'<span>{html.escape(label(problem, d))}<br><span class="small">{defined("false alarms", "mean time between false alarms")}: '
+                       f"{html.escape(false_alarms_pooled(ev.metrics[d].values()))}</span></span>", 3))
     rows = []
     for (s, _), lead in zip(faulty, _fault_cells(problem, faulty), strict=True):
         row = list(lead)
@@ -597,12 +701,14 @@ def _metrics_details(problem: Problem, variant: Any) -> str:
     for s in scen:
         for d in designs:
             m = ev.metrics[d][s]
-            rows.append([label(problem, s), label(problem, d), label(problem, m.fault) if m.fault else "none", m.false_alarm_rate, m.false_alarm_runs,
+            rows.append([label(problem, s), label(problem, d), label(problem, m.fault) if m.fault else "none",
+                         false_alarm_time(m.false_alarm_episodes, m.fault_free_samples * m.Ts), m.false_alarm_rate, m.false_alarm_runs,
                          m.missed_detection_rate, m.missed_alarm_fraction, m.detection_delay_mean_s, m.detection_delay_max_s,
                          m.isolation_accuracy, m.first_isolation_accuracy, m.sample_isolation_accuracy, m.nonfinite_samples])
     out.append(
         table(
-            ["scenario", "design", "fault", defined("false-alarm rate (per sample)", "false-alarm rate"),
+            ["scenario", "design", "fault", defined("false alarms", "mean time between false alarms"),
+             defined("false-alarm rate (per sample)", "false-alarm rate"),
              defined("false-alarm runs (of runs)", "false-alarm runs"), defined("missed detection (of runs)", "missed detection"),
              defined("missed-alarm fraction (of samples)", "missed-alarm fraction"), defined("delay mean (s)", "detection delay"),
              defined("delay max (s)", "detection delay"), defined("isolation acc.", "isolation accuracy"),
@@ -711,11 +817,12 @@ def _run_figures(ctx: ReportContext) -> list[tuple[str, str]]:
 
 
 def _mtbfa(mean_s: float | None, interval: tuple[float, float | None]) -> str:
-    """A measured mean time between false alarms with its 95 % interval: "120 [80, 190]", "none seen (> 400)"."""
+    """A measured mean time between false alarms with its 95 % interval, as durations (:func:`duration`):
+    "2 min [1.33 min, 3.17 min]"; none seen: "none seen (> 6.67 min)", the interval's lower end."""
     lo, hi = interval
     if mean_s is None:
-        return f"none seen (> {fmt(lo)})"
-    return fmt(mean_s, interval=(lo, hi))
+        return f"none seen (> {duration(lo)})"
+    return f"{duration(mean_s)} [{duration(lo)}, {duration(hi)}]"
 
 
 RATIO_GOAL = 1.2
@@ -761,14 +868,14 @@ def _budget_table(problem: Problem, pairs: Sequence[tuple[Any, str]], scen: Sequ
             head = [label(problem, s), _variant_name(v), label(problem, d)] if by_variant else [label(problem, s), label(problem, d)]
             rows.append(
                 [
-                    *head, _mtbfa(m.mean_time_between_false_alarms_s, m.mean_time_between_false_alarms_interval_s), m.arl0_budget_s, m.missed_detection_rate, m.detection_delay_mean_s, bound_s, _ratio(m),
+                    *head, _mtbfa(m.mean_time_between_false_alarms_s, m.mean_time_between_false_alarms_interval_s), duration(m.arl0_budget_s), m.missed_detection_rate, m.detection_delay_mean_s, bound_s, _ratio(m),
                     m.isolation_accuracy, m.false_isolation_rate,
                 ]
             )
     if not rows:
         return ""
     header = ["scenario", *(["detector"] if by_variant else []), "design",
-              defined("time between false alarms (s) [95 %]", "mean time between false alarms"), defined("budget (s)", "budget"),
+              defined("time between false alarms [95 %]", "mean time between false alarms"), defined("budget", "budget"),
               defined("missed detection (of runs)", "missed detection"), defined("delay mean (s)", "detection delay"),
               defined("Lorden bound (s)", "Lorden bound"), defined("delay / bound", "delay ratio"),
               defined("isolation acc.", "isolation accuracy"), defined("false isolation", "false isolation")]
@@ -841,7 +948,7 @@ def _budget_summary(problem: Problem, pairs: Sequence[tuple[Any, str]]) -> str:
         mtbfa = _mtbfa(exposure / episodes if episodes else None, poisson_time_interval(episodes, exposure))
         faulty = [m for m in ms if m.fault is not None]
         goals = [g for g in (_meets_goal(m) for m in faulty) if g is not None]
-        rows.append([_variant_name(v), label(problem, d), mtbfa, ms[0].arl0_budget_s, mean(m.missed_detection_rate for m in faulty),
+        rows.append([_variant_name(v), label(problem, d), mtbfa, duration(ms[0].arl0_budget_s), mean(m.missed_detection_rate for m in faulty),
                      mean(m.detection_delay_mean_s for m in faulty), f"{sum(goals)} of {len(goals)}" if goals else "—",
                      mean(m.isolation_accuracy for m in faulty), mean(m.false_isolation_rate for m in faulty)])
     if not rows:
@@ -851,8 +958,8 @@ def _budget_summary(problem: Problem, pairs: Sequence[tuple[Any, str]]) -> str:
         "[95 %] against the budget; missed detection, delay and isolation: means over the faulty scenarios; delay within "
         f"{fmt(RATIO_GOAL)} × bound: the faulty scenarios whose mean delay is within {fmt(RATIO_GOAL)} times the Lorden bound, "
         "of those that show the ratio. Every scenario and the columns' meaning: folded below.</p>"
-        + table(["detector", "design", defined("time between false alarms (s) [95 %]", "mean time between false alarms"),
-                 defined("budget (s)", "budget"), defined("missed detection (of runs, mean)", "missed detection"),
+        + table(["detector", "design", defined("time between false alarms [95 %]", "mean time between false alarms"),
+                 defined("budget", "budget"), defined("missed detection (of runs, mean)", "missed detection"),
                  defined("delay mean (s)", "detection delay"), defined(f"delay within {fmt(RATIO_GOAL)} × bound", "delay ratio"),
                  defined("isolation acc. (mean)", "isolation accuracy"), defined("false isolation (mean)", "false isolation")],
                 rows, left=2)
@@ -1189,6 +1296,8 @@ def _summary_rows(problem: Problem, variant: Any) -> list[dict[str, Any]]:
             {
                 "design": d,
                 "false_alarm_rate": sum(m.false_alarm_rate * m.fault_free_samples for m in ms) / n if n else None,
+                "false_alarm_episodes": sum(m.false_alarm_episodes for m in ms),
+                "fault_free_time_s": sum(m.fault_free_samples * m.Ts for m in ms),
                 "missed_detection_rate": mean([m.missed_detection_rate for m in faulty]),
                 "detection_delay_mean_s": mean([m.detection_delay_mean_s for m in faulty]),
                 "isolation_accuracy": mean([m.isolation_accuracy for m in faulty]),
@@ -1341,16 +1450,27 @@ def write_index(reports: Path) -> Path:
     return page
 
 
+def _summary_false_alarms(row: Mapping[str, Any]) -> str:
+    """A summary row's false alarms: the time between them with the rate per sample beside it
+    (:func:`false_alarm_time`); a summary written before it held the time shows the rate alone."""
+    rate = row.get("false_alarm_rate")
+    episodes, exposure = row.get("false_alarm_episodes"), row.get("fault_free_time_s")
+    if not isinstance(episodes, int) or not isinstance(exposure, (int, float)):
+        return "—" if rate is None else f"{fmt(rate)} per sample"
+    text = false_alarm_time(episodes, float(exposure))
+    return text if episodes == 0 or rate is None else f"{text} ({fmt(rate)} per sample)"
+
+
 def summary_table(reports: Path, names: Sequence[str]) -> str:
     """The end-of-``reproduce`` summary for the terminal: per problem and design, false alarms, missed detections,
     delay, isolation and the claims reproduced (from each problem's ``metrics.json``)."""
-    header = ["problem", "design", "false alarms (per sample)", "missed detection", "delay (s)", "isolation", "claims reproduced"]
+    header = ["problem", "design", "false alarms", "missed detection", "delay (s)", "isolation", "claims reproduced"]
     rows = []
     for doc in _documents(reports, names):
         v = doc.get("verdict") or {}
         claims = f"{v['reproduced']}/{v['claims']}" if v.get("claims") else "—"
         for k, r in enumerate(doc.get("summary", [])):
-            rows.append([doc["problem"] if k == 0 else "", r["design"], fmt(r["false_alarm_rate"]), fmt(r["missed_detection_rate"]),
+            rows.append([doc["problem"] if k == 0 else "", r["design"], _summary_false_alarms(r), fmt(r["missed_detection_rate"]),
                          fmt(r["detection_delay_mean_s"]), fmt(r["isolation_accuracy"]), claims if k == 0 else ""])
     widths = [max(len(str(c)) for c in col) for col in zip(header, *rows, strict=False)]
     lines = ["  ".join(str(c).ljust(w) if i < 2 else str(c).rjust(w) for i, (c, w) in enumerate(zip(row, widths, strict=False))) for row in [header, *rows]]

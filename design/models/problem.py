@@ -178,6 +178,11 @@ class Problem:
         if unknown:
             raise ArgumentError(f"problem {self.name!r} has no option(s) {unknown}; options: {dict(self.options)}")
         checked = {k: check_option(k, v, self.options[k], f"problem {self.name!r}") for k, v in options.items()}
+        if checked.get("P_f") is not None and checked.get("arl0") is not None:
+            raise ArgumentError(
+                f"problem {self.name!r}: P_f = {shown(checked['P_f'])} and arl0 = {shown(checked['arl0'])} s both set the "
+                f"false-alarm budget; give one (arl0 alone replaces the problem's P_f = {shown(self.options.get('P_f'))})"
+            )
         return {**self.options, **checked}
 
 

@@ -20,7 +20,8 @@ import importlib
 import json
 import math
 import pkgutil
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -31,6 +32,7 @@ from fdisyn.runtime.names import shown
 
 __all__ = [
     "REQUIRED",
+    "DEFAULT_ARL0",
     "Option",
     "Method",
     "PLANT_KINDS",
@@ -174,8 +176,9 @@ class Method:
     """Samples after a fault's end during which alarms are not false alarms (Monte Carlo metrics)."""
     extra_metrics: ExtraMetrics | None = None
     """Monte Carlo figures of one scenario beyond detection, run by run and reduced (:class:`ExtraMetrics`)."""
-    false_alarm_budget: Callable[[GainFile], float] | None = None
-    """The diagnoser's designed mean time between false alarms (s), ``gain_file -> seconds``."""
+    false_alarm_budget: Callable[[GainFile], float | None] | None = None
+    """The diagnoser's designed mean time between false alarms (s), ``gain_file -> seconds`` (None: a gain file
+    whose thresholds were given, not designed for a budget)."""
     lorden_bound: Callable[[GainFile, np.ndarray, np.ndarray], tuple[float, float] | None] | None = None
     """``(gain_file, μ, Σ) -> (I, ln(ARL)/I)``: the information per sample of a fault that shifts the residual's mean by
     ``μ`` (``Σ``: the residual's covariance measured without the fault) and the Lorden bound on its delay (samples)."""
@@ -243,7 +246,9 @@ def _accounted(design: Callable[..., GainFile]) -> Callable[..., GainFile]:
     def run(plant: Any, **options: Any) -> GainFile:
         from fdisyn.numerics.account import with_account
 
-        return with_account(design(plant, **options), plant)
+        with _default_budget_named(isinstance(options.get("arl0"), _DefaultArl0)):
+            gf = design(plant, **options)
+        return with_account(gf, plant)
 
     run.accounted = True  # type: ignore[attr-defined]
     run.__wrapped__ = design  # type: ignore[attr-defined]
@@ -305,7 +310,8 @@ def recovery_samples(gf: GainFile) -> int:
 def false_alarm_budget(gf: GainFile) -> float | None:
     """The gain file's designed mean time between false alarms in seconds (None: its kind has none)."""
     m = _kind(gf.kind)
-    return None if m is None or m.false_alarm_budget is None else float(m.false_alarm_budget(gf))
+    seconds = None if m is None or m.false_alarm_budget is None else m.false_alarm_budget(gf)
+    return None if seconds is None else float(seconds)
 
 
 def lorden_bound(gf: GainFile, shift: np.ndarray, covariance: np.ndarray) -> tuple[float, float] | None:
@@ -367,9 +373,56 @@ def check_options(method: Method, options: Mapping[str, Any], *, plant: Any = No
             raise ArgumentError(f"{where}: missing {word} {o.name!r}: expected {o.kind}")
         else:
             out[o.name] = o.default
+    defaulted = _budget(method, out, where)
     if method.check is not None:
-        method.check(plant, out, where)
+        # the default budget is checked by the design itself, after the plant (a sample time that cannot be sampled
+        # is named first, and a default that leaves too few samples is refused saying that it is the default)
+        method.check(plant, {**out, "arl0": None, "P_f": 0.5} if defaulted else out, where)
     return out
+
+
+class _DefaultArl0(float):
+    """:data:`DEFAULT_ARL0` as :func:`check_options` hands it to a design: a float that marks the budget as the
+    default, so that a refusal of it says so (:func:`_default_budget_named`)."""
+
+
+def _budget(method: Method, out: dict[str, Any], where: str) -> bool:
+    """Resolve the false-alarm budget of a method that takes both ``P_f`` and ``arl0`` (in place in ``out``).
+
+    ``arl0`` alone, or ``P_f`` alone (the per-sample choice), is used as given; neither gives ``arl0`` =
+    :data:`DEFAULT_ARL0`; both are refused (they set the same thresholds). Returns whether the default applied.
+
+    Raises
+    ------
+    ArgumentError
+        Both ``P_f`` and ``arl0`` are given.
+    """
+    if "P_f" not in method.option_names or "arl0" not in method.option_names:
+        return False
+    if out["P_f"] is not None and out["arl0"] is not None:
+        raise ArgumentError(
+            f"{where}: P_f = {shown(out['P_f'])} and arl0 = {shown(out['arl0'])} s both set the false-alarm budget; give one: "
+            "arl0, the diagnoser's mean time between false alarms (s), or P_f, the rate per statistic and sample"
+        )
+    if out["P_f"] is None and out["arl0"] is None:
+        out["arl0"] = _DefaultArl0(DEFAULT_ARL0)
+        return True
+    return False
+
+
+@contextmanager
+def _default_budget_named(defaulted: bool) -> Iterator[None]:
+    """A refusal of the default ``arl0`` (a plant whose sample time leaves too few samples in an hour) says that
+    it is the default and what to give instead, in the same line."""
+    try:
+        yield
+    except ArgumentError as exc:
+        if not defaulted or "arl0" not in str(exc):
+            raise
+        raise ArgumentError(
+            f"{exc} (arl0 = {DEFAULT_ARL0:g} s is the default false-alarm budget, no P_f or arl0 was given: give an arl0 "
+            "that fits, or P_f)"
+        ) from None
 
 
 def _jsonable(value: Any) -> Any:
@@ -410,10 +463,19 @@ def design(
 
 # --------------------------------------------------------------------------- options several methods and problems share
 
+DEFAULT_ARL0 = 3600.0
+"""The false-alarm budget when neither ``P_f`` nor ``arl0`` is given: one false alarm of the whole diagnoser per hour
+of operation (s). A per-sample rate is no budget an operator can judge — ``P_f = 1e-3`` at 1 kHz is a false alarm
+every second — so the default is a time. An hour keeps the alarms of one diagnoser a small part of an operator's load
+(a control room copes with about one alarm of any kind per ten minutes), is still checked by a Monte Carlo of a few
+hours of fault-free data, and costs little detection: a threshold grows with the logarithm of the budget (a χ²
+threshold by about 2·ln 24 ≈ 6.4 from an hour to a day)."""
+
 P_F = Option(
     "P_f",
-    1e-3,
-    "false-alarm probability per statistic and sample (sets the thresholds)",
+    None,
+    "false-alarm probability per statistic and sample, given instead of arl0 (the per-sample choice; sets the "
+    "thresholds; default: none, the budget is arl0)",
     "a false-alarm probability per statistic and sample: a number in (0, 1)",
     lambda v: is_real(v) and 0.0 < v < 1.0,
 )
@@ -436,7 +498,8 @@ DETECTOR = Option(
 ARL0 = Option(
     "arl0",
     None,
-    "the diagnoser's mean time between false alarms (s): sets every threshold from its statistic's law, in place of P_f",
+    "the diagnoser's mean time between false alarms (s): sets every threshold from its statistic's law (default: "
+    f"{DEFAULT_ARL0:g} s, one hour, unless P_f is given; give one of arl0 and P_f)",
     "a positive number of seconds (each statistic's share at most 1e300 samples: the thresholds' working domain)",
     lambda v: is_real(v) and v > 0,
 )

@@ -63,7 +63,7 @@ def test_a_plant_file_names_both_keys_of_a_disagreeing_pair(tmp_path: Path, caps
 ])
 def test_the_gos_budget_is_refused_naming_the_plant_file_key(tmp_path: Path, capsys: pytest.CaptureFixture[str], design: str, expected: str) -> None:
     spec = _plant_file(tmp_path, design, with_e=True)
-    if "P_f = 1e-310" in design:  # the plant file's own P_f line replaced
+    if "P_f = 1e-310" in design or "arl0" in design:  # the plant file's own P_f line replaced (a budget is one of them)
         Path(spec).write_text(Path(spec).read_text(encoding="utf-8").replace("P_f = 1e-4\n", ""), encoding="utf-8")
     _fails_with(capsys, ["design", spec, "--out", str(tmp_path / "o")], expected)
 
@@ -198,8 +198,8 @@ def test_a_plant_file_min_shift_with_the_wssr_is_refused_even_at_the_default_val
     ({"min_shift": 1e6, "P_f": 1e-6}, "expected min_shift < 9.783 "),
 ])
 def test_a_shift_that_one_sample_detects_within_the_budget_is_refused_naming_the_bound(options: dict[str, float], bound: str) -> None:
-    given = options.get("P_f", 0.01)
-    with pytest.raises(ArgumentError, match=rf"min_shift = {options['min_shift']!r} with P_f = {given!r}: the CUSUM's threshold would be 0"):
+    options = {"P_f": 0.01, **options}  # the per-sample budget the bounds are stated for
+    with pytest.raises(ArgumentError, match=rf"min_shift = {options['min_shift']!r} with P_f = {options['P_f']!r}: the CUSUM's threshold would be 0"):
         _nafdf(detector="cusum", **options)
     with pytest.raises(ArgumentError, match=bound):
         _nafdf(detector="cusum", **options)
@@ -214,7 +214,7 @@ def test_the_largest_shift_shown_designs_and_the_bound_is_the_zero_threshold_law
     most = largest_min_shift(0.01, 2)
     assert cusum_arl(0.0, 0.5 * most**2) == pytest.approx(2 / 0.01, rel=1e-9)  # h = 0 there: a run of 1/Q(δ/2)
     assert cusum_threshold(2 / 0.01, 0.5 * 5.151**2) > 0.0
-    gf = _nafdf(detector="cusum", min_shift=5.151)
+    gf = _nafdf(detector="cusum", min_shift=5.151, P_f=0.01)
     assert 0.0 < gf.extensions["nafdf"]["detector_thresholds"][0] < 1e-2
     assert math.isclose(largest_min_shift(1e-300, 1), 74.1, rel_tol=1e-3)
 

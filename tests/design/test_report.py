@@ -157,7 +157,8 @@ def test_the_summary_table_names_every_design(two_reports) -> None:
 def _metric(fault: str | None, isolated: float = 1.0):
     from types import SimpleNamespace
 
-    return SimpleNamespace(fault=fault, fault_free_samples=100, false_alarm_rate=0.01, missed_detection_rate=None if fault is None else 0.0,
+    return SimpleNamespace(fault=fault, fault_free_samples=100, Ts=0.01, false_alarm_episodes=1, false_alarm_rate=0.01,
+                           missed_detection_rate=None if fault is None else 0.0,
                            detection_delay_mean_s=None if fault is None else 0.5, isolation_accuracy=None if fault is None else isolated,
                            false_isolation_rate=None if fault is None else 0.0)
 

@@ -36,6 +36,7 @@ from fdisyn.numerics.robust_cones import (
     sampled_model_error,
     subspace_angle,
 )
+from fdisyn.evaluators.sequential import MAX_ARL_SAMPLES
 from fdisyn.runtime.errors import ArgumentError, ExistenceError
 from fdisyn.runtime.gainfile import LIMITS, MAX_MAGNITUDE, GainFile
 from fdisyn.runtime.names import shown
@@ -132,12 +133,54 @@ def _levels_from_records(flt: BeardFilter, records: Sequence[tuple[np.ndarray, n
     s, m = np.concatenate(s_all), np.concatenate(m_all)
     if s.size < 10.0 / P_f:
         raise ArgumentError(
-            f"{at(where, 'fault_free')}: {s.size} full-window samples cannot estimate a 1 − P_f = {1 - P_f:g} quantile; "
-            f"expected at least {int(np.ceil(10 / P_f))} (10 / P_f)"
+            f"{at(where, 'fault_free')}: {s.size} full-window samples cannot estimate the 1 − {P_f:.3g} quantile (the "
+            f"magnitude test's rate per sample: P_f, or Ts/arl0); expected at least {int(np.ceil(10 / P_f))} (10 / rate): "
+            "longer records, or a larger P_f or shorter arl0"
         )
     if not (np.all(np.isfinite(s)) and np.all(np.isfinite(m))):
         raise ArgumentError(f"{at(where, 'fault_free')}: the records hold non-finite samples")
     return float(np.quantile(s, 1 - P_f, method="higher")), float(np.quantile(m, 1 - P_f, method="higher"))
+
+
+def magnitude_rate(P_f: float | None, arl0: float | None, ts: float, where: str) -> float:
+    """The magnitude test's false-alarm rate per sample: ``P_f``, or ``Ts/arl0`` for a budget in time.
+
+    The window RMS exceeds its ``1 − P_f`` quantile on a fraction ``P_f`` of the fault-free samples, and a false
+    alarm (an episode of exceedances) starts on at most that many, so ``P_f = Ts/arl0`` keeps the mean time between
+    false alarms at least ``arl0`` (the same rule as a linear bank's χ² and WSSR statistics).
+
+    Parameters
+    ----------
+    P_f : float or None
+        The rate per sample given (the per-sample choice); None: from ``arl0``.
+    arl0 : float or None
+        The filter's mean time between false alarms (s).
+    ts : float
+        The filter's sample time (s).
+    where : str
+        Prefixes the message (see :func:`~fdisyn.synthesis.registry.at`).
+
+    Returns
+    -------
+    float
+        The rate per sample, in (0, 1).
+
+    Raises
+    ------
+    ArgumentError
+        Neither is given, or ``arl0`` is at most one sample or beyond the quantiles' working domain.
+    """
+    if arl0 is None:
+        if P_f is None:
+            raise ArgumentError(f"{where}: give the false-alarm budget: arl0 (s) or P_f (per sample)")
+        return float(P_f)
+    samples = float(arl0) / ts
+    if not 1.0 < samples <= MAX_ARL_SAMPLES:
+        raise ArgumentError(
+            f"{at(where, 'arl0')} = {shown(arl0)} s is {samples:.3g} samples at Ts = {ts:g} s; expected "
+            + (f"arl0 > {ts:.6g} s (one sample)" if samples <= 1.0 else f"arl0 ≤ {MAX_ARL_SAMPLES * ts:.6g} s ({MAX_ARL_SAMPLES:g} samples)")
+        )
+    return 1.0 / samples
 
 
 def design_beard_fdf(
@@ -156,7 +199,8 @@ def design_beard_fdf(
     explicit_level: float | None = None,
     h: float | None = None,
     window: int = 20,
-    P_f: float = 1e-3,
+    P_f: float | None = None,
+    arl0: float | None = None,
     persistence: int = 1,
     noise_gain: float = 2.0,
     separation: float = 0.02,
@@ -286,6 +330,10 @@ def design_beard_fdf(
     )
     source = "given"
     if h is None or explicit_level is None:
+        P_f = magnitude_rate(P_f, arl0, ts, where)
+        info["P_f"] = P_f
+        if arl0 is not None:
+            info["arl0_s"] = float(arl0)
         if fault_free is not None:
             h_est, e_est = _levels_from_records(provisional, fault_free, P_f, where)
             source = f"fault-free records ({len(fault_free)})"

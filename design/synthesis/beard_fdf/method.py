@@ -19,7 +19,7 @@ from fdisyn.synthesis.beard_fdf.payload import beard_from_gain_file
 from fdisyn.synthesis.beard_fdf.step import beard_step_function
 from fdisyn.synthesis.registry import Method, at, register
 
-__all__ = ["BEARD_OPTIONS", "BEARD_FDF", "beard_recovery_samples"]
+__all__ = ["BEARD_OPTIONS", "BEARD_FDF", "beard_budget_seconds", "beard_recovery_samples"]
 
 
 SETTLED = 1e-3
@@ -64,6 +64,20 @@ def beard_recovery_samples(gf: GainFile) -> int:
     return flt.window + settling_samples(flt.G)
 
 
+def beard_budget_seconds(gf: GainFile) -> float | None:
+    """The filter's designed mean time between false alarms (s): its ``arl0``, or ``Ts/P_f`` for a design by ``P_f``;
+    None when ``h`` was given (its false-alarm rate is the user's, not the design's)."""
+    payload = gf.extensions.get("beard_fdf", {})
+    info = payload.get("design", {}) if isinstance(payload, Mapping) else {}
+    if not isinstance(info, Mapping):
+        return None
+    if isinstance(info.get("arl0_s"), (int, float)):
+        return float(info["arl0_s"])
+    if isinstance(info.get("P_f"), (int, float)) and info["P_f"] > 0:
+        return float(gf.Ts) / float(info["P_f"])
+    return None
+
+
 BEARD_FDF = register(
     Method(
         name="beard_fdf",
@@ -75,6 +89,7 @@ BEARD_FDF = register(
         diagnoser_kind="beard_fdf",
         step_builder=beard_step_function,
         recovery_samples=beard_recovery_samples,
+        false_alarm_budget=beard_budget_seconds,
         check=_check,
         samples_itself=True,
     )

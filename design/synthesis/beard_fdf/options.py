@@ -9,7 +9,7 @@ from fdisyn.runtime.errors import ArgumentError
 from fdisyn.runtime.gainfile import LIMITS, MAX_MAGNITUDE
 from fdisyn.runtime.names import shown
 from fdisyn.synthesis.linear_diagnoser import TS
-from fdisyn.synthesis.registry import P_F, PERSISTENCE, WINDOW, Option, at, is_count, is_real
+from fdisyn.synthesis.registry import ARL0, DEFAULT_ARL0, P_F, PERSISTENCE, WINDOW, Option, at, is_count, is_real
 
 __all__ = ["BEARD_OPTIONS", "MAX_DRAWS", "MAX_NOISE_GAIN", "MAX_WINDOW"]
 
@@ -79,7 +79,12 @@ BEARD_OPTIONS: tuple[Option, ...] = (
     replace(WINDOW, default=20, doc="window N (samples) of the RMS and the mean of the residual",
             kind=f"a whole number of samples in 1..{MAX_WINDOW} (at most (2040 − states) / outputs: the state limit)",
             accepts=lambda v: is_count(v) and v <= MAX_WINDOW),
-    replace(P_F, doc="false-alarm probability per sample of the magnitude test, and the quantile of the explicit level"),
+    replace(P_F, doc="false-alarm probability per sample of the magnitude test, and the quantile of the explicit level, "
+            "given instead of arl0 (the per-sample choice; default: none, the budget is arl0)"),
+    replace(ARL0, doc="the filter's mean time between false alarms (s): the magnitude test's rate Ts/arl0 per sample, "
+            "and the quantile of the explicit level (read where h or explicit_level is left to the design; default: "
+            f"{DEFAULT_ARL0:g} s, one hour, unless P_f is given; give one of arl0 and P_f)",
+            kind="a positive number of seconds, more than Ts"),
     PERSISTENCE,
     Option("noise_gain", 2.0, "the optimised filter's residual RMS under the design noise at most noise_gain × the plain one's",
            f"a number in [1, {MAX_NOISE_GAIN:g}]", lambda v: is_real(v) and 1 <= v <= MAX_NOISE_GAIN),

@@ -29,7 +29,7 @@ from fdisyn.synthesis.nafdf.payload import (
     nafdf_lorden_window,
 )
 from fdisyn.synthesis.nafdf.settings import MAX_CLASSIFIER_WINDOW, MAX_COUNT, MAX_WINDOW, MIN_SHIFT_RANGE
-from fdisyn.synthesis.registry import ARL0, DETECTOR, P_F, WINDOW, Method, Option, at, is_count, is_real, register
+from fdisyn.synthesis.registry import ARL0, DEFAULT_ARL0, DETECTOR, P_F, WINDOW, Method, Option, at, is_count, is_real, register
 
 __all__ = ["NAFDF_OPTIONS", "NAFDF"]
 
@@ -66,7 +66,8 @@ def _per(name: str, doc: str, kind: str) -> Option:
 
 
 NAFDF_OPTIONS: tuple[Option, ...] = (
-    replace(P_F, default=0.01, doc="false-alarm probability of the WSSR test per sample under H0 (threshold rule 'chi2'); for CUSUM and GLR 1/ARL₀ in samples"),
+    replace(P_F, doc="false-alarm probability of the WSSR test per sample under H0 (threshold rule 'chi2'); for CUSUM and GLR 1/ARL₀ in samples; "
+            "given instead of arl0 (the per-sample choice; default: none, the budget is arl0)"),
     replace(WINDOW, doc="WSSR window N in samples (Zhou, Xi & Zhang c. 1991, eq. (2.4)), or the GLR's onset window (detector 'glr')",
             kind=f"a whole number of samples in 1..{MAX_WINDOW}", accepts=lambda v: is_count(v) and v <= MAX_WINDOW),
     replace(
@@ -77,7 +78,8 @@ NAFDF_OPTIONS: tuple[Option, ...] = (
         kind="'wssr', 'cusum' or 'glr'",
         accepts=lambda v: v in ("wssr", "cusum", "glr"),
     ),
-    replace(ARL0, doc="the diagnoser's mean time between false alarms (s): the detector's rate 1/(arl0/Ts − 2·classifier_window) per sample, in place of P_f"),
+    replace(ARL0, doc="the diagnoser's mean time between false alarms (s): the detector's rate 1/(arl0/Ts − 2·classifier_window) per sample "
+            f"(default: {DEFAULT_ARL0:g} s, one hour, unless P_f is given; give one of arl0 and P_f)"),
     Option(
         "min_shift", None, "the CUSUM's designed change: a mean shift of this many standard deviations in one normalised EKF "
         "innovation (detector 'cusum' only; default 1)",
