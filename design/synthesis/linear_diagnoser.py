@@ -687,9 +687,21 @@ def bank_diagnoser(
             return generator(plant, tuple(idx), gname, Ts=Ts, **options)
         return generator(discrete, tuple(idx), gname, **options)
 
+    kind = chosen_detector(detector, evaluator, where)
+
+    def one_sequential(gname: str, idx: Sequence[int]) -> tuple[Generator, np.ndarray, Certificate]:
+        """A generator of the default bank whose statistic is a CUSUM or a GLR: its residual must whiten (the
+        bank's certificate checks it for every generator; here a generator that fails is left out, not the bank)."""
+        gen, sig, cert = one(gname, idx)
+        white = whiteness(whitened(gen, discrete), discrete)
+        if not white <= 1e3 * WHITE_RTOL:
+            raise SolverError(f"its residual does not whiten for the {kind} (largest lag-1…50 autocorrelation of the "
+                              f"whitened residual {shown(white)}, at most {shown(1e3 * WHITE_RTOL)} expected)")
+        return gen, sig, cert
+
     chosen: dict[str, object] | None = None
     if bank is None and plant.p >= 2:
-        designed, chosen = default_bank(discrete, one, faults, where)
+        designed, chosen = default_bank(discrete, one_sequential if kind in SEQUENTIAL_KINDS else one, faults, where)
     else:
         groups = bank if bank is not None else {"g0_" + "_".join(plant.outputs): tuple(range(plant.p))}
         designed = []
@@ -712,7 +724,7 @@ def bank_diagnoser(
         faults=faults if faults is not None else default_fault_classes(discrete, gens),
         certificates=certs,
         persistence=persistence,
-        evaluator=chosen_detector(detector, evaluator, where),
+        evaluator=kind,
         window=window,
         arl0=arl0,
         min_fault=min_fault,

@@ -10,7 +10,8 @@ import pytest
 
 import fdisyn
 from fdisyn.numerics.account import account_lines
-from fdisyn.runtime.errors import ArgumentError
+from fdisyn.runtime.errors import ArgumentError, CertificateError
+from tests.helpers import random_plant
 from fdisyn.runtime.gainfile import read_gain_file, write_gain_file
 
 OUTPUTS = ["y1", "y2", "y3"]
@@ -172,3 +173,21 @@ def test_an_output_decoupled_with_the_unknown_input_is_not_read() -> None:
     assert chosen["left_out"][0]["sensor"] == "y2" and chosen["left_out"][0]["reason"].endswith(", as g0_y1 does")
     (group,) = gf.account["classes"]["groups"]
     assert group["faults"] == ["y0", "y2"] and "the generator without y0 reads y1 only" in group["reason"]
+
+
+@pytest.mark.parametrize("detector", ["cusum", "glr"])
+def test_a_sequential_default_bank_leaves_out_a_generator_whose_residual_does_not_whiten(detector: str) -> None:
+    """On this plant the plain UIO without y2 has a residual whose whitening leaves a lag-1 autocorrelation of 1 (its
+    feedthrough noise is singular): the CUSUM's and GLR's thresholds would not hold there. The bank's certificate
+    refuses such a generator in a bank given; the default bank leaves it out, says why, and still isolates every
+    sensor with the other two (y2 is the one sensor both read)."""
+    plant = random_plant(1, radius=0.8)
+    poles = [0.9, 0.85, 0.8, -0.7, 0.75]
+    with pytest.raises(CertificateError, match="residual white"):
+        fdisyn.design(plant, method="uio_pole_placement", poles=poles, detector=detector, arl0=100.0, bank=[["y0", "y1"]])
+    gf = fdisyn.design(plant, method="uio_pole_placement", poles=poles, detector=detector, arl0=100.0)
+    assert gf.certificate["passed"] is True
+    assert [g.name for g in gf.generators] == ["g0_y1_y2", "g1_y0_y2"]
+    (out,) = gf.provenance["bank"]["left_out"]
+    assert out["sensor"] == "y2" and "does not whiten" in out["reason"]
+    assert gf.faults == ("y0", "y1", "y2")  # three signatures from two generators: (0, 1), (1, 0), (1, 1)
