@@ -66,11 +66,11 @@ def _file(tmp_path: Path, text: str, old: str, new: str, name: str = "plant.toml
 
 PLANT_CASES: list[tuple[str, str, str, str, list[str], tuple[str, ...]]] = [
     # (id, file text, old, new, command after SPEC, expected parts of the error line)
-    ("P_f zero", MOTOR, "P_f = 1e-4 ", "P_f = 0 ", ["design"], ("[design].P_f = 0: expected", "(0, 1)")),
-    ("P_f one", MOTOR, "P_f = 1e-4 ", "P_f = 1.0 ", ["design"], ("[design].P_f = 1.0", "(0, 1)")),
-    ("P_f nan", MOTOR, "P_f = 1e-4 ", "P_f = nan ", ["design"], ("[design].P_f = nan",)),
-    ("persistence 1.5", MOTOR, "P_f = 1e-4 ", "P_f = 1e-4\npersistence = 1.5 ", ["design"], ("[design].persistence = 1.5: expected a whole number",)),
-    ("persistence 0", MOTOR, "P_f = 1e-4 ", "P_f = 1e-4\npersistence = 0 ", ["design"], ("[design].persistence = 0",)),
+    ("P_f zero", MOTOR, "arl0 = 3600.0 ", "P_f = 0 ", ["design"], ("[design].P_f = 0: expected", "(0, 1)")),
+    ("P_f one", MOTOR, "arl0 = 3600.0 ", "P_f = 1.0 ", ["design"], ("[design].P_f = 1.0", "(0, 1)")),
+    ("P_f nan", MOTOR, "arl0 = 3600.0 ", "P_f = nan ", ["design"], ("[design].P_f = nan",)),
+    ("persistence 1.5", MOTOR, "arl0 = 3600.0 ", "arl0 = 3600.0\npersistence = 1.5 ", ["design"], ("[design].persistence = 1.5: expected a whole number",)),
+    ("persistence 0", MOTOR, "arl0 = 3600.0 ", "arl0 = 3600.0\npersistence = 0 ", ["design"], ("[design].persistence = 0",)),
     ("period zero", MOTOR, 'inputs = [{ kind = "step"', 'inputs = [{ kind = "sine", period = 0.0', ["simulate"], ("[simulation].inputs[0].period must be a positive",)),
     ("signal kind", MOTOR, 'kind = "step"', 'kind = "ramp"', ["simulate"], ("[simulation].inputs[0].kind must be one of",)),
     ("scenario fault_free", MOTOR, 'name = "speed_sensor_offset"', 'name = "fault_free"', ["simulate"], ("'fault_free' is the built-in fault-free scenario",)),
@@ -82,7 +82,7 @@ PLANT_CASES: list[tuple[str, str, str, str, list[str], tuple[str, ...]]] = [
     ("poles a string", MOTOR, 'method = "kalman_uio" ', 'method = "uio_pole_placement"\npoles = "fast" ', ["design"], ("[design].poles must be a list of 3 real numbers",)),
     ("poles strings", MOTOR, 'method = "kalman_uio" ', 'method = "uio_pole_placement"\npoles = ["a", "b", "c"] ', ["design"], ("[design].poles must be a list of 3 real numbers",)),
     ("poles outside", MOTOR, 'method = "kalman_uio" ', 'method = "uio_pole_placement"\npoles = [0.5, 0.6, 1.5] ', ["design"], ("strictly inside the unit circle",)),
-    ("poles for another method", MOTOR, "P_f = 1e-4 ", "P_f = 1e-4\npoles = [0.5, 0.6, 0.7] ", ["design"], ("[design].poles is read only by method 'uio_pole_placement'",)),
+    ("poles for another method", MOTOR, "arl0 = 3600.0 ", "arl0 = 3600.0\npoles = [0.5, 0.6, 0.7] ", ["design"], ("[design].poles is read only by method 'uio_pole_placement'",)),
     ("duration below one sample", MOTOR, "duration = 10.0\n#", "duration = 0.0004\n#", ["simulate"], ("[simulation].duration = 0.0004 s is shorter than one sample: expected at least Ts = 0.001 s",)),
     ("duration huge", MOTOR, "duration = 10.0\n#", "duration = 1e12\n#", ["simulate"], ("is 1e+15 samples at Ts = 0.001 s: expected at most 1e+06 samples per run",)),
     ("Ts huge", MOTOR, "Ts = 0.001 ", "Ts = 1e12 ", ["design"], ("[model]: Ts = 1e+12 s is too long to sample this model", "expected Ts < 7.285 s")),
@@ -98,7 +98,7 @@ PLANT_CASES: list[tuple[str, str, str, str, list[str], tuple[str, ...]]] = [
     ("Bd zero", SAMPLED, "Bd = [[0.1], [1.0]]", "Bd = [[0.0], [0.0]]", ["design"], ("[design]: the disturbance direction E (Bd of Qiu, Wen & Jiang 2010, eq. (1)) is zero",)),
     ("h huge", SAMPLED, "h = 1.0", "h = 1e5", ["design"], ("[model]: h = 100000 s is too long to sample this model", "expected h < 354.9 s")),
     ("eta unknown", SAMPLED, 'method = "sampled_data_observer"', 'method = "lmi"\neta = "1"', ["design"], ("[design].eta = '1': expected one of ['inf', '2', '-']",)),
-    ("persistence beyond a count", MOTOR, "P_f = 1e-4 ", "P_f = 1e-4\npersistence = 1000000000000 ", ["design"], ("[design].persistence = 1000000000000: expected a whole number ≥ 1 of consecutive exceedances, at most 1000000000",)),
+    ("persistence beyond a count", MOTOR, "arl0 = 3600.0 ", "arl0 = 3600.0\npersistence = 1000000000000 ", ["design"], ("[design].persistence = 1000000000000: expected a whole number ≥ 1 of consecutive exceedances, at most 1000000000",)),
     # numbers are numbers: NumPy would read "-100.0" and true as floats, and overflow on a huge integer
     ("A a string entry", MOTOR, "[[-100.0, -5.0, 0.0]", '[["-100.0", -5.0, 0.0]', ["design"], ("[model].A must be a matrix of numbers (a list of rows), got [['-100.0'",)),
     ("A a boolean entry", MOTOR, "[[-100.0, -5.0, 0.0]", "[[true, -5.0, 0.0]", ["design"], ("[model].A must be a matrix of numbers (a list of rows), got [[True",)),

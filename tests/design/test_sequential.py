@@ -331,11 +331,11 @@ def test_plant_files_and_problems_take_the_detector_and_the_budget(tmp_path, dat
 
     text = (data_dir / "dc_motor.toml").read_text(encoding="utf-8")
     path = tmp_path / "motor.toml"
-    path.write_text(text.replace('P_f = 1e-4 ', 'detector = "glr"\narl0 = 30.0\n# '), encoding="utf-8")
+    path.write_text(text.replace('arl0 = 3600.0 ', 'detector = "glr"\narl0 = 30.0\n# '), encoding="utf-8")
     gf = load_spec(path).design()
     assert all(e.kind == "glr" for e in gf.evaluators)
     assert gf.certificate["bank"]["info"]["arl0_s"] == 30.0
-    path.write_text(text.replace('P_f = 1e-4 ', 'detector = "cusum"\npersistence = 2\n# '), encoding="utf-8")
+    path.write_text(text.replace('arl0 = 3600.0 ', 'detector = "cusum"\npersistence = 2\n# '), encoding="utf-8")
     with pytest.raises(SpecError, match=r"\[design\]\.persistence = 2 with detector 'cusum'") as info:
         load_spec(path).design()
     assert "\n" not in str(info.value)
