@@ -10,6 +10,7 @@ an error, not a footnote.
 
 from __future__ import annotations
 
+import json
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
@@ -54,6 +55,17 @@ class ExportCheck:
 
     def to_dict(self) -> dict[str, Any]:
         return {"samples": self.samples, "nonfinite_samples": self.nonfinite_samples, "tolerance": EXPORT_TOL, "references": self.references, "passed": self.passed}
+
+    def published(self) -> dict[str, Any]:
+        """What a committed report keeps: for each reference whether the decisions are equal and every normwise
+        difference is within :data:`EXPORT_TOL`. The differences themselves are round-off whose digits change with
+        the CPU's BLAS kernel (2·10⁻¹⁷ on one, 4·10⁻¹⁷ on another); the build folder keeps them
+        (``export_check.json``)."""
+        refs = {
+            name: {"decisions_equal": bool(x["decisions_equal"]), "within_tolerance": max(x["r"], x["J"], x["state"]) <= EXPORT_TOL}
+            for name, x in self.references.items()
+        }
+        return {"samples": self.samples, "nonfinite_samples": self.nonfinite_samples, "tolerance": EXPORT_TOL, "references": refs, "passed": self.passed}
 
 
 def _casadi_run(fn: ca.Function, init: np.ndarray, U: np.ndarray, Y: np.ndarray) -> tuple[RunResult, np.ndarray]:
@@ -227,6 +239,35 @@ class VariantResult:
     """Detection against the fault's size (the main variant only)."""
 
 
+def variant_specs(
+    problem: Problem, runs: int | None = None, given: int | None = None
+) -> list[tuple[str, dict[str, Any], Sequence[str] | None, list[str], int | None]]:
+    """The report variants of ``problem`` as the main job runs them: ``(label, options, scenarios, designs, runs)``.
+
+    The main variant (``"default"``) first, with every design and ``runs``; then each of ``problem.variants``,
+    which may name its own designs, scenarios (``None``: every one) and runs (``given``, the user's ``--runs``,
+    wins over a variant's own).
+
+    Parameters
+    ----------
+    problem : Problem
+        The built-in problem.
+    runs : int or None
+        Monte Carlo runs per scenario of the main variant (and of a variant that names none).
+    given : int or None
+        The runs the user asked for, if any.
+
+    Returns
+    -------
+    list of tuple
+        One ``(label, options, scenarios, designs, runs)`` per variant, in the report's order.
+    """
+    return [("default", {}, None, list(problem.designs), runs)] + [
+        (v["label"], dict(v.get("options", {})), v.get("scenarios"), list(v.get("designs", list(problem.designs))), given or v.get("runs", runs))
+        for v in problem.variants
+    ]
+
+
 def reproduce_problem(
     problem: Problem, *, runs: int | None = None, reports: Path = Path("reports"), workdir: Path = WORKDIR,
     variants: Sequence[str] | None = None, workers: int | None = None, client: Any = None, source: str | Path | None = None,
@@ -241,11 +282,7 @@ def reproduce_problem(
     runs = problem.monte_carlo_runs if runs is None else runs  # 0 is refused by evaluate, not replaced
     if isinstance(runs, bool) or not isinstance(runs, int) or runs < 1:
         raise ArgumentError(f"runs must be a whole number ≥ 1 (or None for the problem's {problem.monte_carlo_runs}); got {runs!r}")
-    # a variant may name its designs and runs (the user's --runs wins); scenarios default to every one
-    spec = [("default", {}, None, list(problem.designs), runs)] + [
-        (v["label"], v.get("options", {}), v.get("scenarios"), v.get("designs", list(problem.designs)), given or v.get("runs", runs))
-        for v in problem.variants
-    ]
+    spec = variant_specs(problem, runs, given)
     labels = [v[0] for v in spec]
     if variants is not None:
         unknown = [v for v in variants if v not in labels]
@@ -265,6 +302,8 @@ def reproduce_problem(
             if not chk.passed:
                 raise CertificateError(f"{problem.name}/{d}: the generated C disagrees with the Python references: {chk.to_dict()}")
             exports[d] = chk
+            (workdir / problem.name / tag / d).mkdir(parents=True, exist_ok=True)
+            (workdir / problem.name / tag / d / "export_check.json").write_text(json.dumps(chk.to_dict(), indent=1) + "\n", encoding="utf-8")
         where = {"workers": workers, "client": client, "source": source}
         ev = evaluate(problem, built, runs=n_runs, scenarios=scen, **where, **opts)
         sweep = None

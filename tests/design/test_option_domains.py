@@ -171,6 +171,9 @@ def test_nafdf_extremes_are_computed_or_refused_with_the_domain() -> None:
     fdisyn.design(_nonlinear(), method="nafdf", detector="cusum", min_shift=1e-6)
     # a shift this large alarms at its first sample: refused before the design, with the largest shift that works
     with pytest.raises(ArgumentError, match=r"min_shift = 1000000.0 with P_f = 0.01: the CUSUM's threshold would be 0 .* expected min_shift < 5.151 "):
+        fdisyn.design(_nonlinear(), method="nafdf", detector="cusum", min_shift=1e6, P_f=0.01)
+    # the same at the default budget (arl0, one hour), saying that it is the default
+    with pytest.raises(ArgumentError, match=r"min_shift = 1000000.0 with arl0 = 3600.0 s: .* expected min_shift < 7.255 .* is the default false-alarm budget"):
         fdisyn.design(_nonlinear(), method="nafdf", detector="cusum", min_shift=1e6)
     with pytest.raises(ArgumentError, match=r"option min_shift = 1e\+308: expected a number of standard deviations in \[1e-06, 1e\+06\]"):
         fdisyn.design(_nonlinear(), method="nafdf", detector="cusum", min_shift=1e308)
