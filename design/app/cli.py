@@ -683,6 +683,35 @@ def _debug() -> bool:
     return os.environ.get("FDISYN_DEBUG", "") not in ("", "0")
 
 
+REPORT_BLAS = {"OPENBLAS_CORETYPE": "Nehalem", "OPENBLAS_NUM_THREADS": "1"}
+"""The BLAS that ``fdisyn reproduce`` and ``fdisyn report`` run on (x86-64): OpenBLAS's Nehalem kernels, which every
+x86-64 CPU of the last fifteen years runs, on one thread. OpenBLAS otherwise picks a kernel per CPU (Haswell, Zen,
+SkylakeX, …) whose sums round differently: the designs' last digits, and the gain files published in the reports,
+would then depend on the machine. The kernel matters little to the main job's time (its matrices are small; the
+Monte Carlo runs in compiled C)."""
+
+
+def pin_report_blas() -> bool:
+    """Pin OpenBLAS to :data:`REPORT_BLAS` for this process and its workers, so that the reports come out the same on
+    every x86-64 CPU.
+
+    Only before NumPy and SciPy are first imported (OpenBLAS reads its environment when it is loaded): a command run
+    by the ``fdisyn`` program; a call of :func:`main` in a process that already imported them keeps their kernel.
+    It replaces the user's own ``OPENBLAS_CORETYPE`` for these commands. On other architectures nothing is changed.
+
+    Returns
+    -------
+    bool
+        Whether the kernel was pinned.
+    """
+    import platform
+
+    if platform.machine().lower() not in ("x86_64", "amd64") or any(m in sys.modules for m in ("numpy", "scipy")):
+        return False
+    os.environ.update(REPORT_BLAS)
+    return True
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run one command; return its exit status: 0, 2 after a one-line error on stderr, 3 after a bug, 130 after
     Ctrl-C (one line, ``fdisyn <command>: interrupted``), 143 after SIGTERM (``fdisyn <command>: terminated``).
@@ -699,6 +728,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         args = _parser().parse_args(argv)
     except SystemExit as exc:  # a usage error (already printed as one line) or --help
         return exc.code if isinstance(exc.code, int) else 2
+    if args.command in ("reproduce", "report"):
+        pin_report_blas()
     from fdisyn.evaluation.progress import set_quiet
 
     set_quiet(args.quiet)
