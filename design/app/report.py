@@ -395,11 +395,15 @@ _REL = {"<=": "≤", ">=": "≥"}
 
 ROUND_OFF_MARGIN = 1e-3
 """A check's value below this fraction of its upper bound is shown as a bound (:func:`below_margin`)."""
+ROUND_OFF_BOUND = 1e-3
+"""The largest upper bound that is a tolerance on round-off (a residual, a difference of two solutions); a larger
+one (a condition number, a spectral radius) keeps its value's digits (:func:`below_margin`)."""
 
 
 def below_margin(value: Any, bound: Any, relation: str = "<=") -> str:
     """A certificate check's value as a page shows it (3 significant digits), or, for a value below
-    :data:`ROUND_OFF_MARGIN` of its upper bound, that margin rounded up to its decade (``< 10⁻¹²``).
+    :data:`ROUND_OFF_MARGIN` of an upper bound that is a round-off tolerance (at most :data:`ROUND_OFF_BOUND`), that
+    margin rounded up to its decade (``below 1·10⁻¹²``).
 
     Such a value passes by three orders of magnitude, and its own digits are round-off: a residual of an exact
     identity (1e-16 on one CPU, 5e-15 on another, as the BLAS kernel sums in another order). The bound is what
@@ -418,8 +422,8 @@ def below_margin(value: Any, bound: Any, relation: str = "<=") -> str:
         The cell's text.
     """
     v, b = float(value), float(bound)
-    if relation == "<=" and math.isfinite(v) and math.isfinite(b) and b > 0 and 0 <= abs(v) < ROUND_OFF_MARGIN * b:
-        return "< " + fmt(10.0 ** math.ceil(math.log10(ROUND_OFF_MARGIN * b) - 1e-9), 1)
+    if relation == "<=" and math.isfinite(v) and 0 < b <= ROUND_OFF_BOUND and abs(v) < ROUND_OFF_MARGIN * b:
+        return "below " + fmt(10.0 ** math.ceil(math.log10(ROUND_OFF_MARGIN * b) - 1e-9), 1)
     return fmt(value, 3)
 
 
@@ -619,7 +623,7 @@ def _export_section(problem: Problem, variants: Sequence[Any]) -> str:
             tol = chk.published()["tolerance"]
             for ref, x in chk.references.items():
                 rows.append([_variant_name(v), label(problem, d), ref, chk.samples, chk.nonfinite_samples,
-                             *(f"< {fmt(tol, 1)}" if x[k] <= tol else x[k] for k in ("r", "J", "state")),
+                             *(f"below {fmt(tol, 1)}" if x[k] <= tol else x[k] for k in ("r", "J", "state")),
                              "equal" if x["decisions_equal"] else "DIFFER"])
     if not rows:
         return ""
