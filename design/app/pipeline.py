@@ -240,8 +240,8 @@ class VariantResult:
 
 
 def variant_specs(
-    problem: Problem, runs: int | None = None, given: int | None = None
-) -> list[tuple[str, dict[str, Any], Sequence[str] | None, list[str], int | None]]:
+    problem: Problem, runs: int, given: int | None = None
+) -> list[tuple[str, dict[str, Any], Sequence[str] | None, list[str], int]]:
     """The report variants of ``problem`` as the main job runs them: ``(label, options, scenarios, designs, runs)``.
 
     The main variant (``"default"``) first, with every design and ``runs``; then each of ``problem.variants``,
@@ -252,7 +252,7 @@ def variant_specs(
     ----------
     problem : Problem
         The built-in problem.
-    runs : int or None
+    runs : int
         Monte Carlo runs per scenario of the main variant (and of a variant that names none).
     given : int or None
         The runs the user asked for, if any.
@@ -263,7 +263,7 @@ def variant_specs(
         One ``(label, options, scenarios, designs, runs)`` per variant, in the report's order.
     """
     return [("default", {}, None, list(problem.designs), runs)] + [
-        (v["label"], dict(v.get("options", {})), v.get("scenarios"), list(v.get("designs", list(problem.designs))), given or v.get("runs", runs))
+        (v["label"], dict(v.get("options", {})), v.get("scenarios"), list(v.get("designs", list(problem.designs))), int(given or v.get("runs", runs)))
         for v in problem.variants
     ]
 

@@ -1476,7 +1476,7 @@ def write_report(problem: Problem, variants: Sequence[Any], directory: Path) -> 
         *(f'<h2 id="{anchor}">{html.escape(title)}</h2>{body}' for anchor, title, body in sections),
         "</body></html>",
     ]
-    gains_dir, taken = directory / "gains", set()
+    gains_dir, taken = directory / "gains", set[str]()
     for v in variants:
         for b in v.built.values():
             write_gain_file(_published(b.gain_file), gains_dir / published_gain_name(b.gain_file.name, v.label, taken))

@@ -34,7 +34,7 @@ NOT_THE_DIAGNOSER = ("certificate", "provenance", "account", "design")
 CASES = [
     pytest.param(name, label, options, design, id=f"{name}-{label}-{design}")
     for name in problem_names()
-    for label, options, _, designs, _ in variant_specs(get_problem(name))
+    for label, options, _, designs, _ in variant_specs(get_problem(name), get_problem(name).monte_carlo_runs)
     for design in designs
 ]
 
