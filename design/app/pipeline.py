@@ -276,7 +276,7 @@ def reproduce_problem(
 
     ``variants``: the labels of the report variants to run (``"default"`` the main one; ``None``: all);
     ``workers``, ``client``, ``source``: where the Monte Carlo runs (:func:`~fdisyn.evaluation.evaluate.evaluate`)."""
-    from fdisyn.app.report import write_index, write_report
+    from fdisyn.app.report import variant_tag, write_index, write_report
 
     given = runs
     runs = problem.monte_carlo_runs if runs is None else runs  # 0 is refused by evaluate, not replaced
@@ -292,7 +292,7 @@ def reproduce_problem(
     results = []
     for label, opts, scen, names, n_runs in spec:
         t0 = time.perf_counter()
-        tag = "default" if label == "default" else "".join(ch if ch.isalnum() else "_" for ch in label)
+        tag = variant_tag(label)
         steps = tracked(names, f"{problem.name} {label}: design, verify, export, compile", "design")
         built = {d: build(problem, d, workdir / problem.name / tag / d, **opts) for d in steps}
         U, Y = export_trace(problem, **opts)

@@ -1383,6 +1383,12 @@ def _published(gf: Any) -> Any:
     return replace(gf, provenance=_without_clock(dict(gf.provenance)), certificate=_without_clock(dict(gf.certificate)))
 
 
+def variant_tag(label: str) -> str:
+    """A report variant's label as a file or folder name: its characters other than letters and digits written
+    ``_`` (``"persistence 3"`` → ``persistence_3``)."""
+    return "".join(ch if ch.isalnum() else "_" for ch in label)
+
+
 def published_gain_name(name: str, label: str, taken: set[str]) -> str:
     """The file name under a report's ``gains/`` of the gain file ``name`` of the variant ``label``.
 
@@ -1407,7 +1413,7 @@ def published_gain_name(name: str, label: str, taken: set[str]) -> str:
     """
     file = f"{name}.json"
     if file in taken:
-        file = f"{name}-{''.join(ch if ch.isalnum() else '_' for ch in label)}.json"
+        file = f"{name}-{variant_tag(label)}.json"
     taken.add(file)
     return file
 
