@@ -25,11 +25,11 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
-from fdisyn.app.report import Claim, ReportContext, false_alarms_pooled, fmt, shade, subplots, table
+from fdisyn.reporting.report import Claim, ReportContext, false_alarms_pooled, fmt, shade, subplots, table
 from fdisyn.evaluation.compiled_simulation import SampleModel, sampled_data_sample_model
-from fdisyn.evaluation.sampled_data_simulation import simulate_sampled_data
+from fdisyn.simulation.sampled_data import simulate_sampled_data
 from fdisyn.models.linear import LinearPlant
-from fdisyn.models.problem import Batch, Problem, Scenario
+from fdisyn.simulation.problem import Batch, Problem, Scenario
 from fdisyn.models.sampled_data import SampledDataPlant
 from fdisyn.models.sampling import van_loan
 from fdisyn.numerics.account import with_account
@@ -161,7 +161,7 @@ def _drive(sc: Scenario) -> tuple[np.ndarray, np.ndarray]:
 
 def _simulate(sc: Scenario, seeds: Sequence[int], draws: np.ndarray | None = None, **_options: object) -> Batch:
     """Exact samples of the sampled-data plant (the disturbance integrated between samples). ``draws``: given
-    standard normals (:func:`fdisyn.evaluation.sampled_data_simulation.simulate_sampled_data`)."""
+    standard normals (:func:`fdisyn.simulation.sampled_data.simulate_sampled_data`)."""
     u, f = _drive(sc)
     t = np.arange(len(u)) * PLANT.Ts
     runs = [

@@ -44,10 +44,10 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
-from fdisyn.app.report import Claim, ReportContext, fmt, shade, subplots, table
+from fdisyn.reporting.report import Claim, ReportContext, fmt, shade, subplots, table
 from fdisyn.evaluation.compiled_simulation import SampleModel, nonlinear_sample_model
 from fdisyn.models.nonlinear import NonlinearPlant
-from fdisyn.models.problem import Batch, Problem, Scenario
+from fdisyn.simulation.problem import Batch, Problem, Scenario
 from fdisyn.runtime.errors import ArgumentError
 from fdisyn.runtime.gainfile import GainFile
 from fdisyn.synthesis.nafdf.design import NOT_ISOLABLE, NafdfDesign, nafdf, nafdf_diagnosis

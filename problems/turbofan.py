@@ -40,7 +40,7 @@ import numpy as np
 import scipy.linalg
 from fdisyn.evaluation.compiled_simulation import NAMES_IN, NAMES_OUT, SampleModel
 from fdisyn.models.linear import LinearPlant
-from fdisyn.models.problem import Batch, Problem, Scenario
+from fdisyn.simulation.problem import Batch, Problem, Scenario
 from fdisyn.numerics.account import with_account
 from fdisyn.runtime.errors import ArgumentError
 from fdisyn.runtime.gainfile import GainFile
@@ -547,7 +547,7 @@ class GlrFootprint:
 def glr_footprint(gf: GainFile, arl0: float) -> GlrFootprint:
     """The GLR statistics the linear diagnoser would give the bank ``gf`` at ``arl0`` (s) with its own onset window,
     sized without building the gain file (whose reader refuses it beyond the limits)."""
-    from fdisyn.evaluators.sequential import split_budget
+    from fdisyn.detectors.sequential import split_budget
     from fdisyn.runtime.gainfile import linear_state_layout, step_coefficients
     from fdisyn.synthesis.linear_diagnoser import FaultClass, design_plant, sequential_evaluators
 
@@ -573,7 +573,7 @@ def _chosen(gf: GainFile) -> Mapping[str, Any]:
 
 
 def _structure_section() -> str:
-    from fdisyn.app.report import fmt, folded, table
+    from fdisyn.reporting.report import fmt, folded, table
     from fdisyn.synthesis.uio_gos import completed_condition, output_groups
 
     rows = [[pos, printed, value, why] for pos, printed, value, why in TRANSCRIPTION]
@@ -612,7 +612,7 @@ def _structure_section() -> str:
 
 
 def _estimate_section(ctx: Any, gf: GainFile) -> str:
-    from fdisyn.app.report import fmt, folded, subplots, table
+    from fdisyn.reporting.report import fmt, folded, subplots, table
 
     ch = _chosen(gf)
     s = np.asarray(ch["E_singular_values"])
@@ -640,7 +640,7 @@ def _estimate_section(ctx: Any, gf: GainFile) -> str:
 
 
 def _residual_figures(ctx: Any, v: Any) -> str:
-    from fdisyn.app.report import folded, shade, subplots
+    from fdisyn.reporting.report import folded, shade, subplots
 
     ex, bt = v.evaluation.examples, v.evaluation.batches
     out = []
@@ -694,7 +694,7 @@ def _residual_figures(ctx: Any, v: Any) -> str:
 
 def _rank_comparison(v: Any) -> str:
     """Fault-free run 0 through banks with E of rank 1 (the gap rule) and of the design's rank: peak WSSR/threshold."""
-    from fdisyn.app.report import table
+    from fdisyn.reporting.report import table
     from fdisyn.runtime.reference import LinearReference
 
     bt = v.evaluation.batches
@@ -721,7 +721,7 @@ def _rank_comparison(v: Any) -> str:
 
 def _grouping_section(v: Any) -> str:
     """The grouped bank against one UIO bank on all nine outputs: fault-free alarms, T5 and T25 delays and isolation."""
-    from fdisyn.app.report import table
+    from fdisyn.reporting.report import table
 
     m = v.evaluation.metrics
     if not {"grouped", "ungrouped"} <= set(m):
@@ -741,7 +741,7 @@ def _grouping_section(v: Any) -> str:
 
 def _claims(ctx: Any) -> list[Any]:
     """Long & Wang 2017's claims (section 2 and figs. 10–12) against the transcribed model and the Monte Carlo."""
-    from fdisyn.app.report import Claim, fmt
+    from fdisyn.reporting.report import Claim, fmt
 
     out = []
     rank = int(np.linalg.matrix_rank(C))
@@ -799,7 +799,7 @@ def _claims(ctx: Any) -> list[Any]:
 def _glr_section(v: Any, runs: int) -> str:
     """The budget of the detector comparison (``runs`` per scenario), and why the GLR is not in it: its onset sums
     against the step's limits."""
-    from fdisyn.app.report import fmt, folded, table
+    from fdisyn.reporting.report import fmt, folded, table
     from fdisyn.runtime.gainfile import LIMITS
 
     gf = v.built["grouped"].gain_file

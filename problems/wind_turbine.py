@@ -36,11 +36,11 @@ from typing import Any
 
 import casadi as ca
 import numpy as np
-from fdisyn.app.report import Claim, ReportContext, fmt, folded, shade, subplots
+from fdisyn.reporting.report import Claim, ReportContext, fmt, folded, shade, subplots
 from fdisyn.evaluation.compiled_simulation import SampleModel, clip_sx, linear_sample_model
-from fdisyn.evaluation.simulate import Signal, simulate_linear
+from fdisyn.simulation.simulate import Signal, simulate_linear
 from fdisyn.models.linear import LinearPlant
-from fdisyn.models.problem import Batch, Problem, Scenario
+from fdisyn.simulation.problem import Batch, Problem, Scenario
 from fdisyn.runtime.errors import ArgumentError
 from fdisyn.runtime.gainfile import GainFile
 from fdisyn.synthesis.linear_diagnoser import FaultClass
@@ -456,7 +456,7 @@ def simulate(
     noise ``w ~ N(0, Q)`` and sensor noise ``v ~ N(0, R)`` drawn from the same
     covariances the design assumes; the scenario's sensor faults act on the
     measurements (and so on the controller). Starts at the equilibrium of the
-    mean torque. ``draws``: given standard normals (:func:`fdisyn.evaluation.simulate.simulate_linear`).
+    mean torque. ``draws``: given standard normals (:func:`fdisyn.simulation.simulate.simulate_linear`).
     """
     args = _closed_loop(parameters, np.clip)
     return simulate_linear(args.pop("plant"), _offsets_in_sd(scenario, parameters), seeds, draws=draws, **args)

@@ -42,10 +42,10 @@ from collections.abc import Mapping, Sequence
 
 import casadi as ca
 import numpy as np
-from fdisyn.app.report import Claim, ReportContext, fmt, shade, subplots
+from fdisyn.reporting.report import Claim, ReportContext, fmt, shade, subplots
 from fdisyn.evaluation.compiled_simulation import SampleModel, nonlinear_sample_model
 from fdisyn.models.nonlinear import NonlinearPlant
-from fdisyn.models.problem import Batch, Problem, Scenario
+from fdisyn.simulation.problem import Batch, Problem, Scenario
 from fdisyn.models.sampling import zoh
 from fdisyn.problems.wind_turbine import PARAMETER_SETS, TS
 from fdisyn.runtime.gainfile import GainFile

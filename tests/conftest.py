@@ -53,7 +53,7 @@ def wt_built(tmp_path_factory: pytest.TempPathFactory):
 def motor_built(tmp_path_factory: pytest.TempPathFactory):
     """The DC-motor plant file's (the example ``dc_motor``) default design (4 outputs of 2 generators),
     designed, written and compiled once."""
-    from fdisyn.app.plant_file import load_spec
+    from fdisyn.simulation.plant_file import load_spec
     from fdisyn.evaluation.evaluate import build
 
     prob = load_spec(EXAMPLES / "dc_motor.toml")

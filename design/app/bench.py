@@ -32,7 +32,7 @@ from fdisyn.codegen.library import CFLAGS, compile_bench, compiler
 from fdisyn.codegen.step import step_function
 from fdisyn.evaluation.evaluate import build
 from fdisyn.evaluation.progress import tracked
-from fdisyn.models.problem import Problem
+from fdisyn.simulation.problem import Problem
 from fdisyn.models.sampled_data import SampledDataPlant
 from fdisyn.numerics.lmi_norms import h2_norm_lmi, hinf_norm_lmi, hminus_index_lmi
 from fdisyn.runtime.reference import LinearReference
@@ -260,7 +260,7 @@ def random_sampled_data_plant(
 _RSS_CHILD = """
 import json, resource, sys, time
 from fdisyn.evaluation.evaluate import evaluate, load_built
-from fdisyn.models.problem import get_problem
+from fdisyn.simulation.problem import get_problem
 name, design, directory, scenario, runs = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4], int(sys.argv[5])
 prob = get_problem(name)
 t0 = time.perf_counter()
@@ -280,7 +280,7 @@ def monte_carlo_section(
     of ``rss_runs`` runs of ``rss_scenario`` on one core, measured in a child process of its own."""
     from fdisyn.evaluation.campaign import local_cores
     from fdisyn.evaluation.evaluate import evaluate
-    from fdisyn.models.problem import get_problem
+    from fdisyn.simulation.problem import get_problem
 
     prob = get_problem(problem)
     b = build(prob, design, workdir / "bench" / "monte_carlo" / problem / design)

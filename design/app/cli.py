@@ -80,7 +80,7 @@ def _options(pairs: Sequence[str] | None) -> dict[str, Any]:
     ``"x"``) or, when it is not valid JSON, the plain string (``parameters=paper``).
 
     Only the syntax is checked here; the problem validates each value against
-    the option's type and domain (:meth:`~fdisyn.models.problem.Problem.check_options`).
+    the option's type and domain (:meth:`~fdisyn.simulation.problem.Problem.check_options`).
     An object or a list is data, read strictly (:func:`~fdisyn.runtime.gainfile.parse_json_data`):
     a key repeated in one of its objects (JSON would keep the last) is refused naming the option.
     """
@@ -218,7 +218,7 @@ def _output_file(path: str, option: str) -> Path:
 
 
 def _problem(spec: str):  # noqa: ANN202 - Problem
-    from fdisyn.app.plant_file import load_spec
+    from fdisyn.simulation.plant_file import load_spec
 
     return load_spec(spec)
 
@@ -234,7 +234,7 @@ def _cmd_design(a: argparse.Namespace) -> None:
         path = write_gain_file(gf, out / "gains.json")
     what = f"{len(gf.generators)} generators" if gf.kind == "linear" else f"a {gf.kind} step with {gf.step.nstate} states"
     print(f"wrote {path} ({gf.name}: {what}, certificate passed)")
-    from fdisyn.app.report import budget_line
+    from fdisyn.reporting.report import budget_line
     from fdisyn.numerics.account import account_lines
 
     print(budget_line(gf))
@@ -363,7 +363,7 @@ def _cmd_report(a: argparse.Namespace) -> None:
 
 def _cmd_reproduce(a: argparse.Namespace) -> None:
     from fdisyn.app.pipeline import reproduce_problem
-    from fdisyn.models.problem import problem_names
+    from fdisyn.simulation.problem import problem_names
 
     _output_dir(a.reports, "--reports")
     _output_dir(a.workdir, "--workdir")
@@ -376,14 +376,14 @@ def _cmd_reproduce(a: argparse.Namespace) -> None:
                     prob, runs=a.runs, reports=Path(a.reports), workdir=Path(a.workdir), variants=a.variants, source=spec, **where
                 )
             print(f"wrote {out}")
-    from fdisyn.app.report import summary_table
+    from fdisyn.reporting.report import summary_table
 
     print(summary_table(Path(a.reports), [p.name for p in problems]))
 
 
 def _cmd_bench(a: argparse.Namespace) -> None:
     from fdisyn.app.bench import run_bench, run_monte_carlo_bench
-    from fdisyn.models.problem import problem_names
+    from fdisyn.simulation.problem import problem_names
 
     out = _output_file(a.out, "--out")
     _output_dir(a.workdir, "--workdir")
@@ -401,7 +401,7 @@ def _cmd_bench(a: argparse.Namespace) -> None:
 
 
 def _cmd_list(a: argparse.Namespace) -> None:
-    from fdisyn.models.problem import get_problem, problem_names
+    from fdisyn.simulation.problem import get_problem, problem_names
 
     for name in problem_names():
         p = get_problem(name)

@@ -24,7 +24,7 @@ from fdisyn.codegen.step import step_function
 from fdisyn.evaluation.campaign import problem_source
 from fdisyn.evaluation.evaluate import Built, Evaluation, build, evaluate
 from fdisyn.evaluation.progress import tracked
-from fdisyn.models.problem import Problem, scaled_scenario
+from fdisyn.simulation.problem import Problem, scaled_scenario
 from fdisyn.runtime.errors import ArgumentError, CertificateError
 from fdisyn.runtime.gainfile import SEQUENTIAL_KINDS, GainFile, linear_state_layout
 from fdisyn.runtime.reference import LinearReference, RunResult
@@ -205,7 +205,7 @@ def fault_size_sweep(
     client: Any = None, source: str | Path | None = None, **options: Any
 ) -> FaultSizeSweep | None:
     """Monte Carlo of each faulty scenario scaled by :data:`SWEEP_FACTORS` (``Problem.scaled``, else
-    :func:`~fdisyn.models.problem.scaled_scenario`); ``None`` when no scenario's fault has a size. ``workers``,
+    :func:`~fdisyn.simulation.problem.scaled_scenario`); ``None`` when no scenario's fault has a size. ``workers``,
     ``client``, ``source``: where it runs (:func:`~fdisyn.evaluation.evaluate.evaluate`)."""
     scale = problem.scaled or scaled_scenario
     copies: dict[str, Any] = {}
@@ -276,7 +276,7 @@ def reproduce_problem(
 
     ``variants``: the labels of the report variants to run (``"default"`` the main one; ``None``: all);
     ``workers``, ``client``, ``source``: where the Monte Carlo runs (:func:`~fdisyn.evaluation.evaluate.evaluate`)."""
-    from fdisyn.app.report import variant_tag, write_index, write_report
+    from fdisyn.reporting.report import variant_tag, write_index, write_report
 
     given = runs
     runs = problem.monte_carlo_runs if runs is None else runs  # 0 is refused by evaluate, not replaced

@@ -39,7 +39,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from fdisyn.evaluation.metrics import MetricsPlan, RunSummaries, extra_values, summarise_runs
-from fdisyn.models.problem import Batch, Problem, Scenario
+from fdisyn.simulation.problem import Batch, Problem, Scenario
 from fdisyn.runtime.errors import ArgumentError, FdisynError, MonteCarloError
 from fdisyn.runtime.names import shown
 
@@ -321,7 +321,7 @@ _CAMPAIGNS: dict[bytes, Campaign] = {}
 
 def load_source(source: str) -> Problem:
     """The problem ``source`` names (see :class:`CampaignSpec`)."""
-    from fdisyn.app.plant_file import load_spec
+    from fdisyn.simulation.plant_file import load_spec
 
     if ":" in source and not Path(source).exists():
         module, _, attr = source.partition(":")
@@ -335,7 +335,7 @@ def load_source(source: str) -> Problem:
 def problem_source(problem: Problem) -> str | None:
     """The source that rebuilds ``problem`` in another process: its name when it is the built-in problem of that
     name, else ``None`` (a plant file's problem needs its path)."""
-    from fdisyn.models.problem import get_problem
+    from fdisyn.simulation.problem import get_problem
 
     try:
         return problem.name if get_problem(problem.name) is problem else None

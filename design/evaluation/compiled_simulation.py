@@ -1,6 +1,6 @@
 """Compiled Monte Carlo: the plant's simulation and every design's step, fused in one C call per chunk of runs.
 
-A problem opts in with :attr:`fdisyn.models.problem.Problem.sample_model`: its
+A problem opts in with :attr:`fdisyn.simulation.problem.Problem.sample_model`: its
 simulator described one sample at a time (:class:`SampleModel`), a CasADi
 function
 
@@ -59,11 +59,11 @@ from fdisyn.codegen.library import (
 )
 from fdisyn.evaluation.campaign import ChunkRuns, DesignRuns
 from fdisyn.evaluation.metrics import HISTOGRAM_EDGES, MetricsPlan, RunSummaries
-from fdisyn.evaluation.sampled_data_simulation import disturbance_factor
-from fdisyn.evaluation.simulate import SensorFaultSpec, Signal
+from fdisyn.simulation.sampled_data import disturbance_factor
+from fdisyn.simulation.simulate import SensorFaultSpec, Signal
 from fdisyn.models.linear import LinearPlant
 from fdisyn.models.nonlinear import NonlinearPlant, noise_factor
-from fdisyn.models.problem import Batch, Problem, Scenario
+from fdisyn.simulation.problem import Batch, Problem, Scenario
 from fdisyn.models.sampled_data import SampledDataPlant
 from fdisyn.numerics.linalg import psd_factor
 from fdisyn.runtime.compiled import _check_before_loading, library_suffix, write_manifest
@@ -231,7 +231,7 @@ def _finite(values: Any, what: str) -> np.ndarray:
 
 
 def _signal_sx(sig: Signal, t: ca.SX, k: ca.SX, ts: float, z: ca.SX | None, memory: ca.SX | None) -> tuple[ca.SX, ca.SX | None]:
-    """One sample of ``sig`` (:meth:`fdisyn.evaluation.simulate.Signal.sample` with given draws), and its next memory."""
+    """One sample of ``sig`` (:meth:`fdisyn.simulation.simulate.Signal.sample` with given draws), and its next memory."""
     _finite([sig.offset, sig.amplitude, sig.period, sig.start], f"the numbers of a {sig.kind} signal")
     if sig.kind == "constant":
         return ca.SX(sig.offset), None
@@ -295,7 +295,7 @@ def linear_sample_model(
     feedback: Callable[[ca.SX, ca.SX], ca.SX] | None = None,
     scenario_map: Callable[[Scenario], Scenario] | None = None,
 ) -> SampleModel:
-    """:func:`fdisyn.evaluation.simulate.simulate_linear` one sample at a time.
+    """:func:`fdisyn.simulation.simulate.simulate_linear` one sample at a time.
 
     Same arguments, except ``feedback(y, k)``: the controller on one sample's
     (possibly faulty) measurements as CasADi expressions (``y``: a 1 × ny SX,
@@ -434,7 +434,7 @@ def sampled_data_sample_model(
     x0: Any | None = None,
     intensity: Any | None = None,
 ) -> SampleModel:
-    """:func:`fdisyn.evaluation.sampled_data_simulation.simulate_sampled_data` one sample at a time.
+    """:func:`fdisyn.simulation.sampled_data.simulate_sampled_data` one sample at a time.
 
     ``drive(scenario)`` gives ``v`` (N × m, held) and ``f`` (N × n_f), the same
     for every run; ``y = ψ = C x``; the states are kept as ``states``. The draws

@@ -29,7 +29,7 @@ from fdisyn.evaluation.campaign import (
 )
 from fdisyn.evaluation.metrics import MetricsAccumulator, MetricsPlan, ScenarioMetrics
 from fdisyn.evaluation.progress import bar, note
-from fdisyn.models.problem import Batch, Problem
+from fdisyn.simulation.problem import Batch, Problem
 from fdisyn.runtime.compiled import CompiledDiagnoser, file_sha256, library_path
 from fdisyn.runtime.errors import ArgumentError
 from fdisyn.runtime.gainfile import GainFile, read_gain_file, write_gain_file

@@ -24,9 +24,9 @@ from typing import Any
 
 import numpy as np
 from fdisyn.codegen.step import linear_step_function
-from fdisyn.evaluators.chi2 import chi2_evaluator
-from fdisyn.evaluators.sequential import MAX_ARL_SAMPLES, cusum_evaluator, glr_evaluator, lorden_delay, split_budget
-from fdisyn.evaluators.wssr import wssr_evaluator
+from fdisyn.detectors.chi2 import chi2_evaluator
+from fdisyn.detectors.sequential import MAX_ARL_SAMPLES, cusum_evaluator, glr_evaluator, lorden_delay, split_budget
+from fdisyn.detectors.wssr import wssr_evaluator
 from fdisyn.models.linear import LinearPlant
 from fdisyn.numerics.certificate import Certificate, Check
 from fdisyn.numerics.linalg import transfer_size
@@ -157,7 +157,7 @@ def linear_diagnoser(
     whitened first, and ``window`` is the GLR's onset window, ``None`` to
     choose it). ``arl0`` (seconds), when given, is the diagnoser's mean time
     between false alarms and sets every threshold in place of ``P_f``: each
-    statistic gets an equal share (:func:`~fdisyn.evaluators.sequential.split_budget`),
+    statistic gets an equal share (:func:`~fdisyn.detectors.sequential.split_budget`),
     ``Ts / (n · arl0)`` per sample for χ² and WSSR. ``faults`` name the fault
     classes to isolate; their signatures must be nonzero and distinct. ``where`` prefixes the refusal of a
     budget out of range (:func:`check_budget`: ``PATH [design].arl0``; empty: ``option arl0``).
@@ -920,8 +920,8 @@ def chosen_detector(detector: str | None, evaluator: str | None, where: str, def
 def check_budget(kind: str, P_f: float, arl0: float | None, Ts: float, statistics: int, where: str) -> None:
     """Refuse a false-alarm budget whose thresholds cannot be computed, naming the option as the user wrote it.
 
-    Each statistic's share is ``statistics · arl0 / Ts`` samples (:func:`~fdisyn.evaluators.sequential.split_budget`),
-    or ``1/P_f``; a share beyond :data:`~fdisyn.evaluators.sequential.MAX_ARL_SAMPLES` (a false-alarm rate of
+    Each statistic's share is ``statistics · arl0 / Ts`` samples (:func:`~fdisyn.detectors.sequential.split_budget`),
+    or ``1/P_f``; a share beyond :data:`~fdisyn.detectors.sequential.MAX_ARL_SAMPLES` (a false-alarm rate of
     1e-300 per sample), or of at most one sample with ``arl0``, is refused with the largest (smallest) ``arl0`` or
     the smallest ``P_f`` that works.
 

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
-from fdisyn.evaluators.window import residual_autocovariance
+from fdisyn.detectors.window import residual_autocovariance
 from fdisyn.models.linear import LinearPlant
 from fdisyn.numerics.linalg import dlyap, spectral_radius, transfer_size
 from fdisyn.runtime.errors import ExistenceError, ShapeError, SolverError
@@ -154,7 +154,7 @@ def residual_autocovariances(gen: Generator, plant: LinearPlant, lags: int) -> n
 
     The internal form driven by ``n = [w; v] ~ N(0, blkdiag(Q, R))`` through ``K = [B_w, B_v]`` with the
     feedthrough ``[0, Dy]`` (as :func:`residual_covariance`, which is ``R(0)``), by
-    :func:`fdisyn.evaluators.window.residual_autocovariance`. A plant with modes on or outside the unit circle
+    :func:`fdisyn.detectors.window.residual_autocovariance`. A plant with modes on or outside the unit circle
     (an integrator, say) has a stationary residual only if the residual does not see them: then the internal
     form's real Schur form, ordered with those modes first (``A_i = U [[A₁₁, A₁₂], [0, A₂₂]] Uᵀ``), has
     ``C_i U₁ = 0`` and the residual is the output of the stable quotient ``(A₂₂, U₂ᵀ K, C_i U₂)``. Raises
@@ -214,12 +214,12 @@ def whitened(gen: Generator, plant: LinearPlant) -> Generator:
 
     A residual that is already white (:data:`WHITE_RTOL`) is returned unchanged. One that is not is first
     projected on the directions its χ² statistic keeps (variance above
-    :data:`fdisyn.evaluators.chi2.CHI2_RANK_RTOL` of the largest, the eigenvectors of its covariance): a
+    :data:`fdisyn.detectors.chi2.CHI2_RANK_RTOL` of the largest, the eigenvectors of its covariance): a
     direction without noise of its own would make the innovation model singular.
     """
     if whiteness(gen, plant) <= WHITE_RTOL:
         return gen
-    from fdisyn.evaluators.chi2 import CHI2_RANK_RTOL
+    from fdisyn.detectors.chi2 import CHI2_RANK_RTOL
     from fdisyn.numerics.riccati import solve_filter_dare
 
     lam, vec = np.linalg.eigh(residual_autocovariances(gen, plant, 0)[0])

@@ -24,8 +24,8 @@ Dy = V``. The paper's parts and where they live:
   step-invariant ``B_D = ∫₀^Ts e^{Aτ} dτ B`` (eq. (13), the paper's ``B_uD``);
   :class:`~fdisyn.models.sampled_data.SampledDataPlant` holds both.
 * Exact sampling of continuous white noise for simulation
-  (:func:`~fdisyn.evaluation.sampled_data_simulation.sampled_disturbance`,
-  :func:`~fdisyn.evaluation.sampled_data_simulation.simulate_sampled_data`).
+  (:func:`~fdisyn.simulation.sampled_data.sampled_disturbance`,
+  :func:`~fdisyn.simulation.sampled_data.simulate_sampled_data`).
 * Lemma 4 / eq. (20), the discrete-time algebraic Riccati system (DTARS) and the
   co-inner–outer factorisation ``G = G_o G_i``
   (:func:`~fdisyn.numerics.factorisation.solve_dtars`,

@@ -25,7 +25,7 @@ REPORTS = ROOT / "reports"
 def motor():
     """The example DC motor's plant and its default design (two observers on (i, θ) and (ω, θ))."""
     from fdisyn.app.examples import example_path
-    from fdisyn.app.plant_file import load_spec
+    from fdisyn.simulation.plant_file import load_spec
 
     prob = load_spec(str(example_path("dc_motor")))
     return prob, prob.design()
@@ -226,7 +226,7 @@ def test_public_api_exports_fault_account() -> None:
 
 
 def test_report_shows_the_account_folded_beside_the_certificate(motor) -> None:
-    from fdisyn.app.report import _certificate_html
+    from fdisyn.reporting.report import _certificate_html
 
     prob, gf = motor
     page = _certificate_html(gf, prob)

@@ -10,7 +10,7 @@ import fdisyn
 import numpy as np
 import pytest
 from fdisyn.app.examples import EXAMPLES
-from fdisyn.app.plant_file import load_spec
+from fdisyn.simulation.plant_file import load_spec
 from fdisyn.runtime.compiled import library_suffix
 from fdisyn.runtime.errors import ArgumentError, BuildError, ExistenceError, FileError, GainFileError, ShapeError
 from fdisyn.runtime.gainfile import read_gain_file, write_gain_file

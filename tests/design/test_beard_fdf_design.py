@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from fdisyn.app.cli import main
 from fdisyn.app.examples import EXAMPLES
-from fdisyn.app.plant_file import load_spec, problem_from_document
+from fdisyn.simulation.plant_file import load_spec, problem_from_document
 from fdisyn.evaluation.evaluate import build, evaluate
 from fdisyn.models.linear import LinearPlant
 from fdisyn.numerics.robust_cones import subspace_angle

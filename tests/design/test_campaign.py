@@ -18,7 +18,7 @@ from fdisyn.evaluation.campaign import Campaign, ChunkPlan, ChunkTask, DesignRun
 from fdisyn.evaluation.evaluate import build, evaluate
 from fdisyn.evaluation.metrics import MetricsAccumulator, MetricsPlan, scenario_metrics, summarise_runs
 from fdisyn.evaluation.progress import quiet
-from fdisyn.models.problem import Problem, get_problem
+from fdisyn.simulation.problem import Problem, get_problem
 from fdisyn.runtime.errors import MonteCarloError
 from fdisyn.synthesis.registry import false_alarm_budget, lorden_bound, lorden_window, recovery_samples
 from hypothesis import given, settings

@@ -429,7 +429,7 @@ def test_runs_and_seeds_are_checked_by_the_api_too(tmp_path) -> None:
     """``--runs`` and ``--seed`` are checked by argparse; the functions behind them refuse the
     same values with a named error instead of NumPy's ValueError or a silent default."""
     from fdisyn.app.pipeline import reproduce_problem
-    from fdisyn.app.plant_file import load_spec
+    from fdisyn.simulation.plant_file import load_spec
     from fdisyn.evaluation.evaluate import evaluate
     from fdisyn.runtime.errors import ArgumentError
 

@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 import scipy.stats
 from fdisyn.app.examples import EXAMPLES
-from fdisyn.app.plant_file import load_spec, problem_from_document
+from fdisyn.simulation.plant_file import load_spec, problem_from_document
 from fdisyn.evaluation.compiled_simulation import CompiledCampaign, SampleModel, compiled_campaign, linear_sample_model
-from fdisyn.evaluation.simulate import SensorFaultSpec, Signal, simulate_linear
+from fdisyn.simulation.simulate import SensorFaultSpec, Signal, simulate_linear
 from fdisyn.models.linear import LinearPlant
-from fdisyn.models.problem import Scenario, get_problem
+from fdisyn.simulation.problem import Scenario, get_problem
 from fdisyn.problems.wind_turbine import PROBLEM as WT
 from fdisyn.runtime.compiled import manifest_path
 from fdisyn.runtime.errors import ArgumentError, ShapeError

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from fdisyn.app.examples import EXAMPLES
-from fdisyn.app.plant_file import load_spec
+from fdisyn.simulation.plant_file import load_spec
 from fdisyn.evaluation.evaluate import evaluate
 from fdisyn.evaluation.metrics import binomial_interval
 

@@ -8,7 +8,7 @@ import tomllib
 import pytest
 from fdisyn.app.cli import main
 from fdisyn.app.examples import EXAMPLES, example_names
-from fdisyn.app.plant_file import load_spec
+from fdisyn.simulation.plant_file import load_spec
 
 
 def _err(capsys) -> str:  # noqa: ANN001 - pytest's capsys

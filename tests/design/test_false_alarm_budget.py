@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from fdisyn.app.cli import main
 from fdisyn.app.examples import EXAMPLES
-from fdisyn.app.report import _summary_false_alarms, budget_line, duration, false_alarm_time, false_alarms_pooled
+from fdisyn.reporting.report import _summary_false_alarms, budget_line, duration, false_alarm_time, false_alarms_pooled
 from fdisyn.models.linear import LinearPlant
 from fdisyn.models.nonlinear import NonlinearPlant
 from fdisyn.runtime.errors import ArgumentError
@@ -89,7 +89,7 @@ def test_a_plant_file_with_both_budgets_is_one_line(tmp_path: Path, capsys: pyte
 
 
 def test_a_problem_given_both_budgets_refuses_them() -> None:
-    from fdisyn.models.problem import get_problem
+    from fdisyn.simulation.problem import get_problem
 
     prob = get_problem("sampled_data_example")
     with pytest.raises(ArgumentError, match=r"problem 'sampled_data_example': P_f = 0.0001 and arl0 = 10.0 s both set .*"
@@ -179,7 +179,7 @@ def test_the_summary_cell_states_the_time_beside_the_rate() -> None:
 
 
 def test_the_glance_heads_each_design_with_its_false_alarm_time() -> None:
-    from fdisyn.app.report import _glance_section
+    from fdisyn.reporting.report import _glance_section
 
     def metric(fault: str | None, episodes: int) -> SimpleNamespace:
         return SimpleNamespace(fault=fault, fault_free_samples=1000, Ts=0.01, false_alarm_episodes=episodes, false_alarm_rate=episodes / 500,

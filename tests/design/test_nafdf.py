@@ -10,7 +10,7 @@ import casadi as ca
 import numpy as np
 import pytest
 import scipy.stats
-from fdisyn.evaluators.wssr import wssr_threshold_table
+from fdisyn.detectors.wssr import wssr_threshold_table
 from fdisyn.models.nonlinear import NonlinearPlant
 from fdisyn.numerics.linalg import rel_diff
 from fdisyn.numerics.riccati import solve_filter_dare

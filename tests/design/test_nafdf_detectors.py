@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from fdisyn.codegen.library import codegen
 from fdisyn.evaluation.metrics import poisson_time_interval
-from fdisyn.evaluators.sequential import cusum_arl, glr_arl
+from fdisyn.detectors.sequential import cusum_arl, glr_arl
 from fdisyn.problems import ship_propulsion as sp
 from fdisyn.runtime.compiled import CompiledDiagnoser
 from fdisyn.runtime.errors import ArgumentError, GainFileError

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from fdisyn.app.cli import main
 from fdisyn.app.examples import EXAMPLES
-from fdisyn.app.plant_file import problem_from_document
+from fdisyn.simulation.plant_file import problem_from_document
 from fdisyn.models.linear import LinearPlant
 from fdisyn.models.nonlinear import NonlinearPlant
 from fdisyn.runtime.errors import ArgumentError, SpecError, TraceError

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 import pytest
 from fdisyn.app.cli import main
-from fdisyn.evaluators import sequential
+from fdisyn.detectors import sequential
 from fdisyn.models.linear import LinearPlant
 from fdisyn.models.nonlinear import NonlinearPlant
 from fdisyn.runtime.errors import ArgumentError, FdisynError

@@ -95,7 +95,7 @@ def test_a_repeated_key_in_an_option_is_one_line_and_status_2(tmp_path: Path, ca
 
 
 def test_a_metrics_document_with_a_repeated_key_is_refused(tmp_path: Path) -> None:
-    from fdisyn.app.report import summary_table, write_index
+    from fdisyn.reporting.report import summary_table, write_index
     from fdisyn.runtime.errors import FileError
 
     (tmp_path / "p").mkdir()
@@ -208,7 +208,7 @@ def test_a_shift_that_one_sample_detects_within_the_budget_is_refused_naming_the
 def test_the_largest_shift_shown_designs_and_the_bound_is_the_zero_threshold_law() -> None:
     import math
 
-    from fdisyn.evaluators.sequential import cusum_arl, cusum_threshold
+    from fdisyn.detectors.sequential import cusum_arl, cusum_threshold
     from fdisyn.synthesis.nafdf.settings import largest_min_shift
 
     most = largest_min_shift(0.01, 2)

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 import pytest
 from fdisyn.app.examples import example_names, example_path
-from fdisyn.app.plant_file import problem_from_document
+from fdisyn.simulation.plant_file import problem_from_document
 from fdisyn.runtime.errors import FdisynError, SpecError
 
 EXAMPLES = ("dc_motor", "sampled_data", "beard_textbook", "ship")

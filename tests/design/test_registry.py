@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from fdisyn.app.cli import main
 from fdisyn.app.examples import EXAMPLES
-from fdisyn.app.plant_file import load_spec, problem_from_document
+from fdisyn.simulation.plant_file import load_spec, problem_from_document
 from fdisyn.codegen.step import step_function
 from fdisyn.models.linear import LinearPlant
 from fdisyn.models.nonlinear import NonlinearPlant

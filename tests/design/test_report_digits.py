@@ -8,8 +8,8 @@ import math
 
 import pytest
 from fdisyn.app.pipeline import EXPORT_TOL, ExportCheck, variant_specs
-from fdisyn.app.report import ROUND_OFF_MARGIN, below_margin, published_gain_name
-from fdisyn.models.problem import get_problem
+from fdisyn.reporting.report import ROUND_OFF_MARGIN, below_margin, published_gain_name
+from fdisyn.simulation.problem import get_problem
 
 
 @pytest.mark.parametrize("bound", [1e-12, 1e-9, 3e-7, 1e-4, 1e-3])

@@ -12,7 +12,7 @@ import scipy.integrate as sint
 import scipy.linalg as sla
 import scipy.optimize
 from fdisyn.app.bench import random_sampled_data_plant
-from fdisyn.evaluation.sampled_data_simulation import sampled_disturbance, simulate_sampled_data
+from fdisyn.simulation.sampled_data import sampled_disturbance, simulate_sampled_data
 from fdisyn.models.linear import LinearPlant
 from fdisyn.models.sampled_data import SampledDataPlant, check_sampling, norm_invariant_discretisation
 from fdisyn.numerics.factorisation import co_inner_outer, solve_dtars

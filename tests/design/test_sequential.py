@@ -14,7 +14,7 @@ from fdisyn.app.pipeline import check_export
 from fdisyn.codegen.library import codegen
 from fdisyn.evaluation.evaluate import Built
 from fdisyn.evaluation.metrics import poisson_time_interval
-from fdisyn.evaluators.sequential import (
+from fdisyn.detectors.sequential import (
     cusum_arl,
     cusum_arl_siegmund,
     cusum_threshold,
@@ -325,7 +325,7 @@ def test_a_sequential_file_with_persistence_is_refused():
 def test_plant_files_and_problems_take_the_detector_and_the_budget(tmp_path, data_dir):
     """A plant file's ``[design] detector``/``arl0`` and a built-in problem's options reach the design; a bad
     value is one line naming the key."""
-    from fdisyn.app.plant_file import load_spec
+    from fdisyn.simulation.plant_file import load_spec
     from fdisyn.problems.sampled_data_example import PROBLEM
     from fdisyn.runtime.errors import SpecError
 

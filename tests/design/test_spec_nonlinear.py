@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 from fdisyn.app.cli import main
 from fdisyn.app.examples import EXAMPLES
-from fdisyn.app.plant_file import load_spec, problem_from_document
-from fdisyn.evaluation.simulate import Signal
+from fdisyn.simulation.plant_file import load_spec, problem_from_document
+from fdisyn.simulation.simulate import Signal
 from fdisyn.problems import ship_propulsion as sp
 from fdisyn.runtime.errors import FdisynError, SpecError
 from fdisyn.runtime.gainfile import read_gain_file

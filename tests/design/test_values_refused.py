@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 import pytest
 from fdisyn.app.examples import example_path
-from fdisyn.app.plant_file import problem_from_document
+from fdisyn.simulation.plant_file import problem_from_document
 from fdisyn.models.linear import LinearPlant
 from fdisyn.models.nonlinear import NonlinearPlant
 from fdisyn.models.sampled_data import SampledDataPlant
@@ -184,7 +184,7 @@ def test_nafdf_min_shift_without_the_cusum_is_refused_from_python() -> None:
 @pytest.mark.parametrize(("kw", "key"), [({"duration": "1_0"}, "duration"), ({"onset": "1"}, "onset"), ({"end": True}, "end"),
                                           ({"duration": math.nan}, "duration")])
 def test_a_scenario_time_that_is_not_a_number_is_refused(kw: dict[str, Any], key: str) -> None:
-    from fdisyn.models.problem import Scenario
+    from fdisyn.simulation.problem import Scenario
 
     args = {"duration": 10.0, "fault": "y", "onset": 5.0, **kw}
     with pytest.raises(ArgumentError, match=rf"scenario 's': {key} must be a finite number of seconds; got "):

@@ -1,4 +1,4 @@
-"""The laws of the windowed residual statistics (fdisyn.evaluators.window) against independent truths.
+"""The laws of the windowed residual statistics (fdisyn.detectors.window) against independent truths.
 
 Truths: closed forms (a white residual: ``N s²/σ² ~ χ²(N p)``; equal weights: a scaled χ²; weights in pairs:
 the hypoexponential law; two weights: the one-dimensional integral over one of them given the other), the
@@ -19,8 +19,8 @@ import scipy.linalg
 import scipy.optimize
 import scipy.stats
 from fdisyn.evaluation.metrics import binomial_interval
-from fdisyn.evaluators import window as law
-from fdisyn.evaluators.window import (
+from fdisyn.detectors import window as law
+from fdisyn.detectors.window import (
     QUANTILE_RTOL,
     beard_residual_autocovariance,
     quadratic_form_quantile,

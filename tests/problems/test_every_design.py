@@ -22,8 +22,8 @@ from typing import Any
 import numpy as np
 import pytest
 from fdisyn.app.pipeline import variant_specs
-from fdisyn.app.report import published_gain_name
-from fdisyn.models.problem import get_problem, problem_names
+from fdisyn.reporting.report import published_gain_name
+from fdisyn.simulation.problem import get_problem, problem_names
 
 pytestmark = pytest.mark.kernels
 

@@ -7,7 +7,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from fdisyn.models.problem import Scenario
+from fdisyn.simulation.problem import Scenario
 from fdisyn.problems import satellite_pitch as sp
 from fdisyn.runtime.errors import ArgumentError
 

@@ -12,7 +12,7 @@ Steps (each documented where it is computed):
 4. the implicit thresholds ``Y_th`` (:mod:`fdisyn.numerics.robust_cones`), checked by sampling;
 5. the explicit level ``ε̄`` and the magnitude threshold ``h``: the ``1 − P_f`` quantiles of the fault-free window
    mean norm and window RMS — from fault-free records when given (they carry the model error the noise model
-   lacks), else from the law of the residual under the design noise (:mod:`fdisyn.evaluators.window`);
+   lacks), else from the law of the residual under the design noise (:mod:`fdisyn.detectors.window`);
 6. the certificate and the gain file (kind ``beard_fdf``).
 """
 
@@ -36,7 +36,7 @@ from fdisyn.numerics.robust_cones import (
     sampled_model_error,
     subspace_angle,
 )
-from fdisyn.evaluators.sequential import MAX_ARL_SAMPLES
+from fdisyn.detectors.sequential import MAX_ARL_SAMPLES
 from fdisyn.runtime.errors import ArgumentError, ExistenceError
 from fdisyn.runtime.gainfile import LIMITS, MAX_MAGNITUDE, GainFile
 from fdisyn.runtime.names import shown
@@ -338,7 +338,7 @@ def design_beard_fdf(
             h_est, e_est = _levels_from_records(provisional, fault_free, P_f, where)
             source = f"fault-free records ({len(fault_free)})"
         else:
-            from fdisyn.evaluators.window import beard_residual_autocovariance, window_mean_level, window_rms_threshold
+            from fdisyn.detectors.window import beard_residual_autocovariance, window_mean_level, window_rms_threshold
 
             q, r = np.asarray(pd.Q), np.asarray(pd.R)
             if not (np.trace(q) > 0 or np.trace(r) > 0):

@@ -276,8 +276,8 @@ from typing import Any, Literal
 
 import casadi as ca
 import numpy as np
-from fdisyn.evaluators.sequential import cusum_threshold, glr_threshold
-from fdisyn.evaluators.wssr import wssr_threshold_table
+from fdisyn.detectors.sequential import cusum_threshold, glr_threshold
+from fdisyn.detectors.wssr import wssr_threshold_table
 from fdisyn.models.nonlinear import NonlinearPlant
 from fdisyn.numerics.certificate import Certificate, Check, worst
 from fdisyn.numerics.linalg import frozen_array
@@ -454,7 +454,7 @@ def detector_thresholds(plant: NonlinearPlant, settings: NafdfSettings) -> np.nd
 
     With ``ARL = 1/P_f`` samples (``false_alarm_probability``): the ``2p`` one-sided CUSUMs (each component,
     either sign, drift ``½ min_shift²``) share it as a union, ``h = cusum_threshold(2p·ARL, ½ min_shift²)``
-    (:func:`~fdisyn.evaluators.sequential.cusum_threshold`, Page's integral equation); the ``p`` scalar GLRs
+    (:func:`~fdisyn.detectors.sequential.cusum_threshold`, Page's integral equation); the ``p`` scalar GLRs
     over ``M = window`` onsets likewise, ``h = glr_threshold(p·ARL, M)`` (Siegmund & Venkatraman 1995). The
     normalised innovations of an exact filter are independent across components and samples, so the union's
     rate is the sum of its members' (their alarms coincide with negligible probability).

@@ -11,7 +11,7 @@ from typing import Any
 
 import casadi as ca
 import numpy as np
-from fdisyn.evaluators.sequential import lorden_delay
+from fdisyn.detectors.sequential import lorden_delay
 from fdisyn.models.nonlinear import NonlinearPlant, function_from_program, model_program
 from fdisyn.models.sampling import check_sample_time
 from fdisyn.numerics.linalg import as_covariance

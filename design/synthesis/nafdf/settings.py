@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 from typing import Any, Literal
 
 import numpy as np
-from fdisyn.evaluators.sequential import MAX_ARL_SAMPLES
+from fdisyn.detectors.sequential import MAX_ARL_SAMPLES
 from fdisyn.models.nonlinear import NonlinearPlant
 from fdisyn.numerics.linalg import as_covariance, as_vector, frozen_array, real_array
 from fdisyn.runtime.errors import ArgumentError, ShapeError
@@ -380,7 +380,7 @@ def largest_min_shift(rate: float, statistics: int) -> float:
     """The supremum of the CUSUM shifts whose threshold is positive at a false-alarm ``rate`` per sample.
 
     Page's CUSUM with increment ``δw − δ²/2`` and threshold ``h = 0`` alarms whenever ``w > δ/2``: its run length
-    is ``1/Q(δ/2)`` samples (``Q`` the standard normal tail; :func:`~fdisyn.evaluators.sequential.cusum_arl` at
+    is ``1/Q(δ/2)`` samples (``Q`` the standard normal tail; :func:`~fdisyn.detectors.sequential.cusum_arl` at
     ``h = 0``). When that already meets each statistic's share ``statistics/rate``, no positive threshold is
     needed and the design has none (the certificate wants ``h > 0``): ``δ < 2 Q⁻¹(rate/statistics)``.
 
@@ -423,7 +423,7 @@ def _budget_rate(arl0: float, ts: float, n2: int, shares: int = 1) -> float:
     A false alarm opens an episode that the dismissal closes no sooner than ``2 N2`` samples later (``N2`` until
     the test may start, ``N2`` passing windows), and the detector cannot alarm again inside it: the time between
     false alarms is the detector's run length plus the episode. Its ``shares`` statistics each run ``shares``
-    times as long: at most :data:`~fdisyn.evaluators.sequential.MAX_ARL_SAMPLES` samples.
+    times as long: at most :data:`~fdisyn.detectors.sequential.MAX_ARL_SAMPLES` samples.
     """
     if not (math.isfinite(arl0) and arl0 > 0):
         raise ArgumentError(f"arl0 must be a positive finite number of seconds; got {shown(arl0)}")

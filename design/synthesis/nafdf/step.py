@@ -10,7 +10,7 @@ import numpy as np
 import scipy.stats
 from fdisyn.codegen.step import all_finite as _all_finite
 from fdisyn.codegen.step import finite
-from fdisyn.evaluators.wssr import _NEVER
+from fdisyn.detectors.wssr import _NEVER
 from fdisyn.models.nonlinear import NonlinearPlant
 from fdisyn.runtime.errors import ArgumentError
 from fdisyn.runtime.layout import StateLayout

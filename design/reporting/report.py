@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 from fdisyn.codegen.library import CFLAGS
 from fdisyn.evaluation.metrics import DEFINITIONS
-from fdisyn.models.problem import Problem
+from fdisyn.simulation.problem import Problem
 from fdisyn.runtime.errors import FileError
 from fdisyn.runtime.gainfile import parse_json_data, write_gain_file
 from fdisyn.synthesis.registry import recovery_samples

@@ -37,7 +37,7 @@ import numpy as np
 import scipy.optimize
 import scipy.special
 import scipy.stats
-from fdisyn.evaluators.chi2 import chi2_evaluator
+from fdisyn.detectors.chi2 import chi2_evaluator
 from fdisyn.runtime.errors import ArgumentError, ExistenceError, ShapeError, SolverError
 from fdisyn.runtime.gainfile import Evaluator
 from fdisyn.runtime.names import shown

@@ -140,10 +140,10 @@ class Problem:
     stay on the Python path."""
     claims: Callable[..., Sequence[Any]] | None = None
     """The paper's claims against ours, the table each report page opens with: ``claims(ctx)`` with ``ctx`` the
-    :class:`fdisyn.app.report.ReportContext`, returning :class:`fdisyn.app.report.Claim` rows."""
+    :class:`fdisyn.reporting.report.ReportContext`, returning :class:`fdisyn.reporting.report.Claim` rows."""
     labels: Mapping[str, str] = field(default_factory=dict)
     """Readable physical names with units of internal names (signals, statistics, faults, designs), e.g.
-    ``"omega_g_m1": "generator speed ω_g,m1 (rad/s)"``: what the report shows (:func:`fdisyn.app.report.label`)."""
+    ``"omega_g_m1": "generator speed ω_g,m1 (rad/s)"``: what the report shows (:func:`fdisyn.reporting.report.label`)."""
     model: Callable[..., Any] | None = None
     """``model(**options)``: the design model (a ``LinearPlant`` or ``SampledDataPlant``) for the residuals' frequency
     responses and the plant's poles in the report; ``None`` for nonlinear problems."""

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.signal
 from fdisyn.models.linear import LinearPlant
-from fdisyn.models.problem import Batch, Scenario
+from fdisyn.simulation.problem import Batch, Scenario
 from fdisyn.numerics.linalg import psd_factor
 from fdisyn.runtime.errors import ArgumentError, ShapeError
 

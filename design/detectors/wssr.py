@@ -14,8 +14,8 @@ from typing import Literal
 
 import numpy as np
 import scipy.stats
-from fdisyn.evaluators.chi2 import chi2_evaluator
-from fdisyn.evaluators.window import window_energy_quantile
+from fdisyn.detectors.chi2 import chi2_evaluator
+from fdisyn.detectors.window import window_energy_quantile
 from fdisyn.runtime.errors import ArgumentError, ShapeError
 from fdisyn.runtime.gainfile import MAX_MAGNITUDE, MAX_WSSR_WINDOW, Evaluator
 from fdisyn.runtime.names import shown
@@ -51,12 +51,12 @@ def wssr_evaluator(generator: int, sigma_r: np.ndarray, R_list: np.ndarray, P_f:
     """WSSR evaluator ``J(k) = Σ_{l<N} r(k−l)ᵀ W r(k−l)`` over ``N = window`` samples (Long & Wang, Aeroengine
     43(5), 2017, section 2), the runtime's ``kind = "wssr"`` (:class:`~fdisyn.runtime.gainfile.Evaluator`).
 
-    ``W`` and ``dof`` are the χ² evaluator's (:func:`~fdisyn.evaluators.chi2.chi2_evaluator` on ``sigma_r``).
+    ``W`` and ``dof`` are the χ² evaluator's (:func:`~fdisyn.detectors.chi2.chi2_evaluator` on ``sigma_r``).
     The threshold is the exact ``1 − P_f`` quantile of ``J`` under no fault with Gaussian noise: with
     ``T = Λ^{−1/2} Vᵀ`` on the ``dof`` kept directions (``Tᵀ T = W``), ``J`` is the energy of the window of
     ``T r``, whose autocovariance is ``T R(τ) Tᵀ``, so ``J ~ Σ λ_i χ²_1`` with ``λ`` the eigenvalues of
     ``(I_N ⊗ T) Σ_window (I_N ⊗ T)ᵀ`` — those of ``(I_N ⊗ W^{1/2}) Σ_window (I_N ⊗ W^{1/2})`` without its
-    zeros — (:func:`~fdisyn.evaluators.window.window_energy_quantile`). ``R_list`` holds ``R(0) … R(N−1)``
+    zeros — (:func:`~fdisyn.detectors.window.window_energy_quantile`). ``R_list`` holds ``R(0) … R(N−1)``
     of the residual, ``R(τ) = E[r(k+τ) r(k)ᵀ]`` (:func:`fdisyn.synthesis.residual.residual_autocovariances`).
     A white residual (the innovation of a minimum-variance UIO) gives ``χ²_{1−P_f}(N·dof)``; ``N = 1`` is
     the χ² evaluator's threshold up to the quantile's accuracy. The threshold is that of a full window: at

@@ -130,9 +130,9 @@ from typing import Any
 
 import numpy as np
 from fdisyn.evaluation.compiled_simulation import SampleModel, linear_sample_model, nonlinear_sample_model
-from fdisyn.evaluation.simulate import SENSOR_FAULT_KINDS, SensorFaultSpec, Signal, simulate_linear
+from fdisyn.simulation.simulate import SENSOR_FAULT_KINDS, SensorFaultSpec, Signal, simulate_linear
 from fdisyn.models.linear import LinearPlant
-from fdisyn.models.problem import Batch, Problem, Scenario, get_problem
+from fdisyn.simulation.problem import Batch, Problem, Scenario, get_problem
 from fdisyn.models.sampling import van_loan
 from fdisyn.runtime.errors import ArgumentError, FdisynError, ShapeError, SpecError
 from fdisyn.runtime.gainfile import LIMITS, GainFile, read_regular_file

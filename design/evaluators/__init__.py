@@ -1,2 +1,0 @@
-"""Residual evaluators and their thresholds from the statistics' laws (χ², WSSR).
-"""
