@@ -23,7 +23,7 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
-from fdisyn.codegen.step import linear_step_function
+from fdisyn.synthesis.linear_step import linear_step_function
 from fdisyn.detectors.chi2 import chi2_evaluator
 from fdisyn.detectors.sequential import MAX_ARL_SAMPLES, cusum_evaluator, glr_evaluator, lorden_delay, split_budget
 from fdisyn.detectors.wssr import wssr_evaluator

@@ -171,7 +171,7 @@ class Method:
     design: Callable[..., GainFile]
     diagnoser_kind: str
     step_builder: Callable[[GainFile], Any]
-    """``GainFile -> casadi.Function`` with the step contract of :mod:`fdisyn.codegen.step`."""
+    """``GainFile -> casadi.Function`` with the step contract of :mod:`fdisyn.synthesis.kinds`."""
     recovery_samples: Callable[[GainFile], int] = lambda gf: 0
     """Samples after a fault's end during which alarms are not false alarms (Monte Carlo metrics)."""
     extra_metrics: ExtraMetrics | None = None

@@ -727,7 +727,7 @@ def gos_design(
 
 
 def _register() -> None:
-    from fdisyn.codegen.step import linear_step_function
+    from fdisyn.synthesis.linear_step import linear_step_function
     from fdisyn.synthesis.linear_diagnoser import EVALUATOR, FAULTS, LINEAR_WINDOW, MIN_FAULT, TS, linear_recovery_samples
     from fdisyn.synthesis.registry import ARL0, DETECTOR, P_F, PERSISTENCE, Method, is_count, is_real, register
 

@@ -20,7 +20,8 @@ import pytest
 import scipy.linalg as sla
 import scipy.signal
 from fdisyn.codegen.library import codegen
-from fdisyn.codegen.step import STEP_INPUTS, STEP_OUTPUTS, step_function
+from fdisyn.codegen.step import step_function
+from fdisyn.synthesis.kinds import STEP_INPUTS, STEP_OUTPUTS
 from fdisyn.numerics.certificate import Certificate, Check
 from fdisyn.numerics.detection_filter import beard_gain
 from fdisyn.runtime.compiled import CompiledDiagnoser

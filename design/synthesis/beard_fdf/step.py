@@ -1,4 +1,4 @@
-"""The Beard detection filter's step as one CasADi ``Function`` (the step contract of :mod:`fdisyn.codegen.step`).
+"""The Beard detection filter's step as one CasADi ``Function`` (the step contract of :mod:`fdisyn.synthesis.kinds`).
 
 Per valid sample (Beard, MIT thesis, 1971; He, Zhang & Wu, Journal of Astronautics, c. 1999)::
 
@@ -24,7 +24,8 @@ import math
 
 import casadi as ca
 import numpy as np
-from fdisyn.codegen.step import STEP_INPUTS, STEP_OUTPUTS, all_finite, finite
+from fdisyn.detectors.symbolic import all_finite, finite
+from fdisyn.synthesis.kinds import STEP_INPUTS, STEP_OUTPUTS
 from fdisyn.runtime.gainfile import GainFile
 from fdisyn.synthesis.beard_fdf.payload import BeardFilter, beard_from_gain_file
 

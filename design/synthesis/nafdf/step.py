@@ -8,8 +8,8 @@ import math
 import casadi as ca
 import numpy as np
 import scipy.stats
-from fdisyn.codegen.step import all_finite as _all_finite
-from fdisyn.codegen.step import finite
+from fdisyn.detectors.symbolic import all_finite as _all_finite
+from fdisyn.detectors.symbolic import finite
 from fdisyn.detectors.wssr import _NEVER
 from fdisyn.models.nonlinear import NonlinearPlant
 from fdisyn.runtime.errors import ArgumentError
