@@ -18,7 +18,6 @@ from fdisyn.synthesis.nafdf.settings import NafdfSettings
 __all__ = [
     "NafdfDesign",
     "NafdfSettings",
-    "StateLayout",
     "nafdf",
     "nafdf_extra_metrics",
     "nafdf_from_gain_file",
