@@ -1,4 +1,11 @@
-"""What a diagnoser kind means: the step contract every kind's step honours.
+"""What a diagnoser kind means: one :class:`DiagnoserKind` per kind, and the step contract every kind's step honours.
+
+A gain file's ``kind`` (``"linear"``, ``"nafdf"``, ``"beard_fdf"``, ...) names what its payload means downstream:
+its CasADi step, the Monte Carlo's recovery window and extra figures, its false-alarm budget and Lorden bound,
+the certificate blocks and the prose its page shows, and how the command line describes it. Each kind lives in its
+own module of :mod:`fdisyn.synthesis`, which calls :func:`register_kind` when it is imported; the kinds are found
+like the methods (every module of :data:`PLUGIN_PACKAGES` is imported the first time one is looked up), so adding a
+kind needs no other edit. A :class:`~fdisyn.synthesis.registry.Method` names the kind its designs produce.
 
 Contract (shared by every diagnoser kind, and by the generated C)::
 
@@ -8,11 +15,225 @@ Contract (shared by every diagnoser kind, and by the generated C)::
 all dense double vectors; ``alarm`` ∈ {0, 1}; ``isolated`` ∈ {−1, 0..nf−1};
 ``status`` 1 when the sample held a non-finite value (see
 :mod:`fdisyn.runtime.reference` for the linear semantics).
+
+Importing this module is light (no CasADi, no cvxpy).
 """
 
 from __future__ import annotations
 
-__all__ = ["STEP_INPUTS", "STEP_OUTPUTS"]
+import importlib
+import pkgutil
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from fdisyn.runtime.errors import ArgumentError, GainFileError
+from fdisyn.runtime.gainfile import GainFile
+
+__all__ = [
+    "STEP_INPUTS",
+    "STEP_OUTPUTS",
+    "PLUGIN_PACKAGES",
+    "ExtraMetrics",
+    "DiagnoserKind",
+    "register_kind",
+    "get_kind",
+    "all_kinds",
+    "kind_names",
+    "discover",
+    "recovery_samples",
+    "false_alarm_budget",
+    "lorden_bound",
+    "lorden_window",
+]
 
 STEP_INPUTS = ("state", "u", "y")
 STEP_OUTPUTS = ("state_next", "r", "J", "alarm", "isolated", "status")
+
+PLUGIN_PACKAGES: list[str] = ["fdisyn.synthesis"]
+"""Packages whose modules are imported to discover the kinds and the methods (each module registers its own)."""
+
+
+@dataclass(frozen=True, eq=False)
+class ExtraMetrics:
+    """Monte Carlo figures of one scenario beyond detection, computed run by run and then reduced.
+
+    ``per_run(scenario, gain_file, run)`` summarises one run (``run``: ``alarm``,
+    ``isolated``: ``N``; ``J``: ``N × nj``) by a few numbers (anything picklable);
+    ``reduce(scenario, gain_file, values)`` turns the runs' values, in run order,
+    into ``{name: figure}``. The Monte Carlo keeps only the values, never the
+    runs. Called on stacked runs (``runs × N`` arrays) it gives the same figures
+    at once.
+    """
+
+    per_run: Callable[[Any, GainFile, Mapping[str, np.ndarray]], Any]
+    reduce: Callable[[Any, GainFile, list[Any]], Mapping[str, Any]]
+
+    def __call__(self, scenario: Any, gf: GainFile, runs: Mapping[str, np.ndarray]) -> Mapping[str, Any]:
+        n = len(runs["alarm"])
+        values = [self.per_run(scenario, gf, {k: np.asarray(v)[i] for k, v in runs.items()}) for i in range(n)]
+        return self.reduce(scenario, gf, values)
+
+
+def _no_recovery(gf: GainFile) -> int:
+    return 0
+
+
+@dataclass(frozen=True, eq=False)
+class DiagnoserKind:
+    """What the gain files of one diagnoser kind mean downstream of their design.
+
+    Parameters
+    ----------
+    name : str
+        The gain files' ``kind`` (an identifier).
+    summary : str
+        One line: what a diagnoser of this kind is.
+    step_builder : callable
+        ``GainFile -> casadi.Function`` with the step contract (:data:`STEP_INPUTS`, :data:`STEP_OUTPUTS`).
+    certified : callable
+        ``GainFile -> list of Mapping``: the certificate blocks its page shows, each with its ``checks``.
+    describe : callable
+        ``GainFile -> str``: one phrase for the command line (``"3 generators"``).
+    rate_unit : str
+        How a false-alarm rate ``P_f`` of this kind is worded (``"per sample"``).
+    recovery_samples : callable
+        ``GainFile -> int``: samples after a fault's end during which alarms are not false alarms.
+    extra_metrics : ExtraMetrics or None
+        Monte Carlo figures of one scenario beyond detection (None: none).
+    false_alarm_budget : callable or None
+        ``GainFile -> seconds or None``: the designed mean time between false alarms (None: the kind has none,
+        or a gain file whose thresholds were given).
+    lorden_bound : callable or None
+        ``(GainFile, μ, Σ) -> (I, ln(ARL)/I) or None``: the information per sample of a fault that shifts the
+        residual's mean by ``μ`` (``Σ``: the residual's covariance without the fault) and the Lorden bound on
+        its delay (samples).
+    lorden_window : callable or None
+        ``GainFile -> int``: samples after a fault's onset over which its mean shift is measured (None: while
+        it is active) — for a diagnoser that adapts its model to the fault, the samples before it can.
+    budget_text : str or None
+        The page's prose (HTML) on how the kind's false-alarm budget is set (None: the page's general text).
+    """
+
+    name: str
+    summary: str
+    step_builder: Callable[[GainFile], Any]
+    """``GainFile -> casadi.Function`` (annotated ``Any``: CasADi is not imported here)."""
+    certified: Callable[[GainFile], list[Mapping[str, Any]]]
+    describe: Callable[[GainFile], str]
+    rate_unit: str = "per sample"
+    recovery_samples: Callable[[GainFile], int] = _no_recovery
+    extra_metrics: ExtraMetrics | None = None
+    false_alarm_budget: Callable[[GainFile], float | None] | None = None
+    lorden_bound: Callable[[GainFile, np.ndarray, np.ndarray], tuple[float, float] | None] | None = None
+    lorden_window: Callable[[GainFile], int] | None = None
+    budget_text: str | None = None
+
+
+_KINDS: dict[str, DiagnoserKind] = {}
+_SCANNED: set[str] = set()
+
+
+def register_kind(kind: DiagnoserKind) -> DiagnoserKind:
+    """Make ``kind`` known by its name (its module calls this when it is imported).
+
+    Parameters
+    ----------
+    kind : DiagnoserKind
+        The kind to register.
+
+    Returns
+    -------
+    DiagnoserKind
+        ``kind`` itself.
+
+    Raises
+    ------
+    ArgumentError
+        Its name is no identifier, or another kind of that name is registered.
+    """
+    if not isinstance(kind.name, str) or not kind.name.isidentifier():
+        raise ArgumentError(f"a diagnoser kind's name is an identifier (gain files name it); got {kind.name!r}")
+    other = _KINDS.get(kind.name)
+    if other is not None and other is not kind:
+        raise ArgumentError(f"diagnoser kind {kind.name!r} is registered twice; one kind, one DiagnoserKind: rename one")
+    _KINDS[kind.name] = kind
+    return kind
+
+
+def discover() -> None:
+    """Import every module of :data:`PLUGIN_PACKAGES` not yet scanned (each registers its kinds and methods)."""
+    for pkg_name in list(PLUGIN_PACKAGES):
+        if pkg_name in _SCANNED:
+            continue
+        _SCANNED.add(pkg_name)
+        pkg = importlib.import_module(pkg_name)
+        for mod in pkgutil.walk_packages(pkg.__path__, f"{pkg_name}."):
+            if not mod.name.rsplit(".", 1)[-1].startswith("_"):
+                importlib.import_module(mod.name)
+
+
+def kind_names() -> list[str]:
+    """The names of the registered kinds, sorted."""
+    discover()
+    return sorted(_KINDS)
+
+
+def all_kinds() -> list[DiagnoserKind]:
+    """Every registered kind, by name."""
+    return [_KINDS[k] for k in kind_names()]
+
+
+def find_kind(name: str) -> DiagnoserKind | None:
+    """The kind ``name``, or None when no module registers it."""
+    if name not in _KINDS:
+        discover()
+    return _KINDS.get(name) if isinstance(name, str) else None
+
+
+def get_kind(name: str) -> DiagnoserKind:
+    """The diagnoser kind ``name`` (a gain file's ``kind``).
+
+    Parameters
+    ----------
+    name : str
+        The kind's name.
+
+    Returns
+    -------
+    DiagnoserKind
+
+    Raises
+    ------
+    GainFileError
+        No kind of that name is registered (the message lists the known ones).
+    """
+    kind = find_kind(name)
+    if kind is None:
+        raise GainFileError(f"no step builder for diagnoser kind {name!r}; known kinds: {kind_names()}")
+    return kind
+
+
+def recovery_samples(gf: GainFile) -> int:
+    """Samples after a fault during which the gain file's statistics still carry it (:attr:`DiagnoserKind.recovery_samples`)."""
+    return int(get_kind(gf.kind).recovery_samples(gf))
+
+
+def false_alarm_budget(gf: GainFile) -> float | None:
+    """The gain file's designed mean time between false alarms in seconds (None: its kind has none)."""
+    budget = get_kind(gf.kind).false_alarm_budget
+    seconds = None if budget is None else budget(gf)
+    return None if seconds is None else float(seconds)
+
+
+def lorden_bound(gf: GainFile, shift: np.ndarray, covariance: np.ndarray) -> tuple[float, float] | None:
+    """``(I, bound)`` of a residual mean shift for the gain file's kind (:attr:`DiagnoserKind.lorden_bound`; None: none)."""
+    bound = get_kind(gf.kind).lorden_bound
+    return None if bound is None else bound(gf, shift, covariance)
+
+
+def lorden_window(gf: GainFile) -> int | None:
+    """:attr:`DiagnoserKind.lorden_window` of the gain file's kind (None: the fault's whole active time)."""
+    window = get_kind(gf.kind).lorden_window
+    return None if window is None else int(window(gf))
