@@ -23,8 +23,7 @@ from __future__ import annotations
 import math
 
 import casadi as ca
-import numpy as np
-from fdisyn.detectors.symbolic import all_finite, finite
+from fdisyn.detectors.symbolic import all_finite, constant, finite, persistence_count
 from fdisyn.synthesis.kinds import STEP_INPUTS, STEP_OUTPUTS
 from fdisyn.runtime.gainfile import GainFile
 from fdisyn.synthesis.beard_fdf.payload import BeardFilter, beard_from_gain_file
@@ -35,11 +34,6 @@ __all__ = ["beard_step", "beard_step_function"]
 def beard_step_function(gf: GainFile) -> ca.Function:
     """The step of a ``kind = "beard_fdf"`` gain file (validated first: :func:`beard_from_gain_file`)."""
     return beard_step(beard_from_gain_file(gf))
-
-
-def _const(a: np.ndarray) -> ca.DM:
-    # sparsify drops exact zeros: smaller C, and x + 0·y == x exactly for finite y
-    return ca.sparsify(ca.DM(np.asarray(a, dtype=float)))
 
 
 def _norm(v: ca.SX) -> ca.SX:
@@ -61,10 +55,10 @@ def beard_step(flt: BeardFilter) -> ca.Function:
 
     # ---- the filter
     ready = old["ready"]
-    x_eq = ca.mtimes(_const(flt.Xu), us) + ca.mtimes(_const(flt.Xy), ys)
+    x_eq = ca.mtimes(constant(flt.Xu), us) + ca.mtimes(constant(flt.Xy), ys)
     x = ca.if_else(ready == 0, x_eq, old["xhat"])
-    eps = ys - ca.mtimes(_const(flt.C), x) - ca.mtimes(_const(flt.D), us)
-    x_next = ca.mtimes(_const(flt.A), x) + ca.mtimes(_const(flt.B), us) + ca.mtimes(_const(flt.L), eps)
+    eps = ys - ca.mtimes(constant(flt.C), x) - ca.mtimes(constant(flt.D), us)
+    x_next = ca.mtimes(constant(flt.A), x) + ca.mtimes(constant(flt.B), us) + ca.mtimes(constant(flt.L), eps)
 
     # ---- the window: ε written at column head of the ring
     head, count = old["head"], old["count"]
@@ -80,9 +74,9 @@ def beard_step(flt: BeardFilter) -> ca.Function:
     X = ca.SX(math.asin(1.0 / flt.rho)) if flt.rho is not None else ca.asin(1.0 / ca.fmax(rho, 1.0))
     angles, cones = [], []
     for U, y_th in zip(flt.axes, flt.Y_th, strict=True):
-        coeff = ca.mtimes(_const(U.T), mean)
+        coeff = ca.mtimes(constant(U.T), mean)
         along = _norm(coeff)
-        off = _norm(mean - ca.mtimes(_const(U), coeff))
+        off = _norm(mean - ca.mtimes(constant(U), coeff))
         angles.append(ca.if_else(ca.logic_or(along > 0, off > 0), ca.atan2(off, along), math.pi / 2))
         cones.append(ca.fmin(math.pi / 2, X + float(y_th)))
     J_raw = ca.vertcat(s, rho, *angles, *cones)
@@ -90,7 +84,7 @@ def beard_step(flt: BeardFilter) -> ca.Function:
 
     # ---- the decision
     exceed = ca.logic_and(valid, s > flt.h)
-    counter_next = ca.if_else(exceed, ca.fmin(old["counter"] + 1, flt.persistence), 0)
+    counter_next = persistence_count(exceed, old["counter"], cap=flt.persistence)
     alarm = ca.logic_and(valid, counter_next >= flt.persistence)
     inside = [a <= c for a, c in zip(angles, cones, strict=True)]
     n_inside = sum(inside[1:], inside[0])

@@ -9,7 +9,17 @@ import casadi as ca
 import numpy as np
 import scipy.stats
 from fdisyn.detectors.symbolic import all_finite as _all_finite
-from fdisyn.detectors.symbolic import finite
+from fdisyn.detectors.symbolic import (
+    cusum_update,
+    finite,
+    glr_statistic,
+    glr_update,
+    largest,
+    persistence_count,
+    wssr_held,
+    wssr_threshold,
+    wssr_update,
+)
 from fdisyn.detectors.wssr import _NEVER
 from fdisyn.models.nonlinear import NonlinearPlant
 from fdisyn.runtime.errors import ArgumentError
@@ -152,12 +162,10 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
     q_safe = ca.fmin(_select(_all_finite(nis_e), nis_e, 0.0), _Q_CAP)
     if s.detector == "wssr":
         buf_old, cnt_old = old["wssr_buffer"], old["wssr_count"]
-        buf_new = ca.vertcat(q_safe, buf_old[: N - 1]) if N > 1 else ca.SX(q_safe)
-        cnt_new = ca.fmin(cnt_old + 1, N)
-        stat = ca.sum1(buf_new) / cnt_new  # L(t); unfilled slots are zero
-        thr = _table_lookup(cnt_new, thresholds)
-        cnt_hold = ca.fmax(cnt_old, 1)
-        stat_hold, thr_hold = ca.sum1(buf_old) / cnt_hold, _table_lookup(cnt_hold, thresholds)
+        stat, buf_new, cnt_new = wssr_update(q_safe, buf_old, cnt_old)  # L(t); unfilled slots are zero
+        thr = wssr_threshold(cnt_new, thresholds)
+        stat_hold, cnt_hold = wssr_held(buf_old, cnt_old)
+        thr_hold = wssr_threshold(cnt_hold, thresholds)
     else:
         # normalised innovations w = D^{-1/2} U^{-T} γ (V0 = Uᵀ D U, U = I + Lᵀ): N(0, I) under H0, ‖w‖² = γᵀ V0⁻¹ γ
         w = _normalised(lv, dv, gamma)
@@ -168,17 +176,18 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
             # Page's CUSUM per component and sign, tuned to a shift of min_shift: increment δ w − δ²/2, capped at 2h
             dlt = float(s.min_shift)
             sums_old = old["cusum_sums"]
-            sums_new = ca.fmin(ca.fmax(sums_old + dlt * ca.vertcat(w, -w) - 0.5 * dlt * dlt, 0.0), 2.0 * h)
-            stat, stat_hold = ca.mmax(sums_new), ca.mmax(sums_old)
+            stat, sums_new = cusum_update(w, sums_old, 0.5 * dlt * dlt, h, shift=dlt)
+            stat_hold = largest(sums_old)
         else:
             # windowed GLR per component (Willsky & Jones 1976, constant signature): onset sums d(n) of the last
-            # n = 1..M samples, statistic max d(n)²/(2n); the oldest onset leaves the window
+            # n = 1..M samples, statistic max d(n)²/(2n); the oldest onset leaves the window. The state holds
+            # them p × M (component fastest); the update reads them component-major.
             M = N
             d_old = old["glr_sums"]
-            d_new = ca.horzcat(w, d_old[:, : M - 1] + ca.repmat(w, 1, M - 1)) if M > 1 else w
-            inv2n = ca.DM(0.5 / np.arange(1, M + 1)).T
-            stat = ca.mmax(d_new * d_new * ca.repmat(inv2n, p, 1))
-            stat_hold = ca.mmax(d_old * d_old * ca.repmat(inv2n, p, 1))
+            d_new = ca.reshape(glr_update(ca.vec(ca.repmat(w.T, M, 1)), ca.vec(d_old.T), M), M, p).T
+            inv2n = np.tile(0.5 / np.arange(1, M + 1), (p, 1))
+            stat = glr_statistic(d_new, inv2n)
+            stat_hold = glr_statistic(d_old, inv2n)
     alarm = ca.logic_and(stat > thr, _all_finite(nis_e))
 
     # ---- block 2: NF, joint state/parameter filter (eq. (2.5)) --------------------------
@@ -246,7 +255,7 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
     # samples, Σ γᵀ V0⁻¹ γ ≤ χ²_{1−α}(N2 p), N2 times in a row — the data demand no new model
     episode = old["episode_open"]
     fits = ca.logic_and(ca.logic_and(episode, full), ca.sum1(old["ekf_nis_window"]) <= nis_limit)
-    fit_run = _select(fits, old["ekf_fit_run"] + 1, 0.0)
+    fit_run = persistence_count(fits, old["ekf_fit_run"])
     dismiss = fit_run >= N2
     # EKF re-parameterisation: the NF has converged inside an open episode whose alarm stands (block 4)
     reparam = ca.logic_and(ca.logic_and(conv, ca.logic_not(fits)), ca.logic_and(episode, nf_ok))
@@ -270,8 +279,8 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
         di = _select(_all_finite(di), di, _D_OVERFLOW)
         di = _select(armed, di, 0.0)
         deciding = ca.logic_and(armed, diag_left > 0)
-        c1 = _select(ca.logic_and(deciding, di > s.W1), old["count_w1"][i] + 1, 0.0)
-        c2 = _select(ca.logic_and(deciding, di > s.W2), old["count_w2"][i] + 1, 0.0)
+        c1 = persistence_count(ca.logic_and(deciding, di > s.W1), old["count_w1"][i])
+        c2 = persistence_count(ca.logic_and(deciding, di > s.W2), old["count_w2"][i])
         latch = ca.logic_and(old["fault_class"][i] == 0, c1 >= s.T1)
         cls_i = _select(latch, _select(c2 >= s.T1, 2.0, 1.0), old["fault_class"][i])
         size_i = _select(latch, th_new[i] - mu0[i], old["fault_size"][i])  # eq. (2.8)
@@ -435,14 +444,6 @@ def _sanitise(v: ca.SX) -> ca.SX:
         overflow = _select(v[i] > 0, _NEVER, _select(v[i] < 0, -_NEVER, 0.0))
         out.append(_select(finite(v[i]), v[i], overflow))
     return ca.vertcat(*out)
-
-
-def _table_lookup(k: ca.SX, table: np.ndarray) -> ca.SX:
-    """``table[k − 1]`` for an integer-valued SX ``k`` in ``1..len(table)`` (a sum of exact one-hot terms)."""
-    out = ca.SX(0)
-    for i, val in enumerate(table):
-        out = out + _select(k == i + 1, float(val), 0.0)
-    return out
 
 
 def _split_sx(layout: StateLayout, sx: ca.SX) -> dict[str, ca.SX]:
