@@ -549,7 +549,8 @@ def glr_footprint(gf: GainFile, arl0: float) -> GlrFootprint:
     sized without building the gain file (whose reader refuses it beyond the limits)."""
     from fdisyn.detectors.sequential import split_budget
     from fdisyn.runtime.gainfile import linear_state_layout, step_coefficients
-    from fdisyn.synthesis.linear_diagnoser import FaultClass, design_plant, sequential_evaluators
+    from fdisyn.synthesis.linear_diagnoser import FaultClass, sequential_evaluators
+    from fdisyn.synthesis.linear_kind import design_plant
 
     faults = [FaultClass(f, sensors=(f,)) for f in gf.faults]
     arl = split_budget(arl0 / gf.Ts, len(gf.evaluators))

@@ -12,10 +12,26 @@ __all__ = ["step_function"]
 
 
 def step_function(gf: GainFile) -> ca.Function:
-    """The CasADi step of any diagnoser kind, built from its gain file alone."""
-    from fdisyn.synthesis.registry import step_builder
+    """The CasADi step of any diagnoser kind, built from its gain file alone.
 
-    fn = step_builder(gf.kind)(gf)
+    Parameters
+    ----------
+    gf : GainFile
+        A gain file of a registered diagnoser kind.
+
+    Returns
+    -------
+    casadi.Function
+        The step, with the contract of :mod:`fdisyn.synthesis.kinds`.
+
+    Raises
+    ------
+    GainFileError
+        Its kind is registered by no module, or the kind's step builder broke the step contract.
+    """
+    from fdisyn.synthesis.kinds import get_kind
+
+    fn = get_kind(gf.kind).step_builder(gf)
     if tuple(fn.name_in()) != STEP_INPUTS or tuple(fn.name_out()) != STEP_OUTPUTS:
         raise GainFileError(f"the {gf.kind!r} step builder broke the step contract: {fn}")
     return fn

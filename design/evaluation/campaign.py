@@ -362,13 +362,13 @@ def remote_chunk(spec: CampaignSpec, task: ChunkTask) -> ChunkSummary:
 
 
 def extra_hooks(problem: Problem, built: Mapping[str, Built]) -> dict[str, Any]:
-    """Each design's extra figures (:class:`~fdisyn.synthesis.registry.ExtraMetrics`): the problem's, else its
+    """Each design's extra figures (:class:`~fdisyn.synthesis.kinds.ExtraMetrics`): the problem's, else its
     diagnoser kind's; designs without any are left out."""
-    from fdisyn.synthesis.registry import ExtraMetrics, extra_metrics
+    from fdisyn.synthesis.kinds import ExtraMetrics, get_kind
 
     out = {}
     for name, b in built.items():
-        hook = problem.extra_metrics or extra_metrics(b.gain_file.kind)
+        hook = problem.extra_metrics or get_kind(b.gain_file.kind).extra_metrics
         if hook is None:
             continue
         if not isinstance(hook, ExtraMetrics):

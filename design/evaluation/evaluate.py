@@ -34,7 +34,7 @@ from fdisyn.runtime.compiled import CompiledDiagnoser, file_sha256, library_path
 from fdisyn.runtime.errors import ArgumentError
 from fdisyn.runtime.gainfile import GainFile, read_gain_file, write_gain_file
 from fdisyn.runtime.reference import RunResult
-from fdisyn.synthesis.registry import false_alarm_budget, lorden_bound
+from fdisyn.synthesis.kinds import false_alarm_budget, lorden_bound
 
 __all__ = ["Built", "build", "load_built", "Evaluation", "evaluate", "HUGE_CAMPAIGN"]
 
@@ -99,7 +99,7 @@ class Evaluation:
 
 def _lorden(gf: GainFile, sums: list[Any] | None) -> tuple[float, float] | None:
     """The fault's Lorden bound from the mean residual shift it brought over the runs and the residual's covariance
-    without it (:func:`fdisyn.synthesis.registry.lorden_bound` of the gain file's kind)."""
+    without it (:func:`fdisyn.synthesis.kinds.lorden_bound` of the gain file's kind)."""
     if sums is None:
         return None
     on, off, n_on, n_off, off2 = sums

@@ -298,7 +298,7 @@ class MetricsPlan:
     @classmethod
     def of(cls, scenario: Any, gf: Any, t: np.ndarray, extra: Any = None) -> MetricsPlan:
         """The plan of ``gf``'s diagnoser in ``scenario`` (a :class:`~fdisyn.simulation.problem.Scenario`) at times ``t``."""
-        from fdisyn.synthesis.registry import lorden_window, recovery_samples
+        from fdisyn.synthesis.kinds import lorden_window, recovery_samples
 
         active = scenario.active(np.asarray(t))
         quiet = ~active

@@ -40,7 +40,7 @@ from fdisyn.evaluation.metrics import DEFINITIONS
 from fdisyn.simulation.problem import Problem
 from fdisyn.runtime.errors import FileError
 from fdisyn.runtime.gainfile import parse_json_data, write_gain_file
-from fdisyn.synthesis.registry import recovery_samples
+from fdisyn.synthesis.kinds import get_kind, recovery_samples
 from matplotlib.figure import Figure
 
 __all__ = ["Claim", "ReportContext", "write_report", "write_index", "summary_table", "subplots", "table", "folded", "fmt", "duration",
@@ -189,7 +189,7 @@ def budget_line(gf: Any) -> str:
     str
         One line.
     """
-    from fdisyn.synthesis.registry import false_alarm_budget
+    from fdisyn.synthesis.kinds import false_alarm_budget
 
     seconds = false_alarm_budget(gf)
     source, rates = _design_rates(gf)
@@ -919,7 +919,7 @@ def _budget_table(problem: Problem, pairs: Sequence[tuple[Any, str]], scen: Sequ
               defined("Lorden bound (s)", "Lorden bound"), defined("delay / bound", "delay ratio"),
               defined("isolation acc.", "isolation accuracy"), defined("false isolation", "false isolation")]
     if {v.built[d].gain_file.kind for v, d in pairs} == {"nafdf"}:
-        return "<h4>False-alarm budget and the Lorden bound</h4>" + _NAFDF_BUDGET_TEXT + table(header, rows, left=3 if by_variant else 2)
+        return "<h4>False-alarm budget and the Lorden bound</h4>" + get_kind("nafdf").budget_text + table(header, rows, left=3 if by_variant else 2)
     return (
         "<h4>False-alarm budget and the Lorden bound</h4>"
         '<p class="small">Time between false alarms: fault-free time over the number of false-alarm episodes, with Garwood\'s '
@@ -935,20 +935,6 @@ def _budget_table(problem: Problem, pairs: Sequence[tuple[Any, str]], scen: Sequ
         "another fault.</p>"
         + table(header, rows, left=3 if by_variant else 2)
     )
-
-
-_NAFDF_BUDGET_TEXT = (
-    '<p class="small">Time between false alarms: fault-free time over the number of alarm episodes, with Garwood\'s exact '
-    "95 % Poisson interval; budget: the design's arl0, or Ts·(1/P_f + 2·N2) for a design by P_f — the detector's run "
-    "length plus the 2·N2 samples a false alarm's episode lasts before its dismissal. The WSSR's per-sample P_f ignores "
-    "that its exceedances come in clusters, so its budget is met many times over. Lorden bound: ln(ARL)/I (Lorden, Annals "
-    "of Mathematical Statistics 42(6), 1971), ARL = 1/P_f the detector's run length in samples, I = ½ μᵀ Σ⁻¹ μ with μ the "
-    "mean shift of the EKF innovation over the N2 samples after the onset (before the EKF can be re-parameterised) and Σ "
-    "its fault-free covariance. A parameter jump's innovation shift builds up through the plant's dynamics over several "
-    "samples, while the bound is for a mean that steps at once: a ratio above 1 measures that build-up as much as the "
-    "detector. Isolation is the NAFDF's classifier (eq. (2.7)); false isolation: runs whose most frequent decision names "
-    "another parameter.</p>"
-)
 
 
 _DETECTOR_NAMES = {

@@ -129,8 +129,8 @@ class Problem:
     """Modelling choices the sources left open, stated in the report."""
     extra_metrics: Callable[..., Mapping[str, Any]] | None = None
     """Problem-specific Monte Carlo figures of one scenario (default: those of the
-    gain file's diagnoser kind, :func:`fdisyn.synthesis.registry.extra_metrics`): an
-    :class:`~fdisyn.synthesis.registry.ExtraMetrics`, a few values per run and their
+    gain file's diagnoser kind, :attr:`fdisyn.synthesis.kinds.DiagnoserKind.extra_metrics`): an
+    :class:`~fdisyn.synthesis.kinds.ExtraMetrics`, a few values per run and their
     reduction over the runs (the Monte Carlo never holds every run)."""
     sample_model: Callable[..., Any] | None = None
     """The simulator one sample at a time, for the compiled Monte Carlo:

@@ -42,6 +42,8 @@ __all__ = [
     "all_kinds",
     "kind_names",
     "discover",
+    "discovered",
+    "find_kind",
     "recovery_samples",
     "false_alarm_budget",
     "lorden_bound",
@@ -133,6 +135,7 @@ class DiagnoserKind:
 
 _KINDS: dict[str, DiagnoserKind] = {}
 _SCANNED: set[str] = set()
+_DISCOVERING = 0
 
 
 def register_kind(kind: DiagnoserKind) -> DiagnoserKind:
@@ -164,14 +167,25 @@ def register_kind(kind: DiagnoserKind) -> DiagnoserKind:
 
 def discover() -> None:
     """Import every module of :data:`PLUGIN_PACKAGES` not yet scanned (each registers its kinds and methods)."""
-    for pkg_name in list(PLUGIN_PACKAGES):
-        if pkg_name in _SCANNED:
-            continue
-        _SCANNED.add(pkg_name)
-        pkg = importlib.import_module(pkg_name)
-        for mod in pkgutil.walk_packages(pkg.__path__, f"{pkg_name}."):
-            if not mod.name.rsplit(".", 1)[-1].startswith("_"):
-                importlib.import_module(mod.name)
+    global _DISCOVERING
+    _DISCOVERING += 1
+    try:
+        for pkg_name in list(PLUGIN_PACKAGES):
+            if pkg_name in _SCANNED:
+                continue
+            _SCANNED.add(pkg_name)
+            pkg = importlib.import_module(pkg_name)
+            for mod in pkgutil.walk_packages(pkg.__path__, f"{pkg_name}."):
+                if not mod.name.rsplit(".", 1)[-1].startswith("_"):
+                    importlib.import_module(mod.name)
+    finally:
+        _DISCOVERING -= 1
+
+
+def discovered() -> bool:
+    """Whether every module of :data:`PLUGIN_PACKAGES` has been imported (and none is being imported by
+    :func:`discover`): the kind table is then complete."""
+    return _DISCOVERING == 0 and all(p in _SCANNED for p in PLUGIN_PACKAGES)
 
 
 def kind_names() -> list[str]:
@@ -187,9 +201,11 @@ def all_kinds() -> list[DiagnoserKind]:
 
 def find_kind(name: str) -> DiagnoserKind | None:
     """The kind ``name``, or None when no module registers it."""
+    if not isinstance(name, str):
+        return None
     if name not in _KINDS:
         discover()
-    return _KINDS.get(name) if isinstance(name, str) else None
+    return _KINDS.get(name)
 
 
 def get_kind(name: str) -> DiagnoserKind:

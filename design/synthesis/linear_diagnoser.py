@@ -23,7 +23,6 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
-from fdisyn.synthesis.linear_step import linear_step_function
 from fdisyn.detectors.chi2 import chi2_evaluator
 from fdisyn.detectors.sequential import MAX_ARL_SAMPLES, cusum_evaluator, glr_evaluator, lorden_delay, split_budget
 from fdisyn.detectors.wssr import wssr_evaluator
@@ -64,7 +63,6 @@ from fdisyn.synthesis.residual import (
     fault_steady_state,
     fault_step_response,
     internal_form,
-    long_run_covariance,
     residual_autocovariances,
     whitened,
     whiteness,
@@ -75,15 +73,11 @@ __all__ = [
     'FaultClass',
     'GeneratorDesign',
     'bank_diagnoser',
-    'budget_seconds',
-    'design_plant',
-    'lorden_bound',
     'default_bank',
     'default_bank_size',
     'default_fault_classes',
     'linear_diagnoser',
     'linear_method',
-    'linear_recovery_samples',
     'provenance',
 ]
 
@@ -244,47 +238,6 @@ VISIBLE_RTOL = 1e-3
 information of its best-seen class is not one of that generator's sequential hypotheses: it would take over
 a thousand times longer to detect, and a CUSUM with so small a drift integrates the plant's model error
 (low-frequency residual content the noise model does not have) rather than the fault."""
-
-
-def design_plant(gf: GainFile) -> LinearPlant:
-    """The discrete model a linear gain file was designed on (``gf.plant``), with generic state names."""
-    pl = gf.plant
-    n = pl["A"].shape[0]
-    return LinearPlant(
-        A=pl["A"], B=pl["B"], C=pl["C"], D=pl["D"], E=pl["E"], Fx=np.zeros((n, 0)), Q=pl["Q"], R=pl["R"], Ts=gf.Ts,
-        inputs=gf.inputs, outputs=gf.outputs, states=tuple(f"x{i}" for i in range(n)),
-        unknown_inputs=tuple(f"d{i}" for i in range(pl["E"].shape[1])), component_faults=(),
-    )
-
-
-def lorden_bound(gf: GainFile, shift: np.ndarray, covariance: np.ndarray | None = None) -> tuple[float, float] | None:
-    """``(I, ln(ARL_j)/I_j)`` for a mean shift ``shift`` of the bank's stacked residual: with ``μ_g`` its part in
-    generator ``g``, the largest information per sample ``I_g = ½ μ_gᵀ (Σ_τ R_g(τ))⁺ μ_g``
-    (:func:`fdisyn.synthesis.residual.long_run_covariance`, from the design: ``covariance``, the measured one, is
-    not used) and the smallest Lorden delay over the statistics, each at its share ``ARL_j = 1/P_f,j`` of the
-    budget. ``None`` when no generator sees the shift."""
-    offsets = np.cumsum([0] + [g.n_residual for g in gf.generators])
-    shifts = [np.asarray(shift, dtype=float)[offsets[g] : offsets[g + 1]] for g in range(len(gf.generators))]
-    plant = design_plant(gf)
-    best_i, bound = 0.0, math.inf
-    for ev in gf.evaluators:
-        gen = gf.generators[ev.generator]
-        s = long_run_covariance(gen, plant)
-        mu = np.asarray(shifts[ev.generator], dtype=float)
-        info = 0.5 * float(mu @ np.linalg.pinv(s, rcond=1e-9, hermitian=True) @ mu)
-        if info > 0:
-            best_i = max(best_i, info)
-            bound = min(bound, lorden_delay(1.0 / ev.P_f, info))
-    return (best_i, bound) if math.isfinite(bound) else None
-
-
-def budget_seconds(gf: GainFile) -> float:
-    """A linear diagnoser's false-alarm budget: its ``arl0``, or ``Ts / Σ_j P_f,j`` for a design by ``P_f``."""
-    bank = gf.certificate.get("bank", {})
-    info = bank.get("info", {}) if isinstance(bank, Mapping) else {}
-    if isinstance(info, Mapping) and isinstance(info.get("arl0_s"), (int, float)):
-        return float(info["arl0_s"])
-    return float(gf.Ts) / sum(float(e.P_f) for e in gf.evaluators)
 
 
 def _alternatives(f: FaultClass) -> list[FaultClass]:
@@ -632,24 +585,6 @@ eq. (20); WSSR: Long & Wang, Aeroengine 43(5), 2017, section 2)."""
 
 GeneratorDesign = Callable[..., tuple[Generator, np.ndarray, Certificate]]
 """``(plant, outputs_used, name, **options) -> (generator on all outputs, residual covariance, certificate)``."""
-
-
-def linear_recovery_samples(gf: GainFile) -> int:
-    """Samples for a fault's transient to decay by 1e-8 in the slowest generator.
-
-    ``ceil(ln 1e-8 / ln ρ)`` with ``ρ`` the largest spectral radius of the
-    generators' ``Ar``, plus ``N − 1`` for the longest WSSR or GLR window ``N`` (it
-    holds the fault's last samples that long) or ``2h / drift`` for a CUSUM (it
-    drains from its cap at its drift); after that the statistics no longer
-    carry the fault.
-    """
-    rho = max((float(np.max(np.abs(np.linalg.eigvals(g.Ar)))) for g in gf.generators if g.n_state), default=0.0)
-    held = max((e.window for e in gf.evaluators), default=1) - 1
-    # a CUSUM, capped at 2h, drains at its smallest drift per sample once the fault is gone
-    held = max([held] + [math.ceil(2.0 * e.threshold / float(np.min(e.drift))) for e in gf.evaluators if e.drift is not None])
-    if rho <= 0.0:
-        return 1 + held
-    return max(1, math.ceil(math.log(1e-8) / math.log(rho))) + held
 
 
 def bank_diagnoser(
@@ -1047,10 +982,6 @@ def linear_method(
         options=(*BANK_OPTIONS, ts, *options),
         design=design,
         diagnoser_kind="linear",
-        step_builder=linear_step_function,
-        recovery_samples=linear_recovery_samples,
-        false_alarm_budget=budget_seconds,
-        lorden_bound=lorden_bound,
         generator=generator,
         check=checks,
     )

@@ -3,12 +3,12 @@
 A method is one module of :mod:`fdisyn.synthesis` that calls :func:`register`
 with a :class:`Method` when it is imported: its plant kind, its options (each an
 :class:`Option` with its default, domain and validator), its design function,
-and what the pipeline needs of its gain files (the CasADi step, the recovery
-window of the Monte Carlo, extra metrics). The registry imports every module of
+and the diagnoser kind its gain files are (what they mean downstream — the
+CasADi step, the recovery window of the Monte Carlo, extra metrics — is the
+kind's: :mod:`fdisyn.synthesis.kinds`). The registry imports every module of
 :mod:`fdisyn.synthesis` the first time a method is looked up, so adding a
 method needs no other edit: a plant file's ``[design].method``,
-``fdisyn.design(plant, method=...)``, ``fdisyn methods`` and
-:func:`fdisyn.codegen.step.step_function` all find it here.
+``fdisyn.design(plant, method=...)`` and ``fdisyn methods`` all find it here.
 
 Importing this module is light (no CasADi, no cvxpy); :mod:`fdisyn.runtime`
 never imports it.
@@ -16,19 +16,17 @@ never imports it.
 
 from __future__ import annotations
 
-import importlib
 import json
 import math
-import pkgutil
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from typing import Any
 
-import numpy as np
-from fdisyn.runtime.errors import ArgumentError, GainFileError
+from fdisyn.runtime.errors import ArgumentError
 from fdisyn.runtime.gainfile import EVALUATOR_KINDS, LIMITS, GainFile
 from fdisyn.runtime.names import shown
+from fdisyn.synthesis import kinds
 
 __all__ = [
     "REQUIRED",
@@ -41,20 +39,12 @@ __all__ = [
     "get_method",
     "method_names",
     "all_methods",
-    "step_builder",
-    "recovery_samples",
-    "extra_metrics",
-    "ExtraMetrics",
     "check_plant",
     "check_options",
     "check_option",
     "design",
     "at",
 ]
-
-METHOD_PACKAGES: list[str] = ["fdisyn.synthesis"]
-"""Packages whose modules are imported to discover methods (each registers its own)."""
-
 
 class _Required:
     def __repr__(self) -> str:
@@ -133,29 +123,8 @@ class Option:
 
 
 @dataclass(frozen=True, eq=False)
-class ExtraMetrics:
-    """Monte Carlo figures of one scenario beyond detection, computed run by run and then reduced.
-
-    ``per_run(scenario, gain_file, run)`` summarises one run (``run``: ``alarm``,
-    ``isolated``: ``N``; ``J``: ``N × nj``) by a few numbers (anything picklable);
-    ``reduce(scenario, gain_file, values)`` turns the runs' values, in run order,
-    into ``{name: figure}``. The Monte Carlo keeps only the values, never the
-    runs. Called on stacked runs (``runs × N`` arrays) it gives the same figures
-    at once.
-    """
-
-    per_run: Callable[[Any, GainFile, Mapping[str, np.ndarray]], Any]
-    reduce: Callable[[Any, GainFile, list[Any]], Mapping[str, Any]]
-
-    def __call__(self, scenario: Any, gf: GainFile, runs: Mapping[str, np.ndarray]) -> Mapping[str, Any]:
-        n = len(runs["alarm"])
-        values = [self.per_run(scenario, gf, {k: np.asarray(v)[i] for k, v in runs.items()}) for i in range(n)]
-        return self.reduce(scenario, gf, values)
-
-
-@dataclass(frozen=True, eq=False)
 class Method:
-    """A design method: what it designs for, its options, and what its gain files need downstream.
+    """A design method: what it designs for, its options, and the diagnoser kind of its gain files.
 
     ``design(plant, *, name, problem=None, record=None, where="", **checked_options)``
     returns a certified gain file named ``name`` (``problem`` defaults to
@@ -170,21 +139,8 @@ class Method:
     options: tuple[Option, ...]
     design: Callable[..., GainFile]
     diagnoser_kind: str
-    step_builder: Callable[[GainFile], Any]
-    """``GainFile -> casadi.Function`` with the step contract of :mod:`fdisyn.synthesis.kinds`."""
-    recovery_samples: Callable[[GainFile], int] = lambda gf: 0
-    """Samples after a fault's end during which alarms are not false alarms (Monte Carlo metrics)."""
-    extra_metrics: ExtraMetrics | None = None
-    """Monte Carlo figures of one scenario beyond detection, run by run and reduced (:class:`ExtraMetrics`)."""
-    false_alarm_budget: Callable[[GainFile], float | None] | None = None
-    """The diagnoser's designed mean time between false alarms (s), ``gain_file -> seconds`` (None: a gain file
-    whose thresholds were given, not designed for a budget)."""
-    lorden_bound: Callable[[GainFile, np.ndarray, np.ndarray], tuple[float, float] | None] | None = None
-    """``(gain_file, μ, Σ) -> (I, ln(ARL)/I)``: the information per sample of a fault that shifts the residual's mean by
-    ``μ`` (``Σ``: the residual's covariance measured without the fault) and the Lorden bound on its delay (samples)."""
-    lorden_window: Callable[[GainFile], int] | None = None
-    """Samples after a fault's onset over which its mean shift ``μ`` is measured (None: while it is active) — for a
-    diagnoser that adapts its model to the fault, the samples before it can."""
+    """The :class:`~fdisyn.synthesis.kinds.DiagnoserKind` its gain files are (a registered kind's name): what they
+    mean downstream of the design (their step, recovery window, budget, extra metrics) is the kind's."""
     generator: Callable[..., Any] | None = None
     """Linear bank methods: the design of one generator,
     ``(plant, outputs_used, name, **options) -> (Generator, Σ_r, Certificate)``."""
@@ -210,30 +166,45 @@ class Method:
 
 
 _METHODS: dict[str, Method] = {}
-_SCANNED: set[str] = set()
+_UNCHECKED: list[str] = []
+"""Methods registered while the modules were being discovered: their kind is checked once discovery is done."""
 
 
 def register(method: Method) -> Method:
     """Make ``method`` known by its name (a module calls this when it is imported).
 
-    Methods that share a diagnoser kind share its step builder, recovery window
-    and extra metrics (they describe the gain file, not the design).
+    Parameters
+    ----------
+    method : Method
+        The method; its ``diagnoser_kind`` must name a registered kind (checked now, or once the modules that
+        register the kinds have all been imported).
+
+    Returns
+    -------
+    Method
+        The registered method (its design followed by the account of what the diagnoser can see).
+
+    Raises
+    ------
+    ArgumentError
+        Its name is no identifier, or its diagnoser kind is registered by no module.
     """
     if not method.name.isidentifier():
         raise ArgumentError(f"a method name is an identifier (it names gain files and C symbols); got {method.name!r}")
-    for other in _METHODS.values():
-        if other.diagnoser_kind == method.diagnoser_kind and other.name != method.name and (
-            other.step_builder is not method.step_builder
-            or other.recovery_samples is not method.recovery_samples
-            or other.extra_metrics is not method.extra_metrics
-        ):
-            raise ArgumentError(
-                f"method {method.name!r} has diagnoser kind {method.diagnoser_kind!r} like {other.name!r} but another "
-                "step builder, recovery window or extra metrics; one kind, one of each"
-            )
+    if kinds.discovered() and kinds.find_kind(method.diagnoser_kind) is None:
+        raise ArgumentError(_unknown_kind(method))
     method = replace(method, design=_accounted(method.design))
     _METHODS[method.name] = method
+    if not kinds.discovered():
+        _UNCHECKED.append(method.name)
     return method
+
+
+def _unknown_kind(method: Method) -> str:
+    return (
+        f"method {method.name!r} names diagnoser kind {method.diagnoser_kind!r}, which no module registers; known kinds: "
+        f"{kinds.kind_names()}: register it with fdisyn.synthesis.kinds.register_kind, or name a known kind"
+    )
 
 
 def _accounted(design: Callable[..., GainFile]) -> Callable[..., GainFile]:
@@ -257,15 +228,14 @@ def _accounted(design: Callable[..., GainFile]) -> Callable[..., GainFile]:
 
 
 def _discover() -> None:
-    """Import every module of :data:`METHOD_PACKAGES` not yet scanned (each registers its methods)."""
-    for pkg_name in list(METHOD_PACKAGES):
-        if pkg_name in _SCANNED:
-            continue
-        _SCANNED.add(pkg_name)
-        pkg = importlib.import_module(pkg_name)
-        for mod in pkgutil.walk_packages(pkg.__path__, f"{pkg_name}."):
-            if not mod.name.rsplit(".", 1)[-1].startswith("_"):
-                importlib.import_module(mod.name)
+    """Import every module that registers kinds and methods (:func:`fdisyn.synthesis.kinds.discover`), then check
+    the kind of each method registered meanwhile (an unregistered one: :class:`ArgumentError`, and it is dropped)."""
+    kinds.discover()
+    while _UNCHECKED and kinds.discovered():
+        method = _METHODS.get(_UNCHECKED.pop(0))
+        if method is not None and kinds.find_kind(method.diagnoser_kind) is None:
+            del _METHODS[method.name]
+            raise ArgumentError(_unknown_kind(method))
 
 
 def all_methods() -> list[Method]:
@@ -285,51 +255,6 @@ def get_method(name: str) -> Method:
     if not isinstance(name, str) or name not in _METHODS:
         raise ArgumentError(f"no design method {shown(name)}; methods: {sorted(_METHODS)}")
     return _METHODS[name]
-
-
-def _kind(kind: str) -> Method | None:
-    _discover()
-    return next((m for m in _METHODS.values() if m.diagnoser_kind == kind), None)
-
-
-def step_builder(kind: str) -> Callable[[GainFile], Any]:
-    """The step builder of diagnoser kind ``kind`` (unknown: :class:`GainFileError`)."""
-    m = _kind(kind)
-    if m is None:
-        kinds = sorted({x.diagnoser_kind for x in _METHODS.values()})
-        raise GainFileError(f"no step builder for diagnoser kind {kind!r}; known kinds: {kinds}")
-    return m.step_builder
-
-
-def recovery_samples(gf: GainFile) -> int:
-    """Samples after a fault during which the gain file's statistics still carry it (0 for an unknown kind)."""
-    m = _kind(gf.kind)
-    return 0 if m is None else int(m.recovery_samples(gf))
-
-
-def false_alarm_budget(gf: GainFile) -> float | None:
-    """The gain file's designed mean time between false alarms in seconds (None: its kind has none)."""
-    m = _kind(gf.kind)
-    seconds = None if m is None or m.false_alarm_budget is None else m.false_alarm_budget(gf)
-    return None if seconds is None else float(seconds)
-
-
-def lorden_bound(gf: GainFile, shift: np.ndarray, covariance: np.ndarray) -> tuple[float, float] | None:
-    """``(I, bound)`` of a residual mean shift for the gain file's kind (:attr:`Method.lorden_bound`; None: none)."""
-    m = _kind(gf.kind)
-    return None if m is None or m.lorden_bound is None else m.lorden_bound(gf, shift, covariance)
-
-
-def lorden_window(gf: GainFile) -> int | None:
-    """:attr:`Method.lorden_window` of the gain file's kind (None: the fault's whole active time)."""
-    m = _kind(gf.kind)
-    return None if m is None or m.lorden_window is None else int(m.lorden_window(gf))
-
-
-def extra_metrics(kind: str) -> ExtraMetrics | None:
-    """The extra Monte Carlo figures of diagnoser kind ``kind`` (None: none)."""
-    m = _kind(kind)
-    return None if m is None else m.extra_metrics
 
 
 def check_plant(method: Method, plant: Any) -> None:

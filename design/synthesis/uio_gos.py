@@ -57,13 +57,11 @@ from fdisyn.runtime.trace import Trace, TraceReader
 from fdisyn.synthesis.linear_diagnoser import (
     FaultClass,
     _sensor_indices,
-    budget_seconds,
     check_budget,
     check_min_fault,
     chosen_detector,
     default_fault_classes,
     linear_diagnoser,
-    lorden_bound,
 )
 from fdisyn.synthesis.registry import P_F, Option, at
 from fdisyn.synthesis.residual import internal_form
@@ -727,8 +725,7 @@ def gos_design(
 
 
 def _register() -> None:
-    from fdisyn.synthesis.linear_step import linear_step_function
-    from fdisyn.synthesis.linear_diagnoser import EVALUATOR, FAULTS, LINEAR_WINDOW, MIN_FAULT, TS, linear_recovery_samples
+    from fdisyn.synthesis.linear_diagnoser import EVALUATOR, FAULTS, LINEAR_WINDOW, MIN_FAULT, TS
     from fdisyn.synthesis.registry import ARL0, DETECTOR, P_F, PERSISTENCE, Method, is_count, is_real, register
 
     options = (
@@ -801,10 +798,6 @@ def _register() -> None:
             options=options,
             design=design,
             diagnoser_kind="linear",
-            step_builder=linear_step_function,
-            recovery_samples=linear_recovery_samples,
-            false_alarm_budget=budget_seconds,
-            lorden_bound=lorden_bound,
             check=_check,
             samples_itself=True,
         )

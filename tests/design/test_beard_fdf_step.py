@@ -34,7 +34,7 @@ from fdisyn.synthesis.beard_fdf import (
     beard_reference_run,
     beard_step_function,
 )
-from fdisyn.synthesis.registry import recovery_samples
+from fdisyn.synthesis.kinds import recovery_samples
 
 KEYS = ("r", "J", "alarm", "isolated", "status")
 HALF = math.pi / 2

@@ -20,7 +20,7 @@ from fdisyn.evaluation.metrics import MetricsAccumulator, MetricsPlan, scenario_
 from fdisyn.evaluation.progress import quiet
 from fdisyn.simulation.problem import Problem, get_problem
 from fdisyn.runtime.errors import MonteCarloError
-from fdisyn.synthesis.registry import false_alarm_budget, lorden_bound, lorden_window, recovery_samples
+from fdisyn.synthesis.kinds import false_alarm_budget, lorden_bound, lorden_window, recovery_samples
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -214,11 +214,16 @@ def test_a_real_campaign_equals_the_reference_on_its_stacked_runs(sde_built, com
         np.testing.assert_array_equal(ev.examples[d][name].J, runs.J[0])
 
 
-def test_the_extra_figures_stream_run_by_run() -> None:
+def test_the_extra_figures_stream_run_by_run(monkeypatch) -> None:  # noqa: ANN001
     """The NAFDF's figures from the per-run values equal those of the stacked runs (its hook called on them)."""
     from types import SimpleNamespace
 
+    from fdisyn.synthesis import kinds
     from fdisyn.synthesis.nafdf.design import nafdf_extra_metrics
+
+    # a kind without a recovery or a Lorden window: the plan's windows are the scenario's alone
+    plain = kinds.DiagnoserKind(name="no_kind", summary="", step_builder=None, certified=list, describe=str)  # type: ignore[arg-type]
+    monkeypatch.setitem(kinds._KINDS, "no_kind", plain)
 
     names = ("fault_class_a", "fault_size_a", "insufficient_excitation")
     gf = SimpleNamespace(faults=("a",), Ts=1.0, step=SimpleNamespace(statistic_names=names), thresholds=(np.inf,) * 3)
@@ -229,7 +234,7 @@ def test_the_extra_figures_stream_run_by_run() -> None:
     sc = SimpleNamespace(fault="a", onset=3.0, params={"fault_size": {"a": 0.2}}, active=lambda t: t >= 3.0)
     runs = DesignRuns(r=np.zeros((6, 12, 1)), J=J, alarm=rng.random((6, 12)) < 0.5, isolated=iso.astype(np.int32),
                       status=np.zeros((6, 12), dtype=np.int8))
-    plan = MetricsPlan.of(sc, SimpleNamespace(**vars(gf), kind="no kind"), np.arange(12.0), nafdf_extra_metrics)
+    plan = MetricsPlan.of(sc, SimpleNamespace(**vars(gf), kind="no_kind"), np.arange(12.0), nafdf_extra_metrics)
     acc, _ = _merged(plan, runs, [2, 5], sc, gf, scenario="s", fault="a", P_f=[0.0] * 3, Ts=1.0)
     stacked = {"alarm": runs.alarm.astype(int), "isolated": iso, "J": J}
     assert nafdf_extra_metrics.reduce(sc, gf, acc.extra) == nafdf_extra_metrics(sc, gf, stacked)

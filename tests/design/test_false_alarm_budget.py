@@ -16,7 +16,8 @@ from fdisyn.reporting.report import _summary_false_alarms, budget_line, duration
 from fdisyn.models.linear import LinearPlant
 from fdisyn.models.nonlinear import NonlinearPlant
 from fdisyn.runtime.errors import ArgumentError
-from fdisyn.synthesis.registry import DEFAULT_ARL0, false_alarm_budget
+from fdisyn.synthesis.kinds import false_alarm_budget
+from fdisyn.synthesis.registry import DEFAULT_ARL0
 
 ONE_BANK = {"bank": [["y0", "y1", "y2"]]}
 

@@ -218,7 +218,7 @@ def test_the_budget_hooks_of_each_kind() -> None:
     its fault shift is measured over the ``N2`` samples before the EKF can adapt; a linear diagnoser's over the
     whole fault."""
     from fdisyn.problems import wind_turbine as wt
-    from fdisyn.synthesis.registry import false_alarm_budget, lorden_window
+    from fdisyn.synthesis.kinds import false_alarm_budget, lorden_window
 
     by_arl0 = nafdf_gain_file(sp.design(detector="cusum", arl0=2000.0), problem="ship_propulsion")
     by_pf = nafdf_gain_file(sp.design(), problem="ship_propulsion")

@@ -17,7 +17,7 @@ from fdisyn.codegen.step import step_function
 from fdisyn.models.linear import LinearPlant
 from fdisyn.models.nonlinear import NonlinearPlant
 from fdisyn.runtime.errors import ArgumentError, GainFileError, SpecError
-from fdisyn.synthesis import registry
+from fdisyn.synthesis import kinds, registry
 from fdisyn.synthesis.registry import REQUIRED, Method
 
 README = Path(__file__).parents[2] / "README.md"
@@ -72,10 +72,12 @@ def test_builtin_methods_register_themselves() -> None:
     # the bank options are defined once and shared
     shared = [registry.get_method(n).option("P_f") for n in ("kalman_uio", "lmi", "uio_pole_placement")]
     assert shared[0] is shared[1] is shared[2]
-    # what the Monte Carlo needs of a diagnoser kind comes with its methods
+    # what the Monte Carlo needs of a diagnoser kind is the kind's, which each method names
+    from fdisyn.synthesis.kinds import get_kind
     from fdisyn.synthesis.nafdf.design import nafdf_extra_metrics
 
-    assert registry.extra_metrics("nafdf") is nafdf_extra_metrics and registry.extra_metrics("linear") is None
+    assert registry.get_method("nafdf").diagnoser_kind == "nafdf" and registry.get_method("lmi").diagnoser_kind == "linear"
+    assert get_kind("nafdf").extra_metrics is nafdf_extra_metrics and get_kind("linear").extra_metrics is None
 
 
 def test_unknown_method_and_option() -> None:
@@ -87,7 +89,7 @@ def test_unknown_method_and_option() -> None:
     with pytest.raises(ArgumentError, match="option eta is read only by method 'lmi', not by 'kalman_uio'"):
         registry.design(plant, "kalman_uio", eta="inf")
     with pytest.raises(GainFileError, match="no step builder for diagnoser kind 'magic'"):
-        registry.step_builder("magic")
+        kinds.get_kind("magic")
 
 
 @pytest.mark.parametrize(
@@ -152,7 +154,7 @@ def test_design_through_the_registry_is_certified() -> None:
     gf = registry.design(_discrete(), "kalman_uio", P_f=1e-4)
     assert gf.kind == "linear" and gf.name == "kalman_uio" and gf.certificate["passed"]
     assert gf.provenance["options"] == {"method": "kalman_uio", "P_f": 1e-4}
-    assert registry.recovery_samples(gf) >= 1
+    assert kinds.recovery_samples(gf) >= 1
     assert step_function(gf).name_out()[-1] == "status"
     # a continuous plant: ZOH-sampled at Ts for a linear method, sampled-data design for a continuous one
     uio = LinearPlant.create(A=[[-1.0, 5.0], [0.0, -2.0]], C=C3, E=[[1.0], [0.0]], Q=np.eye(2) * 1e-3, R=np.eye(3) * 1e-2)
@@ -190,7 +192,7 @@ def test_a_method_in_one_module_is_picked_up(tmp_path, monkeypatch, capsys) -> N
         )
     )
     monkeypatch.syspath_prepend(str(tmp_path))
-    monkeypatch.setattr(registry, "METHOD_PACKAGES", [*registry.METHOD_PACKAGES, "extra_methods"])
+    monkeypatch.setattr(kinds, "PLUGIN_PACKAGES", [*kinds.PLUGIN_PACKAGES, "extra_methods"])
     monkeypatch.setattr(registry, "_METHODS", dict(registry._METHODS))
     try:
         assert "extra_uio" in registry.method_names()
@@ -207,7 +209,7 @@ def test_a_method_in_one_module_is_picked_up(tmp_path, monkeypatch, capsys) -> N
         with pytest.raises(SpecError, match=r"\[design\].note = 3: expected a string"):
             load_spec(_write(tmp_path, text.replace('note = "y"', "note = 3")))
     finally:
-        registry._SCANNED.discard("extra_methods")
+        kinds._SCANNED.discard("extra_methods")
         sys.modules.pop("extra_methods.scaled_kalman", None)
         sys.modules.pop("extra_methods", None)
 
@@ -221,11 +223,11 @@ def _write(tmp_path: Path, text: str) -> Path:
 def test_register_refuses_a_bad_method() -> None:
     m = registry.get_method("kalman_uio")
     with pytest.raises(ArgumentError, match="plant_kind 'analog'"):
-        Method("x", "analog", "", "", (), m.design, "linear", m.step_builder)
+        Method("x", "analog", "", "", (), m.design, "linear")
     with pytest.raises(ArgumentError, match="names an option twice"):
-        Method("x", "linear", "", "", (m.options[0], m.options[0]), m.design, "linear", m.step_builder)
-    with pytest.raises(ArgumentError, match="one kind, one of each"):
-        registry.register(Method("other_linear", "linear", "", "", (), m.design, "linear", lambda gf: None))
+        Method("x", "linear", "", "", (m.options[0], m.options[0]), m.design, "linear")
+    with pytest.raises(ArgumentError, match="names diagnoser kind 'magic', which no module registers"):
+        registry.register(Method("other_linear", "linear", "", "", (), m.design, "magic"))
     assert "other_linear" not in registry.method_names()
 
 

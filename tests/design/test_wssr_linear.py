@@ -27,7 +27,7 @@ from fdisyn.runtime.gainfile import (
     write_gain_file,
 )
 from fdisyn.runtime.reference import LinearReference
-from fdisyn.synthesis.linear_diagnoser import linear_recovery_samples
+from fdisyn.synthesis.linear_kind import linear_recovery_samples
 from fdisyn.synthesis.registry import design
 from fdisyn.synthesis.residual import internal_form, residual_autocovariances, residual_covariance
 

@@ -287,7 +287,7 @@ from fdisyn.runtime.layout import StateLayout
 from fdisyn.runtime.names import shown
 from fdisyn.synthesis.nafdf.settings import _IDENT, _MAX_NAME, NafdfSettings, _settings
 from fdisyn.synthesis.nafdf.step import _build_step, _check_step_size
-from fdisyn.synthesis.registry import ExtraMetrics
+from fdisyn.synthesis.kinds import ExtraMetrics
 
 __all__ = ['NOT_ISOLABLE', 'NafdfDesign', 'nafdf', 'nafdf_diagnosis', 'nafdf_extra_metrics']
 
@@ -730,7 +730,7 @@ def _nafdf_reduce(scenario: Any, gf: GainFile, runs: list[dict[str, Any]]) -> di
 
 
 nafdf_extra_metrics = ExtraMetrics(per_run=_nafdf_run, reduce=_nafdf_reduce)
-"""Monte Carlo figures of a NAFDF beyond detection (the ``nafdf`` kind's :attr:`Method.extra_metrics`).
+"""Monte Carlo figures of a NAFDF beyond detection (the ``nafdf`` kind's :attr:`~fdisyn.synthesis.kinds.DiagnoserKind.extra_metrics`).
 
 ``scenario.params["fault_size"]`` maps each jumping parameter to its true
 jump ``θ_faulty − θ_0`` (absent or empty: fault-free). Fault-free: the

@@ -20,14 +20,8 @@ from fdisyn.models.nonlinear import NonlinearPlant
 from fdisyn.runtime.errors import ArgumentError
 from fdisyn.runtime.gainfile import GainFile
 from fdisyn.runtime.names import shown
-from fdisyn.synthesis.nafdf.design import nafdf, nafdf_extra_metrics
-from fdisyn.synthesis.nafdf.payload import (
-    nafdf_budget_seconds,
-    nafdf_from_gain_file,
-    nafdf_gain_file,
-    nafdf_lorden_bound,
-    nafdf_lorden_window,
-)
+from fdisyn.synthesis.nafdf.design import nafdf
+from fdisyn.synthesis.nafdf.payload import nafdf_gain_file
 from fdisyn.synthesis.nafdf.settings import MAX_CLASSIFIER_WINDOW, MAX_COUNT, MAX_WINDOW, MIN_SHIFT_RANGE
 from fdisyn.synthesis.registry import ARL0, DEFAULT_ARL0, DETECTOR, P_F, WINDOW, Method, Option, at, is_count, is_real, register
 
@@ -152,10 +146,5 @@ NAFDF = register(
         options=NAFDF_OPTIONS,
         design=_design,
         diagnoser_kind="nafdf",
-        step_builder=lambda gf: nafdf_from_gain_file(gf).step,
-        extra_metrics=nafdf_extra_metrics,
-        false_alarm_budget=nafdf_budget_seconds,
-        lorden_bound=nafdf_lorden_bound,
-        lorden_window=nafdf_lorden_window,
     )
 )
