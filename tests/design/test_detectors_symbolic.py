@@ -31,7 +31,18 @@ from fdisyn.detectors.symbolic import (
     wssr_threshold,
     wssr_update,
 )
-from fdisyn.runtime.gainfile import Decision, Evaluator, GainFile, Generator, StepSpec, glr_weights, linear_state_layout, release_level
+from fdisyn.runtime.gainfile import (
+    EVALUATOR_KINDS,
+    SEQUENTIAL_KINDS,
+    Decision,
+    Evaluator,
+    GainFile,
+    Generator,
+    StepSpec,
+    glr_weights,
+    linear_state_layout,
+    release_level,
+)
 from fdisyn.runtime.reference import LinearReference
 
 RTOL = 1e-12
@@ -60,15 +71,19 @@ def _W(rng: np.random.Generator) -> np.ndarray:
     return a @ a.T + 0.5 * np.eye(P)
 
 
+def _unit(a: np.ndarray) -> np.ndarray:
+    return a / np.linalg.norm(a, axis=-1, keepdims=True)
+
+
 def _evaluator(kind: str, rng: np.random.Generator, window: int = 1) -> Evaluator:
     W = _W(rng)
     common = dict(generator=0, P_f=0.01, dof=P, Sigma_r=np.linalg.inv(W), W=W)
     if kind in ("chi2", "wssr"):
         return Evaluator(kind=kind, threshold=6.0 * window, window=window, **common)  # type: ignore[arg-type]
     if kind == "cusum":
-        a = rng.standard_normal((2, P)) @ W  # directions μᵀ W lie in W's range
+        a = _unit(rng.standard_normal((2, P)) @ W)  # directions μᵀ W lie in W's range
         return Evaluator(kind="cusum", threshold=4.0, directions=a, drift=np.array([0.3, 0.7]), hypotheses=("h0", "h1"), **common)  # type: ignore[arg-type]
-    a = np.vstack([np.outer(np.ones(window), rng.standard_normal(P) @ W) for _ in range(2)])
+    a = np.vstack([np.outer(np.ones(window), _unit(rng.standard_normal(P) @ W)) for _ in range(2)])
     info = np.concatenate([np.arange(1.0, window + 1.0)] * 2)
     if window > 1:
         info[0] = 0.0  # an onset too recent to have shown: weight 0, left out of J
@@ -84,18 +99,22 @@ def _close(a: object, b: object) -> bool:
     return a.shape == b.shape and bool(np.all(np.abs(a - b) <= RTOL * (1.0 + np.maximum(np.abs(a), np.abs(b)))))
 
 
-def _trace(rng: np.random.Generator, n: int, scale: float) -> np.ndarray:
-    return scale * rng.standard_normal((n, P))
+def _trace(rng: np.random.Generator, n: int, scale: float, shift: float = 0.0) -> np.ndarray:
+    """Noise of standard deviation ``scale``; with ``shift``, added to every output in alternate stretches of
+    40 samples (alarms raised, then released)."""
+    on = (np.arange(n) // 40) % 2 == 1
+    return scale * rng.standard_normal((n, P)) + shift * on[:, None]
 
 
-def _run(gf: GainFile, Y: np.ndarray, update: ca.Function, block: str | None) -> int:
+def _run(gf: GainFile, Y: np.ndarray, update: ca.Function, block: str | None) -> tuple[int, int]:
     """Step the reference over ``Y``; before each sample evaluate ``update(r, block, counter)`` and compare it
     with the reference's ``J``, block and counter after it. Returns the number of samples the counter was
-    nonzero (so the tests can check they exercised the alarm rule)."""
+    nonzero, and of those the number with ``J`` at or below the threshold (a held alarm, or a count that has
+    not reached the persistence yet), so that the tests can check they exercised the alarm rule."""
     ref = LinearReference(gf)
     lay = ref.layout
     st = ref.init_state()
-    raised = 0
+    raised = held = 0
     for y in Y:
         old_block = st[lay[block]].copy() if block else np.zeros(0)
         old_counter = st[lay["counters"]][0]
@@ -107,7 +126,8 @@ def _run(gf: GainFile, Y: np.ndarray, update: ca.Function, block: str | None) ->
             assert _close(new_block, st[lay[block]]), (new_block, st[lay[block]])
         assert counter.item() == st[lay["counters"]][0]
         raised += st[lay["counters"]][0] > 0
-    return raised
+        held += st[lay["counters"]][0] > 0 and out.J[0] <= gf.evaluators[0].threshold
+    return raised, held
 
 
 def _symbols(gf: GainFile, block: str | None) -> tuple[ca.SX, ca.SX, ca.SX]:
@@ -122,7 +142,8 @@ def test_chi2_and_the_persistence_counter_are_the_references(persistence):
     r, _, c = _symbols(gf, None)
     J = chi2(r, gf.evaluators[0].W)
     fn = _function([r, ca.SX.sym("none", 0), c], [J, ca.SX(0, 1), persistence_count(J > gf.evaluators[0].threshold, c)])
-    assert _run(gf, _trace(rng, 400, 1.6), fn, None) > 20
+    raised, _ = _run(gf, _trace(rng, 400, 1.6), fn, None)
+    assert raised > 20
 
 
 @pytest.mark.parametrize("window", [1, 2, 5])
@@ -133,7 +154,8 @@ def test_wssr_shift_and_sum_are_the_references(window):
     J, new, none = wssr_update(chi2(r, gf.evaluators[0].W), w)
     assert none is None
     fn = _function([r, w, c], [J, new, persistence_count(J > gf.evaluators[0].threshold, c)])
-    assert _run(gf, _trace(rng, 300, 1.4), fn, "window0") > 10
+    raised, _ = _run(gf, _trace(rng, 300, 1.4), fn, "window0")
+    assert raised > 10
 
 
 def test_the_wssr_mean_over_the_samples_seen_is_the_references_sum_over_the_count():
@@ -168,7 +190,8 @@ def test_cusum_sums_and_latches_are_the_references():
     J, sums = cusum_update(ca.mtimes(ca.DM(ev.directions), r), s[:4], ev.drift, ev.threshold)
     latches, latched = cusum_latch(sums, s[4:], ev.threshold)
     fn = _function([r, s, c], [J, ca.vertcat(sums, latches), ca.if_else(latched, 1, 0)])
-    assert _run(gf, _trace(rng, 400, 0.8), fn, "sequential0") > 10
+    raised, held = _run(gf, _trace(rng, 400, 0.7, 1.5), fn, "sequential0")
+    assert raised > 10 and held > 5  # latched below the threshold until the sum returns to 0
 
 
 def test_the_cusum_tuned_to_a_shift_is_the_references_with_scaled_directions():
@@ -182,7 +205,8 @@ def test_the_cusum_tuned_to_a_shift_is_the_references_with_scaled_directions():
     J, sums = cusum_update(r, s[: 2 * P], 0.5 * dlt * dlt, ev.threshold, shift=dlt)
     latches, latched = cusum_latch(sums, s[2 * P :], ev.threshold)
     fn = _function([r, s, c], [J, ca.vertcat(sums, latches), ca.if_else(latched, 1, 0)])
-    assert _run(gf, _trace(rng, 300, 1.0) + 0.4, fn, "sequential0") > 10
+    raised, held = _run(gf, _trace(rng, 400, 1.0, 1.5), fn, "sequential0")
+    assert raised > 10 and held > 5
 
 
 @pytest.mark.parametrize("window", [1, 3, 6])
@@ -194,7 +218,8 @@ def test_glr_onset_sums_statistic_and_hold_are_the_references(window):
     sums = glr_update(ca.mtimes(ca.DM(ev.directions), r), s, window)
     J = glr_statistic(sums, glr_weights(ev.information, window))
     fn = _function([r, s, c], [J, sums, glr_hold(J, c, ev.threshold, release_level(ev))])
-    assert _run(gf, _trace(rng, 400, 0.9) + 0.3, fn, "sequential0") > 10
+    raised, held = _run(gf, _trace(rng, 400, 1.0, 1.5), fn, "sequential0")
+    assert raised > 10 and held > 5  # held down to the release level
 
 
 def test_the_glr_statistic_is_the_same_in_either_layout():
@@ -253,3 +278,21 @@ def test_finite_is_false_for_nan_and_infinities_only():
     flags, every = fn(v)
     assert np.asarray(flags).ravel().tolist() == [1, 1, 1, 0, 0, 0] and float(every) == 0.0
     assert float(fn(np.r_[v[:3], 1.0, 2.0, 3.0])[1]) == 1.0
+
+
+def test_every_statistic_kind_of_a_gain_file_has_its_symbolic_update_and_the_linear_step_names_none():
+    """A statistic kind the gain file accepts is evaluated by the linear step through its entry of
+    LINEAR_STATISTICS alone: its state block and sequential flag agree with the file's layout."""
+    import inspect
+
+    import fdisyn.synthesis.linear_step as linear_step
+
+    assert set(LINEAR_STATISTICS) == set(EVALUATOR_KINDS)
+    for kind, stat in LINEAR_STATISTICS.items():
+        assert stat.sequential == (kind in SEQUENTIAL_KINDS)
+        gf = _diagnoser(_evaluator(kind, np.random.default_rng(0), 1 if kind in ("chi2", "cusum") else 2))
+        blocks = {name for name, _, _ in linear_state_layout(gf.generators, gf.evaluators).entries}
+        assert (stat.block is None) == ({"window0", "sequential0"}.isdisjoint(blocks))
+        assert stat.block is None or f"{stat.block}0" in blocks
+    source = inspect.getsource(linear_step)
+    assert not [kind for kind in EVALUATOR_KINDS if f'"{kind}"' in source or f"'{kind}'" in source]
