@@ -5,8 +5,11 @@ Finiteness is tested as ``|v| < ∞`` with ``if_else``, which survives code gene
 folded away).
 
 Every step that offers a detector calls the function of this module for it (the linear step of
-:mod:`fdisyn.synthesis.linear_step`, the NAFDF's fast detection of :mod:`fdisyn.synthesis.nafdf.step`,
-the Beard filter's persistence of :mod:`fdisyn.synthesis.beard_fdf.step`); each function performs its
+:mod:`fdisyn.synthesis.linear_step`; the NAFDF's fast detection, its innovation windows and its counters in
+:mod:`fdisyn.synthesis.nafdf.step`; the Beard filter's persistence in
+:mod:`fdisyn.synthesis.beard_fdf.step`); where two steps differ (the NAFDF's WSSR is a mean over the
+samples seen, its CUSUM is tuned to a shift, its sums restart when an alarm is dismissed) the difference
+is an argument or the caller's choice, never a second implementation. Each function performs its
 floating-point operations in the order of the NumPy reference (:mod:`fdisyn.runtime.reference`), the
 independent oracle these updates are tested against. A linear diagnoser's statistic of a given kind is
 looked up in :data:`LINEAR_STATISTICS`, so that its step names no detector.
@@ -15,8 +18,9 @@ looked up in :data:`LINEAR_STATISTICS`, so that its step names no detector.
 detector    per-sample update
 ==========  ========================================================================================
 χ²          :func:`chi2`: ``q = rᵀ W r``
-WSSR        :func:`wssr_update`: ``q`` shifted into the window (newest first), ``J`` its sum (or, with
-            a fill count, its mean over the samples seen); :func:`wssr_held`, :func:`wssr_threshold`
+WSSR        :func:`wssr_update`: ``q`` shifted into the window (newest first, :func:`shift_in`), ``J``
+            its sum (:func:`window_sum`; or, with a fill count, its mean over the samples seen);
+            :func:`wssr_held`, :func:`wssr_threshold`
 CUSUM       :func:`cusum_update`: Page's two-sided sums clamped to ``[0, 2h]``; :func:`cusum_latch`
 GLR         :func:`glr_update`: the onset sums ``d_i(n)``; :func:`glr_statistic`: ``max d² w``;
             :func:`glr_hold`
@@ -41,6 +45,7 @@ __all__ = [
     "constant",
     "largest",
     "window_sum",
+    "shift_in",
     "chi2",
     "wssr_update",
     "wssr_held",
@@ -51,6 +56,7 @@ __all__ = [
     "glr_statistic",
     "glr_hold",
     "persistence_count",
+    "Evaluated",
     "LinearStatistic",
     "LINEAR_STATISTICS",
 ]
@@ -109,6 +115,25 @@ def window_sum(v: ca.SX) -> ca.SX:
     return total
 
 
+def shift_in(q: ca.SX, window: ca.SX) -> ca.SX:
+    """The window (a column, newest first) with ``q`` shifted in at the top and its oldest entry dropped.
+
+    Parameters
+    ----------
+    q : casadi.SX
+        The newest value, a scalar.
+    window : casadi.SX
+        The window before it, a column of ``N ≥ 1`` entries.
+
+    Returns
+    -------
+    casadi.SX
+        The new window, ``N`` entries.
+    """
+    n = window.numel()
+    return ca.vertcat(q, window[: n - 1]) if n > 1 else ca.SX(q)
+
+
 # --------------------------------------------------------------------------- χ²
 
 
@@ -156,11 +181,10 @@ def wssr_update(q: ca.SX, window: ca.SX, count: ca.SX | None = None) -> tuple[ca
     count : casadi.SX or None
         The new count, ``None`` without one.
     """
-    n = window.numel()
-    shifted = ca.vertcat(q, window[: n - 1]) if n > 1 else ca.SX(q)
+    shifted = shift_in(q, window)
     if count is None:
         return window_sum(shifted), shifted, None
-    filled = ca.fmin(count + 1, n)
+    filled = ca.fmin(count + 1, window.numel())
     return window_sum(shifted) / filled, shifted, filled
 
 
@@ -381,9 +405,13 @@ class LinearStatistic:
     evaluated per sample, in the semantics of :class:`fdisyn.runtime.reference.LinearReference`.
 
     ``block``: the prefix of its state block in :func:`~fdisyn.runtime.gainfile.linear_state_layout`
-    (``None``: no state beyond its counter); ``sequential``: it reads its residual through its directions
-    (:data:`~fdisyn.runtime.gainfile.SEQUENTIAL_KINDS`); ``evaluate(r, block, ev)`` its value and new block;
-    ``counter(value, J, counter, ev)`` its alarm counter after a valid sample (``J`` the reported value).
+    (``None``: no state beyond its counter); ``sequential``: one of
+    :data:`~fdisyn.runtime.gainfile.SEQUENTIAL_KINDS` (the step checks its value for overflow after the
+    other statistics' of its generator, in the reference's order); ``evaluate(r, block, ev)``: its value and
+    new block from the generator's residual ``r`` and the block before the sample;
+    ``counter(value, J, counter, ev)``: its alarm counter after a valid sample (``J`` the reported value).
+    Adding a statistic kind adds its functions above and one entry to :data:`LINEAR_STATISTICS`; the
+    linear step is unchanged.
     """
 
     block: str | None

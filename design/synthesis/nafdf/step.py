@@ -16,6 +16,8 @@ from fdisyn.detectors.symbolic import (
     glr_update,
     largest,
     persistence_count,
+    shift_in,
+    window_sum,
     wssr_held,
     wssr_threshold,
     wssr_update,
@@ -238,7 +240,7 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
     q_drift = ca.dot(drift, ca.mtimes(Rn_new, drift)) / (gain * c_drift)  # driftᵀ (c P_θ)⁻¹ drift
     drift_limit = float(scipy.stats.chi2.isf(s.convergence_level, l))
     nis_limit = float(scipy.stats.chi2.isf(s.convergence_level, N2 * p))
-    explains = ca.sum1(nisw) <= nis_limit
+    explains = window_sum(nisw) <= nis_limit
     settled_now = ca.logic_and(ca.logic_and(full, inside), ca.logic_and(q_drift <= drift_limit, explains))
     informative = ca.SX(1)
     for i in range(l):  # info_i = 1/σ_i² ≥ W1 / isolable_jump_i² (in that order: no overflow for any jump)
@@ -254,7 +256,7 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
     # dismissal (a false alarm): inside the episode the EKF's own model explains every window of N2
     # samples, Σ γᵀ V0⁻¹ γ ≤ χ²_{1−α}(N2 p), N2 times in a row — the data demand no new model
     episode = old["episode_open"]
-    fits = ca.logic_and(ca.logic_and(episode, full), ca.sum1(old["ekf_nis_window"]) <= nis_limit)
+    fits = ca.logic_and(ca.logic_and(episode, full), window_sum(old["ekf_nis_window"]) <= nis_limit)
     fit_run = persistence_count(fits, old["ekf_fit_run"])
     dismiss = fit_run >= N2
     # EKF re-parameterisation: the NF has converged inside an open episode whose alarm stands (block 4)
@@ -348,9 +350,9 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
     win_next = ca.horzcat(th_new, win[:, : N2 - 1]) if N2 > 1 else th_new
     new["theta_window"] = _select(nf_reset, ca.SX.zeros(l, N2), win_next)
     nis_safe = ca.fmin(_select(_all_finite(nis_n), nis_n, 0.0), _Q_CAP)
-    nis_next = ca.vertcat(nis_safe, nisw[: N2 - 1]) if N2 > 1 else nis_safe
+    nis_next = shift_in(nis_safe, nisw)
     new["nis_window"] = _select(nf_reset, ca.SX.zeros(N2, 1), nis_next)
-    ekf_nis_next = ca.vertcat(q_safe, old["ekf_nis_window"][: N2 - 1]) if N2 > 1 else q_safe
+    ekf_nis_next = shift_in(q_safe, old["ekf_nis_window"])
     new["ekf_nis_window"] = _select(nf_reset, ca.SX.zeros(N2, 1), ekf_nis_next)
     new["ekf_fit_run"] = _select(ca.logic_or(nf_reset, dismiss), 0.0, fit_run)
 
