@@ -30,7 +30,7 @@ _PUBLIC = {
     "export": "fdisyn.app.api",
     "load": "fdisyn.app.api",
     "methods": "fdisyn.app.api",
-    "fault_account": "fdisyn.numerics.account",
+    "fault_account": "fdisyn.synthesis.account",
     "LinearPlant": "fdisyn.models.linear",
     "NonlinearPlant": "fdisyn.models.nonlinear",
     "SampledDataPlant": "fdisyn.models.sampled_data",
@@ -42,7 +42,7 @@ __all__ = ["__version__", *_PUBLIC]
 
 if TYPE_CHECKING:
     from fdisyn.app.api import design, export, load, methods  # noqa: F401
-    from fdisyn.numerics.account import fault_account  # noqa: F401
+    from fdisyn.synthesis.account import fault_account  # noqa: F401
     from fdisyn.models.linear import LinearPlant  # noqa: F401
     from fdisyn.models.nonlinear import NonlinearPlant  # noqa: F401
     from fdisyn.models.sampled_data import SampledDataPlant  # noqa: F401

@@ -32,7 +32,7 @@ from fdisyn.models.linear import LinearPlant
 from fdisyn.simulation.problem import Batch, Problem, Scenario
 from fdisyn.models.sampled_data import SampledDataPlant
 from fdisyn.models.sampling import van_loan
-from fdisyn.numerics.account import with_account
+from fdisyn.synthesis.account import with_account
 from fdisyn.runtime.gainfile import GainFile
 from fdisyn.synthesis.linear_diagnoser import FaultClass, linear_diagnoser
 from fdisyn.synthesis.lmi_observer import lmi_diagnostic_observer

@@ -41,7 +41,7 @@ import scipy.linalg
 from fdisyn.evaluation.compiled_simulation import NAMES_IN, NAMES_OUT, SampleModel
 from fdisyn.models.linear import LinearPlant
 from fdisyn.simulation.problem import Batch, Problem, Scenario
-from fdisyn.numerics.account import with_account
+from fdisyn.synthesis.account import with_account
 from fdisyn.runtime.errors import ArgumentError
 from fdisyn.runtime.gainfile import GainFile
 from fdisyn.runtime.trace import Trace

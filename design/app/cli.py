@@ -225,6 +225,7 @@ def _problem(spec: str):  # noqa: ANN202 - Problem
 
 def _cmd_design(a: argparse.Namespace) -> None:
     from fdisyn.runtime.gainfile import write_gain_file
+    from fdisyn.synthesis.kinds import get_kind
 
     opts = _options(a.option)
     out = _output_dir(a.out, "--out")
@@ -232,14 +233,13 @@ def _cmd_design(a: argparse.Namespace) -> None:
     gf = prob.design(a.design, **opts)
     with _user_paths("a writable directory with room for gains.json", ("--out", out)):
         path = write_gain_file(gf, out / "gains.json")
-    what = f"{len(gf.generators)} generators" if gf.kind == "linear" else f"a {gf.kind} step with {gf.step.nstate} states"
-    print(f"wrote {path} ({gf.name}: {what}, certificate passed)")
+    print(f"wrote {path} ({gf.name}: {get_kind(gf.kind).describe(gf)}, certificate passed)")
     from fdisyn.reporting.report import budget_line
     from fdisyn.numerics.account import account_lines
 
     print(budget_line(gf))
 
-    print("\n".join(account_lines(gf.account, gf.kind)))
+    print("\n".join(account_lines(gf.account, get_kind(gf.kind).account_note)))
 
 
 def _cmd_codegen(a: argparse.Namespace) -> None:

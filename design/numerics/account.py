@@ -26,25 +26,31 @@ plant's ``Fx``) — the account states:
 The numbers are computed here from the gain file (generators, evaluators, design model) and, for component faults,
 the plant's ``Fx`` — independently of the design's own computations (a direct solve of ``(I − A) x = b`` for the DC
 gain, a frequency grid for the peak gain, SciPy's noncentral χ²). The account is stored in the gain file's optional
-``account`` block (:func:`with_account`); :func:`account_lines` renders it as ``fdisyn design`` prints it.
+``account`` block (:func:`fdisyn.synthesis.account.with_account`); :func:`account_lines` renders it as ``fdisyn design``
+prints it.
+
+The account is computed on a :class:`BankView` of the diagnoser — its generators, statistics, design model and
+decision table — that its kind supplies (:attr:`fdisyn.synthesis.kinds.DiagnoserKind.account_view`): a bank of linear
+generators is its own view, a Beard filter is one generator with a window-RMS statistic. Nothing here depends on
+which kind it is.
 """
 
 from __future__ import annotations
 
 import math
 import warnings
-from collections.abc import Mapping, Sequence
-from dataclasses import replace
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import scipy.linalg
 import scipy.optimize
 import scipy.stats
-from fdisyn.runtime.errors import ArgumentError
 from fdisyn.runtime.gainfile import ACCOUNT_EFFECTS, ACCOUNT_FORMAT, GainFile
 
-__all__ = ["fault_account", "with_account", "account_lines", "default_bank_of", "ZERO_RTOL", "PROBABILITIES", "NOT_COMPUTED"]
+__all__ = ["BankView", "bank_account", "unaccounted", "account_lines", "default_bank_of", "ZERO_RTOL", "PROBABILITIES",
+           "NUMERIC_FAILURES"]
 
 ZERO_RTOL = 1e-8
 """A transfer (peak or DC gain) counts as zero below this fraction of the size of its terms,
@@ -56,14 +62,7 @@ separates "reaches" from "cancels" in the design's own signature check."""
 PROBABILITIES = (0.95, 0.5)
 """The per-sample detection probabilities of the two smallest sizes (``size``, ``size_50``)."""
 
-NOT_COMPUTED = {
-    "nafdf": "the account is computed for linear diagnosers only: the NAFDF's parameter faults act through a "
-    "nonlinear model, so their effect depends on the operating point (the report's Monte Carlo and fault-size "
-    "sweep measure it)",
-}
-"""Why the account is not computed for a diagnoser kind (printed by ``fdisyn design``, shown on the report)."""
-
-_NUMERIC = (np.linalg.LinAlgError, ValueError, ZeroDivisionError, OverflowError, FloatingPointError, RuntimeError)
+NUMERIC_FAILURES = (np.linalg.LinAlgError, ValueError, ZeroDivisionError, OverflowError, FloatingPointError, RuntimeError)
 """Numerical failures of one transfer or law: the account says so for that fault; the design stands."""
 
 _GRID = 257
@@ -305,14 +304,59 @@ def _statistic_sizes(ev: Any, g: np.ndarray, acov: Any) -> tuple[float | None, f
 
 
 # --------------------------------------------------------------------------- the account
-def _design_plant(gf: GainFile, plant: Any) -> tuple[Any, str | None]:
+@dataclass(frozen=True, eq=False)
+class BankView:
+    """A diagnoser as the account sees it: a bank of linear residual generators, one statistic each, on a model.
+
+    Parameters
+    ----------
+    generators : sequence of Generator
+        The residual generators (canonical form).
+    statistics : sequence
+        One per statistic: its ``kind`` (``"chi2"``, ``"wssr"``, ``"glr"`` or ``"cusum"``: the law its size is
+        computed by), ``generator`` (index into ``generators``) and what that law reads (``threshold``, ``W``,
+        ``dof``, ``window``; a CUSUM's ``directions`` and ``drift``).
+    statistic_names : sequence of str
+        The statistics' names, in order.
+    statistic_kinds : sequence of str
+        How the account names each statistic's size rule (:func:`account_lines`: ``chi2``, ``wssr``, ``glr``,
+        ``cusum`` or ``rms``).
+    model : Mapping
+        The design model: ``A`` and ``C`` (a plant given to the account must have them), the noise ``Q`` and ``R``
+        when the gain file holds them (else they are taken from the plant given), and what the transfers read.
+    persistence : int
+        Consecutive exceedances before a statistic alarms.
+    signatures : ndarray or None
+        The decision table (faults × statistics, 0/1); None: the diagnoser decides otherwise.
+    classes : callable or None
+        ``(gf, entries) -> classes block`` for a diagnoser that does not isolate by a signature table (None: the
+        classes are the groups of equal signatures and the decision table's).
+    default_bank : Mapping or None
+        How the bank was built when none was given (:func:`default_bank_of`); None: given, or no bank.
+    no_noise : str
+        The note when neither the gain file nor the plant gives the noise (no smallest sizes).
+    """
+
+    generators: Sequence[Any]
+    statistics: Sequence[Any]
+    statistic_names: Sequence[str]
+    statistic_kinds: Sequence[str]
+    model: Mapping[str, np.ndarray]
+    persistence: int
+    signatures: np.ndarray | None = None
+    classes: Callable[[GainFile, Sequence[Mapping[str, Any]]], dict[str, Any]] | None = None
+    default_bank: Mapping[str, Any] | None = None
+    no_noise: str = "no smallest sizes: the gain file holds no noise model (give its plant)"
+
+
+def _design_plant(gf: GainFile, view: BankView, plant: Any) -> tuple[Any, str | None]:
     """``plant`` sampled like the gain file's design model (ZOH at ``gf.Ts`` when continuous: exact for a step
     fault, held over the sample) when it is that model (the same ``A`` and ``C``), else ``None`` and why not."""
     if plant is None:
         return None, None
     if getattr(plant, "Ts", None) is None and hasattr(plant, "discretise"):
         plant = plant.discretise(float(gf.Ts))
-    model = gf.plant if gf.kind == "linear" else {k: np.asarray(gf.extensions[gf.kind][k], dtype=float) for k in ("A", "C")}
+    model = view.model
     try:
         a, c = np.asarray(plant.A, dtype=float), np.asarray(plant.C, dtype=float)
     except (AttributeError, TypeError, ValueError):
@@ -327,84 +371,50 @@ def _design_plant(gf: GainFile, plant: Any) -> tuple[Any, str | None]:
     return plant, None
 
 
-def _beard_generator(gf: GainFile) -> Any:
-    """The Beard filter as a canonical generator: ``x̂⁺ = (A − L C) x̂ + (B − L D) u + L y``, ``ε = y − C x̂ − D u``."""
-    from fdisyn.runtime.gainfile import Generator
-
-    p = gf.extensions[gf.kind]
-    a, b, c, d, lg = (np.asarray(p[k], dtype=float) for k in ("A", "B", "C", "D", "L"))
-    return Generator.from_canonical(
-        name="filter", outputs_used=range(c.shape[0]), Ar=a - lg @ c, Bu=b - lg @ d, By=lg, Cr=-c, Du=-d, Dy=np.eye(c.shape[0])
-    )
-
-
-class _RmsStatistic:
-    """The Beard filter's window RMS as a WSSR-like statistic: ``Σ_{l<N} ‖ε‖² > N h²`` (``W = I``)."""
-
-    kind = "wssr"
-
-    generator = 0
-
-    def __init__(self, window: int, h: float, nr: int) -> None:
-        self.window, self.threshold, self.W, self.dof = window, window * h * h, np.eye(nr), nr
-
-
-def fault_account(gf: GainFile, plant: Any = None) -> dict[str, Any] | None:
+def bank_account(gf: GainFile, view: BankView, plant: Any = None) -> dict[str, Any]:
     """What a diagnoser can see, before any Monte Carlo: each fault's effect, its smallest detectable size, the classes.
 
     Parameters
     ----------
     gf : GainFile
-        A linear or ``beard_fdf`` diagnoser. Without ``plant``, a gain file that holds an account returns it.
+        The diagnoser (its outputs, faults, sample time and provenance).
+    view : BankView
+        The diagnoser as a bank of linear generators (its kind's :attr:`~fdisyn.synthesis.kinds.DiagnoserKind.account_view`).
     plant : LinearPlant, optional
         The plant the design was made for (discrete, or continuous: then ZOH-sampled at ``gf.Ts``): its ``Fx`` gives
-        the component faults, its ``units`` the faults' units, its ``Q`` and ``R`` the Beard filter's noise. Without
-        it, the account covers the sensor faults only (and, for a Beard filter, no sizes).
+        the component faults, its ``units`` the faults' units, its ``Q`` and ``R`` the noise when the view has none.
+        Without it, the account covers the sensor faults only.
 
     Returns
     -------
-    dict or None
+    dict
         The ``account`` block of the gain file (see the README's gain-file section): ``faults`` (per fault: ``name``,
         ``type``, ``unit``, ``effect``, ``size``, ``size_50``, ``seen_by`` and per generator ``effect``, ``peak_gain``,
         ``dc_gain``), ``statistics`` (the definition of each statistic's size), ``classes`` (``groups`` of faults the
         bank cannot tell apart with their ``reason``, ``unseen`` faults, the ``decision`` table's classes), ``notes``.
-        ``None`` for a kind the account does not cover (:data:`NOT_COMPUTED` says why).
 
     Raises
     ------
-    ArgumentError
-        ``gf`` is not a :class:`GainFile`.
+    NUMERIC_FAILURES
+        A failure outside one fault's transfer or law (the caller says so in the block: :func:`unaccounted`).
     """
-    if not isinstance(gf, GainFile):
-        raise ArgumentError(f"gf must be a GainFile (from fdisyn.design or read_gain_file); got {type(gf).__name__}")
-    if plant is None and gf.account is not None:
-        return dict(gf.account)
-    if gf.kind not in ("linear", "beard_fdf"):
-        return None
     notes: list[str] = []
     units = dict(getattr(plant, "units", {}) or {})
     comp_names = list(getattr(plant, "component_faults", ()) or ())
-    design, why = _design_plant(gf, plant)
+    design, why = _design_plant(gf, view, plant)
     if why is not None:
         notes.append(f"component faults {comp_names} not accounted for: {why}" if comp_names else why)
     fx = np.asarray(design.Fx, dtype=float) if design is not None and comp_names else None
-    if gf.kind == "linear":
-        gens: list[Any] = list(gf.generators)
-        evs: list[Any] = list(gf.evaluators)
-        model = dict(gf.plant)
-        stat_names = list(gf.step.statistic_names)
-        persistence = int(gf.decision.persistence) if gf.decision is not None else 1
-    else:
-        pay = gf.extensions[gf.kind]
-        gens = [_beard_generator(gf)]
-        evs = [_RmsStatistic(int(pay["window"]), float(pay["h"]), gens[0].n_residual)]
-        stat_names = [gf.step.statistic_names[0]]
-        persistence = int(pay.get("persistence", 1))
-        model = {k: np.asarray(pay[k], dtype=float) for k in ("A", "C")}
+    gens: list[Any] = list(view.generators)
+    evs: list[Any] = list(view.statistics)
+    model = dict(view.model)
+    stat_names = list(view.statistic_names)
+    persistence = int(view.persistence)
+    if "Q" not in model:  # the noise from the plant given
         if design is not None:
             model.update(Q=np.asarray(design.Q, dtype=float), R=np.asarray(design.R, dtype=float))
         else:
-            notes.append("no smallest sizes: the Beard filter's gain file holds no noise model (give its plant)")
+            notes.append(view.no_noise)
     faults: list[tuple[str, str, Any]] = [(o, "sensor", j) for j, o in enumerate(gf.outputs)]
     if fx is not None:
         faults += [(c, "component", fx[:, k]) for k, c in enumerate(comp_names)]
@@ -418,7 +428,7 @@ def fault_account(gf: GainFile, plant: Any = None) -> dict[str, Any] | None:
                 gain = _gains(*_fault_path(gen, model, ftype, col))
                 dcs[gi] = gain.pop("dc")
                 per_gen[gen.name] = gain
-        except _NUMERIC as exc:  # a transfer that cannot be evaluated: said, never a failed design
+        except NUMERIC_FAILURES as exc:  # a transfer that cannot be evaluated: said, never a failed design
             notes.append(f"fault {name}: its transfer to the residuals could not be evaluated ({type(exc).__name__}: {exc})")
             continue
         sizes: list[tuple[float, float | None, str]] = []
@@ -436,13 +446,13 @@ def fault_account(gf: GainFile, plant: Any = None) -> dict[str, Any] | None:
             if ev.kind == "wssr" and si not in acov:
                 try:
                     ac = _autocovariances(gens[gi], model, int(ev.window))
-                except _NUMERIC:
+                except NUMERIC_FAILURES:
                     ac = None
                 small = ac is not None and int(ev.window) * gens[gi].n_residual <= _WINDOW_MAX
                 acov[si] = _window_operator(ev, ac) if small and ac is not None else (None if ac is None else "large")
             try:
                 s95, s50, why_not = _statistic_sizes(ev, dcs[gi], acov.get(si))
-            except _NUMERIC as exc:
+            except NUMERIC_FAILURES as exc:
                 s95, s50, why_not = None, None, f"its law could not be evaluated ({type(exc).__name__}: {exc})"
             if s95 is None:
                 reasons.append(f"{stat_names[si]}: {why_not}")
@@ -468,7 +478,7 @@ def fault_account(gf: GainFile, plant: Any = None) -> dict[str, Any] | None:
                 **({"size_notes": reasons} if reasons else {}),
             }
         )
-    chosen = default_bank_of(gf) if gf.kind == "linear" else None
+    chosen = view.default_bank
     if chosen is not None:
         notes.insert(0, _bank_note(chosen))
     return {
@@ -476,18 +486,18 @@ def fault_account(gf: GainFile, plant: Any = None) -> dict[str, Any] | None:
         "kind": gf.kind,
         "zero_rtol": ZERO_RTOL,
         "persistence": persistence,
-        "statistics": [{"name": stat_names[i], "kind": "rms" if gf.kind != "linear" else ev.kind} for i, ev in enumerate(evs)],
+        "statistics": [{"name": stat_names[i], "kind": view.statistic_kinds[i]} for i in range(len(evs))],
         "faults": entries,
-        "classes": _classes(gf, entries),
+        "classes": _classes(gf, view, entries),
         "notes": notes,
     }
 
 
-def _classes(gf: GainFile, entries: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+def _classes(gf: GainFile, view: BankView, entries: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
     """Groups of faults with equal signatures (persistent generators, generators that see them at all), with why."""
-    if gf.kind != "linear":
-        return _beard_classes(gf, entries)
-    chosen = default_bank_of(gf)
+    if view.classes is not None:
+        return view.classes(gf, entries)
+    chosen = view.default_bank
     left_out = {str(d["sensor"]): str(d["reason"]) for key in ("left_out", "narrowed") for d in (chosen or {}).get(key, [])}
     groups: dict[tuple[tuple[str, ...], tuple[str, ...]], list[str]] = {}
     unseen = []
@@ -512,8 +522,8 @@ def _classes(gf: GainFile, entries: Sequence[Mapping[str, Any]]) -> dict[str, An
             why += "; " + "; ".join(missing)
         merged.append({"faults": names, "reason": why})
     decision = []
-    if gf.kind == "linear" and gf.decision is not None:
-        for f, row in zip(gf.faults, np.asarray(gf.decision.signatures, dtype=int), strict=True):
+    if view.signatures is not None:
+        for f, row in zip(gf.faults, np.asarray(view.signatures, dtype=int), strict=True):
             decision.append({"name": f, "statistics": [gf.step.statistic_names[j] for j in np.flatnonzero(row)]})
     else:
         decision = [{"name": f, "statistics": []} for f in gf.faults]
@@ -570,55 +580,32 @@ def _bank_note(chosen: Mapping[str, Any]) -> str:
     return text
 
 
-def _beard_classes(gf: GainFile, entries: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
-    """A Beard filter's classes are its component faults, told apart by the direction of the residual (each fault's
-    output subspace and its decision cone): those whose cones overlap (the design's cone geometry) merge."""
-    pay = gf.extensions[gf.kind]
-    cones = (pay.get("design") or {}).get("cones") or {}
-    angles = cones.get("axis_angles_deg") or []
-    merged = []
-    for i, j in cones.get("overlapping_pairs") or []:
-        a, b = gf.faults[int(i)], gf.faults[int(j)]
-        apart = f", output directions {float(angles[i][j]):.3g}° apart" if angles else ""
-        merged.append({"faults": [a, b], "reason": f"'{a}' and '{b}': their decision cones overlap{apart}"})
-    names = {e["name"] for e in entries}
-    merged = [g for g in merged if all(f in names for f in g["faults"])]
-    unseen = [e["name"] for e in entries if not e["seen_by"]]
-    return {"groups": merged, "unseen": unseen, "decision": [{"name": f, "statistics": []} for f in gf.faults]}
-
-
-def with_account(gf: GainFile, plant: Any = None) -> GainFile:
-    """``gf`` with its ``account`` block (:func:`fault_account`); unchanged for a kind the account does not cover.
+def unaccounted(gf: GainFile, exc: BaseException) -> dict[str, Any]:
+    """The ``account`` block of a diagnoser whose account failed numerically: empty, with the failure as its note
+    (informational: a design that passed its certificate is not refused for its account).
 
     Parameters
     ----------
     gf : GainFile
-        The certified gain file a design returned.
-    plant : LinearPlant, optional
-        The plant it was designed for (see :func:`fault_account`).
+        The diagnoser.
+    exc : BaseException
+        The failure (one of :data:`NUMERIC_FAILURES`).
 
     Returns
     -------
-    GainFile
-        The same diagnoser (same generators, thresholds and certificate) with ``account`` set.
+    dict
+        An ``account`` block without faults or statistics.
     """
-    if gf.kind not in ("linear", "beard_fdf"):
-        return gf
-    base = replace(gf, account=None) if gf.account is not None else gf
-    try:
-        block = fault_account(base, plant)
-    except _NUMERIC as exc:  # informational: a design that passed its certificate is not refused for its account
-        block = {"format": ACCOUNT_FORMAT, "kind": gf.kind, "zero_rtol": ZERO_RTOL, "statistics": [], "faults": [],
-                 "classes": {"groups": [], "unseen": [], "decision": []},
-                 "notes": [f"not computed: {type(exc).__name__}: {exc}"]}  # fmt: skip
-    return replace(gf, account=block)
+    return {"format": ACCOUNT_FORMAT, "kind": gf.kind, "zero_rtol": ZERO_RTOL, "statistics": [], "faults": [],
+            "classes": {"groups": [], "unseen": [], "decision": []},
+            "notes": [f"not computed: {type(exc).__name__}: {exc}"]}  # fmt: skip
 
 
 def _unit(e: Mapping[str, Any]) -> str:
     return str(e["unit"]) if e.get("unit") else f"in the units of {e['name']}"
 
 
-def account_lines(account: Mapping[str, Any] | None, kind: str = "linear") -> list[str]:
+def account_lines(account: Mapping[str, Any] | None, not_computed: str | None = None) -> list[str]:
     """The account as ``fdisyn design`` prints it: a table (fault, effect, smallest size with its unit, the
     generators that see it) and the classes that merge.
 
@@ -626,8 +613,9 @@ def account_lines(account: Mapping[str, Any] | None, kind: str = "linear") -> li
     ----------
     account : Mapping or None
         A gain file's ``account`` block; ``None``: the kind is not covered (the line says why).
-    kind : str
-        The diagnoser kind (for the line of an uncovered kind).
+    not_computed : str, optional
+        Why the account is not computed for the diagnoser's kind
+        (:attr:`~fdisyn.synthesis.kinds.DiagnoserKind.account_note`), for a ``None`` account.
 
     Returns
     -------
@@ -635,7 +623,7 @@ def account_lines(account: Mapping[str, Any] | None, kind: str = "linear") -> li
         Lines without trailing newlines.
     """
     if account is None:
-        return [f"what the design can see: not computed — {NOT_COMPUTED.get(kind, 'not a linear diagnoser')}"]
+        return [f"what the design can see: not computed — {not_computed or 'not a linear diagnoser'}"]
     kinds = sorted({s["kind"] for s in account["statistics"]})
     rule = {
         "chi2": "χ²: P(J > threshold) = 95 % per sample",
@@ -666,7 +654,7 @@ def account_lines(account: Mapping[str, Any] | None, kind: str = "linear") -> li
     else:
         out.append("faults the bank cannot tell apart: none (every seen fault has its own signature)")
     decision = account["classes"].get("decision", [])
-    if decision and account["kind"] == "linear":
+    if any(c["statistics"] for c in decision):  # a signature table: the statistics that isolate each class
         out.append("the decision table isolates: " + ", ".join(f"'{c['name']}'" for c in decision))
         effect = {e["name"]: e["effect"] for e in account["faults"]}
         onset = [c["name"] for c in decision if c["name"] in effect and effect[c["name"]] != "persistent"]

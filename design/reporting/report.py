@@ -505,12 +505,10 @@ def _design_rows(problem: Problem, variant: Any) -> str:
 def _account_html(gf: Any, problem: Problem | None = None) -> str:
     """What the design can see (the gain file's ``account`` block), folded: per fault its effect, smallest detectable
     size and the generators that see it, then the faults the bank cannot tell apart; for a kind without an account,
-    why (:data:`fdisyn.numerics.account.NOT_COMPUTED`)."""
-    from fdisyn.numerics.account import NOT_COMPUTED
-
+    why (:attr:`fdisyn.synthesis.kinds.DiagnoserKind.account_note`)."""
     acc = getattr(gf, "account", None)
     if acc is None:
-        why = NOT_COMPUTED.get(gf.kind)
+        why = get_kind(gf.kind).account_note
         return f'<p class="small">What the design can see: not computed — {html.escape(why)}.</p>' if why else ""
     kinds = sorted({s["kind"] for s in acc["statistics"]})
     rules = {

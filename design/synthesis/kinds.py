@@ -116,6 +116,11 @@ class DiagnoserKind:
         it is active) — for a diagnoser that adapts its model to the fault, the samples before it can.
     budget_text : str or None
         The page's prose (HTML) on how the kind's false-alarm budget is set (None: the page's general text).
+    account_view : callable or None
+        ``GainFile -> BankView``: the diagnoser as a bank of linear generators, on which the account of what it can
+        see is computed (:mod:`fdisyn.numerics.account`); None: the kind has no account.
+    account_note : str or None
+        Why the kind has no account (printed by ``fdisyn design``, shown on its page).
     """
 
     name: str
@@ -131,6 +136,9 @@ class DiagnoserKind:
     lorden_bound: Callable[[GainFile, np.ndarray, np.ndarray], tuple[float, float] | None] | None = None
     lorden_window: Callable[[GainFile], int] | None = None
     budget_text: str | None = None
+    account_view: Callable[[GainFile], Any] | None = None
+    """``GainFile -> fdisyn.numerics.account.BankView`` (annotated ``Any``: SciPy is not imported here)."""
+    account_note: str | None = None
 
 
 _KINDS: dict[str, DiagnoserKind] = {}

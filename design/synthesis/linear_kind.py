@@ -14,12 +14,13 @@ from typing import Any
 import numpy as np
 from fdisyn.detectors.sequential import lorden_delay
 from fdisyn.models.linear import LinearPlant
+from fdisyn.numerics.account import BankView, default_bank_of
 from fdisyn.runtime.gainfile import GainFile
 from fdisyn.synthesis.kinds import DiagnoserKind, register_kind
 from fdisyn.synthesis.linear_step import linear_step_function
 from fdisyn.synthesis.residual import long_run_covariance
 
-__all__ = ["LINEAR", "design_plant", "lorden_bound", "budget_seconds", "linear_recovery_samples"]
+__all__ = ["LINEAR", "design_plant", "lorden_bound", "budget_seconds", "linear_recovery_samples", "linear_account_view"]
 
 
 def design_plant(gf: GainFile) -> LinearPlant:
@@ -81,6 +82,31 @@ def linear_recovery_samples(gf: GainFile) -> int:
     return max(1, math.ceil(math.log(1e-8) / math.log(rho))) + held
 
 
+def linear_account_view(gf: GainFile) -> BankView:
+    """A linear diagnoser as the account sees it: its own generators and statistics on its design model, its
+    signature table, and how its bank was built when none was given.
+
+    Parameters
+    ----------
+    gf : GainFile
+        A ``linear`` gain file.
+
+    Returns
+    -------
+    BankView
+    """
+    return BankView(
+        generators=list(gf.generators),
+        statistics=list(gf.evaluators),
+        statistic_names=list(gf.step.statistic_names),
+        statistic_kinds=[ev.kind for ev in gf.evaluators],
+        model=gf.plant,
+        persistence=int(gf.decision.persistence) if gf.decision is not None else 1,
+        signatures=None if gf.decision is None else gf.decision.signatures,
+        default_bank=default_bank_of(gf),
+    )
+
+
 def _certified(gf: GainFile) -> list[Mapping[str, Any]]:
     return list(gf.certificate["generators"])
 
@@ -100,6 +126,7 @@ LINEAR = register_kind(
         recovery_samples=linear_recovery_samples,
         false_alarm_budget=budget_seconds,
         lorden_bound=lorden_bound,
+        account_view=linear_account_view,
     )
 )
 """The ``linear`` kind, produced by every linear method (:func:`fdisyn.synthesis.linear_diagnoser.linear_method`,

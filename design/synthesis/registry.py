@@ -208,14 +208,14 @@ def _unknown_kind(method: Method) -> str:
 
 
 def _accounted(design: Callable[..., GainFile]) -> Callable[..., GainFile]:
-    """``design`` followed by the account of what its diagnoser can see (:func:`fdisyn.numerics.account.with_account`,
+    """``design`` followed by the account of what its diagnoser can see (:func:`fdisyn.synthesis.account.with_account`,
     from the plant it was given: its component faults and units), stored in the gain file's ``account`` block.
     Every way of designing through a method (``fdisyn.design``, plant files, the problems) goes through here."""
     if getattr(design, "accounted", False):
         return design
 
     def run(plant: Any, **options: Any) -> GainFile:
-        from fdisyn.numerics.account import with_account
+        from fdisyn.synthesis.account import with_account
 
         with _default_budget_named(isinstance(options.get("arl0"), _DefaultArl0)):
             gf = design(plant, **options)

@@ -1,4 +1,5 @@
-"""The design-time account of what a diagnoser can see (fdisyn.numerics.account), against independent truths:
+"""The design-time account of what a diagnoser can see (fdisyn.numerics.account on its kind's view,
+fdisyn.synthesis.account), against independent truths:
 python-control's DC gain and frequency response, a seeded simulation of the plant and its generator, SciPy's
 noncentral χ² law, and the gain file's reader."""
 
@@ -13,7 +14,10 @@ import numpy as np
 import pytest
 import scipy.stats
 from fdisyn.numerics import account as acc_mod
-from fdisyn.numerics.account import account_lines, fault_account, with_account
+from fdisyn.numerics.account import account_lines
+from fdisyn.synthesis import account as kind_acc
+from fdisyn.synthesis.account import fault_account, with_account
+from fdisyn.synthesis.kinds import get_kind
 from fdisyn.runtime.errors import ArgumentError, GainFileError
 from fdisyn.runtime.gainfile import gain_file_from_dict, gain_file_sha256, read_gain_file
 
@@ -190,7 +194,7 @@ def test_gain_file_block_round_trip_hash_and_validation(motor, tmp_path: Path) -
 def test_nafdf_is_not_accounted_and_says_why() -> None:
     gf = read_gain_file(REPORTS / "ship_propulsion" / "gains" / "ship_propulsion_nafdf.json")
     assert with_account(gf) is gf and fault_account(gf) is None
-    (line,) = account_lines(None, "nafdf")
+    (line,) = account_lines(None, get_kind("nafdf").account_note)
     assert "not computed" in line and "nonlinear" in line
 
 
@@ -246,7 +250,7 @@ def test_a_transfer_that_cannot_be_evaluated_is_said_not_fatal(motor, monkeypatc
     monkeypatch.setattr(acc_mod, "_gains", broken)
     a = with_account(gf).account
     assert a["faults"] == [] and any("could not be evaluated" in n for n in a["notes"])
-    monkeypatch.setattr(acc_mod, "fault_account", lambda *_: (_ for _ in ()).throw(ValueError("bad")))
+    monkeypatch.setattr(kind_acc, "fault_account", lambda *_: (_ for _ in ()).throw(ValueError("bad")))
     b = with_account(gf).account
     assert b["faults"] == [] and b["notes"] == ["not computed: ValueError: bad"]
     assert "not computed" in "\n".join(account_lines(b))

@@ -159,3 +159,35 @@ def test_a_kind_name_is_registered_once() -> None:
     with pytest.raises(ArgumentError, match="a diagnoser kind's name is an identifier"):
         kinds.register_kind(replace(lin, name="two words"))
     assert get_kind("linear") is lin
+
+
+@pytest.mark.parametrize("kind", sorted(EXAMPLE_OF))
+def test_a_kind_has_an_account_view_or_says_why_not(kind: str, designed: dict[str, GainFile]) -> None:
+    """The account (fdisyn.numerics.account) is computed on the view the kind gives of its gain file; a kind
+    without one says why, and ``fdisyn design`` prints that line."""
+    from fdisyn.numerics.account import BankView, account_lines
+    from fdisyn.synthesis.account import fault_account, with_account
+
+    k, gf = get_kind(kind), designed[kind]
+    assert (k.account_view is None) != (k.account_note is None)
+    if k.account_view is None:
+        assert gf.account is None and fault_account(gf) is None and with_account(gf) is gf
+        assert account_lines(None, k.account_note) == [f"what the design can see: not computed — {k.account_note}"]
+        return
+    view = k.account_view(gf)
+    assert isinstance(view, BankView) and len(view.statistics) == len(view.statistic_names) == len(view.statistic_kinds)
+    assert {"A", "C"} <= set(view.model)
+    recomputed = fault_account(replace(gf, account=None))
+    assert recomputed is not None and [s["kind"] for s in recomputed["statistics"]] == list(view.statistic_kinds)
+    assert gf.account is not None and gf.account["kind"] == kind
+
+
+def test_the_account_does_not_ask_which_kind_it_is() -> None:
+    """What differs between kinds comes from their views: the account's code names no diagnoser kind."""
+    import inspect
+
+    from fdisyn.numerics import account
+
+    source = inspect.getsource(account)
+    for name in kinds.kind_names():
+        assert f'"{name}"' not in source and f"'{name}'" not in source, name

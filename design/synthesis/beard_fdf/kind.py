@@ -4,16 +4,17 @@ false-alarm budget."""
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
-from fdisyn.runtime.gainfile import GainFile
+from fdisyn.numerics.account import BankView
+from fdisyn.runtime.gainfile import GainFile, Generator
 from fdisyn.synthesis.beard_fdf.payload import beard_from_gain_file
 from fdisyn.synthesis.beard_fdf.step import beard_step_function
 from fdisyn.synthesis.kinds import DiagnoserKind, register_kind
 
-__all__ = ["BEARD_KIND", "SETTLED", "settling_samples", "beard_budget_seconds", "beard_recovery_samples"]
+__all__ = ["BEARD_KIND", "SETTLED", "settling_samples", "beard_budget_seconds", "beard_recovery_samples", "beard_account_view"]
 
 
 SETTLED = 1e-3
@@ -57,6 +58,70 @@ def beard_budget_seconds(gf: GainFile) -> float | None:
     return None
 
 
+def _beard_generator(gf: GainFile) -> Generator:
+    """The Beard filter as a canonical generator: ``x̂⁺ = (A − L C) x̂ + (B − L D) u + L y``, ``ε = y − C x̂ − D u``."""
+    p = gf.extensions[gf.kind]
+    a, b, c, d, lg = (np.asarray(p[k], dtype=float) for k in ("A", "B", "C", "D", "L"))
+    return Generator.from_canonical(
+        name="filter", outputs_used=range(c.shape[0]), Ar=a - lg @ c, Bu=b - lg @ d, By=lg, Cr=-c, Du=-d, Dy=np.eye(c.shape[0])
+    )
+
+
+class _RmsStatistic:
+    """The Beard filter's window RMS as a WSSR-like statistic: ``Σ_{l<N} ‖ε‖² > N h²`` (``W = I``)."""
+
+    kind = "wssr"
+
+    generator = 0
+
+    def __init__(self, window: int, h: float, nr: int) -> None:
+        self.window, self.threshold, self.W, self.dof = window, window * h * h, np.eye(nr), nr
+
+
+def _beard_classes(gf: GainFile, entries: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+    """A Beard filter's classes are its component faults, told apart by the direction of the residual (each fault's
+    output subspace and its decision cone): those whose cones overlap (the design's cone geometry) merge."""
+    pay = gf.extensions[gf.kind]
+    cones = (pay.get("design") or {}).get("cones") or {}
+    angles = cones.get("axis_angles_deg") or []
+    merged = []
+    for i, j in cones.get("overlapping_pairs") or []:
+        a, b = gf.faults[int(i)], gf.faults[int(j)]
+        apart = f", output directions {float(angles[i][j]):.3g}° apart" if angles else ""
+        merged.append({"faults": [a, b], "reason": f"'{a}' and '{b}': their decision cones overlap{apart}"})
+    names = {e["name"] for e in entries}
+    merged = [g for g in merged if all(f in names for f in g["faults"])]
+    unseen = [e["name"] for e in entries if not e["seen_by"]]
+    return {"groups": merged, "unseen": unseen, "decision": [{"name": f, "statistics": []} for f in gf.faults]}
+
+
+def beard_account_view(gf: GainFile) -> BankView:
+    """The Beard filter as the account sees it: one generator (the filter's output error), its window RMS as a
+    WSSR-like statistic, the design model ``A``, ``C`` (the noise comes from the plant given), its cones' classes.
+
+    Parameters
+    ----------
+    gf : GainFile
+        A ``beard_fdf`` gain file.
+
+    Returns
+    -------
+    BankView
+    """
+    pay = gf.extensions[gf.kind]
+    gen = _beard_generator(gf)
+    return BankView(
+        generators=[gen],
+        statistics=[_RmsStatistic(int(pay["window"]), float(pay["h"]), gen.n_residual)],
+        statistic_names=[gf.step.statistic_names[0]],
+        statistic_kinds=["rms"],
+        model={k: np.asarray(pay[k], dtype=float) for k in ("A", "C")},
+        persistence=int(pay.get("persistence", 1)),
+        classes=_beard_classes,
+        no_noise="no smallest sizes: the Beard filter's gain file holds no noise model (give its plant)",
+    )
+
+
 def _certified(gf: GainFile) -> list[Mapping[str, Any]]:
     return [gf.certificate[gf.kind]]
 
@@ -74,6 +139,7 @@ BEARD_KIND = register_kind(
         describe=_describe,
         recovery_samples=beard_recovery_samples,
         false_alarm_budget=beard_budget_seconds,
+        account_view=beard_account_view,
     )
 )
 """The ``beard_fdf`` kind, produced by the method ``beard_fdf`` (:mod:`fdisyn.synthesis.beard_fdf.method`)."""

@@ -11,7 +11,7 @@ from fdisyn.synthesis.kinds import DiagnoserKind, register_kind
 from fdisyn.synthesis.nafdf.design import nafdf_extra_metrics
 from fdisyn.synthesis.nafdf.payload import nafdf_budget_seconds, nafdf_from_gain_file, nafdf_lorden_bound, nafdf_lorden_window
 
-__all__ = ["NAFDF_KIND", "NAFDF_BUDGET_TEXT"]
+__all__ = ["NAFDF_KIND", "NAFDF_BUDGET_TEXT", "NAFDF_ACCOUNT_NOTE"]
 
 NAFDF_BUDGET_TEXT = (
     '<p class="small">Time between false alarms: fault-free time over the number of alarm episodes, with Garwood\'s exact '
@@ -26,6 +26,13 @@ NAFDF_BUDGET_TEXT = (
     "another parameter.</p>"
 )
 """How a NAFDF's false-alarm budget, its Lorden bound and its isolation figures are read (the report's HTML)."""
+
+NAFDF_ACCOUNT_NOTE = (
+    "the account is computed for linear diagnosers only: the NAFDF's parameter faults act through a "
+    "nonlinear model, so their effect depends on the operating point (the report's Monte Carlo and fault-size "
+    "sweep measure it)"
+)
+"""Why a NAFDF has no account of what it can see (printed by ``fdisyn design``, shown on the report)."""
 
 
 def _step(gf: GainFile) -> Any:
@@ -52,6 +59,7 @@ NAFDF_KIND = register_kind(
         lorden_bound=nafdf_lorden_bound,
         lorden_window=nafdf_lorden_window,
         budget_text=NAFDF_BUDGET_TEXT,
+        account_note=NAFDF_ACCOUNT_NOTE,
     )
 )
 """The ``nafdf`` kind, produced by the method ``nafdf`` (:mod:`fdisyn.synthesis.nafdf.method`)."""
