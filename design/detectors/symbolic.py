@@ -68,17 +68,49 @@ def finite(v: ca.SX) -> ca.SX:
     The one finiteness test of every generated step (linear and NAFDF): written
     with a comparison, which code generation keeps, where ``v != v`` may be
     folded away.
+
+    Parameters
+    ----------
+    v : casadi.SX
+        Any expression.
+
+    Returns
+    -------
+    casadi.SX
+        0 or 1 per entry, the shape of ``v``.
     """
     return ca.fabs(v) < ca.inf
 
 
 def all_finite(*exprs: ca.SX) -> ca.SX:
-    """1 if every entry of every expression is finite (:func:`finite`), else 0."""
+    """1 if every entry of every expression is finite (:func:`finite`), else 0.
+
+    Parameters
+    ----------
+    *exprs : casadi.SX
+        Expressions of any shapes, tested in the order given.
+
+    Returns
+    -------
+    casadi.SX
+        A scalar 0 or 1.
+    """
     return all_of(finite(ca.vertcat(*[ca.vec(ca.SX(e)) for e in exprs])))
 
 
 def any_of(flags: ca.SX) -> ca.SX:
-    """1 if any entry of ``flags`` is nonzero (a chain of ``||`` from the first entry), else 0."""
+    """1 if any entry of ``flags`` is nonzero (a chain of ``||`` from the first entry), else 0.
+
+    Parameters
+    ----------
+    flags : casadi.SX
+        The flags (column-major order).
+
+    Returns
+    -------
+    casadi.SX
+        A scalar 0 or 1.
+    """
     out = ca.SX(0)
     for i in range(flags.numel()):
         out = ca.logic_or(out, flags[i])
@@ -86,7 +118,18 @@ def any_of(flags: ca.SX) -> ca.SX:
 
 
 def all_of(flags: ca.SX) -> ca.SX:
-    """1 if every entry of ``flags`` is nonzero (a chain of ``&&`` from the first entry), else 0."""
+    """1 if every entry of ``flags`` is nonzero (a chain of ``&&`` from the first entry), else 0.
+
+    Parameters
+    ----------
+    flags : casadi.SX
+        The flags (column-major order).
+
+    Returns
+    -------
+    casadi.SX
+        A scalar 0 or 1.
+    """
     out = ca.SX(1)
     for i in range(flags.numel()):
         out = ca.logic_and(out, flags[i])
@@ -95,12 +138,34 @@ def all_of(flags: ca.SX) -> ca.SX:
 
 def constant(a: np.ndarray) -> ca.DM:
     """``a`` as a CasADi constant with its exact zeros dropped (smaller C, and ``x + 0·y == x`` exactly for
-    finite ``y``)."""
+    finite ``y``).
+
+    Parameters
+    ----------
+    a : numpy.ndarray
+        A real matrix or vector.
+
+    Returns
+    -------
+    casadi.DM
+        The sparse constant.
+    """
     return ca.sparsify(ca.DM(np.asarray(a, dtype=float)))
 
 
 def largest(v: ca.SX) -> ca.SX:
-    """The largest entry of ``v`` (column-major order), ``fmax`` folded from the first entry."""
+    """The largest entry of ``v`` (column-major order), ``fmax`` folded from the first entry.
+
+    Parameters
+    ----------
+    v : casadi.SX
+        At least one entry.
+
+    Returns
+    -------
+    casadi.SX
+        A scalar.
+    """
     top = v[0]
     for i in range(1, v.numel()):
         top = ca.fmax(top, v[i])
@@ -108,7 +173,18 @@ def largest(v: ca.SX) -> ca.SX:
 
 
 def window_sum(v: ca.SX) -> ca.SX:
-    """The sum of ``v``'s entries added in order, first (the newest sample of a window) first."""
+    """The sum of ``v``'s entries added in order, first (the newest sample of a window) first.
+
+    Parameters
+    ----------
+    v : casadi.SX
+        At least one entry.
+
+    Returns
+    -------
+    casadi.SX
+        A scalar.
+    """
     total = v[0]
     for i in range(1, v.numel()):
         total = total + v[i]
