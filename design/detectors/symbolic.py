@@ -9,10 +9,12 @@ Every step that offers a detector calls the function of this module for it (the 
 :mod:`fdisyn.synthesis.nafdf.step`; the Beard filter's persistence in
 :mod:`fdisyn.synthesis.beard_fdf.step`); where two steps differ (the NAFDF's WSSR is a mean over the
 samples seen, its CUSUM is tuned to a shift, its sums restart when an alarm is dismissed) the difference
-is an argument or the caller's choice, never a second implementation. Each function performs its
-floating-point operations in the order of the NumPy reference (:mod:`fdisyn.runtime.reference`), the
-independent oracle these updates are tested against. A linear diagnoser's statistic of a given kind is
-looked up in :data:`LINEAR_STATISTICS`, so that its step names no detector.
+is an argument or the caller's choice, never a second implementation. Each function adds, clamps and
+compares in the order of the NumPy reference (:mod:`fdisyn.runtime.reference`), the independent oracle
+these updates are tested against (a window summed newest first, a CUSUM's increment before its drift,
+a GLR's ``d·d·w``); matrix products are CasADi's, which may add their terms in another order than
+NumPy's (round-off only). A linear diagnoser's statistic of a given kind is looked up in
+:data:`LINEAR_STATISTICS`, so that its step names no detector.
 
 ==========  ========================================================================================
 detector    per-sample update
