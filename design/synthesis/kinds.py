@@ -37,6 +37,8 @@ __all__ = [
     "PLUGIN_PACKAGES",
     "ExtraMetrics",
     "DiagnoserKind",
+    "payload_certificate",
+    "step_states",
     "register_kind",
     "get_kind",
     "all_kinds",
@@ -82,6 +84,17 @@ def _no_recovery(gf: GainFile) -> int:
     return 0
 
 
+def payload_certificate(gf: GainFile) -> list[Mapping[str, Any]]:
+    """The certificate block of a kind whose certificate is one block named after it: ``[gf.certificate[gf.kind]]``
+    (the default :attr:`DiagnoserKind.certified`)."""
+    return [gf.certificate[gf.kind]]
+
+
+def step_states(gf: GainFile) -> str:
+    """``"a KIND step with N states"`` (the default :attr:`DiagnoserKind.describe`)."""
+    return f"a {gf.kind} step with {gf.step.nstate} states"
+
+
 @dataclass(frozen=True, eq=False)
 class DiagnoserKind:
     """What the gain files of one diagnoser kind mean downstream of their design.
@@ -94,10 +107,11 @@ class DiagnoserKind:
         One line: what a diagnoser of this kind is.
     step_builder : callable
         ``GainFile -> casadi.Function`` with the step contract (:data:`STEP_INPUTS`, :data:`STEP_OUTPUTS`).
-    certified : callable
-        ``GainFile -> list of Mapping``: the certificate blocks its page shows, each with its ``checks``.
-    describe : callable
-        ``GainFile -> str``: one phrase for the command line (``"3 generators"``).
+    certified : callable, optional
+        ``GainFile -> list of Mapping``: the certificate blocks its page shows, each with its ``checks`` (default:
+        :func:`payload_certificate`).
+    describe : callable, optional
+        ``GainFile -> str``: one phrase for the command line (``"3 generators"``; default: :func:`step_states`).
     rate_unit : str
         How a false-alarm rate ``P_f`` of this kind is worded (``"per sample"``).
     recovery_samples : callable
@@ -127,8 +141,8 @@ class DiagnoserKind:
     summary: str
     step_builder: Callable[[GainFile], Any]
     """``GainFile -> casadi.Function`` (annotated ``Any``: CasADi is not imported here)."""
-    certified: Callable[[GainFile], list[Mapping[str, Any]]]
-    describe: Callable[[GainFile], str]
+    certified: Callable[[GainFile], list[Mapping[str, Any]]] = payload_certificate
+    describe: Callable[[GainFile], str] = step_states
     rate_unit: str = "per sample"
     recovery_samples: Callable[[GainFile], int] = _no_recovery
     extra_metrics: ExtraMetrics | None = None

@@ -222,7 +222,7 @@ def test_the_extra_figures_stream_run_by_run(monkeypatch) -> None:  # noqa: ANN0
     from fdisyn.synthesis.nafdf.design import nafdf_extra_metrics
 
     # a kind without a recovery or a Lorden window: the plan's windows are the scenario's alone
-    plain = kinds.DiagnoserKind(name="no_kind", summary="", step_builder=None, certified=list, describe=str)  # type: ignore[arg-type]
+    plain = kinds.DiagnoserKind(name="no_kind", summary="", step_builder=None)  # type: ignore[arg-type]
     monkeypatch.setitem(kinds._KINDS, "no_kind", plain)
 
     names = ("fault_class_a", "fault_size_a", "insufficient_excitation")

@@ -116,8 +116,7 @@ def test_a_method_discovered_before_its_kind_is_checked_once_discovery_is_done(t
             from fdisyn.synthesis.kinds import DiagnoserKind, get_kind, register_kind
 
             lin = get_kind("linear")
-            register_kind(DiagnoserKind(name="late", summary="the linear kind under another name", step_builder=lin.step_builder,
-                                        certified=lin.certified, describe=lin.describe))
+            register_kind(DiagnoserKind(name="late", summary="the linear kind under another name", step_builder=lin.step_builder))
             """
         )
     )

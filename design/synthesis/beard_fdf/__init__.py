@@ -2,7 +2,8 @@
 
 ``payload`` (the filter and the gain file's ``beard_fdf`` payload), ``step`` (the CasADi step),
 ``reference`` (its NumPy twin), ``method`` (the design method ``beard_fdf`` of
-:mod:`fdisyn.synthesis.registry`).
+:mod:`fdisyn.synthesis.registry`), ``kind`` (the ``beard_fdf`` diagnoser kind of :mod:`fdisyn.synthesis.kinds`:
+its recovery window, budget and account view).
 """
 
 from fdisyn.synthesis.beard_fdf.payload import BeardFilter, beard_from_gain_file, beard_gain_file, beard_names

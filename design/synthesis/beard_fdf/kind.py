@@ -122,21 +122,11 @@ def beard_account_view(gf: GainFile) -> BankView:
     )
 
 
-def _certified(gf: GainFile) -> list[Mapping[str, Any]]:
-    return [gf.certificate[gf.kind]]
-
-
-def _describe(gf: GainFile) -> str:
-    return f"a {gf.kind} step with {gf.step.nstate} states"
-
-
 BEARD_KIND = register_kind(
     DiagnoserKind(
         name="beard_fdf",
         summary="a Beard fault detection filter: fault-specific output directions, a window RMS and robust decision cones",
         step_builder=beard_step_function,
-        certified=_certified,
-        describe=_describe,
         recovery_samples=beard_recovery_samples,
         false_alarm_budget=beard_budget_seconds,
         account_view=beard_account_view,

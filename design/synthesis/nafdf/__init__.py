@@ -2,7 +2,8 @@
 
 ``settings`` (options, validation, state layout), ``step`` (the CasADi step, fig. 1),
 ``design`` (design and certificate), ``payload`` (the gain file's ``nafdf`` payload),
-``method`` (the design method ``nafdf`` of :mod:`fdisyn.synthesis.registry`).
+``method`` (the design method ``nafdf`` of :mod:`fdisyn.synthesis.registry`), ``kind`` (the ``nafdf``
+diagnoser kind of :mod:`fdisyn.synthesis.kinds`).
 """
 
 from fdisyn.synthesis.nafdf.design import NafdfDesign, nafdf, nafdf_extra_metrics

@@ -3,7 +3,6 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from typing import Any
 
 from fdisyn.runtime.gainfile import GainFile
@@ -39,21 +38,11 @@ def _step(gf: GainFile) -> Any:
     return nafdf_from_gain_file(gf).step
 
 
-def _certified(gf: GainFile) -> list[Mapping[str, Any]]:
-    return [gf.certificate[gf.kind]]
-
-
-def _describe(gf: GainFile) -> str:
-    return f"a {gf.kind} step with {gf.step.nstate} states"
-
-
 NAFDF_KIND = register_kind(
     DiagnoserKind(
         name="nafdf",
         summary="an EKF on the nonlinear model, a WSSR, CUSUM or GLR on its innovation, parameter re-estimation and Bayes classification",
         step_builder=_step,
-        certified=_certified,
-        describe=_describe,
         extra_metrics=nafdf_extra_metrics,
         false_alarm_budget=nafdf_budget_seconds,
         lorden_bound=nafdf_lorden_bound,
