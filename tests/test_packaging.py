@@ -1,6 +1,7 @@
 """The wheel carries every subpackage: ``pyproject.toml`` lists packages by hand (the folders are mapped
 onto ``fdisyn``), so a new subpackage that is not listed would be missing from a non-editable install.
-It carries the example plant files too, and it installs the runtime alone (NumPy) unless the extra
+It carries the example plant files and the two references (``examples/PLANT_FILES.md``,
+``runtime/REFERENCE.md``) too, and it installs the runtime alone (NumPy) unless the extra
 ``design`` is asked for."""
 
 from __future__ import annotations
@@ -62,11 +63,14 @@ def wheel(tmp_path_factory: pytest.TempPathFactory) -> Path:
 @pytest.mark.slow
 def test_the_wheel_carries_the_examples_and_installs_the_runtime_alone(wheel: Path, tmp_path: Path) -> None:
     from fdisyn.app import DESIGN_PACKAGES
-    from fdisyn.app.examples import EXAMPLES, example_names
+    from fdisyn.app.examples import EXAMPLES, PLANT_FILES, example_names
 
     with zipfile.ZipFile(wheel) as zf:
         for name in example_names():
             assert zf.read(f"fdisyn/examples/{name}.toml") == (EXAMPLES / f"{name}.toml").read_bytes(), name
+        # the references: the plant files' beside the examples, the formats' with the runtime
+        assert zf.read("fdisyn/examples/PLANT_FILES.md") == PLANT_FILES.read_bytes()
+        assert zf.read("fdisyn/runtime/REFERENCE.md") == (ROOT / "runtime" / "REFERENCE.md").read_bytes()
         (meta,) = [n for n in zf.namelist() if n.endswith(".dist-info/METADATA")]
         requires = [ln.split(":", 1)[1].strip() for ln in zf.read(meta).decode().splitlines() if ln.startswith("Requires-Dist:")]
         site = tmp_path / "site"
@@ -77,10 +81,11 @@ def test_the_wheel_carries_the_examples_and_installs_the_runtime_alone(wheel: Pa
     work = tmp_path / "work"
     work.mkdir()
     code = "import sys\n" + "".join(f"sys.modules[{n!r}] = None\n" for n in DESIGN_PACKAGES) + (
-        "import fdisyn\nfrom fdisyn.app.cli import main\nprint(fdisyn.__file__)\nsys.exit(main(['example', 'ship']))\n"
+        "import fdisyn\nfrom fdisyn.app.cli import main\nprint(fdisyn.__file__)\nsys.exit(main(['example', 'ship']) or main(['example', '--reference']))\n"
     )
     env = {**os.environ, "PYTHONPATH": str(site)}
     proc = subprocess.run([sys.executable, "-c", code], cwd=work, env=env, capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     assert Path(proc.stdout.splitlines()[0]).is_relative_to(site)  # the wheel's files, not the source tree
     assert (work / "ship.toml").read_bytes() == (EXAMPLES / "ship.toml").read_bytes()
+    assert proc.stdout.endswith(PLANT_FILES.read_text(encoding="utf-8"))  # the reference, runtime-only too

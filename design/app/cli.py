@@ -11,8 +11,8 @@
     fdisyn reproduce [SPEC ...] [--runs N] [MONTE CARLO]
     fdisyn bench [SPEC ...] [--sdp] [--out reports/bench.md] [--monte-carlo [--mc-runs N] [--rss-runs N,…]]
     fdisyn list
-    fdisyn methods
-    fdisyn example [NAME [--out PATH] [--force]]
+    fdisyn methods [NAME] [--option PATTERN] [--plant-kind KIND]
+    fdisyn example [NAME [--out PATH] [--force]] [--reference]
     fdisyn --version
 
 ``MONTE CARLO`` is ``[--workers N] [--scheduler local|dask] [--address
@@ -49,6 +49,7 @@ from __future__ import annotations
 
 import argparse
 import errno
+import fnmatch
 import json
 import os
 import re
@@ -413,8 +414,13 @@ def _cmd_list(a: argparse.Namespace) -> None:
 
 
 def _cmd_example(a: argparse.Namespace) -> None:
-    from fdisyn.app.examples import example_names, example_title, write_example
+    from fdisyn.app.examples import example_names, example_title, plant_file_reference, write_example
 
+    if a.reference:
+        if a.name is not None or a.out is not None or a.force:
+            raise ArgumentError("--reference takes no NAME, --out or --force; expected fdisyn example --reference alone")
+        sys.stdout.write(plant_file_reference())
+        return
     if a.name is None:
         if a.out is not None or a.force:
             raise ArgumentError("--out and --force need the NAME of an example; fdisyn example lists them")
@@ -428,15 +434,59 @@ def _cmd_example(a: argparse.Namespace) -> None:
 
 
 def _cmd_methods(a: argparse.Namespace) -> None:
-    from fdisyn.synthesis.registry import REQUIRED, all_methods
+    from fdisyn.synthesis.registry import PLANT_KINDS, REQUIRED, all_methods, get_method
 
-    for m in all_methods():
+    methods = [get_method(a.name)] if a.name is not None else all_methods()
+    if a.plant_kind is not None:
+        if a.plant_kind not in PLANT_KINDS:
+            raise ArgumentError(f"--plant-kind {shown(a.plant_kind)}: expected one of {', '.join(PLANT_KINDS)}")
+        methods = [m for m in methods if m.plant_kind == a.plant_kind]
+        if not methods:
+            raise ArgumentError(
+                f"method {a.name!r} designs for {get_method(a.name).plant_kind} plants, not {a.plant_kind}; "
+                f"expected fdisyn methods {a.name} alone, or fdisyn methods --plant-kind {a.plant_kind}"
+            )
+
+    def default(o: Any) -> str:
+        return "required" if o.default is REQUIRED else repr(o.default)
+
+    if a.name is None and a.option is None:  # the listing: one line per option
+        for m in methods:
+            print(f"{m.name} ({m.plant_kind} plant): {m.summary}")
+            print(f"  reference: {m.reference}")
+            for o in m.options:
+                given = "required" if o.default is REQUIRED else f"default {default(o)}"
+                where = f"; a plant file takes it from {o.plant_file}" if o.plant_file else ""
+                print(f"  {o.name} ({given}): {o.doc}; {o.kind}{where}")
+        return
+    pattern = "*" if a.option is None else a.option.lower()
+
+    def matches(name: str) -> bool:
+        return fnmatch.fnmatchcase(name.lower(), pattern) or pattern in name.lower()
+
+    chosen = [(m, [o for o in m.options if matches(o.name)]) for m in methods]
+    if not any(opts for _, opts in chosen):
+        names = sorted({o.name for m in methods for o in m.options})
+        raise ArgumentError(f"--option {shown(a.option)} matches no option; expected a name or a pattern such as 'P_*' matching one of {', '.join(names)}")
+    width = max(len("option"), *(len(o.name) for _, opts in chosen for o in opts))
+    dwidth = max(len("default"), *(len(default(o)) for _, opts in chosen for o in opts))
+    indent = " " * (4 + width + 2 + dwidth + 2)
+    first = True
+    for m, opts in chosen:
+        if not opts:
+            continue
+        if not first:
+            print()
+        first = False
         print(f"{m.name} ({m.plant_kind} plant): {m.summary}")
+        print(f"  plant: {PLANT_KINDS[m.plant_kind]}")
         print(f"  reference: {m.reference}")
-        for o in m.options:
-            default = "required" if o.default is REQUIRED else f"default {o.default!r}"
-            where = f"; a plant file takes it from {o.plant_file}" if o.plant_file else ""
-            print(f"  {o.name} ({default}): {o.doc}; {o.kind}{where}")
+        print(f"    {'option':<{width}}  {'default':<{dwidth}}  expected / meaning")
+        for o in opts:
+            head = f"    {o.name:<{width}}  {default(o):<{dwidth}}  "
+            doc = o.doc + (f" (a plant file: {o.plant_file})" if o.plant_file else "")
+            for text, first_indent in ((o.kind, head), (doc, indent)):  # words stay whole: formulas keep their hyphens
+                print(textwrap.fill(text, 119, initial_indent=first_indent, subsequent_indent=indent, break_on_hyphens=False, break_long_words=False))
 
 
 class _Parser(argparse.ArgumentParser):
@@ -652,23 +702,37 @@ def _parser() -> argparse.ArgumentParser:
         "list the design methods with their plant kind, reference and options",
         "List every registered design method: the plant it designs for, its summary, the paper it implements and each "
         "option with its default and meaning. A plant file names one in [design].method; Python passes it to "
-        "fdisyn.design(plant, method=...).",
+        "fdisyn.design(plant, method=...). With NAME, that method's option table: each option's name, default, the "
+        "values it accepts and its meaning; --option PATTERN keeps the options whose name matches PATTERN (a shell "
+        "pattern such as 'P_*', or a part of the name, in any case), --plant-kind KIND the methods for one plant "
+        "kind (linear, continuous, nonlinear).",
         "fdisyn methods",
+        "fdisyn methods kalman_uio",
+        "fdisyn methods nafdf --option window",
+        "fdisyn methods --option arl0",
+        "fdisyn methods --plant-kind continuous",
     )
+    p.add_argument("name", nargs="?", default=None, metavar="NAME", help="the method whose option table to print (fdisyn methods lists them)")
+    p.add_argument("--option", default=None, metavar="PATTERN", help="only the options whose name matches PATTERN ('P_*', 'window'), as a table")
+    p.add_argument("--plant-kind", default=None, metavar="KIND", help="only the methods for this plant kind: linear, continuous or nonlinear")
     p.set_defaults(fn=_cmd_methods)
 
     p = command(
         "example",
         "write an example plant file (none: list them)",
         "Write the example plant file NAME (a TOML file to read, change and design) to --out (default NAME.toml in the "
-        "current directory); without NAME, list the examples. An existing file is replaced only with --force.",
+        "current directory); without NAME, list the examples. An existing file is replaced only with --force. "
+        "--reference prints the plant-file reference (every key of a plant file, what fdisyn design prints, how the "
+        "Monte Carlo runs; installed as PLANT_FILES.md beside the examples).",
         "fdisyn example",
         "fdisyn example dc_motor",
         "fdisyn example ship --out my_ship.toml",
+        "fdisyn example --reference > PLANT_FILES.md",
     )
     p.add_argument("name", nargs="?", default=None, metavar="NAME", help="the example to write (fdisyn example lists them)")
     p.add_argument("--out", default=None, metavar="PATH", help="the file to write (default: NAME.toml)")
     p.add_argument("--force", action="store_true", help="replace PATH if it exists")
+    p.add_argument("--reference", action="store_true", help="print the plant-file reference (PLANT_FILES.md) instead")
     p.set_defaults(fn=_cmd_example)
     return ap
 

@@ -1,9 +1,11 @@
 """The example plant files shipped in the package (``fdisyn/examples/*.toml``) and ``fdisyn example``.
 
-They are the plant files the README shows and the tests design: ``dc_motor`` (the README's linear plant),
+They are the plant files the plant-file reference (``PLANT_FILES.md`` beside them) shows and the tests design:
+``dc_motor`` (the reference's linear plant),
 ``sampled_data`` (Qiu, Wen & Jiang 2010, Control Theory & Applications 27(8), section 4), ``ship`` (Zhou,
 Xi & Zhang c. 1991, Shanghai Jiao Tong University, eq. (3.1)) and ``beard_textbook`` (a Beard filter).
-``fdisyn example NAME`` copies one into the current directory to be read and changed. Nothing here
+``fdisyn example NAME`` copies one into the current directory to be read and changed; ``fdisyn example
+--reference`` prints the reference. Nothing here
 needs more than the standard library, so the command works in a runtime-only installation too.
 """
 
@@ -14,10 +16,14 @@ from pathlib import Path
 
 from fdisyn.runtime.errors import ArgumentError, FileError
 
-__all__ = ["EXAMPLES", "example_names", "example_path", "example_title", "write_example"]
+__all__ = ["EXAMPLES", "PLANT_FILES", "example_names", "example_path", "example_title", "plant_file_reference", "write_example"]
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 """The folder of the example plant files: ``fdisyn/examples`` (``design/examples`` in the source tree)."""
+
+PLANT_FILES = EXAMPLES / "PLANT_FILES.md"
+"""The plant-file reference, shipped beside the examples: every key of a plant file, the methods' keys and limits,
+what ``fdisyn design`` prints and how the Monte Carlo runs (``fdisyn example --reference`` prints it)."""
 
 
 def example_names() -> list[str]:
@@ -37,6 +43,28 @@ def example_title(name: str) -> str:
     """The example's ``title`` (its ``name`` when it has none)."""
     doc = tomllib.loads(example_path(name).read_text(encoding="utf-8"))
     return str(doc.get("title") or doc.get("name") or name)
+
+
+def plant_file_reference() -> str:
+    """The plant-file reference, :data:`PLANT_FILES`, as text.
+
+    Returns
+    -------
+    str
+        The document (Markdown, UTF-8).
+
+    Raises
+    ------
+    FileError
+        The installation lacks the document (a package built without its data files).
+    """
+    try:
+        return PLANT_FILES.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise FileError(
+            f"cannot read the plant-file reference {PLANT_FILES}: {exc.strerror or exc}; expected it installed with "
+            "fdisyn's examples: reinstall fdisyn (python3 -m pip install .)"
+        ) from None
 
 
 def write_example(name: str, out: str | Path | None = None, *, force: bool = False) -> Path:

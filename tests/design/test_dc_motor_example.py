@@ -1,26 +1,24 @@
-"""The README's plant-file example (the example ``dc_motor``) is a good one: the file the
-README shows, fault-free runs that alarm at the rate ``P_f`` promises (from the first sample
+"""The plant-file reference's example (the example ``dc_motor``) is a good one: the file the
+reference shows, fault-free runs that alarm at the rate ``P_f`` promises (from the first sample
 on), and a speed-sensor offset detected and isolated in every run."""
 
 from __future__ import annotations
 
 import re
-from pathlib import Path
 
 import numpy as np
 import pytest
-from fdisyn.app.examples import EXAMPLES
+from fdisyn.app.examples import EXAMPLES, PLANT_FILES
 from fdisyn.simulation.plant_file import load_spec
 from fdisyn.evaluation.evaluate import evaluate
 from fdisyn.evaluation.metrics import binomial_interval
 
-ROOT = Path(__file__).parents[2]
 EXAMPLE = EXAMPLES / "dc_motor.toml"
 RUNS = 20
 
 
-def test_the_readme_shows_the_example_file_verbatim() -> None:
-    blocks = re.findall(r"```toml\n(.*?)```", (ROOT / "README.md").read_text(encoding="utf-8"), flags=re.S)
+def test_the_reference_shows_the_example_file_verbatim() -> None:
+    blocks = re.findall(r"```toml\n(.*?)```", PLANT_FILES.read_text(encoding="utf-8"), flags=re.S)
     motor = [b for b in blocks if b.startswith('name = "dc_motor"')]
     assert motor == [EXAMPLE.read_text(encoding="utf-8")]
 

@@ -1,4 +1,4 @@
-"""The method registry: the README's method tables equal it, its schemas are enforced,
+"""The method registry: the README's method table and ``fdisyn methods NAME`` equal it, its schemas are enforced,
 and one module that registers a method is all a new method needs."""
 
 from __future__ import annotations
@@ -33,17 +33,6 @@ def method_rows() -> list[list[str]]:
     return [[f"`{m.name}`", m.plant_kind, _cell(m.summary), _cell(m.reference)] for m in registry.all_methods()]
 
 
-def option_rows() -> list[list[str]]:
-    """The README's option table, as the registry has it: one row per option of each method."""
-    rows = []
-    for m in registry.all_methods():
-        for o in m.options:
-            default = "required" if o.default is REQUIRED else f"`{o.default!r}`"
-            doc = o.doc + (f" (a plant file: {o.plant_file})" if o.plant_file else "")
-            rows.append([f"`{m.name}`", f"`{o.name}`", default, _cell(o.kind), _cell(doc)])
-    return rows
-
-
 def _table(text: str, header: str) -> list[list[str]]:
     lines = text.splitlines()
     start = next(i for i, ln in enumerate(lines) if ln.startswith(f"| {header} |"))
@@ -55,14 +44,30 @@ def _table(text: str, header: str) -> list[list[str]]:
     return rows
 
 
-def test_the_readme_tables_are_the_registry() -> None:
+def test_the_readme_method_table_is_the_registry() -> None:
     text = README.read_text(encoding="utf-8")
-    section = text[text.index("\n## Methods\n") :]
+    section = text[text.index("\n## Choosing a method and a detector\n") :]
     section = section[: section.index("\n## ", 5)]
     assert _table(section, "method") == method_rows()
-    assert _table(section, "method | option") == option_rows()
 
 
+@pytest.mark.parametrize("name", registry.method_names())
+def test_the_option_table_of_each_method_is_the_registry(name, capsys) -> None:
+    """``fdisyn methods NAME`` (the option tables the README used to hold) prints every option of the method with
+    its default, its domain and its doc, in the registry's order."""
+    assert main(["methods", name]) == 0
+    out = " ".join(capsys.readouterr().out.split())  # the table wraps its cells
+    m = registry.get_method(name)
+    assert out.startswith(f"{name} ({m.plant_kind} plant): {' '.join(m.summary.split())}")
+    assert f"reference: {' '.join(m.reference.split())}" in out
+    at = 0
+    for o in m.options:
+        default = "required" if o.default is REQUIRED else repr(o.default)
+        doc = o.doc + (f" (a plant file: {o.plant_file})" if o.plant_file else "")
+        row = " ".join(f"{o.name} {default} {o.kind} {doc}".split())
+        found = out.find(row, at)
+        assert found > at, (name, o.name, row)
+        at = found
 def test_builtin_methods_register_themselves() -> None:
     names = registry.method_names()
     for name in ("kalman_uio", "kalman_uio_paper", "uio_pole_placement", "sampled_data_observer", "lmi", "nafdf"):

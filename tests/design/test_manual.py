@@ -1,0 +1,135 @@
+"""The README is a manual, and the references hold the rest: the README's outline, length and first two commands;
+the formats in the runtime's reference and the plant files in the reference beside the examples, each path they
+name present in the source tree; ``fdisyn methods NAME`` and ``fdisyn example --reference`` serving them."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+from fdisyn.app.cli import main
+from fdisyn.app.examples import PLANT_FILES
+
+ROOT = Path(__file__).parents[2]
+README = ROOT / "README.md"
+REFERENCE = ROOT / "runtime" / "REFERENCE.md"
+
+OUTLINE = [
+    "The two commands", "Install", "Python", "Command line", "Choosing a method and a detector", "Deploying",
+    "Reproducing the papers", "Errors", "Layout",
+]
+
+
+def _headings(path: Path, level: str = "## ") -> list[str]:
+    text = re.sub(r"```.*?```", "", path.read_text(encoding="utf-8"), flags=re.S)
+    return [ln[len(level) :] for ln in text.splitlines() if ln.startswith(level)]
+
+
+def _err(capsys) -> str:  # noqa: ANN001 - pytest's capsys
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1, err
+    return err
+
+
+def test_the_readme_is_a_manual_of_about_250_lines() -> None:
+    text = README.read_text(encoding="utf-8")
+    assert len(text.splitlines()) <= 300
+    assert _headings(README) == OUTLINE
+    assert "| method | option |" not in text  # the option tables are fdisyn methods NAME's
+    for word in ("arl0", "P_f", "chi2", "wssr", "cusum", "glr", "sensor", "component", "parameter", "FDISYN_DEBUG"):
+        assert word in text, word
+
+
+def test_the_first_two_commands_are_the_main_job_and_the_tests() -> None:
+    """.ci/run runs the second; the first is the main job the reports come from."""
+    blocks = re.findall(r"```sh\n(.*?)```", README.read_text(encoding="utf-8"), flags=re.S)
+    assert blocks[:2] == ["python3 -m pip install '.[design]' && fdisyn reproduce\n", "python3 -m pip install '.[dev]' && python3 -m pytest\n"]
+    assert "python3 -m pip install '.[dev]' && python3 -m pytest" in (ROOT / ".ci" / "run").read_text(encoding="utf-8")
+
+
+def test_the_references_hold_the_moved_sections() -> None:
+    assert _headings(REFERENCE) == [
+        "Names", "The gain file (`DIR/gains.json`, format `fdisyn.gains/1`)", "The C API (`DIR/c/<name>.h`)",
+        "Replay CSV grammar", "Errors",
+    ]
+    assert _headings(PLANT_FILES) == [
+        "Your own plant: the TOML format", "Methods", "What the design can see", "The command line in detail",
+        "The reports", "References",
+    ]
+    assert _headings(PLANT_FILES, "### ") == [
+        "A nonlinear plant (the NAFDF)", "A generalised UIO bank (`kalman_uio_gos`)", "A Beard filter (`beard_fdf`)",
+    ]
+
+
+@pytest.mark.parametrize("doc", [README, REFERENCE, PLANT_FILES], ids=lambda p: p.name)
+def test_every_source_path_a_document_names_exists(doc: Path) -> None:
+    """Modules move: a path the manual or a reference names in the source tree must still be there."""
+    paths = set(re.findall(r"`((?:design|runtime|problems|tests|reports)/[A-Za-z0-9_./-]*)`", doc.read_text(encoding="utf-8")))
+    assert paths, doc
+    assert sorted(p for p in paths if not (ROOT / p).exists()) == []
+
+
+def test_the_c_api_reference_declares_what_the_header_declares() -> None:
+    header = (ROOT / "runtime" / "c" / "diagnoser.h.in").read_text(encoding="utf-8")
+    section = REFERENCE.read_text(encoding="utf-8").split("## The C API", 1)[1].split("\n## ", 1)[0]
+    for macro in re.findall(r"#define @PREFIX@_(\w+)", header):
+        if macro != "H":  # the include guard
+            assert f"<NAME>_{macro}" in section, macro
+    for symbol in re.findall(r"@prefix@_(\w+)\s*[\[(]", header):
+        assert f"<name>_{symbol}" in section, symbol
+
+
+def test_example_reference_prints_the_plant_file_reference(capsys) -> None:
+    assert main(["example", "--reference"]) == 0
+    assert capsys.readouterr().out == PLANT_FILES.read_text(encoding="utf-8")
+
+
+@pytest.mark.parametrize("argv", [["example", "dc_motor", "--reference"], ["example", "--reference", "--force"]])
+def test_example_reference_takes_nothing_else(argv, tmp_path, monkeypatch, capsys) -> None:
+    monkeypatch.chdir(tmp_path)
+    assert main(argv) == 2
+    assert "fdisyn example: error: --reference takes no NAME, --out or --force" in _err(capsys)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_methods_name_prints_its_option_table(capsys) -> None:
+    assert main(["methods", "nafdf"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].startswith("nafdf (nonlinear plant): nonlinear adaptive fault detection filter")
+    assert lines[1] == "  plant: a NonlinearPlant"
+    assert lines[3].split() == ["option", "default", "expected", "/", "meaning"]
+    assert lines[4].split()[:3] == ["P_f", "None", "a"]
+    assert not any(ln.startswith("kalman_uio") for ln in lines)
+
+
+def test_methods_option_filters_by_name_or_pattern(capsys) -> None:
+    assert main(["methods", "nafdf", "--option", "WINDOW"]) == 0  # a part of the name, in any case
+    rows = [ln.split()[0] for ln in capsys.readouterr().out.splitlines() if ln.startswith("    ") and not ln.startswith("     ")]
+    assert rows == ["option", "window", "classifier_window"]
+    assert main(["methods", "--option", "P_*"]) == 0  # a shell pattern, over every method
+    out = capsys.readouterr().out
+    heads = [ln.split(" ", 1)[0] for ln in out.splitlines() if ln and not ln.startswith(" ")]
+    assert heads == ["beard_fdf", "kalman_uio", "kalman_uio_gos", "kalman_uio_paper", "lmi", "nafdf", "sampled_data_observer", "uio_pole_placement"]
+    rows = {ln.split()[0] for ln in out.splitlines() if ln.startswith("    ") and not ln.startswith("     ")}
+    assert rows == {"option", "P_f"}
+
+
+def test_methods_plant_kind_keeps_one_kind(capsys) -> None:
+    assert main(["methods", "--plant-kind", "continuous"]) == 0
+    heads = [ln.split(" ", 1)[0] for ln in capsys.readouterr().out.splitlines() if not ln.startswith(" ")]
+    assert heads == ["lmi", "sampled_data_observer"]
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["methods", "kalman"], "fdisyn methods: error: no design method 'kalman'; methods: ['beard_fdf', 'kalman_uio', 'kalman_uio_gos', "),
+        (["methods", "--plant-kind", "discrete"], "fdisyn methods: error: --plant-kind 'discrete': expected one of linear, continuous, nonlinear"),
+        (["methods", "nafdf", "--plant-kind", "linear"], "method 'nafdf' designs for nonlinear plants, not linear"),
+        (["methods", "lmi", "--option", "poles"], "--option 'poles' matches no option; expected a name or a pattern such as 'P_*' matching one of P_f, Ts,"),
+    ],
+)
+def test_a_refused_method_or_filter_is_one_line(argv, message, capsys) -> None:
+    assert main(argv) == 2
+    assert message in _err(capsys)
