@@ -6,7 +6,7 @@ true fault and the unknown inputs for reference).
 
 Both replays — ``fdisyn replay`` (this module) and the generated C program
 ``DIR/replay`` (``runtime/c/replay.c.in``) — read one grammar, written down in
-the README ("Replay CSV grammar") and implemented here and there step by step
+``runtime/REFERENCE.md`` ("Replay CSV grammar") and implemented here and there step by step
 in the same order, so that a file is either read identically by both or
 refused by both with the same message:
 

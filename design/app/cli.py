@@ -26,7 +26,7 @@ argument (``--runs``, ``--seed``, ``--workers``, ``--mc-runs``,
 script's digits.
 
 ``SPEC`` is a built-in problem name (``fdisyn list``) or the path of a TOML
-plant file (see the README); ``fdisyn <command> --help`` describes every
+plant file (``fdisyn example --reference``); ``fdisyn <command> --help`` describes every
 argument and shows examples. Errors a user can act on end the command with
 status 2 and one line on stderr, ``fdisyn <command>: error: …``, naming what
 is wrong and what was expected: every :class:`FdisynError` (see
@@ -594,7 +594,7 @@ def _parser() -> argparse.ArgumentParser:
         "replay",
         "run DIR's compiled diagnoser over a trace CSV",
         "Stream IN.csv through the compiled diagnoser of DIR into OUT.csv (t, alarm, isolated, J0…, r0…), "
-        "byte for byte what DIR/replay writes; the README's \"Replay CSV grammar\" is the input format.",
+        "byte for byte what DIR/replay writes; the runtime reference's \"Replay CSV grammar\" (runtime/REFERENCE.md) is the input format.",
         "fdisyn replay motor trace.csv alarms.csv",
     )
     p.add_argument("dir", metavar="DIR", help="the directory fdisyn codegen built (gains.json and lib<name>.so)")

@@ -388,7 +388,7 @@ def bank_account(gf: GainFile, view: BankView, plant: Any = None) -> dict[str, A
     Returns
     -------
     dict
-        The ``account`` block of the gain file (see the README's gain-file section): ``faults`` (per fault: ``name``,
+        The ``account`` block of the gain file (see the gain-file section of ``runtime/REFERENCE.md``): ``faults`` (per fault: ``name``,
         ``type``, ``unit``, ``effect``, ``size``, ``size_50``, ``seen_by`` and per generator ``effect``, ``peak_gain``,
         ``dc_gain``), ``statistics`` (the definition of each statistic's size), ``classes`` (``groups`` of faults the
         bank cannot tell apart with their ``reason``, ``unseen`` faults, the ``decision`` table's classes), ``notes``.

@@ -25,7 +25,7 @@ The TOML format (every key is validated; errors name the key)::
     R = [[...]]                       # sensor noise covariance per sample
     state_scale = [...]               # optional typical state magnitudes (conditioning)
 
-    [design]                          # the method and its options (``fdisyn methods``, README "Methods")
+    [design]                          # the method and its options (``fdisyn methods NAME``)
     method = "kalman_uio"             # default; a linear method (sampled_data_observer, lmi: continuous models)
     arl0 = 3600.0                     # mean time between false alarms of the diagnoser (s; default one hour),
                                       # or P_f = 1e-6: per statistic and sample (give one of them)
@@ -575,7 +575,7 @@ def _scenario_name(value: Any, scenarios: Mapping[str, Scenario], where: str) ->
 # --------------------------------------------------------------------------- nonlinear plants (Zhou, Xi & Zhang 1991)
 
 def _nonlinear_problem(path: Path, top: _Section, name: str) -> Problem:
-    """A ``time = "nonlinear"`` plant file: the model of Zhou, Xi & Zhang 1991 (eq. (2.1)) and the NAFDF (format in the README)."""
+    """A ``time = "nonlinear"`` plant file: the model of Zhou, Xi & Zhang 1991 (eq. (2.1)) and the NAFDF (format in ``design/examples/PLANT_FILES.md``)."""
     from fdisyn.models.nonlinear import NonlinearPlant
     from fdisyn.numerics.linalg import as_covariance
 

@@ -33,8 +33,8 @@ def fault_account(gf: GainFile, plant: Any = None) -> dict[str, Any] | None:
     Returns
     -------
     dict or None
-        The ``account`` block of the gain file (:func:`fdisyn.numerics.account.bank_account`; see the README's
-        gain-file section). ``None`` for a kind the account does not cover (its
+        The ``account`` block of the gain file (:func:`fdisyn.numerics.account.bank_account`; see the gain-file
+        section of ``runtime/REFERENCE.md``). ``None`` for a kind the account does not cover (its
         :attr:`~fdisyn.synthesis.kinds.DiagnoserKind.account_note` says why).
 
     Raises

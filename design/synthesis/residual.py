@@ -1,7 +1,7 @@
 """The canonical residual generator connected to its plant (the internal form).
 
 Every linear method in fdisyn reduces to one discrete LTI form on the full
-input and output vectors (the gain file's ``generators``, see the README), held by
+input and output vectors (the gain file's ``generators``, see ``runtime/REFERENCE.md``), held by
 :class:`fdisyn.runtime.gainfile.Generator`::
 
     ξ(k+1) = Ar ξ(k) + Bu u(k) + By y(k)

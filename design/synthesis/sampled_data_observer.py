@@ -199,7 +199,7 @@ class DiagnosticObserver:
         return residual_dynamics(F=self.F, L=self.L, W=self.W, V=self.V)
 
     def generator(self, *, name: str = "sampled_data_observer") -> Generator:
-        """Canonical form ``Ar = F, Bu = G, By = L, Cr = −W, Du = −D, Dy = V`` (the gain file's ``generators``, README)."""
+        """Canonical form ``Ar = F, Bu = G, By = L, Cr = −W, Du = −D, Dy = V`` (the gain file's ``generators``, ``runtime/REFERENCE.md``)."""
         dt = self.factorisation.dtars
         method = {"name": "sampled_data_observer", "design": self.design, "T": self.T, "X": dt.X, "M": dt.M, "N": dt.N}
         return canonical_generator(

@@ -133,3 +133,29 @@ def test_methods_plant_kind_keeps_one_kind(capsys) -> None:
 def test_a_refused_method_or_filter_is_one_line(argv, message, capsys) -> None:
     assert main(argv) == 2
     assert message in _err(capsys)
+
+
+def test_the_readme_c_example_builds_from_the_files_it_names(motor_built, tmp_path) -> None:
+    """The README's C lines, in a program of their own, compile with the four files it names and nothing else of
+    ``DIR/c/`` (``<name>.c`` the one compiled), and run: the motor at rest, no alarm."""
+    import subprocess
+
+    from fdisyn.codegen.library import CFLAGS, compiler
+
+    text = README.read_text(encoding="utf-8").split("\n## Deploying\n", 1)[1].split("\n## ", 1)[0]
+    (code,) = re.findall(r"```c\n(.*?)```", text, flags=re.S)
+    name = motor_built.gain_file.name
+    code = code.replace("<NAME>", name.upper()).replace("<name>", name)
+    include, body = code.split("\n", 1)
+    assert include.startswith(f'#include "{name}.h"')
+    for f in (f"{name}.c", f"{name}.h", f"{name}_casadi.c", f"{name}_casadi.h"):
+        (tmp_path / f).write_bytes((motor_built.directory / "c" / f).read_bytes())
+    (tmp_path / "main.c").write_text(
+        f"#include <stdio.h>\n{include}\nstatic void report(const char *what) {{ printf(\"alarm %s\\n\", what); }}\n"
+        f"int main(void) {{\n    double u[1] = {{0.4}}, y[3] = {{0.4, 0.0, 0.0}};\n{body}"
+        "    printf(\"%d %d\\n\", alarm, isolated);\n    return 0;\n}\n",
+        encoding="utf-8",
+    )
+    exe = tmp_path / "monitor"
+    subprocess.run([*compiler(), *CFLAGS, "main.c", f"{name}.c", "-o", str(exe), "-lm"], cwd=tmp_path, check=True, capture_output=True, timeout=300)
+    assert subprocess.run([str(exe)], capture_output=True, text=True, timeout=60, check=True).stdout == "0 -1\n"
