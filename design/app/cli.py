@@ -53,6 +53,7 @@ import fnmatch
 import json
 import os
 import re
+import select
 import signal
 import sys
 import textwrap
@@ -742,6 +743,30 @@ def _one_line(text: object) -> str:
     return " ".join(str(text).split())
 
 
+def _stdout_gone() -> bool:
+    """Standard output is a pipe whose reader has closed it; if so, it is pointed at the null device, so that the
+    interpreter's last flush at exit finds no closed pipe (and prints nothing).
+
+    Returns
+    -------
+    bool
+        Whether standard output has lost its reader (a ``BrokenPipeError`` from elsewhere, such as a worker's
+        pipe, leaves it as it is: that one is a bug).
+    """
+    try:
+        fd = sys.stdout.fileno()
+        poll = select.poll()
+        poll.register(fd, select.POLLOUT)
+        gone = any(events & (select.POLLERR | select.POLLHUP) for _, events in poll.poll(0))
+    except (AttributeError, OSError, ValueError):  # no descriptor (a test's capture) or no poll (Windows)
+        return False
+    if gone:
+        null = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(null, fd)
+        os.close(null)
+    return gone
+
+
 def _debug() -> bool:
     """``FDISYN_DEBUG`` is set (and not ``0``): an internal error shows its traceback."""
     return os.environ.get("FDISYN_DEBUG", "") not in ("", "0")
@@ -822,6 +847,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                 file=sys.stderr,
             )
             return 2
+        except BrokenPipeError as exc:
+            if _stdout_gone():  # the reader went away (fdisyn example --reference | head): as a shell's commands do
+                return 128 + getattr(signal, "SIGPIPE", 13)
+            return _internal_error(args.command, exc, f"{type(exc).__name__}: {exc}")
         except Exception as exc:  # a bug: one line, never a bare traceback
             return _internal_error(args.command, exc, f"{type(exc).__name__}: {exc}")
     for text in dict.fromkeys(f"{w.category.__name__}: {_one_line(w.message)}" for w in caught):

@@ -159,3 +159,22 @@ def test_the_readme_c_example_builds_from_the_files_it_names(motor_built, tmp_pa
     exe = tmp_path / "monitor"
     subprocess.run([*compiler(), *CFLAGS, "main.c", f"{name}.c", "-o", str(exe), "-lm"], cwd=tmp_path, check=True, capture_output=True, timeout=300)
     assert subprocess.run([str(exe)], capture_output=True, text=True, timeout=60, check=True).stdout == "0 -1\n"
+
+
+def test_a_reader_that_stops_early_ends_the_command_quietly(tmp_path) -> None:
+    """``fdisyn example --reference | head``: the reader closes the pipe; the command ends with 141 (128 + SIGPIPE, as
+    a shell's own commands do) and nothing on stderr, not status 3."""
+    import os
+    import subprocess
+    import sys
+
+    read, write = os.pipe()
+    os.close(read)  # a reader already gone
+    try:
+        proc = subprocess.run(
+            [sys.executable, "-c", "import sys; from fdisyn.app.cli import main; sys.exit(main(['example', '--reference']))"],
+            stdout=write, stderr=subprocess.PIPE, text=True, timeout=120, cwd=tmp_path,
+        )
+    finally:
+        os.close(write)
+    assert (proc.returncode, proc.stderr) == (141, "")
