@@ -42,7 +42,9 @@ FDISYN_DEBUG=1 shows the traceback`` (with
 ``FDISYN_DEBUG=1`` in the environment the traceback is printed before it).
 Ctrl-C ends every command with status 130 and one line, ``fdisyn <command>:
 interrupted``, after the Monte Carlo's worker processes are ended; SIGTERM
-likewise with status 143 and ``fdisyn <command>: terminated``.
+likewise with status 143 and ``fdisyn <command>: terminated``. A reader that
+closes the command's standard output early (``| head``) ends it with status
+141 (128 + SIGPIPE) and nothing on stderr.
 """
 
 from __future__ import annotations
