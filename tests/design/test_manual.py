@@ -70,6 +70,22 @@ def test_every_source_path_a_document_names_exists(doc: Path) -> None:
     assert sorted(p for p in paths if not (ROOT / p).exists()) == []
 
 
+@pytest.mark.parametrize("doc", [README, REFERENCE, PLANT_FILES], ids=lambda p: p.name)
+def test_every_module_a_document_names_exists(doc: Path) -> None:
+    """A dotted name (`fdisyn.runtime.errors`, `fdisyn.design`) is a module, or an attribute of its parent module."""
+    import importlib
+
+    missing = []
+    for dotted in sorted(set(re.findall(r"`(fdisyn(?:\.[A-Za-z_]+)+)`", doc.read_text(encoding="utf-8")))):
+        try:
+            importlib.import_module(dotted)
+        except ModuleNotFoundError:
+            parent, _, attr = dotted.rpartition(".")
+            if not hasattr(importlib.import_module(parent), attr):
+                missing.append(dotted)
+    assert missing == []
+
+
 def test_the_c_api_reference_declares_what_the_header_declares() -> None:
     header = (ROOT / "runtime" / "c" / "diagnoser.h.in").read_text(encoding="utf-8")
     section = REFERENCE.read_text(encoding="utf-8").split("## The C API", 1)[1].split("\n## ", 1)[0]
