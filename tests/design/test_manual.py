@@ -194,3 +194,11 @@ def test_a_reader_that_stops_early_ends_the_command_quietly(tmp_path) -> None:
     finally:
         os.close(write)
     assert (proc.returncode, proc.stderr) == (141, "")
+
+
+def test_the_error_table_names_every_error_type() -> None:
+    from fdisyn.runtime import errors
+
+    section = REFERENCE.read_text(encoding="utf-8").split("\n## Errors\n", 1)[1]
+    types = [n for n, v in vars(errors).items() if isinstance(v, type) and issubclass(v, errors.FdisynError) and v is not errors.FdisynError]
+    assert [n for n in types if f"`{n}`" not in section] == []
