@@ -202,3 +202,22 @@ def test_the_error_table_names_every_error_type() -> None:
     section = REFERENCE.read_text(encoding="utf-8").split("\n## Errors\n", 1)[1]
     types = [n for n, v in vars(errors).items() if isinstance(v, type) and issubclass(v, errors.FdisynError) and v is not errors.FdisynError]
     assert [n for n in types if f"`{n}`" not in section] == []
+
+
+def test_every_command_line_example_of_the_readme_parses() -> None:
+    """Each verb of the README's command table, and its example, is one the parser takes (none is run here)."""
+    import shlex
+
+    from fdisyn.app.cli import _parser
+
+    section = README.read_text(encoding="utf-8").split("\n## Command line\n", 1)[1].split("\n## ", 1)[0]
+    rows = [ln for ln in section.splitlines() if ln.startswith("| `fdisyn ")]
+    verbs = [re.match(r"\| `fdisyn (\w+)", ln).group(1) for ln in rows]
+    parser = _parser()
+    subparsers = next(a for a in parser._actions if a.dest == "command")  # noqa: SLF001 - argparse keeps them there
+    assert sorted(verbs) == sorted(subparsers.choices)
+    for ln in rows:
+        example = re.findall(r"`([^`]*)`", ln.rsplit("|", 2)[1])[0]
+        argv = shlex.split(example)
+        assert argv[0] == "fdisyn", example
+        parser.parse_args(argv[1:])
