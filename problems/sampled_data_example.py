@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 from fdisyn.reporting.report import Claim, ReportContext, false_alarms_pooled, fmt, shade, subplots, table
-from fdisyn.evaluation.compiled_simulation import SampleModel, sampled_data_sample_model
+from fdisyn.simulation.sample_models import SampleModel, sampled_data_sample_model
 from fdisyn.simulation.sampled_data import simulate_sampled_data
 from fdisyn.models.linear import LinearPlant
 from fdisyn.simulation.problem import Batch, Problem, Scenario

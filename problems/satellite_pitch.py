@@ -70,7 +70,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 import scipy.special
-from fdisyn.evaluation.compiled_simulation import NAMES_IN, NAMES_OUT, SampleModel, clip_sx
+from fdisyn.simulation.sample_models import NAMES_IN, NAMES_OUT, SampleModel, clip_sx
 from fdisyn.models.linear import LinearPlant
 from fdisyn.simulation.problem import Batch, Problem, Scenario
 from fdisyn.runtime.errors import ArgumentError

@@ -45,8 +45,9 @@ from typing import Any
 
 import numpy as np
 from fdisyn.reporting.report import Claim, ReportContext, fmt, shade, subplots, table
-from fdisyn.evaluation.compiled_simulation import SampleModel, nonlinear_sample_model
+from fdisyn.simulation.sample_models import SampleModel, nonlinear_sample_model
 from fdisyn.models.nonlinear import NonlinearPlant
+from fdisyn.simulation.nonlinear import simulate_nonlinear_runs
 from fdisyn.simulation.problem import Batch, Problem, Scenario
 from fdisyn.runtime.errors import ArgumentError
 from fdisyn.runtime.gainfile import GainFile
@@ -463,35 +464,23 @@ def _drive(sc: Scenario) -> tuple[np.ndarray, np.ndarray]:
     return u, theta
 
 
+KEPT = {"x": "x", "a": "a", "b": "b"}
+"""The truths a run keeps beside its signals: the state and both parameters."""
+
+
 def _simulate(sc: Scenario, seeds: Sequence[int], draws: np.ndarray | None = None, **_options: object) -> Batch:
     """Eq. (3.1) for each seed (:func:`_drive`, ``x(0) = 0``), stacked for the pipeline.
 
     Row ``k`` of the true parameters ``extra["a"]``, ``extra["b"]`` drives the transition
     ``x(k) → x(k+1)`` (module docstring); ``extra["x"]`` is the true state. ``draws``: given standard
-    normals (:meth:`fdisyn.models.nonlinear.NonlinearPlant.simulate`).
+    normals (:func:`fdisyn.simulation.nonlinear.simulate_nonlinear_runs`).
     """
-    pl = plant()
-    u, theta = _drive(sc)
-    T = len(u)
-    runs = [
-        pl.simulate(x0=[X0], u=u, theta=theta, rng=np.random.default_rng(int(s)), draws=None if draws is None else draws[i])
-        for i, s in enumerate(seeds)
-    ]
-    return Batch(
-        scenario=sc,
-        seeds=tuple(int(s) for s in seeds),
-        t=np.arange(T, dtype=float),
-        inputs=("u",),
-        outputs=("y",),
-        U=np.stack([u for _ in runs]),
-        Y=np.stack([y for _, y in runs]),
-        extra={"x": np.stack([x[:, 0] for x, _ in runs]), "a": np.stack([theta[:, 0] for _ in runs]), "b": np.stack([theta[:, 1] for _ in runs])},
-    )
+    return simulate_nonlinear_runs(plant(), sc, seeds, x0=[X0], drive=_drive, Ts=1.0, extra=KEPT, draws=draws)
 
 
 def _sample_model(**_options: object) -> SampleModel:
     """:func:`_simulate` one sample at a time, for the compiled Monte Carlo."""
-    return nonlinear_sample_model(plant(), x0=[X0], drive=_drive, Ts=1.0, extra={"x": "x", "a": "a", "b": "b"})
+    return nonlinear_sample_model(plant(), x0=[X0], drive=_drive, Ts=1.0, extra=KEPT)
 
 
 def _gain_file(

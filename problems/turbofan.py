@@ -38,7 +38,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 import scipy.linalg
-from fdisyn.evaluation.compiled_simulation import NAMES_IN, NAMES_OUT, SampleModel
+from fdisyn.simulation.sample_models import NAMES_IN, NAMES_OUT, SampleModel
 from fdisyn.models.linear import LinearPlant
 from fdisyn.simulation.problem import Batch, Problem, Scenario
 from fdisyn.synthesis.account import with_account

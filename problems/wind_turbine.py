@@ -37,8 +37,9 @@ from typing import Any
 import casadi as ca
 import numpy as np
 from fdisyn.reporting.report import Claim, ReportContext, fmt, folded, shade, subplots
-from fdisyn.evaluation.compiled_simulation import SampleModel, clip_sx, linear_sample_model
-from fdisyn.simulation.simulate import Signal, simulate_linear
+from fdisyn.simulation.sample_models import SampleModel, clip_sx, linear_sample_model
+from fdisyn.simulation.signals import Signal
+from fdisyn.simulation.simulate import simulate_linear
 from fdisyn.models.linear import LinearPlant
 from fdisyn.simulation.problem import Batch, Problem, Scenario
 from fdisyn.runtime.errors import ArgumentError

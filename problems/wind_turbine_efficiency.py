@@ -43,8 +43,9 @@ from collections.abc import Mapping, Sequence
 import casadi as ca
 import numpy as np
 from fdisyn.reporting.report import Claim, ReportContext, fmt, shade, subplots
-from fdisyn.evaluation.compiled_simulation import SampleModel, nonlinear_sample_model
+from fdisyn.simulation.sample_models import SampleModel, nonlinear_sample_model
 from fdisyn.models.nonlinear import NonlinearPlant
+from fdisyn.simulation.nonlinear import simulate_nonlinear_runs
 from fdisyn.simulation.problem import Batch, Problem, Scenario
 from fdisyn.models.sampling import zoh
 from fdisyn.problems.wind_turbine import PARAMETER_SETS, TS
@@ -235,25 +236,8 @@ def _drive(sc: Scenario) -> tuple[np.ndarray, np.ndarray]:
 
 def _simulate(sc: Scenario, seeds: Sequence[int], draws: np.ndarray | None = None, **_options: object) -> Batch:
     """The drive train from its operating point under :func:`_drive`, for each seed (``extra["eta"]``: the
-    true η per transition). ``draws``: given standard normals (:meth:`fdisyn.models.nonlinear.NonlinearPlant.simulate`)."""
-    pl = plant()
-    u, theta = _drive(sc)
-    n = len(u)
-    x0, _ = operating_point()
-    runs = [
-        pl.simulate(x0=x0, u=u, theta=theta, rng=np.random.default_rng(int(s)), draws=None if draws is None else draws[i])
-        for i, s in enumerate(seeds)
-    ]
-    return Batch(
-        scenario=sc,
-        seeds=tuple(int(s) for s in seeds),
-        t=np.arange(n) * TS,
-        inputs=("tau_r", "tau_g"),
-        outputs=("omega_r", "omega_g"),
-        U=np.stack([u for _ in runs]),
-        Y=np.stack([y for _, y in runs]),
-        extra={"eta": np.stack([theta[:, 0] for _ in runs])},
-    )
+    true η per transition). ``draws``: given standard normals (:func:`fdisyn.simulation.nonlinear.simulate_nonlinear_runs`)."""
+    return simulate_nonlinear_runs(plant(), sc, seeds, x0=operating_point()[0], drive=_drive, Ts=TS, extra={"eta": "eta"}, draws=draws)
 
 
 def _gain_file(

@@ -43,7 +43,7 @@ def mypy_run() -> tuple[subprocess.Popen, Path]:
 @pytest.fixture(scope="session")
 def wt_built(tmp_path_factory: pytest.TempPathFactory):
     """The default wind-turbine bank, designed, written and compiled once."""
-    from fdisyn.evaluation.evaluate import build
+    from fdisyn.evaluation.built import build
     from fdisyn.problems.wind_turbine import PROBLEM
 
     return build(PROBLEM, "kalman_uio", tmp_path_factory.mktemp("wt") / "kalman_uio")
@@ -54,7 +54,7 @@ def motor_built(tmp_path_factory: pytest.TempPathFactory):
     """The DC-motor plant file's (the example ``dc_motor``) default design (4 outputs of 2 generators),
     designed, written and compiled once."""
     from fdisyn.simulation.plant_file import load_spec
-    from fdisyn.evaluation.evaluate import build
+    from fdisyn.evaluation.built import build
 
     prob = load_spec(EXAMPLES / "dc_motor.toml")
     return build(prob, prob.default_design, tmp_path_factory.mktemp("motor") / "kalman_uio")

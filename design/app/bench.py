@@ -30,7 +30,7 @@ import numpy as np
 import scipy.linalg as sla
 from fdisyn.codegen.library import CFLAGS, compile_bench, compiler
 from fdisyn.codegen.step import step_function
-from fdisyn.evaluation.evaluate import build
+from fdisyn.evaluation.built import build
 from fdisyn.evaluation.progress import tracked
 from fdisyn.simulation.problem import Problem
 from fdisyn.models.sampled_data import SampledDataPlant
@@ -259,7 +259,8 @@ def random_sampled_data_plant(
 
 _RSS_CHILD = """
 import json, resource, sys, time
-from fdisyn.evaluation.evaluate import evaluate, load_built
+from fdisyn.evaluation.built import load_built
+from fdisyn.evaluation.evaluate import evaluate
 from fdisyn.simulation.problem import get_problem
 name, design, directory, scenario, runs = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4], int(sys.argv[5])
 prob = get_problem(name)
@@ -294,7 +295,7 @@ def monte_carlo_section(
         seconds = time.perf_counter() - t0
         steps = sum(m.runs * m.samples_per_run for m in ev.metrics[design].values())
         rates.append((workers, steps, seconds))
-    from fdisyn.evaluation.compiled_simulation import compiled_campaign
+    from fdisyn.evaluation.compiled_campaign import compiled_campaign
 
     fused = compiled_campaign(prob, {design: b}, rss_scenario)
     vectors = {3: "AVX-512", 2: "AVX2", 1: "the baseline (SSE2 on x86-64)"}[fused.vector_level()] if fused else "none"

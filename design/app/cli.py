@@ -327,7 +327,8 @@ def _workdir(a: argparse.Namespace, problem: str, design: str) -> Path:
 
 
 def _cmd_evaluate(a: argparse.Namespace) -> None:
-    from fdisyn.evaluation.evaluate import build, evaluate
+    from fdisyn.evaluation.built import build
+    from fdisyn.evaluation.evaluate import evaluate
     from fdisyn.evaluation.progress import bar
 
     opts = _options(a.option)

@@ -22,7 +22,8 @@ import numpy as np
 from fdisyn.app import WORKDIR
 from fdisyn.codegen.step import step_function
 from fdisyn.evaluation.campaign import problem_source
-from fdisyn.evaluation.evaluate import Built, Evaluation, build, evaluate
+from fdisyn.evaluation.built import Built, build
+from fdisyn.evaluation.evaluate import Evaluation, evaluate
 from fdisyn.evaluation.progress import tracked
 from fdisyn.simulation.problem import Problem, scaled_scenario
 from fdisyn.runtime.errors import ArgumentError, CertificateError

@@ -6,7 +6,7 @@ chunk it falls in or the process that runs it: every design of a comparison
 sees the same runs (common random numbers), and a run is the same run on one
 core, on many and on a Dask cluster. The runs of a scenario are simulated and
 diagnosed in chunks of bounded size (:func:`simulate_and_diagnose`, a
-:class:`ChunkRuns`); each chunk is reduced where it ran to a few numbers per
+:class:`~fdisyn.evaluation.runs.ChunkRuns`); each chunk is reduced where it ran to a few numbers per
 run (:func:`fdisyn.evaluation.metrics.summarise_runs`) and the parent merges
 them in run order, so memory does not grow with the samples of the campaign
 and the metrics are identical to the last bit however the runs were spread.
@@ -35,21 +35,18 @@ from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
+from fdisyn.evaluation.built import Built, load_built
 from fdisyn.evaluation.metrics import MetricsPlan, RunSummaries, extra_values, summarise_runs
+from fdisyn.evaluation.runs import ChunkRuns, DesignRuns
 from fdisyn.simulation.problem import Batch, Problem, Scenario
 from fdisyn.runtime.errors import ArgumentError, FdisynError, MonteCarloError
 from fdisyn.runtime.names import shown
 
-if TYPE_CHECKING:
-    from fdisyn.evaluation.evaluate import Built
-
 __all__ = [
     "run_seed",
-    "DesignRuns",
-    "ChunkRuns",
     "simulate_and_diagnose",
     "Campaign",
     "CampaignSpec",
@@ -81,33 +78,6 @@ def run_seed(seed0: int, scenario_index: int, run: int) -> int:
     """The seed of run ``run`` of the scenario at position ``scenario_index`` in a campaign started from ``seed0``:
     the first word of ``SeedSequence([seed0, scenario_index, run])``, halved into ``[0, 2⁶³)``."""
     return int(np.random.SeedSequence([seed0, scenario_index, run]).generate_state(2, np.uint64)[0] >> np.uint64(1))
-
-
-@dataclass(frozen=True, eq=False)
-class DesignRuns:
-    """One design's outputs over a chunk of ``R`` runs of ``N`` samples."""
-
-    r: np.ndarray
-    """``(R, N, nr)`` float64."""
-    J: np.ndarray
-    """``(R, N, nj)`` float64."""
-    alarm: np.ndarray
-    """``(R, N)`` bool: the step's alarm output (any statistic)."""
-    isolated: np.ndarray
-    """``(R, N)`` int32, −1: none."""
-    status: np.ndarray
-    """``(R, N)`` int8, 1: a sample with a non-finite input."""
-
-
-@dataclass(frozen=True, eq=False)
-class ChunkRuns:
-    """A chunk of runs of one scenario: their seeds, the sample times and every design's outputs."""
-
-    seeds: tuple[int, ...]
-    t: np.ndarray
-    designs: Mapping[str, DesignRuns]
-    batch: Batch | None
-    """The simulated ``U``, ``Y`` and extra signals of these runs, when asked for (figures, examples)."""
 
 
 def simulate_and_diagnose(
@@ -204,16 +174,16 @@ class Campaign:
     extra: Mapping[str, Any] = field(default_factory=dict)
     compiled: bool = True
     """Simulate and diagnose in one generated C call where the problem has a sample model
-    (:func:`fdisyn.evaluation.compiled_simulation.compiled_campaign`); ``False``: the Python simulator."""
+    (:func:`fdisyn.evaluation.compiled_campaign.compiled_campaign`); ``False``: the Python simulator."""
     _fused: dict[str, Any] = field(default_factory=dict, repr=False)
 
     def fused(self, sc: Scenario) -> Any:
-        """The scenario's :class:`~fdisyn.evaluation.compiled_simulation.CompiledCampaign`, or ``None`` (the Python
+        """The scenario's :class:`~fdisyn.evaluation.compiled_campaign.CompiledCampaign`, or ``None`` (the Python
         path: ``compiled=False``, no design, or no sample model)."""
         if not (self.compiled and self.built and self.problem.sample_model is not None):
             return None
         if sc.name not in self._fused:
-            from fdisyn.evaluation.compiled_simulation import compiled_campaign  # it imports this module
+            from fdisyn.evaluation.compiled_campaign import compiled_campaign  # CasADi and the C compiler: only here
 
             self._fused[sc.name] = compiled_campaign(self.problem, self.built, sc, **self.options)
         return self._fused[sc.name]
@@ -346,8 +316,6 @@ def problem_source(problem: Problem) -> str | None:
 def _campaign(spec: CampaignSpec) -> Campaign:
     key = spec.key()
     if key not in _CAMPAIGNS:
-        from fdisyn.evaluation.evaluate import load_built
-
         problem = load_source(spec.source)
         if spec.scenarios:
             problem = replace(problem, scenarios={sc.name: sc for sc in spec.scenarios})

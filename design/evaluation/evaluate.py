@@ -1,4 +1,4 @@
-"""Build (design → gain file → C) and judge (Monte Carlo through the C step).
+"""Judge built diagnosers (:mod:`fdisyn.evaluation.built`) by a Monte Carlo through their C step.
 
 Every design of a comparison sees the same simulated runs (common random
 numbers): run ``i`` of the scenario at position ``s`` uses the seed
@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from fdisyn.codegen.library import CodegenResult, codegen
+from fdisyn.evaluation.built import Built
 from fdisyn.evaluation.campaign import (
     Campaign,
     CampaignSpec,
@@ -30,13 +30,13 @@ from fdisyn.evaluation.campaign import (
 from fdisyn.evaluation.metrics import MetricsAccumulator, MetricsPlan, ScenarioMetrics
 from fdisyn.evaluation.progress import bar, note
 from fdisyn.simulation.problem import Batch, Problem
-from fdisyn.runtime.compiled import CompiledDiagnoser, file_sha256, library_path
+from fdisyn.runtime.compiled import file_sha256
 from fdisyn.runtime.errors import ArgumentError
-from fdisyn.runtime.gainfile import GainFile, read_gain_file, write_gain_file
+from fdisyn.runtime.gainfile import GainFile
 from fdisyn.runtime.reference import RunResult
 from fdisyn.synthesis.kinds import false_alarm_budget, lorden_bound
 
-__all__ = ["Built", "build", "load_built", "Evaluation", "evaluate", "HUGE_CAMPAIGN"]
+__all__ = ["Evaluation", "evaluate", "HUGE_CAMPAIGN"]
 
 PLANT_STEPS_PER_CORE_HOUR = 3.6e10
 """The order of the compiled Monte Carlo's speed (10⁷ plant steps per second on one core, ``reports/bench.md``)."""
@@ -44,34 +44,6 @@ PLANT_STEPS_PER_CORE_HOUR = 3.6e10
 HUGE_CAMPAIGN = 10**12
 """Plant steps (runs × samples over every scenario) from which :func:`evaluate` first says on stderr how long the
 campaign is (about a core-day): such a campaign is run, its memory flat, not refused."""
-
-
-@dataclass(frozen=True, eq=False)
-class Built:
-    """A designed, written and compiled diagnoser."""
-
-    gain_file: GainFile
-    directory: Path
-    artifacts: CodegenResult
-    diagnoser: CompiledDiagnoser
-
-
-def build(problem: Problem, design: str, directory: str | Path, **options: Any) -> Built:
-    """Design, write ``DIR/gains.json``, generate and compile the C, load it."""
-    d = Path(directory)
-    gf = problem.design(design, **options)
-    write_gain_file(gf, d / "gains.json")
-    art = codegen(d)
-    return Built(gain_file=gf, directory=d, artifacts=art, diagnoser=CompiledDiagnoser(art.library, gf))
-
-
-def load_built(directory: str | Path) -> Built:
-    """The :class:`Built` that :func:`build` left in ``directory`` (gain file and compiled library, loaded again)."""
-    d = Path(directory)
-    gf = read_gain_file(d / "gains.json")
-    lib = library_path(d, gf)
-    art = CodegenResult(directory=d, c_dir=d / "c", header=d / "c" / f"{gf.name}.h", library=lib, replay=d / "replay")
-    return Built(gain_file=gf, directory=d, artifacts=art, diagnoser=CompiledDiagnoser(lib, gf))
 
 
 @dataclass(frozen=True, eq=False)

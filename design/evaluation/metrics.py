@@ -352,7 +352,7 @@ class RunSummaries:
 
 
 def summarise_runs(plan: MetricsPlan, runs: Any, scenario: Any = None, gf: Any = None) -> RunSummaries:
-    """The summaries of a chunk of runs (``runs``: a :class:`~fdisyn.evaluation.campaign.DesignRuns`, or anything
+    """The summaries of a chunk of runs (``runs``: a :class:`~fdisyn.evaluation.runs.DesignRuns`, or anything
     with its ``r``, ``J``, ``alarm``, ``isolated``, ``status``); ``scenario`` and ``gf`` for the extra figures."""
     alarm = np.asarray(runs.alarm, dtype=bool)
     isolated = np.asarray(runs.isolated, dtype=np.int64)

@@ -1,3 +1,3 @@
-"""Plant models: linear (discrete or continuous), sampled-data, nonlinear (CasADi), exact sampling, and the
-reference-problem interface.
+"""Plant models: linear (discrete or continuous), sampled-data, nonlinear (CasADi, with its expression language and
+its operation lists), exact sampling.
 """

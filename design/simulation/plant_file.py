@@ -129,8 +129,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from fdisyn.evaluation.compiled_simulation import SampleModel, linear_sample_model, nonlinear_sample_model
-from fdisyn.simulation.simulate import SENSOR_FAULT_KINDS, SensorFaultSpec, Signal, simulate_linear
+from fdisyn.simulation.nonlinear import simulate_nonlinear_runs
+from fdisyn.simulation.sample_models import SampleModel, linear_sample_model, nonlinear_sample_model
+from fdisyn.simulation.signals import SENSOR_FAULT_KINDS, SensorFaultSpec, Signal
+from fdisyn.simulation.simulate import simulate_linear
 from fdisyn.models.linear import LinearPlant
 from fdisyn.simulation.problem import Batch, Problem, Scenario, get_problem
 from fdisyn.models.sampling import van_loan
@@ -681,28 +683,13 @@ def _nonlinear_problem(path: Path, top: _Section, name: str) -> Problem:
             theta[scenario.active(np.arange(n) * step_ts)] = np.asarray(scenario.params["theta"], dtype=float)
         return theta
 
+    keep = {f"true_{q}": q for q in pars} | {f"true_{s}": s for s in plant.states}
+
     def simulate(scenario: Scenario, seeds: tuple[int, ...], draws: np.ndarray | None = None) -> Batch:
-        n = int(round(scenario.duration / step_ts))
-        t = np.arange(n) * step_ts
-        theta = parameters(scenario)
-        # the draws of a sample: the plant's v and e, then one per random input signal (nonlinear_sample_model)
-        slots = np.cumsum([plant.n + plant.p] + [s.kind in ("prbs", "gauss_markov") for s in u_sigs])
-        U, Y, X = [], [], []
-        for i, seed in enumerate(seeds):
-            rng = np.random.default_rng(seed)
-            given = None if draws is None else draws[i]
-            zs = [None if given is None or slots[j + 1] == slots[j] else given[:, slots[j]] for j in range(len(u_sigs))]
-            u = np.column_stack([s.sample(t, rng, step_ts, z) for s, z in zip(u_sigs, zs, strict=True)]) if plant.m else np.zeros((n, 0))
-            x, y = plant.simulate(x0=x0, u=u, theta=theta, rng=rng, draws=None if given is None else given[:, : plant.n + plant.p])
-            U.append(u)
-            Y.append(y)
-            X.append(x)
-        extra = {f"true_{q}": np.tile(theta[:, k], (len(seeds), 1)) for k, q in enumerate(pars)}
-        extra |= {f"true_{s}": np.stack(X)[:, :, k] for k, s in enumerate(plant.states)}
-        return Batch(scenario, tuple(seeds), t, plant.inputs, plant.outputs, np.stack(U), np.stack(Y), extra)
+        return simulate_nonlinear_runs(plant, scenario, seeds, x0=x0, drive=lambda sc: (None, parameters(sc)), Ts=step_ts, extra=keep,
+                                       signals=u_sigs, draws=draws)
 
     def sample_model() -> SampleModel:
-        keep = {f"true_{q}": q for q in pars} | {f"true_{s}": s for s in plant.states}
         return nonlinear_sample_model(plant, x0=x0, drive=lambda sc: (None, parameters(sc)), Ts=step_ts, extra=keep, signals=u_sigs)
 
     return Problem(

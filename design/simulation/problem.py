@@ -135,7 +135,7 @@ class Problem:
     sample_model: Callable[..., Any] | None = None
     """The simulator one sample at a time, for the compiled Monte Carlo:
     ``sample_model(**options)`` returns a
-    :class:`~fdisyn.evaluation.compiled_simulation.SampleModel` whose runs match
+    :class:`~fdisyn.simulation.sample_models.SampleModel` whose runs match
     :attr:`simulate`'s given the same standard-normal draws; ``None``: the runs
     stay on the Python path."""
     claims: Callable[..., Sequence[Any]] | None = None

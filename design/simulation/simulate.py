@@ -1,4 +1,4 @@
-"""Simulation building blocks shared by the problems.
+"""The linear simulator shared by the problems (its signals and sensor faults: :mod:`fdisyn.simulation.signals`).
 
 Linear plants are simulated exactly in discrete time (the ZOH model the design
 uses), vectorised over Monte Carlo runs; each run draws its noise from its own
@@ -8,108 +8,15 @@ seeded generator, so run ``i`` is the same whatever batch it is part of.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 
 import numpy as np
-import scipy.signal
 from fdisyn.models.linear import LinearPlant
-from fdisyn.simulation.problem import Batch, Scenario
 from fdisyn.numerics.linalg import psd_factor
 from fdisyn.runtime.errors import ArgumentError, ShapeError
+from fdisyn.simulation.problem import Batch, Scenario
+from fdisyn.simulation.signals import SensorFaultSpec, Signal, apply_sensor_faults
 
-__all__ = ["SensorFaultSpec", "apply_sensor_faults", "gauss_markov", "Signal", "simulate_linear"]
-
-SENSOR_FAULT_KINDS = ("stuck", "gain", "offset", "drift")
-
-
-@dataclass(frozen=True)
-class SensorFaultSpec:
-    """How a fault corrupts one sensor while active.
-
-    ``stuck``: the sensor reads ``value``; ``gain``: it reads ``value`` times
-    its measurement; ``offset``: ``value`` is added; ``drift``: ``value`` per
-    second is added, growing from the onset.
-    """
-
-    sensor: str
-    kind: str
-    value: float
-
-    def __post_init__(self) -> None:
-        if self.kind not in SENSOR_FAULT_KINDS:
-            raise ArgumentError(f"sensor fault kind {self.kind!r} is not one of {SENSOR_FAULT_KINDS}")
-
-
-def apply_sensor_faults(
-    y: np.ndarray, outputs: Sequence[str], faults: Sequence[SensorFaultSpec], *, since_onset: float = 0.0
-) -> None:
-    """Corrupt the measurements ``y`` (runs × outputs) in place."""
-    for f in faults:
-        if f.sensor not in outputs:
-            raise ArgumentError(f"sensor fault on {f.sensor!r}: no such output; outputs are {list(outputs)}")
-        j = list(outputs).index(f.sensor)
-        if f.kind == "stuck":
-            y[:, j] = f.value
-        elif f.kind == "gain":
-            y[:, j] *= f.value
-        elif f.kind == "offset":
-            y[:, j] += f.value
-        else:
-            y[:, j] += f.value * since_onset
-
-
-def gauss_markov(rng: np.random.Generator, n: int, a: float, z: np.ndarray | None = None) -> np.ndarray:
-    """A unit-variance first-order Gauss–Markov sequence ``ζ⁺ = a ζ + √(1−a²) ε``, started stationary
-    (``ε``: ``z`` when given, else drawn from ``rng``)."""
-    eps = rng.standard_normal(n) if z is None else np.array(z, dtype=float)
-    eps[1:] *= np.sqrt(1.0 - a * a)
-    return scipy.signal.lfilter([1.0], [1.0, -a], eps)
-
-
-@dataclass(frozen=True)
-class Signal:
-    """A known or unknown input signal of a TOML problem.
-
-    ``constant``: ``offset``; ``step``: ``offset`` + ``amplitude`` from ``start``;
-    ``sine``: ``offset + amplitude·sin(2πt/period)``; ``square``: ``offset +
-    amplitude`` for the first half of each period, ``offset − amplitude`` for
-    the second (from ``t = 0``); ``prbs``: ``offset ±
-    amplitude`` switching at random multiples of ``period`` (per run);
-    ``gauss_markov``: ``offset + amplitude·ζ`` with correlation time ``period``.
-    """
-
-    kind: str = "constant"
-    offset: float = 0.0
-    amplitude: float = 0.0
-    period: float = 1.0
-    start: float = 0.0
-
-    KINDS = ("constant", "step", "sine", "square", "prbs", "gauss_markov")
-
-    def __post_init__(self) -> None:
-        if self.kind not in self.KINDS:
-            raise ArgumentError(f"signal kind {self.kind!r} is not one of {self.KINDS}")
-        if self.kind in ("sine", "square", "prbs", "gauss_markov") and not self.period > 0:
-            raise ArgumentError(f"a {self.kind} signal needs a positive period, got {self.period}")
-
-    def sample(self, t: np.ndarray, rng: np.random.Generator, Ts: float, z: np.ndarray | None = None) -> np.ndarray:
-        """The signal on ``t``; a random one draws from ``rng`` unless given its standard normals ``z``
-        (one per sample; a ``prbs`` level is the sign of the draw at each switching instant)."""
-        if self.kind == "constant":
-            return np.full(t.shape, self.offset)
-        if self.kind == "step":
-            return self.offset + self.amplitude * (t >= self.start)
-        if self.kind == "sine":
-            return self.offset + self.amplitude * np.sin(2 * np.pi * t / self.period)
-        if self.kind == "square":
-            # half-periods counted on the sample grid, so a period of whole samples splits exactly
-            half = np.floor(2.0 * t / self.period + 1e-9)
-            return self.offset + self.amplitude * np.where(half % 2 == 0, 1.0, -1.0)
-        if self.kind == "prbs":
-            hold = max(1, int(round(self.period / Ts)))
-            levels = rng.choice([-1.0, 1.0], size=len(t) // hold + 1) if z is None else np.where(z[::hold] >= 0, 1.0, -1.0)
-            return self.offset + self.amplitude * np.repeat(levels, hold)[: len(t)]
-        return self.offset + self.amplitude * gauss_markov(rng, len(t), float(np.exp(-Ts / self.period)), z)
+__all__ = ["simulate_linear"]
 
 
 def simulate_linear(
@@ -135,7 +42,7 @@ def simulate_linear(
     ``draws`` (runs × N × nz) replaces the generators' standard normals, laid
     out per sample as ``[w (rank Q), v (rank R), one per prbs or gauss_markov
     signal, inputs first]``: the draws of the compiled simulation
-    (:func:`fdisyn.evaluation.compiled_simulation.linear_sample_model`), to
+    (:func:`fdisyn.simulation.sample_models.linear_sample_model`), to
     compare the two on the same noise.
     """
     if not plant.is_discrete:
@@ -156,7 +63,7 @@ def simulate_linear(
     uu = np.empty((runs, n, plant.m))
     dd = np.empty((runs, n, plant.q))
     nq, nv = lq.shape[1], lr.shape[1]
-    slots = np.cumsum([nq + nv] + [s.kind in ("prbs", "gauss_markov") for s in (*inputs, *unknown_inputs)])
+    slots = np.cumsum([nq + nv] + [s.random for s in (*inputs, *unknown_inputs)])
     if draws is not None and np.shape(draws) != (runs, n, slots[-1]):
         raise ShapeError(f"draws have shape {np.shape(draws)}; expected {(runs, n, int(slots[-1]))}")
     for i, s in enumerate(seeds):

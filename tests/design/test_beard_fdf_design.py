@@ -16,7 +16,8 @@ import pytest
 from fdisyn.app.cli import main
 from fdisyn.app.examples import EXAMPLES
 from fdisyn.simulation.plant_file import load_spec, problem_from_document
-from fdisyn.evaluation.evaluate import build, evaluate
+from fdisyn.evaluation.built import build
+from fdisyn.evaluation.evaluate import evaluate
 from fdisyn.models.linear import LinearPlant
 from fdisyn.numerics.robust_cones import subspace_angle
 from fdisyn.runtime.errors import FdisynError

@@ -14,8 +14,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 from fdisyn.app.cli import main
-from fdisyn.evaluation.campaign import Campaign, ChunkPlan, ChunkTask, DesignRuns, run_seed, run_tasks
-from fdisyn.evaluation.evaluate import build, evaluate
+from fdisyn.evaluation.built import build
+from fdisyn.evaluation.campaign import Campaign, ChunkPlan, ChunkTask, run_seed, run_tasks
+from fdisyn.evaluation.evaluate import evaluate
+from fdisyn.evaluation.runs import DesignRuns
 from fdisyn.evaluation.metrics import MetricsAccumulator, MetricsPlan, scenario_metrics, summarise_runs
 from fdisyn.evaluation.progress import quiet
 from fdisyn.simulation.problem import Problem, get_problem
@@ -372,12 +374,13 @@ def test_more_workers_than_cores_run_as_many_as_the_cores_said_in_one_line(tmp_p
     stderr (none with --quiet); the campaign's own chunks bound them again (below)."""
     from types import SimpleNamespace
 
+    import fdisyn.evaluation.built as built
     import fdisyn.evaluation.campaign as campaign
     import fdisyn.evaluation.evaluate as evaluation
 
     seen: list = []
     monkeypatch.setattr(campaign, "local_cores", lambda: 3)
-    monkeypatch.setattr(evaluation, "build", lambda *a, **k: SimpleNamespace(gain_file=SimpleNamespace(name="g")))
+    monkeypatch.setattr(built, "build", lambda *a, **k: SimpleNamespace(gain_file=SimpleNamespace(name="g")))
     monkeypatch.setattr(evaluation, "evaluate", lambda prob, built, **kw: seen.append(kw) or SimpleNamespace(to_dict=dict))
     argv = ["evaluate", "sampled_data_example", "--runs", "2", "--out", str(tmp_path / "m.json"), "--workdir", str(tmp_path / "b")]
     assert main([*argv, "--workers", "8"]) == 0

@@ -15,8 +15,10 @@ import pytest
 import scipy.stats
 from fdisyn.app.examples import EXAMPLES
 from fdisyn.simulation.plant_file import load_spec, problem_from_document
-from fdisyn.evaluation.compiled_simulation import CompiledCampaign, SampleModel, compiled_campaign, linear_sample_model
-from fdisyn.simulation.simulate import SensorFaultSpec, Signal, simulate_linear
+from fdisyn.evaluation.compiled_campaign import CompiledCampaign, compiled_campaign
+from fdisyn.simulation.sample_models import SampleModel, linear_sample_model
+from fdisyn.simulation.signals import SensorFaultSpec, Signal
+from fdisyn.simulation.simulate import simulate_linear
 from fdisyn.models.linear import LinearPlant
 from fdisyn.simulation.problem import Scenario, get_problem
 from fdisyn.problems.wind_turbine import PROBLEM as WT
@@ -332,7 +334,7 @@ def test_the_c_loops_summaries_equal_summarise_runs_on_the_arrays(wt_built, scen
 
 
 def test_the_c_loops_summaries_equal_summarise_runs_for_the_sampled_data_example(tmp_path: Path) -> None:
-    from fdisyn.evaluation.evaluate import build
+    from fdisyn.evaluation.built import build
     from fdisyn.evaluation.metrics import MetricsPlan, summarise_runs
 
     sde = get_problem("sampled_data_example")

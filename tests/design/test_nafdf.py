@@ -12,6 +12,7 @@ import pytest
 import scipy.stats
 from fdisyn.detectors.wssr import wssr_threshold_table
 from fdisyn.models.nonlinear import NonlinearPlant
+from fdisyn.simulation.nonlinear import simulate_nonlinear
 from fdisyn.numerics.linalg import rel_diff
 from fdisyn.numerics.riccati import solve_filter_dare
 from fdisyn.problems import ship_propulsion as sp
@@ -70,7 +71,7 @@ def test_ekf_steady_gain_equals_dare_kalman_gain(seed: int, n: int, p: int) -> N
     dsg = nafdf(pl, x0=np.zeros(n), P0=np.eye(n), R0=1.0, **NEVER_ALARM)
     T = 1500
     u = rng.standard_normal((T, 1))
-    _, y = pl.simulate(x0=np.zeros(n), u=u, rng=rng)
+    _, y = simulate_nonlinear(pl, x0=np.zeros(n), u=u, rng=rng)
     out = dsg.run(u=u, y=y)
     P = dsg.unpack_state(out["state"][-1])["ekf_P"]  # P(T|T−1)
     truth = solve_filter_dare(m["A"], m["C"], m["Q"], m["R"])

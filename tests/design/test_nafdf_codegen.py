@@ -11,6 +11,7 @@ from fdisyn.problems import ship_propulsion as sp
 from fdisyn.problems import wind_turbine_efficiency as wt
 from fdisyn.runtime.compiled import CompiledDiagnoser
 from fdisyn.runtime.gainfile import write_gain_file
+from fdisyn.simulation.nonlinear import simulate_nonlinear
 from fdisyn.synthesis.nafdf.design import NafdfDesign
 from fdisyn.synthesis.nafdf.payload import nafdf_gain_file
 
@@ -53,7 +54,7 @@ def test_ship_c_step_equals_casadi_over_a_5000_step_faulty_run(ship, tmp_path) -
     run = sp.PROBLEM.run(sp.fault_scenario("a_half", {"a": 0.5}, length=T), [7])
     theta = np.column_stack([run.extra["a"][0], run.extra["b"][0]])
     theta[3000:, 1] = 0.1  # b halves at 3000: a second episode after the first one is closed
-    x, y = sp.plant().simulate(x0=[0.0], u=run.U[0], theta=theta, rng=np.random.default_rng(7))
+    x, y = simulate_nonlinear(sp.plant(), x0=[0.0], u=run.U[0], theta=theta, rng=np.random.default_rng(7))
     y[[100, 1500, 2500], 0] = [np.nan, np.inf, -np.inf]
     u = run.U[0].copy()
     u[2000, 0] = np.nan

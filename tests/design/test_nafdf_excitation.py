@@ -17,6 +17,7 @@ from fdisyn.codegen.library import codegen
 from fdisyn.problems import ship_propulsion as sp
 from fdisyn.runtime.compiled import CompiledDiagnoser
 from fdisyn.runtime.gainfile import write_gain_file
+from fdisyn.simulation.nonlinear import simulate_nonlinear
 from fdisyn.synthesis.nafdf.design import NOT_ISOLABLE, nafdf_diagnosis
 from fdisyn.synthesis.nafdf.payload import nafdf_gain_file
 
@@ -66,7 +67,7 @@ def test_the_reported_sine_is_detected_not_isolable_without_flicker(ship) -> Non
     u = (1.0 + 0.8 * np.sin(2 * np.pi * k / 50))[:, None]
     theta = np.tile(sp.plant().theta_nominal, (T, 1))
     theta[sp.FAULT_TIME :, 0] *= 0.5
-    _, y = sp.plant().simulate(x0=[0.0], u=u, theta=theta, rng=np.random.default_rng(1))
+    _, y = simulate_nonlinear(sp.plant(), x0=[0.0], u=u, theta=theta, rng=np.random.default_rng(1))
     out = diagnose(u, y)
     d = nafdf_diagnosis(gf.step.statistic_names, gf.faults, out["alarm"], out["isolated"], out["J"], sp.FAULT_TIME)
     assert d["verdict"] == NOT_ISOLABLE and d["alarm_episodes"] == 1

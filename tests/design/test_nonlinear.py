@@ -7,7 +7,9 @@ import json
 import casadi as ca
 import numpy as np
 import pytest
-from fdisyn.models.nonlinear import NonlinearPlant, function_from_program, model_program
+from fdisyn.models.casadi_program import function_from_program, model_program
+from fdisyn.models.nonlinear import NonlinearPlant
+from fdisyn.simulation.nonlinear import simulate_nonlinear
 from fdisyn.problems import ship_propulsion as sp
 from fdisyn.runtime.errors import ArgumentError, NominalValueError, NonDifferentiableError, ShapeError
 from hypothesis import given, settings
@@ -165,7 +167,7 @@ def test_simulation_follows_the_model_and_the_time_convention() -> None:
     u = np.linspace(0.0, 4.0, T)[:, None]
     theta = np.tile(pl.theta_nominal, (T, 1))
     theta[30:, 0] = -0.29
-    x, y = pl.simulate(x0=[0.1], u=u, theta=theta, rng=np.random.default_rng(0))
+    x, y = simulate_nonlinear(pl, x0=[0.1], u=u, theta=theta, rng=np.random.default_rng(0))
     ref = [0.1]
     for k in range(T - 1):
         a, b = theta[k]

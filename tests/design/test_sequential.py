@@ -12,7 +12,7 @@ import pytest
 import scipy.stats
 from fdisyn.app.pipeline import check_export
 from fdisyn.codegen.library import codegen
-from fdisyn.evaluation.evaluate import Built
+from fdisyn.evaluation.built import Built
 from fdisyn.evaluation.metrics import poisson_time_interval
 from fdisyn.detectors.sequential import (
     cusum_arl,

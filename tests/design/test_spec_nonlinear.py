@@ -19,7 +19,7 @@ import pytest
 from fdisyn.app.cli import main
 from fdisyn.app.examples import EXAMPLES
 from fdisyn.simulation.plant_file import load_spec, problem_from_document
-from fdisyn.simulation.simulate import Signal
+from fdisyn.simulation.signals import Signal
 from fdisyn.problems import ship_propulsion as sp
 from fdisyn.runtime.errors import FdisynError, SpecError
 from fdisyn.runtime.gainfile import read_gain_file

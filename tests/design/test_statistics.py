@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.stats
-from fdisyn.evaluation.evaluate import build
+from fdisyn.evaluation.built import build
 from fdisyn.evaluation.metrics import binomial_interval
 from fdisyn.problems.wind_turbine import PROBLEM
 

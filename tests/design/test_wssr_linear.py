@@ -12,7 +12,7 @@ import scipy.stats
 from fdisyn.app.pipeline import check_export
 from fdisyn.codegen.library import codegen
 from fdisyn.codegen.step import step_function
-from fdisyn.evaluation.evaluate import Built
+from fdisyn.evaluation.built import Built
 from fdisyn.runtime.compiled import CompiledDiagnoser
 from fdisyn.runtime.errors import ArgumentError, GainFileError
 from fdisyn.runtime.gainfile import (

@@ -9,7 +9,7 @@ import scipy.stats
 from fdisyn.app.cli import main
 from fdisyn.app.examples import EXAMPLES
 from fdisyn.app.pipeline import EXPORT_TOL, check_export, export_trace
-from fdisyn.evaluation.evaluate import build
+from fdisyn.evaluation.built import build
 from fdisyn.evaluation.metrics import binomial_interval
 from fdisyn.problems.sampled_data_example import PROBLEM
 from fdisyn.runtime.gainfile import read_gain_file

@@ -85,7 +85,7 @@ def test_fault_free_run_isolates_nothing(design) -> None:
 
 @pytest.fixture(scope="module")
 def ship_built(tmp_path_factory):
-    from fdisyn.evaluation.evaluate import build
+    from fdisyn.evaluation.built import build
     from fdisyn.problems.ship_propulsion import PROBLEM
 
     return build(PROBLEM, "nafdf", tmp_path_factory.mktemp("ship") / "nafdf")

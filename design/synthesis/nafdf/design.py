@@ -255,7 +255,7 @@ drive train: ``N = 50``, ``N2 = 200``, 12 342 operations):
 Gain files (:mod:`fdisyn.synthesis.nafdf.payload`). :func:`nafdf_payload`
 stores the model as data, not code:
 ``f`` and ``h`` as lists of elementary operations
-(:func:`fdisyn.models.nonlinear.model_program`) that the reader validates
+(:func:`fdisyn.models.casadi_program.model_program`) that the reader validates
 entry by entry before it builds anything, never as CasADi serialised
 strings (deserialising untrusted bytes can crash inside CasADi, and a checksum
 would only catch accidents: whoever edits the file can recompute it). The

@@ -12,7 +12,8 @@ from typing import Any
 import casadi as ca
 import numpy as np
 from fdisyn.detectors.sequential import lorden_delay
-from fdisyn.models.nonlinear import NonlinearPlant, function_from_program, model_program
+from fdisyn.models.casadi_program import function_from_program, model_program
+from fdisyn.models.nonlinear import NonlinearPlant
 from fdisyn.models.sampling import check_sample_time
 from fdisyn.numerics.linalg import as_covariance
 from fdisyn.runtime.errors import FdisynError, GainFileError
@@ -51,7 +52,7 @@ def nafdf_payload(design: NafdfDesign) -> dict[str, object]:
     """A JSON-able description from which :func:`step_from_payload` rebuilds the identical step.
 
     The model is stored as data: ``f`` and ``h`` as
-    :func:`~fdisyn.models.nonlinear.model_program` operation lists (exact:
+    :func:`~fdisyn.models.casadi_program.model_program` operation lists (exact:
     CasADi's own operation sequence, constants to the bit), which the reader
     validates entry by entry before building anything. Expression strings,
     when the plant came from them, are kept alongside for people to read; the
