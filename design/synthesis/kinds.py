@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 from fdisyn.runtime.errors import ArgumentError, GainFileError
 from fdisyn.runtime.gainfile import GainFile
+from fdisyn.runtime.reference import RunResult
 
 __all__ = [
     "STEP_INPUTS",
@@ -50,6 +51,7 @@ __all__ = [
     "false_alarm_budget",
     "lorden_bound",
     "lorden_window",
+    "reference_run",
 ]
 
 STEP_INPUTS = ("state", "u", "y")
@@ -135,6 +137,11 @@ class DiagnoserKind:
         see is computed (:mod:`fdisyn.numerics.account`); None: the kind has no account.
     account_note : str or None
         Why the kind has no account (printed by ``fdisyn design``, shown on its page).
+    reference : callable or None
+        ``(GainFile, U, Y) -> RunResult``: the kind's independent NumPy run over a trace (``U``: ``T × nu``,
+        ``Y``: ``T × ny``) from the gain file's initial state, written from the specification without CasADi, against
+        which its CasADi step and generated C are checked (:func:`reference_run`); None: the kind has none, and its C
+        is checked against its CasADi step only.
     """
 
     name: str
@@ -153,6 +160,7 @@ class DiagnoserKind:
     account_view: Callable[[GainFile], Any] | None = None
     """``GainFile -> fdisyn.numerics.account.BankView`` (annotated ``Any``: SciPy is not imported here)."""
     account_note: str | None = None
+    reference: Callable[[GainFile, np.ndarray, np.ndarray], RunResult] | None = None
 
 
 _KINDS: dict[str, DiagnoserKind] = {}
@@ -275,3 +283,30 @@ def lorden_window(gf: GainFile) -> int | None:
     """:attr:`DiagnoserKind.lorden_window` of the gain file's kind (None: the fault's whole active time)."""
     window = get_kind(gf.kind).lorden_window
     return None if window is None else int(window(gf))
+
+
+def reference_run(gf: GainFile, U: np.ndarray, Y: np.ndarray) -> RunResult | None:
+    """The gain file's run over a trace by its kind's independent NumPy reference (:attr:`DiagnoserKind.reference`).
+
+    Parameters
+    ----------
+    gf : GainFile
+        A gain file of a registered kind.
+    U : numpy.ndarray
+        Inputs, ``T × nu``.
+    Y : numpy.ndarray
+        Outputs, ``T × ny`` (non-finite values allowed: their samples have status 1).
+
+    Returns
+    -------
+    RunResult or None
+        ``r``, ``J``, ``alarm``, ``isolated`` and ``status`` per sample and the state after the last one, from
+        ``gf.step.init_state``; None when the kind has no reference.
+
+    Raises
+    ------
+    GainFileError
+        Its kind is registered by no module.
+    """
+    run = get_kind(gf.kind).reference
+    return None if run is None else run(gf, U, Y)

@@ -16,11 +16,12 @@ from fdisyn.detectors.sequential import lorden_delay
 from fdisyn.models.linear import LinearPlant
 from fdisyn.numerics.account import BankView, default_bank_of
 from fdisyn.runtime.gainfile import GainFile
+from fdisyn.runtime.reference import LinearReference, RunResult
 from fdisyn.synthesis.kinds import DiagnoserKind, register_kind
 from fdisyn.synthesis.linear_step import linear_step_function
 from fdisyn.synthesis.residual import long_run_covariance
 
-__all__ = ["LINEAR", "design_plant", "lorden_bound", "budget_seconds", "linear_recovery_samples", "linear_account_view"]
+__all__ = ["LINEAR", "design_plant", "lorden_bound", "budget_seconds", "linear_recovery_samples", "linear_account_view", "linear_reference_run"]
 
 
 def design_plant(gf: GainFile) -> LinearPlant:
@@ -107,6 +108,26 @@ def linear_account_view(gf: GainFile) -> BankView:
     )
 
 
+def linear_reference_run(gf: GainFile, U: np.ndarray, Y: np.ndarray) -> RunResult:
+    """A linear gain file's run over a trace by the runtime's NumPy reference (:class:`fdisyn.runtime.reference.LinearReference`).
+
+    Parameters
+    ----------
+    gf : GainFile
+        A ``linear`` gain file.
+    U : numpy.ndarray
+        Inputs, ``T × nu``.
+    Y : numpy.ndarray
+        Outputs, ``T × ny``.
+
+    Returns
+    -------
+    RunResult
+        From the gain file's initial state.
+    """
+    return LinearReference(gf).run(U, Y)
+
+
 def _certified(gf: GainFile) -> list[Mapping[str, Any]]:
     return list(gf.certificate["generators"])
 
@@ -127,6 +148,7 @@ LINEAR = register_kind(
         false_alarm_budget=budget_seconds,
         lorden_bound=lorden_bound,
         account_view=linear_account_view,
+        reference=linear_reference_run,
     )
 )
 """The ``linear`` kind, produced by every linear method (:func:`fdisyn.synthesis.linear_diagnoser.linear_method`,

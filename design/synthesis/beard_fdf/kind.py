@@ -10,11 +10,13 @@ from typing import Any
 import numpy as np
 from fdisyn.numerics.account import BankView
 from fdisyn.runtime.gainfile import GainFile, Generator
+from fdisyn.runtime.reference import RunResult
 from fdisyn.synthesis.beard_fdf.payload import beard_from_gain_file
+from fdisyn.synthesis.beard_fdf.reference import beard_reference_run
 from fdisyn.synthesis.beard_fdf.step import beard_step_function
 from fdisyn.synthesis.kinds import DiagnoserKind, register_kind
 
-__all__ = ["BEARD_KIND", "SETTLED", "settling_samples", "beard_budget_seconds", "beard_recovery_samples", "beard_account_view"]
+__all__ = ["BEARD_KIND", "SETTLED", "settling_samples", "beard_budget_seconds", "beard_recovery_samples", "beard_account_view", "beard_kind_reference"]
 
 
 SETTLED = 1e-3
@@ -122,6 +124,27 @@ def beard_account_view(gf: GainFile) -> BankView:
     )
 
 
+def beard_kind_reference(gf: GainFile, U: np.ndarray, Y: np.ndarray) -> RunResult:
+    """A ``beard_fdf`` gain file's run over a trace by the filter's NumPy twin
+    (:func:`fdisyn.synthesis.beard_fdf.reference.beard_reference_run`) on the filter its payload rebuilds.
+
+    Parameters
+    ----------
+    gf : GainFile
+        A ``beard_fdf`` gain file.
+    U : numpy.ndarray
+        Inputs, ``T × nu``.
+    Y : numpy.ndarray
+        Outputs, ``T × ny``.
+
+    Returns
+    -------
+    RunResult
+        From the filter's initial state.
+    """
+    return beard_reference_run(beard_from_gain_file(gf), U, Y)
+
+
 BEARD_KIND = register_kind(
     DiagnoserKind(
         name="beard_fdf",
@@ -130,6 +153,7 @@ BEARD_KIND = register_kind(
         recovery_samples=beard_recovery_samples,
         false_alarm_budget=beard_budget_seconds,
         account_view=beard_account_view,
+        reference=beard_kind_reference,
     )
 )
 """The ``beard_fdf`` kind, produced by the method ``beard_fdf`` (:mod:`fdisyn.synthesis.beard_fdf.method`)."""

@@ -38,6 +38,9 @@ def _step(gf: GainFile) -> Any:
     return nafdf_from_gain_file(gf).step
 
 
+# No ``reference``: the NAFDF has no NumPy twin of its step (its EKF, parameter re-estimation and classifier are
+# written once, in CasADi; ``NafdfDesign.run`` runs that step), so its generated C is checked against the CasADi step
+# only, and its step's parts against independent truths in its tests.
 NAFDF_KIND = register_kind(
     DiagnoserKind(
         name="nafdf",
