@@ -7,7 +7,8 @@ by this test the moment it exists, and fails it until it has a test design in :d
 design and a trace with NaN and ±inf written into a few samples:
 
 - the step's names, sizes and dense vectors are the contract's, from ``gf.step``, and ``init_state`` is finite;
-- the exported C library (:func:`fdisyn.export`, loaded by :class:`~fdisyn.runtime.compiled.CompiledDiagnoser`)
+- the exported C library (every symbol it exports prefixed by the diagnoser's name, its thresholds the gain
+  file's) (:func:`fdisyn.export`, loaded by :class:`~fdisyn.runtime.compiled.CompiledDiagnoser`)
   against the CasADi step, and both against the kind's independent NumPy reference
   (:attr:`~fdisyn.synthesis.kinds.DiagnoserKind.reference`, where the kind has one): ``state``, ``r`` and ``J``
   to round-off, ``alarm``, ``isolated`` and ``status`` exactly;
@@ -24,7 +25,10 @@ runs it too (tests/design/test_architecture_kind.py).
 
 from __future__ import annotations
 
+import ctypes
 import math
+import shutil
+import subprocess
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -177,6 +181,19 @@ def check_step_contract(gf: GainFile) -> ca.Function:
     return fn
 
 
+def check_library_symbols(gf: GainFile, library: Path) -> None:
+    """Every symbol the library exports starts with the diagnoser's name (two diagnosers link into one program;
+    CasADi's ``check_symbols``), and its threshold table is the gain file's."""
+    nm = shutil.which("nm")
+    if nm is not None:
+        listing = subprocess.run([nm, "-D", "--defined-only", str(library)], capture_output=True, text=True, check=True).stdout
+        names = [line.split()[-1] for line in listing.splitlines() if line.strip()]
+        stray = [n for n in names if not n.startswith(f"{gf.name}_") and n not in ("_init", "_fini")]
+        assert names and not stray, f"symbols without the prefix {gf.name}_: {stray}"
+    table = (ctypes.c_double * gf.step.nj).in_dll(ctypes.CDLL(str(library.resolve())), f"{gf.name}_thresholds")
+    np.testing.assert_array_equal(np.array(table[:]), gf.thresholds)
+
+
 def check_kind_fields(gf: GainFile) -> None:
     """Every field of the gain file's kind works on it."""
     kind = kinds.get_kind(gf.kind)
@@ -217,12 +234,14 @@ def check_kind_contract(gf: GainFile, U: np.ndarray, Y: np.ndarray, directory: P
     library = directory / f"lib{gf.name}.so"
     cd = CompiledDiagnoser(library, built)
     np.testing.assert_array_equal(cd.init_state(), gf.step.init_state)
+    check_library_symbols(gf, library)
     cas, cas_states = casadi_run(fn, gf.step.init_state, U, Y)
     c, c_states = c_steps(cd, U, Y)
     assert cas.status.sum() >= 1, "the trace holds no non-finite sample"
     worst = {"C−CasADi": max(gap(c_states, cas_states), gap(c.r, cas.r), gap(c.J, cas.J))}
     assert worst["C−CasADi"] <= C_VS_CASADI, worst
     decisions_equal(c, cas, "C against CasADi")
+    assert set(np.unique(cas.alarm)) <= {0, 1} and set(np.unique(cas.isolated)) <= set(range(-1, len(gf.faults)))
     ref = kinds.reference_run(gf, U, Y)
     if ref is not None:
         worst["reference−CasADi"] = max(gap(ref.state, cas.state), gap(ref.r, cas.r), gap(ref.J, cas.J))
@@ -275,6 +294,13 @@ def test_every_kind_honours_the_contract(kind: str, tmp_path: Path) -> None:
     assert d.gain_file.kind == kind
     worst = check_kind_contract(d.gain_file, d.U, d.Y, tmp_path)
     assert worst["alarms"] > 0, "the trace's fault raised no alarm: the decision went unchecked"
+
+
+def test_every_kind_but_the_nafdf_has_an_independent_reference() -> None:
+    """A kind without a NumPy reference is a decision made here: the NAFDF's EKF, re-estimation and classifier are
+    written once, in CasADi, and its C is checked against that step only."""
+    without = [k.name for k in kinds.all_kinds() if k.reference is None]
+    assert without == ["nafdf"], f"kinds without a NumPy reference: {without}; give each its DiagnoserKind.reference, or say here why it has none"
 
 
 def design_of(kind: str) -> Design:
