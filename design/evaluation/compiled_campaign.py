@@ -231,7 +231,7 @@ def _sim_source(model: SampleModel, c_dir: Path) -> None:
 
 
 @dataclass(frozen=True, eq=False)
-class CampaignSpec:
+class LibraryScenario:
     """Everything a process needs to load a built campaign library and run a scenario (plain data: picklable)."""
 
     library: Path
@@ -254,11 +254,11 @@ class CampaignSpec:
 class CompiledCampaign:
     """A scenario's runs through the fused library: :meth:`run` gives a chunk's :class:`ChunkRuns`.
 
-    Pickled as its :class:`CampaignSpec`: a worker process loads the library
+    Pickled as its :class:`LibraryScenario`: a worker process loads the library
     again from its path (after the manifest checks), never a ctypes handle.
     """
 
-    def __init__(self, spec: CampaignSpec) -> None:
+    def __init__(self, spec: LibraryScenario) -> None:
         _check_before_loading(spec.library, spec.key)
         try:
             lib = ctypes.CDLL(str(spec.library.resolve()))
@@ -543,7 +543,7 @@ def compiled_campaign(
     parameters = np.ascontiguousarray(model.parameters(sc), dtype=float).reshape(-1)
     if parameters.size != model.step.size1_in(3):
         raise ShapeError(f"scenario {sc.name!r} has {parameters.size} parameters; the sample model reads {model.step.size1_in(3)}")
-    spec = CampaignSpec(
+    spec = LibraryScenario(
         library=lib,
         key=key,
         scenario=sc,
