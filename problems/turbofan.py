@@ -537,8 +537,8 @@ class GlrFootprint:
     """The Lorden delay ``ln(ARL_j) / I`` of every statistic's hypotheses at the designed minimum fault (samples)."""
 
     def onsets_within(self, key: str) -> int:
-        """The longest window within :data:`~fdisyn.runtime.gainfile.LIMITS` ``[key]`` (``nstate`` or ``coefficients``)."""
-        from fdisyn.runtime.gainfile import LIMITS
+        """The longest window within :data:`~fdisyn.runtime.schema.LIMITS` ``[key]`` (``nstate`` or ``coefficients``)."""
+        from fdisyn.runtime.schema import LIMITS
 
         used, per = {"nstate": (self.nstate, self.hypotheses), "coefficients": (self.coefficients, self.per_onset_coefficients)}[key]
         return max(0, (LIMITS[key] - (used - per * self.window)) // per)
@@ -548,7 +548,8 @@ def glr_footprint(gf: GainFile, arl0: float) -> GlrFootprint:
     """The GLR statistics the linear diagnoser would give the bank ``gf`` at ``arl0`` (s) with its own onset window,
     sized without building the gain file (whose reader refuses it beyond the limits)."""
     from fdisyn.detectors.sequential import split_budget
-    from fdisyn.runtime.gainfile import linear_state_layout, step_coefficients
+    from fdisyn.runtime.layout import linear_state_layout
+    from fdisyn.runtime.validate import step_coefficients
     from fdisyn.synthesis.linear_diagnoser import FaultClass, sequential_evaluators
     from fdisyn.synthesis.linear_kind import design_plant
 
@@ -801,7 +802,7 @@ def _glr_section(v: Any, runs: int) -> str:
     """The budget of the detector comparison (``runs`` per scenario), and why the GLR is not in it: its onset sums
     against the step's limits."""
     from fdisyn.reporting.report import fmt, folded, table
-    from fdisyn.runtime.gainfile import LIMITS
+    from fdisyn.runtime.schema import LIMITS
 
     gf = v.built["grouped"].gain_file
     fp = glr_footprint(gf, DETECTOR_ARL0)

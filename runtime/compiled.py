@@ -49,7 +49,8 @@ from pathlib import Path
 
 import numpy as np
 from fdisyn.runtime.errors import BuildError
-from fdisyn.runtime.gainfile import GainFile, gain_file_sha256, parse_json_data, read_regular_file
+from fdisyn.runtime.gainfile import GainFile, gain_file_sha256
+from fdisyn.runtime.jsondata import parse_json_data, read_regular_file
 from fdisyn.runtime.reference import RunResult, StepOutput, sample_block, sample_vector, step_state
 from fdisyn.runtime.trace import shown_path
 
@@ -276,7 +277,29 @@ def _ptr(a: np.ndarray, kind: type) -> object:
 
 
 class CompiledDiagnoser:
-    """The C step of one diagnoser, callable per sample or over a whole trace."""
+    """The C step of one diagnoser, callable per sample or over a whole trace.
+
+    The library must have been built from ``gf`` (``fdisyn codegen`` writes its build mark and manifest);
+    a library built from another gain file, or changed since, is refused before it is loaded.
+
+    Parameters
+    ----------
+    library : str or Path
+        The compiled library (``lib<name>.so`` beside ``gains.json``).
+    gf : GainFile
+        The gain file it was built from.
+
+    Attributes
+    ----------
+    gf : GainFile
+        The diagnoser.
+
+    Raises
+    ------
+    BuildError
+        No library at ``library``, one not built from ``gf`` (or changed since), or one this process
+        loaded before from another gain file; the message says to run ``fdisyn codegen``.
+    """
 
     def __init__(self, library: str | Path, gf: GainFile) -> None:
         path = Path(library)
@@ -345,12 +368,36 @@ class CompiledDiagnoser:
         self._iso = ctypes.c_int(-1)
 
     def init_state(self) -> np.ndarray:
+        """The step's initial state (``<prefix>_init``): a new array of ``nstate`` entries."""
         s = np.zeros(self.gf.step.nstate)
         self._init(_ptr(s, _D))
         return s
 
     def step(self, state: np.ndarray, u: np.ndarray, y: np.ndarray) -> StepOutput:
-        """One sample; ``state`` (float64, contiguous, writeable, nstate long) is updated in place."""
+        """One sample; ``state`` is updated in place.
+
+        Parameters
+        ----------
+        state : numpy.ndarray
+            The step's state: float64, contiguous, writeable, ``nstate`` long.
+        u : numpy.ndarray
+            The ``nu`` inputs of the sample.
+        y : numpy.ndarray
+            The ``ny`` outputs of the sample.
+
+        Returns
+        -------
+        StepOutput
+            Residuals, statistics, alarm, isolated fault and status of the sample.
+
+        Raises
+        ------
+        ArgumentError
+            ``u`` or ``y`` does not hold real numbers.
+        ShapeError
+            ``u`` or ``y`` has the wrong length, or ``state`` is not a writeable, contiguous float64 array
+            of ``nstate`` entries (it is never converted: a copy would leave the caller's state unchanged).
+        """
         st = self.gf.step
         s = step_state(state, st.nstate)
         uu = sample_vector(u, "u", st.nu)
@@ -376,7 +423,29 @@ class CompiledDiagnoser:
         )
 
     def run(self, U: np.ndarray, Y: np.ndarray, state: np.ndarray | None = None) -> RunResult:
-        """All samples of a trace in one C call (``U``: N × nu, ``Y``: N × ny; ``state`` copied)."""
+        """All samples of a trace in one C call.
+
+        Parameters
+        ----------
+        U : numpy.ndarray
+            The inputs, ``N × nu``.
+        Y : numpy.ndarray
+            The outputs, ``N × ny``.
+        state : numpy.ndarray, optional
+            The state to start from (copied; default: :meth:`init_state`).
+
+        Returns
+        -------
+        RunResult
+            Every sample's residuals, statistics, alarms and isolated faults, and the final state.
+
+        Raises
+        ------
+        ArgumentError
+            An array that does not hold real numbers.
+        ShapeError
+            An array of the wrong shape.
+        """
         st = self.gf.step
         Yc = sample_block(Y, "Y", st.ny)
         n = Yc.shape[0]

@@ -4,19 +4,21 @@ A diagnoser's state is one float64 vector, the ``state[nstate]`` of its step
 and of the generated C. A :class:`StateLayout` names its blocks in order,
 each ``rows × cols`` and stored column-major (CasADi's order), so that the
 runtime, the designs and the reports read the same entries by the same names:
-the linear layout is :func:`fdisyn.runtime.gainfile.linear_state_layout`, the
+the linear layout is :func:`linear_state_layout`, the
 NAFDF's is written into its gain file (``extensions.nafdf.state_layout``).
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from fdisyn.runtime.errors import ShapeError
+from fdisyn.runtime.schema import SEQUENTIAL_KINDS
 
-__all__ = ["StateLayout"]
+__all__ = ["StateLayout", "linear_state_layout"]
 
 
 @dataclass(frozen=True)
@@ -91,3 +93,33 @@ class StateLayout:
             else:
                 out.extend(f"{name}[{i},{j}]" for j in range(c) for i in range(r))
         return out
+
+
+def linear_state_layout(generators: Sequence[Any], evaluators: Sequence[Any]) -> StateLayout:
+    """Where each part of a linear diagnoser's state vector lives.
+
+    ``xi<g>``: generator ``g``'s state; ``counters``: one persistence counter
+    per statistic; ``ready``: one flag per generator (0 until its first valid
+    sample has initialised it at equilibrium); ``nonfinite``: the number of
+    samples that held a non-finite input or output; ``window<j>``: for each
+    WSSR statistic ``j``, the ``q`` of its generator's last ``window`` valid
+    samples, newest first (a shift register: each valid sample shifts it by
+    one and writes ``q`` at the top; zeros not yet overwritten are the samples
+    not seen yet, so ``J`` — the sum of the register — needs no fill count,
+    and the step has no index arithmetic, which the symbolic step would spell
+    out as one comparison per entry anyway); ``sequential<j>``: for each CUSUM
+    statistic its sums ``S_i^+``, ``S_i^−`` then their latches (1 from crossing the
+    threshold until the sum returns to 0), for each GLR statistic its onset sums ``d_i(n)``
+    (hypothesis-major, ``n = 1 … M``). A sequential statistic's persistence
+    counter holds its raised alarm (1) or 0.
+    """
+    blocks = [(f"xi{g}", gen.n_state, 1) for g, gen in enumerate(generators)]
+    blocks += [("counters", len(evaluators), 1), ("ready", len(generators), 1), ("nonfinite", 1, 1)]
+    blocks += [(f"window{j}", int(e.window), 1) for j, e in enumerate(evaluators) if e.kind == "wssr"]
+    blocks += [
+        (f"sequential{j}", int(e.directions.shape[0]) * (4 if e.kind == "cusum" else 1), 1)
+        for j, e in enumerate(evaluators)
+        if e.kind in SEQUENTIAL_KINDS and e.directions is not None
+    ]
+    return StateLayout(tuple(blocks), scalars=frozenset({"nonfinite"}))
+

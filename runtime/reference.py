@@ -49,7 +49,9 @@ from dataclasses import dataclass
 
 import numpy as np
 from fdisyn.runtime.errors import ArgumentError, ShapeError
-from fdisyn.runtime.gainfile import SEQUENTIAL_KINDS, GainFile, glr_weights, linear_state_layout, release_level
+from fdisyn.runtime.gainfile import GainFile, glr_weights, release_level
+from fdisyn.runtime.layout import linear_state_layout
+from fdisyn.runtime.schema import SEQUENTIAL_KINDS
 
 __all__ = ["StepOutput", "RunResult", "LinearReference", "ChangeEstimate", "glr_estimates", "sample_vector", "sample_block", "step_state"]
 

@@ -85,10 +85,10 @@ def _options(pairs: Sequence[str] | None) -> dict[str, Any]:
 
     Only the syntax is checked here; the problem validates each value against
     the option's type and domain (:meth:`~fdisyn.simulation.problem.Problem.check_options`).
-    An object or a list is data, read strictly (:func:`~fdisyn.runtime.gainfile.parse_json_data`):
+    An object or a list is data, read strictly (:func:`~fdisyn.runtime.jsondata.parse_json_data`):
     a key repeated in one of its objects (JSON would keep the last) is refused naming the option.
     """
-    from fdisyn.runtime.gainfile import parse_json_data
+    from fdisyn.runtime.jsondata import parse_json_data
 
     out: dict[str, Any] = {}
     for pair in pairs or []:

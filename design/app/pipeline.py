@@ -27,7 +27,9 @@ from fdisyn.evaluation.evaluate import Evaluation, evaluate
 from fdisyn.evaluation.progress import tracked
 from fdisyn.simulation.problem import Problem, scaled_scenario
 from fdisyn.runtime.errors import ArgumentError, CertificateError
-from fdisyn.runtime.gainfile import SEQUENTIAL_KINDS, GainFile, linear_state_layout
+from fdisyn.runtime.gainfile import GainFile
+from fdisyn.runtime.layout import linear_state_layout
+from fdisyn.runtime.schema import SEQUENTIAL_KINDS
 from fdisyn.runtime.reference import LinearReference, RunResult
 
 __all__ = ["EXPORT_TOL", "ExportCheck", "check_export", "FaultSizeSweep", "fault_size_sweep", "VariantResult", "reproduce_problem"]

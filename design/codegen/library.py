@@ -50,7 +50,10 @@ import numpy as np
 from fdisyn.codegen.step import step_function
 from fdisyn.runtime.compiled import BUILD_MARK, STALE_BUILD, library_path, write_manifest
 from fdisyn.runtime.errors import BuildError, GainFileError
-from fdisyn.runtime.gainfile import FORMAT, LIMITS, GainFile, check_limits, gain_file_sha256, read_gain_file, read_regular_file
+from fdisyn.runtime.gainfile import GainFile, gain_file_sha256, read_gain_file
+from fdisyn.runtime.jsondata import read_regular_file
+from fdisyn.runtime.schema import FORMAT, LIMITS
+from fdisyn.runtime.validate import check_limits
 from fdisyn.runtime.names import check_diagnoser_name
 
 __all__ = [

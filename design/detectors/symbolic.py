@@ -482,9 +482,9 @@ class LinearStatistic:
     """How a linear diagnoser's statistic of one kind (:class:`~fdisyn.runtime.gainfile.Evaluator`) is
     evaluated per sample, in the semantics of :class:`fdisyn.runtime.reference.LinearReference`.
 
-    ``block``: the prefix of its state block in :func:`~fdisyn.runtime.gainfile.linear_state_layout`
+    ``block``: the prefix of its state block in :func:`~fdisyn.runtime.layout.linear_state_layout`
     (``None``: no state beyond its counter); ``sequential``: one of
-    :data:`~fdisyn.runtime.gainfile.SEQUENTIAL_KINDS` (the step checks its value for overflow after the
+    :data:`~fdisyn.runtime.schema.SEQUENTIAL_KINDS` (the step checks its value for overflow after the
     other statistics' of its generator, in the reference's order); ``evaluate(r, block, ev)``: its value and
     new block from the generator's residual ``r`` and the block before the sample;
     ``counter(value, J, counter, ev)``: its alarm counter after a valid sample (``J`` the reported value).
@@ -541,4 +541,4 @@ LINEAR_STATISTICS: dict[str, LinearStatistic] = {
     "cusum": LinearStatistic("sequential", True, _cusum, _cusum_counter),
     "glr": LinearStatistic("sequential", True, _glr, _glr_counter),
 }
-"""Each kind of :data:`~fdisyn.runtime.gainfile.EVALUATOR_KINDS`: how the linear step evaluates it."""
+"""Each kind of :data:`~fdisyn.runtime.schema.EVALUATOR_KINDS`: how the linear step evaluates it."""

@@ -17,7 +17,8 @@ import scipy.stats
 from fdisyn.detectors.chi2 import chi2_evaluator
 from fdisyn.detectors.window import window_energy_quantile
 from fdisyn.runtime.errors import ArgumentError, ShapeError
-from fdisyn.runtime.gainfile import MAX_MAGNITUDE, MAX_WSSR_WINDOW, Evaluator
+from fdisyn.runtime.gainfile import Evaluator
+from fdisyn.runtime.schema import MAX_MAGNITUDE, MAX_WSSR_WINDOW
 from fdisyn.runtime.names import shown
 
 __all__ = ['wssr_threshold_table', 'wssr_evaluator']

@@ -23,7 +23,7 @@ import numpy as np
 from fdisyn.models.sampling import check_sample_time, van_loan, zoh
 from fdisyn.numerics.linalg import as_matrix, as_square, as_symmetric, frozen_array, real_array
 from fdisyn.runtime.errors import ArgumentError, ShapeError
-from fdisyn.runtime.gainfile import MAX_MAGNITUDE
+from fdisyn.runtime.schema import MAX_MAGNITUDE
 from fdisyn.runtime.names import check_distinct, check_signal_names, shown
 
 __all__ = ["LinearPlant", "identifier_names"]

@@ -47,7 +47,8 @@ import numpy as np
 import scipy.linalg
 import scipy.optimize
 import scipy.stats
-from fdisyn.runtime.gainfile import ACCOUNT_EFFECTS, ACCOUNT_FORMAT, GainFile
+from fdisyn.runtime.gainfile import GainFile
+from fdisyn.runtime.schema import ACCOUNT_EFFECTS, ACCOUNT_FORMAT
 
 __all__ = ["BankView", "bank_account", "unaccounted", "account_lines", "default_bank_of", "ZERO_RTOL", "PROBABILITIES",
            "NUMERIC_FAILURES"]

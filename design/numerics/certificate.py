@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 from typing import Literal
 
 from fdisyn.runtime.errors import CertificateError
-from fdisyn.runtime.gainfile import to_jsonable
+from fdisyn.runtime.jsondata import to_jsonable
 
 __all__ = ["Check", "Certificate", "distinct_digits", "worst"]
 

@@ -396,7 +396,7 @@ def unobservable_modes(a: np.ndarray, c: np.ndarray, *, region: str) -> list[com
 
 BALANCE_MAX_EXPONENT = 200
 """The largest power of two (either way) :func:`state_balancing` scales a state by: ``2^±200 ≈ 1.6e±60`` keeps
-every scaled entry of a plant (at most 1e150, :data:`fdisyn.runtime.gainfile.MAX_MAGNITUDE`) far from overflow
+every scaled entry of a plant (at most 1e150, :data:`fdisyn.runtime.schema.MAX_MAGNITUDE`) far from overflow
 and underflow."""
 
 

@@ -39,7 +39,8 @@ from fdisyn.codegen.library import CFLAGS
 from fdisyn.evaluation.metrics import DEFINITIONS
 from fdisyn.simulation.problem import Problem
 from fdisyn.runtime.errors import FileError
-from fdisyn.runtime.gainfile import parse_json_data, write_gain_file
+from fdisyn.runtime.gainfile import write_gain_file
+from fdisyn.runtime.jsondata import parse_json_data
 from fdisyn.synthesis.kinds import get_kind, recovery_samples
 from matplotlib.figure import Figure
 

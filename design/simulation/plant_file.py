@@ -137,7 +137,9 @@ from fdisyn.models.linear import LinearPlant
 from fdisyn.simulation.problem import Batch, Problem, Scenario, get_problem
 from fdisyn.models.sampling import van_loan
 from fdisyn.runtime.errors import ArgumentError, FdisynError, ShapeError, SpecError
-from fdisyn.runtime.gainfile import LIMITS, GainFile, read_regular_file
+from fdisyn.runtime.gainfile import GainFile
+from fdisyn.runtime.jsondata import read_regular_file
+from fdisyn.runtime.schema import LIMITS
 from fdisyn.runtime.names import (
     DIAGNOSER_NAME_MAX,
     SHORT_LABEL_MAX,

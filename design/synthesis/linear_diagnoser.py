@@ -30,18 +30,9 @@ from fdisyn.models.linear import LinearPlant
 from fdisyn.numerics.certificate import Certificate, Check
 from fdisyn.numerics.linalg import transfer_size
 from fdisyn.runtime.errors import ArgumentError, ExistenceError, FdisynError, ShapeError, SolverError
-from fdisyn.runtime.gainfile import (
-    EVALUATOR_KINDS,
-    MAX_GLR_WINDOW,
-    MAX_WSSR_WINDOW,
-    SEQUENTIAL_KINDS,
-    Decision,
-    Evaluator,
-    GainFile,
-    Generator,
-    StepSpec,
-    linear_state_layout,
-)
+from fdisyn.runtime.gainfile import Decision, Evaluator, GainFile, Generator, StepSpec
+from fdisyn.runtime.layout import linear_state_layout
+from fdisyn.runtime.schema import EVALUATOR_KINDS, MAX_GLR_WINDOW, MAX_WSSR_WINDOW, SEQUENTIAL_KINDS
 from fdisyn.runtime.names import check_fault_name, shown
 from fdisyn.synthesis.registry import (
     ARL0,

@@ -7,7 +7,8 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 from fdisyn.detectors.symbolic import LINEAR_STATISTICS, all_finite, all_of, constant, finite
-from fdisyn.runtime.gainfile import GainFile, linear_state_layout
+from fdisyn.runtime.gainfile import GainFile
+from fdisyn.runtime.layout import linear_state_layout
 from fdisyn.synthesis.kinds import STEP_INPUTS, STEP_OUTPUTS
 
 __all__ = ["linear_step_function"]

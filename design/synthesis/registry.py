@@ -24,7 +24,8 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 from fdisyn.runtime.errors import ArgumentError
-from fdisyn.runtime.gainfile import EVALUATOR_KINDS, LIMITS, GainFile
+from fdisyn.runtime.gainfile import GainFile
+from fdisyn.runtime.schema import EVALUATOR_KINDS, LIMITS
 from fdisyn.runtime.names import shown
 from fdisyn.synthesis import kinds
 

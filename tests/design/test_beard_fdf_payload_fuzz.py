@@ -2,7 +2,7 @@
 
 Bases are the satellite's committed gain files (``reports/satellite_pitch/gains``: no design runs here).
 A seeded fuzzer sets numbers of ``extensions.beard_fdf`` to ±1e308, ±1e200, values just outside, at and
-just inside :data:`~fdisyn.runtime.gainfile.MAX_MAGNITUDE`; each tampered file is either refused with a
+just inside :data:`~fdisyn.runtime.schema.MAX_MAGNITUDE`; each tampered file is either refused with a
 :class:`GainFileError` naming the payload field, or the reader's relations — ``A − L C`` Schur stable,
 the equilibrium maps, orthonormal axes — hold when recomputed in extended precision.
 """
@@ -18,7 +18,8 @@ from typing import Any
 import numpy as np
 import pytest
 from fdisyn.runtime.errors import GainFileError
-from fdisyn.runtime.gainfile import MAX_MAGNITUDE, read_gain_file
+from fdisyn.runtime.gainfile import read_gain_file
+from fdisyn.runtime.schema import MAX_MAGNITUDE
 from fdisyn.synthesis.beard_fdf.payload import BeardFilter, beard_from_gain_file
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -210,17 +210,17 @@ def test_one_absurd_input_does_not_leave_the_bank_stuck(wt_built, wt_trace):
 def test_the_generator_refuses_sizes_beyond_the_limits_before_writing(wt_built, tmp_path, monkeypatch):
     from fdisyn.codegen import library as codegen
     from fdisyn.codegen.step import step_function
-    from fdisyn.runtime import gainfile
+    from fdisyn.runtime import schema
 
     gf = wt_built.gain_file
     # counted here from the matrices: exact zeros depend on the BLAS kernel (148 on SkylakeX, 140 on Haswell)
     coeffs = sum(int(np.count_nonzero(getattr(g, k))) for g in gf.generators for k in ("Ar", "Bu", "By", "Cr", "Du", "Dy", "Xu", "Xy"))
     coeffs += sum(int(np.count_nonzero(e.W)) for e in gf.evaluators)
     assert coeffs > 100
-    monkeypatch.setitem(gainfile.LIMITS, "coefficients", 100)
+    monkeypatch.setitem(schema.LIMITS, "coefficients", 100)
     with pytest.raises(GainFileError, match=f"hold {coeffs} nonzero coefficients; at most 100"):
         codegen.generate_sources(gf, tmp_path / "c")
-    monkeypatch.setitem(gainfile.LIMITS, "coefficients", 10_000)
+    monkeypatch.setitem(schema.LIMITS, "coefficients", 10_000)
     # the wrapper's automatic storage: CasADi's w, iw, arg, res, the next state and a, iso, status (8 bytes each);
     # w follows the exact zeros too (78 doubles on SkylakeX)
     fn = step_function(gf)

@@ -31,18 +31,9 @@ from fdisyn.detectors.symbolic import (
     wssr_threshold,
     wssr_update,
 )
-from fdisyn.runtime.gainfile import (
-    EVALUATOR_KINDS,
-    SEQUENTIAL_KINDS,
-    Decision,
-    Evaluator,
-    GainFile,
-    Generator,
-    StepSpec,
-    glr_weights,
-    linear_state_layout,
-    release_level,
-)
+from fdisyn.runtime.gainfile import Decision, Evaluator, GainFile, Generator, StepSpec, glr_weights, release_level
+from fdisyn.runtime.layout import linear_state_layout
+from fdisyn.runtime.schema import EVALUATOR_KINDS, SEQUENTIAL_KINDS
 from fdisyn.runtime.reference import LinearReference
 
 RTOL = 1e-12

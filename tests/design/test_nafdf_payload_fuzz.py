@@ -263,7 +263,8 @@ def test_huge_payload_numbers_are_refused_by_name_or_consistent(tmp_path: Path) 
     import warnings
 
     from fdisyn.runtime.errors import GainFileError
-    from fdisyn.runtime.gainfile import MAX_MAGNITUDE, read_gain_file
+    from fdisyn.runtime.gainfile import read_gain_file
+    from fdisyn.runtime.schema import MAX_MAGNITUDE
     from fdisyn.synthesis.nafdf.design import _init_state, detector_thresholds
     from fdisyn.synthesis.nafdf.payload import nafdf_from_gain_file
 

@@ -22,10 +22,10 @@ from fdisyn.runtime.gainfile import (
     Generator,
     StepSpec,
     gain_file_from_dict,
-    linear_state_layout,
     read_gain_file,
     write_gain_file,
 )
+from fdisyn.runtime.layout import linear_state_layout
 from fdisyn.runtime.reference import LinearReference
 from fdisyn.synthesis.linear_kind import linear_recovery_samples
 from fdisyn.synthesis.registry import design

@@ -189,7 +189,9 @@ def test_the_detector_variants_share_the_grouped_banks_budget() -> None:
 def test_the_glr_of_the_grouped_bank_exceeds_the_step_limits(grouped) -> None:  # noqa: ANN001
     """Why the comparison has no GLR: with the window the design chooses its onset sums exceed the state limit and its
     directions the coefficient limit; the coefficients leave room for one onset, far below the predicted delays."""
-    from fdisyn.runtime.gainfile import LIMITS, linear_state_layout, step_coefficients
+    from fdisyn.runtime.layout import linear_state_layout
+    from fdisyn.runtime.schema import LIMITS
+    from fdisyn.runtime.validate import step_coefficients
 
     gd, _ = grouped
     gf = gd.gain_file

@@ -23,10 +23,10 @@ from fdisyn.runtime.gainfile import (
     Generator,
     StepSpec,
     gain_file_sha256,
-    linear_state_layout,
     read_gain_file,
     write_gain_file,
 )
+from fdisyn.runtime.layout import linear_state_layout
 from fdisyn.runtime.monitor import Monitor
 from fdisyn.runtime.reference import LinearReference
 from fdisyn.runtime.trace import Trace, write_trace

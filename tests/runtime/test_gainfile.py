@@ -9,7 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 from fdisyn.runtime.errors import BuildError, GainFileError
-from fdisyn.runtime.gainfile import FORMAT, gain_file_sha256, parse_json_data, read_gain_file, write_gain_file
+from fdisyn.runtime.gainfile import gain_file_sha256, read_gain_file, write_gain_file
+from fdisyn.runtime.jsondata import parse_json_data
+from fdisyn.runtime.schema import FORMAT
 
 
 @pytest.fixture
@@ -183,10 +185,10 @@ def test_a_gain_file_that_is_no_regular_file_is_refused_without_reading(tmp_path
 
 
 def test_an_oversized_file_is_refused_before_it_is_read(doc, tmp_path, monkeypatch):
-    from fdisyn.runtime import gainfile
+    from fdisyn.runtime import schema
 
     p = _write(tmp_path, doc)
-    monkeypatch.setitem(gainfile.LIMITS, "file_bytes", p.stat().st_size - 1)
+    monkeypatch.setitem(schema.LIMITS, "file_bytes", p.stat().st_size - 1)
     with pytest.raises(GainFileError, match=rf"has {p.stat().st_size} bytes; a gain file may have at most {p.stat().st_size - 1}"):
         read_gain_file(p)
 

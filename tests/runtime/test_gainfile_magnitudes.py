@@ -18,7 +18,8 @@ from typing import Any
 import numpy as np
 import pytest
 from fdisyn.runtime.errors import GainFileError
-from fdisyn.runtime.gainfile import MAX_MAGNITUDE, GainFile, read_gain_file
+from fdisyn.runtime.gainfile import GainFile, read_gain_file
+from fdisyn.runtime.schema import MAX_MAGNITUDE
 
 ROOT = Path(__file__).resolve().parents[2]
 GAINS = sorted((ROOT / "reports").glob("*/gains/*.json"))

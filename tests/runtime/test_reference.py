@@ -9,7 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from fdisyn.runtime.gainfile import Decision, Evaluator, GainFile, Generator, StepSpec, linear_state_layout
+from fdisyn.runtime.gainfile import Decision, Evaluator, GainFile, Generator, StepSpec
+from fdisyn.runtime.layout import linear_state_layout
 from fdisyn.runtime.monitor import Monitor
 from fdisyn.runtime.reference import LinearReference
 

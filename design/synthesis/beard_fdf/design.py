@@ -38,7 +38,8 @@ from fdisyn.numerics.robust_cones import (
 )
 from fdisyn.detectors.sequential import MAX_ARL_SAMPLES
 from fdisyn.runtime.errors import ArgumentError, ExistenceError
-from fdisyn.runtime.gainfile import LIMITS, MAX_MAGNITUDE, GainFile
+from fdisyn.runtime.gainfile import GainFile
+from fdisyn.runtime.schema import LIMITS, MAX_MAGNITUDE
 from fdisyn.runtime.names import shown
 from fdisyn.synthesis.beard_fdf.eigenstructure import optimise_eigenstructure, residual_covariance_trace
 from fdisyn.synthesis.beard_fdf.payload import NSTATE_MARGIN, BeardFilter, beard_gain_file

@@ -6,7 +6,7 @@ from dataclasses import replace
 from typing import Any
 
 from fdisyn.runtime.errors import ArgumentError
-from fdisyn.runtime.gainfile import LIMITS, MAX_MAGNITUDE
+from fdisyn.runtime.schema import LIMITS, MAX_MAGNITUDE
 from fdisyn.runtime.names import shown
 from fdisyn.synthesis.linear_diagnoser import TS
 from fdisyn.synthesis.registry import ARL0, DEFAULT_ARL0, P_F, PERSISTENCE, WINDOW, Option, at, is_count, is_real
@@ -50,7 +50,7 @@ def _positive_or_none(v: Any) -> bool:
 
 
 def _level(v: Any) -> bool:
-    """A positive number the gain file can hold (at most :data:`~fdisyn.runtime.gainfile.MAX_MAGNITUDE`)."""
+    """A positive number the gain file can hold (at most :data:`~fdisyn.runtime.schema.MAX_MAGNITUDE`)."""
     return is_real(v) and 0 < v <= MAX_MAGNITUDE
 
 

@@ -25,7 +25,10 @@ from typing import Any
 import numpy as np
 from fdisyn.numerics.certificate import Certificate
 from fdisyn.runtime.errors import GainFileError
-from fdisyn.runtime.gainfile import LIMITS, MAX_MAGNITUDE, GainFile, StepSpec, check_magnitudes, to_jsonable
+from fdisyn.runtime.gainfile import GainFile, StepSpec
+from fdisyn.runtime.jsondata import to_jsonable
+from fdisyn.runtime.schema import LIMITS, MAX_MAGNITUDE
+from fdisyn.runtime.validate import check_magnitudes
 from fdisyn.runtime.layout import StateLayout
 from fdisyn.runtime.names import shown
 from fdisyn.runtime.values import real_number
@@ -280,9 +283,9 @@ def beard_from_gain_file(gf: GainFile) -> BeardFilter:
     """The filter of a ``kind = "beard_fdf"`` gain file, every field validated.
 
     Shapes against the common fields (``nu``, ``ny``, ``faults``), finite numbers within
-    :data:`~fdisyn.runtime.gainfile.MAX_MAGNITUDE` (so that no check below overflows), orthonormal axes
+    :data:`~fdisyn.runtime.schema.MAX_MAGNITUDE` (so that no check below overflows), orthonormal axes
     (to 1e-9), ``0 ≤ Y_th ≤ π/2``, ``A − L C`` Schur stable, the equilibrium maps, the window within
-    :data:`~fdisyn.runtime.gainfile.LIMITS` (``N·p + n + 8 ≤ nstate``), ``h, ε̄ > 0``, ``rho`` null or
+    :data:`~fdisyn.runtime.schema.LIMITS` (``N·p + n + 8 ≤ nstate``), ``h, ε̄ > 0``, ``rho`` null or
     ``> 1``, the persistence, the thresholds, and the step's sizes, names and initial state. Raises
     :class:`GainFileError` with one line naming the field, what was expected and what was found.
     """

@@ -17,7 +17,8 @@ from fdisyn.models.nonlinear import NonlinearPlant
 from fdisyn.models.sampling import check_sample_time
 from fdisyn.numerics.linalg import as_covariance
 from fdisyn.runtime.errors import FdisynError, GainFileError
-from fdisyn.runtime.gainfile import GainFile, StepSpec, check_magnitudes
+from fdisyn.runtime.gainfile import GainFile, StepSpec
+from fdisyn.runtime.validate import check_magnitudes
 from fdisyn.runtime.layout import StateLayout
 from fdisyn.runtime.names import shown
 from fdisyn.runtime.values import real_number

@@ -13,7 +13,7 @@ from fdisyn.detectors.sequential import MAX_ARL_SAMPLES
 from fdisyn.models.nonlinear import NonlinearPlant
 from fdisyn.numerics.linalg import as_covariance, as_vector, frozen_array, real_array
 from fdisyn.runtime.errors import ArgumentError, ShapeError
-from fdisyn.runtime.gainfile import MAX_MAGNITUDE
+from fdisyn.runtime.schema import MAX_MAGNITUDE
 from fdisyn.runtime.layout import StateLayout
 from fdisyn.runtime.names import shown
 from fdisyn.runtime.values import real_number

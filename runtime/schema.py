@@ -1,0 +1,89 @@
+"""The gain file's format: its version, the statistic kinds it knows and its size and magnitude limits.
+
+These constants are what :mod:`fdisyn.runtime.gainfile` reads and writes against, what
+:mod:`fdisyn.runtime.validate` checks and what the design side sizes its designs by.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+__all__ = [
+    "FORMAT",
+    "FORMAT_FAMILY",
+    "MATRIX_KEYS",
+    "EVALUATOR_KINDS",
+    "SEQUENTIAL_KINDS",
+    "MAX_GLR_WINDOW",
+    "MAX_WSSR_WINDOW",
+    "LIMITS",
+    "ACCOUNT_FORMAT",
+    "ACCOUNT_EFFECTS",
+    "MAX_MAGNITUDE",
+]
+
+FORMAT = "fdisyn.gains/1"
+"""The gain file format this fdisyn reads and writes."""
+FORMAT_FAMILY = "fdisyn.gains/"
+"""The prefix every version of the format shares (a file of another version is named as such)."""
+MATRIX_KEYS = ("Ar", "Bu", "By", "Cr", "Du", "Dy", "Xu", "Xy")
+"""A generator's matrices, in the order the file and the step list them (:class:`~fdisyn.runtime.gainfile.Generator`)."""
+EVALUATOR_KINDS = ("chi2", "wssr", "cusum", "glr")
+"""The statistics a linear diagnoser evaluates (:class:`~fdisyn.runtime.gainfile.Evaluator`)."""
+SEQUENTIAL_KINDS = ("cusum", "glr")
+"""Statistics that accumulate evidence over time (:class:`~fdisyn.runtime.gainfile.Evaluator`): their alarm holds until the evidence is gone."""
+MAX_GLR_WINDOW = 1000
+"""Largest GLR onset window accepted: the step updates ``window`` sums per hypothesis and sample."""
+MAX_WSSR_WINDOW = 100_000
+"""Largest WSSR window accepted in a gain file. The window's ``q`` values are part of the state, so
+``nstate`` ≤ :data:`LIMITS` ``["nstate"]`` bounds the windows of a compiled diagnoser further."""
+
+LIMITS: Mapping[str, int] = {
+    # every kind
+    "inputs": 256,
+    "outputs": 256,
+    "faults": 256,
+    "step_outputs": 1024,
+    "file_bytes": 64 * 1024 * 1024,
+    # linear kind
+    "generators": 64,
+    "generator_states": 256,
+    "nstate": 2048,
+    "residuals": 256,
+    "plant_states": 512,
+    "unknown_inputs": 256,
+    "coefficients": 10_000,
+    "persistence": 10**9,
+}
+"""Size limits of a gain file, checked by the reader before anything costly.
+
+``coefficients`` — the nonzero entries of every generator's ``Ar Bu By Cr
+Du Dy Xu Xy`` and every evaluator's ``W`` — is the one that matters: the
+generated C holds one multiply-add per coefficient in straight-line code, and
+gcc -O2's memory grows by ~45 kB per coefficient (measured on a 2-core machine
+shared with other jobs: 4 974 coefficients took 11 s and 0.20 GB, 9 774 took
+14–16 s and 0.44 GB; a dense 400-state generator, ~170 000 coefficients,
+would take minutes and gigabytes). ``nstate`` ≤ 2048 keeps the step's copy
+of the state on the stack at 16 KiB; ``generator_states`` ≤ 256 bounds the
+stability check (an eigenvalue problem per generator); the signal, fault,
+generator and residual counts (``step_outputs``: residual and statistic names of any kind) bound the
+name tables and the replay program's stack arrays; ``file_bytes`` bounds what
+the reader parses at all. ``persistence`` ≤ 10⁹ consecutive exceedances: the
+step counts them in a double, and beyond 2⁵³ a count no longer grows, so a
+larger one could never alarm (10⁹, like the NAFDF's sample counters, is 11
+days of samples at 1 kHz). Other kinds add their own limits to their payload."""
+
+ACCOUNT_FORMAT = 1
+"""Format of a gain file's optional ``account`` block (what the design can see; see :func:`~fdisyn.runtime.validate.validate_account`)."""
+ACCOUNT_EFFECTS = ("zero", "transient", "persistent")
+"""A fault's effect on a residual in the ``account`` block: none, its onset only (zero steady-state gain), or lasting."""
+
+MAX_MAGNITUDE = 1e150
+"""Largest magnitude of a number in a gain file's matrices and numeric fields (every kind's payload too).
+
+The reader's consistency checks multiply the file's numbers: ``(I − Ar) Xu − Bu``, ``‖Ar‖·‖Xu‖``,
+``A − L C`` and its equilibrium solve, ``UᵀU`` of an axis basis. A product of two entries is at most
+10³⁰⁰; a sum of them over an inner dimension the :data:`LIMITS` allow (at most 2048) at most ~2·10³⁰³,
+and the Frobenius norm of a matrix of at most 2048 × 2048 such sums ~4·10³⁰⁶: below the largest double
+(1.8·10³⁰⁸), so no check can overflow to ``inf`` and pass (``gap ≤ tol·inf``). Designed files hold
+numbers far below it (the committed designs: at most ~10¹⁰)."""
