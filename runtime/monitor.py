@@ -34,7 +34,25 @@ __all__ = ["BACKENDS", "Verdict", "Monitor"]
 
 @dataclass(frozen=True)
 class Verdict:
-    """What the diagnoser says about one sample."""
+    """What the diagnoser says about one sample (:meth:`Monitor.update`).
+
+    Attributes
+    ----------
+    time : float
+        The sample's time in seconds since the first sample (``samples × Ts``).
+    alarm : bool
+        A fault is detected.
+    isolated : int
+        Index of the isolated fault in the gain file's ``faults``; −1 when none is isolated.
+    fault : str or None
+        Name of the isolated fault (``None``: no alarm, or detected but not isolated).
+    J : numpy.ndarray
+        The statistics, one per ``step.statistic_names``.
+    r : numpy.ndarray
+        The residuals, one per ``step.residual_names``.
+    skipped : bool
+        The sample held a non-finite value and was skipped where it mattered.
+    """
 
     time: float
     alarm: bool
@@ -61,7 +79,31 @@ def _backend(backend: object) -> Backend:
 
 
 class Monitor:
-    """Runs one diagnoser over a stream; keeps its state and counts bad samples."""
+    """Runs one diagnoser over a stream; keeps its state and counts bad samples.
+
+    Build one with :func:`fdisyn.load` (a folder written by ``fdisyn export``), :meth:`from_directory`, or from
+    a :class:`~fdisyn.runtime.gainfile.GainFile` (the constructor).
+
+    Attributes
+    ----------
+    gf : GainFile
+        The diagnoser it runs.
+    backend : {"compiled", "reference"}
+        What runs the step: the C library or the NumPy reference.
+    state : numpy.ndarray
+        The step's state after the last sample.
+    samples : int
+        Samples processed since the last :meth:`reset`.
+    skipped_samples : int
+        Of those, the samples that held a non-finite value.
+
+    Examples
+    --------
+    >>> mon = fdisyn.load("motor")  # doctest: +SKIP
+    >>> v = mon.update(u, y)  # doctest: +SKIP
+    >>> v.alarm, v.fault  # doctest: +SKIP
+    (False, None)
+    """
 
     def __init__(self, gf: GainFile, *, library: str | Path | None = None, backend: Literal["auto", "compiled", "reference"] = "auto") -> None:
         """Run ``gf`` by ``backend``.
@@ -111,8 +153,28 @@ class Monitor:
         A library that was not built from this very ``gains.json`` (or that
         changed since it was built) raises :class:`BuildError` saying to run
         ``fdisyn codegen DIR``; it is never run, nor silently replaced by the
-        reference. A ``backend`` other than ``"auto"``, ``"compiled"`` or ``"reference"`` raises
-        :class:`ArgumentError` before anything is read.
+        reference.
+
+        Parameters
+        ----------
+        directory : str or Path
+            A folder written by ``fdisyn export`` or ``fdisyn codegen``.
+        backend : {"auto", "compiled", "reference"}
+            ``"auto"``: the library when the folder holds one, else the NumPy reference.
+
+        Returns
+        -------
+        Monitor
+            At its initial state.
+
+        Raises
+        ------
+        ArgumentError
+            ``backend`` is none of the three (before anything is read).
+        GainFileError
+            ``gains.json`` is missing or not a valid gain file.
+        BuildError
+            The library was not built from this ``gains.json``, or ``"compiled"`` and there is none.
         """
         backend = _backend(backend)
         d = Path(directory)
@@ -129,7 +191,27 @@ class Monitor:
         self.skipped_samples = 0
 
     def update(self, u: np.ndarray, y: np.ndarray) -> Verdict:
-        """Process one sample (``u``: nu real numbers, ``y``: ny; checked by the backend, never coerced)."""
+        """Process one sample.
+
+        Parameters
+        ----------
+        u : numpy.ndarray
+            The ``nu`` inputs of this sample (real numbers; checked by the backend, never coerced).
+        y : numpy.ndarray
+            The ``ny`` outputs of this sample.
+
+        Returns
+        -------
+        Verdict
+            What the diagnoser says about the sample.
+
+        Raises
+        ------
+        ArgumentError
+            ``u`` or ``y`` does not hold real numbers.
+        ShapeError
+            ``u`` or ``y`` is not a vector of ``nu`` (``ny``) entries.
+        """
         out = self.impl.step(self.state, u, y)
         t = self.samples * self.gf.Ts
         self.samples += 1
@@ -150,7 +232,27 @@ class Monitor:
         return glr_estimates(self.gf, self.state)
 
     def run(self, U: np.ndarray, Y: np.ndarray) -> RunResult:
-        """Process a whole block of samples, continuing from the current state."""
+        """Process a whole block of samples, continuing from the current state.
+
+        Parameters
+        ----------
+        U : numpy.ndarray
+            The inputs, one row per sample (``N × nu``).
+        Y : numpy.ndarray
+            The outputs, one row per sample (``N × ny``).
+
+        Returns
+        -------
+        RunResult
+            The residuals, statistics, alarms and isolated faults of every sample, and the final state.
+
+        Raises
+        ------
+        ArgumentError
+            ``U`` or ``Y`` does not hold real numbers.
+        ShapeError
+            ``U`` or ``Y`` does not have ``nu`` (``ny``) columns, or they differ in rows.
+        """
         res = self.impl.run(U, Y, state=self.state)
         self.state = res.state
         self.samples += len(res.alarm)

@@ -101,7 +101,28 @@ _NOT_A_NUMBER = "expected a decimal numeral such as -1.5e-3, inf, nan or an empt
 
 @dataclass(frozen=True, eq=False)
 class Trace:
-    """Time, inputs and outputs of one run (rows are samples)."""
+    """Time, inputs and outputs of one run (rows are samples).
+
+    Attributes
+    ----------
+    t : numpy.ndarray
+        The sample times in seconds, one per row.
+    inputs : tuple of str
+        The input names, one per column of ``U``.
+    outputs : tuple of str
+        The output names, one per column of ``Y``.
+    U : numpy.ndarray
+        The inputs (``N × len(inputs)``).
+    Y : numpy.ndarray
+        The outputs (``N × len(outputs)``).
+    extra : Mapping of str to numpy.ndarray
+        Further columns written after the outputs (a fault's true size, say); not read back.
+
+    Raises
+    ------
+    TraceError
+        A column name repeated, or arrays whose sizes do not match the names and ``t``.
+    """
 
     t: np.ndarray
     inputs: tuple[str, ...]
@@ -218,7 +239,27 @@ def parse_field(text: str | bytes) -> float:
 
     Blanks (space, tab) around the field and one pair of enclosing double
     quotes (with ``""`` inside for a quote) are removed; the rest must be
-    empty (NaN) or a numeral of the grammar, else :class:`TraceError`.
+    empty (NaN) or a numeral of the grammar.
+
+    Parameters
+    ----------
+    text : str or bytes
+        One field as it stands between the commas of a row.
+
+    Returns
+    -------
+    float
+        Its value; NaN for an empty field.
+
+    Raises
+    ------
+    TraceError
+        The field is not a number of the replay grammar, or holds more than one field.
+
+    Examples
+    --------
+    >>> parse_field(' "1.5e3" ')
+    1500.0
     """
     raw = text.encode("utf-8") if isinstance(text, str) else bytes(text)
     _check_text(raw, lambda msg: _raise(f"field '{_shown(raw)}': {msg}"))
@@ -313,6 +354,20 @@ class TraceReader:
 
     Reads the file in chunks of 1 MiB, so memory does not grow with the file.
     ``source`` is the name used in messages (as the user typed it; shown by :func:`shown_path`).
+
+    Parameters
+    ----------
+    fh : binary file
+        The open trace, positioned at its start.
+    source : str
+        The file's name, as messages show it.
+    inputs, outputs : sequence of str
+        The columns to read besides ``t`` (each must be in the header; others are ignored).
+
+    Raises
+    ------
+    TraceError
+        The file is empty, or its header lacks a column or repeats one.
     """
 
     def __init__(self, fh: IO[bytes], source: str, *, inputs: Sequence[str], outputs: Sequence[str]) -> None:
@@ -390,6 +445,21 @@ class TraceReader:
         numeral or empty each); a fault found later in the file is reported
         only after the block's earlier rows are checked (``_fail``), so the
         first fault is the C program's first fault.
+
+        Parameters
+        ----------
+        rows : int
+            The most samples in one block.
+
+        Yields
+        ------
+        numpy.ndarray
+            One block of samples.
+
+        Raises
+        ------
+        TraceError
+            A row that does not follow the replay grammar (named by its line).
         """
         cols, ncols, m = self.columns, self.ncols, len(self.columns)
         fail = self._fail
@@ -470,7 +540,22 @@ def _open_input(source: str | Path) -> IO[bytes]:
 def read_trace(path: str | Path, *, inputs: Sequence[str], outputs: Sequence[str]) -> Trace:
     """Read the columns ``t``, ``inputs`` and ``outputs`` of a trace CSV (the replay grammar).
 
-    Data errors and files that cannot be read raise :class:`TraceError`.
+    Parameters
+    ----------
+    path : str or Path
+        The trace CSV.
+    inputs, outputs : sequence of str
+        The columns to read besides ``t``.
+
+    Returns
+    -------
+    Trace
+        The whole trace in memory (:class:`TraceReader` streams it instead).
+
+    Raises
+    ------
+    TraceError
+        A data error (named by its line and column) or a file that cannot be read.
     """
     try:
         with _open_input(str(path)) as fh:
@@ -500,7 +585,20 @@ def _csv_name(name: str) -> str:
 
 
 def write_trace(trace: Trace, path: str | Path) -> Path:
-    """Write ``t``, inputs, outputs and the extra columns (``%.17g``; NaN as an empty field)."""
+    """Write ``t``, inputs, outputs and the extra columns (``%.17g``; NaN as an empty field).
+
+    Parameters
+    ----------
+    trace : Trace
+        What to write.
+    path : str or Path
+        The CSV to write (its folder is created).
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
     names = ["t", *trace.inputs, *trace.outputs, *trace.extra]
@@ -593,7 +691,22 @@ def _replay_rows(t: np.ndarray, result: RunResult) -> str:
 
 
 def write_replay_csv(path: str | Path, t: np.ndarray, result: RunResult) -> Path:
-    """The replay output CSV of a whole run (same bytes as both replays write)."""
+    """The replay output CSV of a whole run (same bytes as both replays write).
+
+    Parameters
+    ----------
+    path : str or Path
+        The CSV to write; written to a temporary file and renamed, so a failed write leaves no partial file.
+    t : numpy.ndarray
+        The sample times, one per row of ``result``.
+    result : RunResult
+        The run (:meth:`~fdisyn.runtime.monitor.Monitor.run`).
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
     with _AtomicOutput(p) as out:
@@ -616,10 +729,34 @@ def replay_csv(
 
     ``run(U, Y)`` processes one block of samples continuing the diagnoser's
     state (``Monitor.run``). Memory stays bounded by a block and a chunk of
-    the file. Returns the number of samples and of samples skipped for
-    non-finite values. The steps and their order (open the input, read the
+    the file. The steps and their order (open the input, read the
     header, create the output, stream, rename) are the C program's, so both
     report the same first error.
+
+    Parameters
+    ----------
+    run : callable
+        ``run(U, Y) -> RunResult``: one block of samples through the diagnoser.
+    source : str
+        The trace CSV.
+    target : str
+        The replay CSV to write (to a temporary file renamed at the end).
+    inputs, outputs : sequence of str
+        The gain file's input and output names: the columns read besides ``t``.
+    nj, nr : int
+        The numbers of statistics and residuals (the output's columns).
+
+    Returns
+    -------
+    tuple of int
+        The number of samples and of samples skipped for non-finite values.
+
+    Raises
+    ------
+    TraceError
+        A data error in ``source`` (named by its line and column).
+    OSError
+        ``source`` cannot be opened or ``target`` cannot be written (the caller words it).
     """
     m = len(inputs)
     samples = skipped = 0

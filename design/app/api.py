@@ -33,12 +33,36 @@ __all__ = ["design", "export", "load", "methods"]
 def design(plant: Any, method: str, *, name: str | None = None, **options: Any) -> GainFile:
     """Design a diagnoser for ``plant`` with a registered ``method``; a certified :class:`GainFile`.
 
-    ``options`` are the method's options (``fdisyn methods`` lists them, with
-    their defaults); ``name`` is the diagnoser's name, the prefix of its C API.
-    An unknown method or option, or a value outside its domain, raises
-    :class:`~fdisyn.runtime.errors.ArgumentError`; a plant the method cannot
-    design for, :class:`~fdisyn.runtime.errors.ExistenceError`; a design that
-    fails its verification, :class:`~fdisyn.runtime.errors.CertificateError`.
+    Parameters
+    ----------
+    plant : LinearPlant, SampledDataPlant or NonlinearPlant
+        The plant to diagnose (the method says which kinds of plant it takes).
+    method : str
+        A registered design method (:func:`methods`; ``fdisyn methods NAME`` describes one).
+    name : str, optional
+        The diagnoser's name, the prefix of its C API (a C identifier); default: the method's.
+    **options
+        The method's options (``fdisyn methods NAME`` lists them, with their defaults), e.g. ``P_f``.
+
+    Returns
+    -------
+    GainFile
+        The diagnoser, its certificate passed.
+
+    Raises
+    ------
+    ArgumentError
+        An unknown method or option, or a value outside its domain.
+    ExistenceError
+        A plant the method cannot design for (the message names the condition that fails).
+    CertificateError
+        A design that fails its verification.
+
+    Examples
+    --------
+    >>> gf = fdisyn.design(plant, method="kalman_uio", P_f=1e-4)  # doctest: +SKIP
+    >>> gf.faults  # doctest: +SKIP
+    ('y0', 'y1', 'y2')
     """
     from fdisyn.synthesis.registry import design as registry_design
 
@@ -46,7 +70,13 @@ def design(plant: Any, method: str, *, name: str | None = None, **options: Any) 
 
 
 def methods() -> list[str]:
-    """The names of the registered design methods."""
+    """The names of the registered design methods.
+
+    Returns
+    -------
+    list of str
+        The names :func:`design` takes as ``method``.
+    """
     from fdisyn.synthesis.registry import method_names
 
     return list(method_names())
@@ -121,6 +151,33 @@ def load(directory: str | Path, *, backend: Literal["compiled", "reference", "au
     reference of a linear gain file instead, ``"auto"`` the library when there
     is one. ``mon.update(u, y)`` returns a :class:`~fdisyn.runtime.monitor.Verdict`
     (``.alarm``, ``.fault``, ``.isolated``, ``.J``, ``.r``, ``.time``).
+
+    Parameters
+    ----------
+    directory : str or Path
+        A folder written by :func:`export` or ``fdisyn codegen``.
+    backend : {"compiled", "reference", "auto"}
+        What runs the step: the C library, the NumPy reference, or the library when there is one.
+
+    Returns
+    -------
+    Monitor
+        The diagnoser at its initial state.
+
+    Raises
+    ------
+    ArgumentError
+        ``backend`` is none of the three.
+    GainFileError
+        ``DIR/gains.json`` is missing or not a valid gain file.
+    BuildError
+        The library is missing (``"compiled"``) or was not built from that ``gains.json``.
+
+    Examples
+    --------
+    >>> mon = fdisyn.load("motor")  # doctest: +SKIP
+    >>> mon.update([0.0], [0.0, 0.0]).alarm  # doctest: +SKIP
+    False
     """
     if backend not in ("compiled", "reference", "auto"):
         raise ArgumentError(f"backend must be 'compiled', 'reference' or 'auto'; got {backend!r}")

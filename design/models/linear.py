@@ -53,6 +53,34 @@ class LinearPlant:
     names are distinct across states, inputs, unknown inputs, outputs and
     component faults: they are all columns of the trace CSV ``fdisyn
     simulate`` writes, and sensor and component faults name fault classes.
+
+    Attributes
+    ----------
+    A, B, C, D : numpy.ndarray
+        The model ``ẋ = A x + B u + E d + Fx f`` (``x⁺`` when discrete), ``y = C x + D u``.
+    E : numpy.ndarray
+        The unknown inputs' entry (``n × q``): the disturbances the residuals are decoupled from.
+    Fx : numpy.ndarray
+        The component faults' entry (``n × len(component_faults)``); sensor faults need none.
+    Q, R : numpy.ndarray
+        The process and measurement noise covariances (symmetric positive semidefinite).
+    Ts : float or None
+        The sample time in seconds; ``None`` for a continuous plant.
+    states, inputs, unknown_inputs, outputs, component_faults : tuple of str
+        The names of the states, known inputs, unknown inputs, outputs (the sensor faults' names too) and
+        component faults.
+    units : Mapping of str to str
+        A unit per signal name (informational: pages and messages show it).
+    state_scale : tuple of float or None
+        The typical state magnitudes the user chose (:meth:`scaled`; the plant file's ``[model].state_scale``):
+        the linear methods design in these coordinates as given. ``None``: they balance the states themselves
+        (:meth:`balancing`).
+
+    Examples
+    --------
+    >>> plant = LinearPlant.create(A=[[0.9]], B=[[1.0]], C=[[1.0]], E=[[0.1]], R=[[0.01]], Ts=0.1)
+    >>> plant.n, plant.m, plant.p, plant.q
+    (1, 1, 1, 1)
     """
 
     A: np.ndarray
@@ -71,9 +99,6 @@ class LinearPlant:
     component_faults: tuple[str, ...]
     units: Mapping[str, str] = field(default_factory=dict)
     state_scale: tuple[float, ...] | None = None
-    """The typical state magnitudes the user chose (:meth:`scaled`; the plant file's ``[model].state_scale``):
-    the linear methods design in these coordinates as given. ``None``: they balance the states themselves
-    (:meth:`balancing`)."""
 
     @classmethod
     def create(
@@ -95,7 +120,46 @@ class LinearPlant:
         component_faults: Sequence[str] | None = None,
         units: Mapping[str, str] | None = None,
     ) -> LinearPlant:
-        """Validate and build a plant (the only constructor users need)."""
+        """Validate and build a plant (the only constructor users need).
+
+        Parameters
+        ----------
+        A : array_like
+            The state matrix (``n × n``).
+        B : array_like, optional
+            The known inputs' entry (``n × m``); default: no inputs.
+        C : array_like
+            The output matrix (``p × n``).
+        D : array_like, optional
+            The feed-through (``p × m``); default zero.
+        E : array_like, optional
+            The unknown inputs' entry (``n × q``); default: none.
+        Fx : array_like, optional
+            The component faults' entry (``n × f``); default: none.
+        Q, R : array_like, optional
+            The process and measurement noise covariances; default zero.
+        Ts : float, optional
+            The sample time in seconds; default ``None``, a continuous plant.
+        states, inputs, unknown_inputs, outputs, component_faults : sequence of str, optional
+            The signal names (default ``x0 x1 …``, ``u0 …``, ``d0 …``, ``y0 …``, ``f0 …``): distinct across all
+            of them, each following :mod:`fdisyn.runtime.names`.
+        units : Mapping of str to str, optional
+            A unit per signal name.
+
+        Returns
+        -------
+        LinearPlant
+            The validated plant (its matrices read-only).
+
+        Raises
+        ------
+        ArgumentError
+            A matrix that is not real numbers, entries beyond 1e150, a covariance that is not symmetric
+            positive semidefinite, a sample time that is not a positive number, or a name that breaks the
+            grammar or repeats another.
+        ShapeError
+            A matrix whose size does not fit ``A``, ``B`` and ``C``.
+        """
         a = as_square(A, "A")
         n = a.shape[0]
         c = as_matrix(C, "C", cols=n)
@@ -144,22 +208,27 @@ class LinearPlant:
     # dimensions -------------------------------------------------------------
     @property
     def n(self) -> int:
+        """The number of states."""
         return self.A.shape[0]
 
     @property
     def m(self) -> int:
+        """The number of known inputs."""
         return self.B.shape[1]
 
     @property
     def p(self) -> int:
+        """The number of outputs."""
         return self.C.shape[0]
 
     @property
     def q(self) -> int:
+        """The number of unknown inputs."""
         return self.E.shape[1]
 
     @property
     def is_discrete(self) -> bool:
+        """The plant has a sample time."""
         return self.Ts is not None
 
     # transformations --------------------------------------------------------
@@ -172,6 +241,24 @@ class LinearPlant:
         ``R`` are unchanged (sensors are sampled). A sample time so long that
         ``e^{±A Ts}`` overflows is refused naming ``name`` (the key the caller
         read it from) and the bound.
+
+        Parameters
+        ----------
+        Ts : float
+            The sample time in seconds.
+        name : str
+            What refusals call the sample time (the key the caller read it from).
+
+        Returns
+        -------
+        LinearPlant
+            The discrete plant.
+
+        Raises
+        ------
+        ArgumentError
+            The plant is discrete already, or ``Ts`` is not a positive number or so long that the
+            exponential overflows.
         """
         if self.is_discrete:
             raise ArgumentError(f"the plant is already discrete (Ts = {self.Ts}); discretise a continuous plant")
@@ -198,6 +285,21 @@ class LinearPlant:
         The linear methods balance a plant's states themselves
         (:meth:`balancing`); a scaled plant overrides that: it is designed in
         the coordinates given (its :attr:`state_scale` records them).
+
+        Parameters
+        ----------
+        scale : sequence of float
+            ``n`` positive finite numbers: the typical magnitude of each state.
+
+        Returns
+        -------
+        LinearPlant
+            The plant in the scaled states.
+
+        Raises
+        ------
+        ArgumentError
+            ``scale`` is not ``n`` positive finite numbers.
         """
         try:
             s = real_array(scale, "state scaling").reshape(-1)  # numbers only: "10" or true are refused
@@ -262,7 +364,25 @@ class LinearPlant:
         return si[:, None] * np.asarray(self.A) * s[None, :], np.hstack(cols), c[rows > 0] / rows[rows > 0, None]
 
     def with_noise(self, *, Q: object | None = None, R: object | None = None) -> LinearPlant:
-        """The same plant with other noise covariances (validated like ``create``)."""
+        """The same plant with other noise covariances (validated like ``create``).
+
+        Parameters
+        ----------
+        Q, R : array_like, optional
+            The new process and measurement noise covariances; default: the plant's.
+
+        Returns
+        -------
+        LinearPlant
+            The plant with those covariances (its state scaling kept).
+
+        Raises
+        ------
+        ArgumentError
+            A covariance that is not symmetric positive semidefinite.
+        ShapeError
+            A covariance of the wrong size.
+        """
         plant = LinearPlant.create(
             A=self.A,
             B=self.B,
@@ -283,7 +403,23 @@ class LinearPlant:
         return replace(plant, state_scale=self.state_scale)
 
     def select_outputs(self, idx: Sequence[int]) -> LinearPlant:
-        """The plant seen through a subset of its sensors (rows of ``C``, ``D``, ``R``)."""
+        """The plant seen through a subset of its sensors (rows of ``C``, ``D``, ``R``).
+
+        Parameters
+        ----------
+        idx : sequence of int
+            The outputs to keep, in the order given.
+
+        Returns
+        -------
+        LinearPlant
+            The plant with those outputs.
+
+        Raises
+        ------
+        ArgumentError
+            An index that is not a whole number or is out of range.
+        """
         bad = [i for i in idx if isinstance(i, bool) or not isinstance(i, (int, np.integer))]
         if bad:  # int() would read the string "1" (and "１") and truncate 1.5
             raise ArgumentError(f"output indices must be whole numbers; got {shown(bad)}")
@@ -351,6 +487,32 @@ class LinearPlant:
 
             sys = control.c2d(control.ss(A, np.hstack([B, E]), C, 0), Ts)
             plant = LinearPlant.from_control(sys, n_unknown=1, Q=Q, R=R)
+
+        Parameters
+        ----------
+        sys : control.StateSpace
+            The plant, inputs ``[u; d]``; ``dt`` 0 (continuous) or the sample time.
+        n_unknown : int
+            How many of its last inputs are unknown inputs.
+        Q, R : array_like, optional
+            The process and measurement noise covariances; default zero.
+        inputs, unknown_inputs, outputs, states, component_faults : sequence of str, optional
+            The signal names, as in :meth:`create`.
+        Fx : array_like, optional
+            The component faults' entry, as in :meth:`create`.
+        units : Mapping of str to str, optional
+            A unit per signal name.
+
+        Returns
+        -------
+        LinearPlant
+            The validated plant.
+
+        Raises
+        ------
+        ArgumentError
+            ``sys`` is not a ``StateSpace``, ``n_unknown`` is out of range, ``sys.dt`` does not give the sample
+            time, an unknown input reaches the outputs directly, or :meth:`create` refuses the result.
         """
         import control
 

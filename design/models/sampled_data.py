@@ -59,32 +59,73 @@ class SampledDataPlant:
     systems are named by their input signal, as the paper and every
     certificate write them: :meth:`G_d` from ``d`` and :meth:`G_f` from ``f``
     to ``y``.
+
+    Attributes
+    ----------
+    A, C : numpy.ndarray
+        The continuous plant's state and output matrices.
+    B : numpy.ndarray
+        Known inputs ``u`` (the paper's ``B_u``).
+    E : numpy.ndarray
+        Disturbance ``d``, continuous white noise (the paper's ``B_d``).
+    Fx : numpy.ndarray
+        Faults ``f`` (the paper's ``B_f``).
+    Ts : float
+        Sample time (the paper's ``h``).
+    A_D, B_D : numpy.ndarray
+        ``e^{A Ts}`` and the step-invariant input matrix (eq. (13)).
+    E_J, Fx_J : numpy.ndarray
+        The norm-invariant input matrices of the disturbance and the fault (Lemma 1).
+    W_E : numpy.ndarray
+        ``E_J E_Jᵀ = ∫₀^Ts e^{Aτ} E Eᵀ e^{Aᵀτ} dτ``: also the covariance of the sampled unit-intensity disturbance.
+    W_Fx : numpy.ndarray
+        ``Fx_J Fx_Jᵀ``.
+    E_D, Fx_D : numpy.ndarray
+        The ZOH input matrices of the disturbance and the fault (the paper's indirect comparison).
     """
 
     A: np.ndarray
     B: np.ndarray
-    """Known inputs ``u`` (the paper's ``B_u``)."""
     E: np.ndarray
-    """Disturbance ``d``, continuous white noise (the paper's ``B_d``)."""
     Fx: np.ndarray
-    """Faults ``f`` (the paper's ``B_f``)."""
     C: np.ndarray
     Ts: float
-    """Sample time (the paper's ``h``)."""
     A_D: np.ndarray
     B_D: np.ndarray
     E_J: np.ndarray
     Fx_J: np.ndarray
     W_E: np.ndarray
-    """``E_J E_Jᵀ = ∫₀^Ts e^{Aτ} E Eᵀ e^{Aᵀτ} dτ``: also the covariance of the sampled unit-intensity disturbance."""
     W_Fx: np.ndarray
-    """``Fx_J Fx_Jᵀ``."""
     E_D: np.ndarray
     Fx_D: np.ndarray
 
     @classmethod
     def create(cls, *, A: object, B: object, E: object, Fx: object, C: object, Ts: float) -> SampledDataPlant:
-        """Validate (shapes, ``Ts > 0``) and discretise."""
+        """Validate (shapes, ``Ts > 0``) and discretise.
+
+        Parameters
+        ----------
+        A : array_like
+            The state matrix (``n × n``).
+        B, E, Fx : array_like
+            The known inputs', disturbance's and faults' entries (``n`` rows each).
+        C : array_like
+            The output matrix (``p × n``).
+        Ts : float
+            The sample time in seconds.
+
+        Returns
+        -------
+        SampledDataPlant
+            The plant with its discretisations.
+
+        Raises
+        ------
+        ArgumentError
+            ``Ts`` is not a positive number, or a matrix does not hold real numbers.
+        ShapeError
+            A matrix whose size does not fit ``A``.
+        """
         Ts = check_sample_time(Ts, "Ts")
         a = as_matrix(A, "A")
         n = a.shape[0]
@@ -121,6 +162,25 @@ class SampledDataPlant:
 
         The paper's plant is strictly proper (``D = 0``) and noise enters
         through ``d``; a nonzero ``D`` is refused rather than dropped.
+
+        Parameters
+        ----------
+        plant : LinearPlant
+            A continuous plant with ``D = 0``.
+        Ts : float
+            The sample time in seconds.
+
+        Returns
+        -------
+        SampledDataPlant
+            The plant with its discretisations.
+
+        Raises
+        ------
+        ArgumentError
+            ``plant`` is discrete, or ``Ts`` is not a positive number.
+        ExistenceError
+            ``plant`` has a nonzero ``D``.
         """
         if plant.is_discrete:
             raise ArgumentError(f"the sampled-data design needs a continuous plant; this one has Ts = {plant.Ts}")
@@ -130,23 +190,60 @@ class SampledDataPlant:
 
     @property
     def n(self) -> int:
+        """The number of states."""
         return self.A.shape[0]
 
     @property
     def p(self) -> int:
+        """The number of outputs."""
         return self.C.shape[0]
 
     @property
     def m(self) -> int:
+        """The number of known inputs."""
         return self.B.shape[1]
 
     def G_d(self, *, model: Literal["norm_invariant", "zoh"] = "norm_invariant") -> DiscreteLTI:
-        """From the disturbance ``d`` to ``y``: ``G_dJ = (A_D, E_J, C, 0)`` (Lemma 1) or the ZOH model ``(A_D, E_D, C, 0)``."""
+        """From the disturbance ``d`` to ``y``: ``G_dJ = (A_D, E_J, C, 0)`` (Lemma 1) or the ZOH model ``(A_D, E_D, C, 0)``.
+
+        Parameters
+        ----------
+        model : {"norm_invariant", "zoh"}
+            ``"norm_invariant"``: the norm-invariant discretisation of Lemma 1; ``"zoh"``: the input held
+            between samples.
+
+        Returns
+        -------
+        DiscreteLTI
+            The discrete system.
+
+        Raises
+        ------
+        ArgumentError
+            ``model`` is neither.
+        """
         b = self._input(model, "d")
         return DiscreteLTI(A=self.A_D, B=b, C=self.C, D=np.zeros((self.p, b.shape[1])))
 
     def G_f(self, *, model: Literal["norm_invariant", "zoh"] = "norm_invariant") -> DiscreteLTI:
-        """From the fault ``f`` to ``y``: ``G_fJ = (A_D, Fx_J, C, 0)`` (Lemma 1) or the ZOH model ``(A_D, Fx_D, C, 0)``."""
+        """From the fault ``f`` to ``y``: ``G_fJ = (A_D, Fx_J, C, 0)`` (Lemma 1) or the ZOH model ``(A_D, Fx_D, C, 0)``.
+
+        Parameters
+        ----------
+        model : {"norm_invariant", "zoh"}
+            ``"norm_invariant"``: the norm-invariant discretisation of Lemma 1; ``"zoh"``: the input held
+            between samples.
+
+        Returns
+        -------
+        DiscreteLTI
+            The discrete system.
+
+        Raises
+        ------
+        ArgumentError
+            ``model`` is neither.
+        """
         b = self._input(model, "f")
         return DiscreteLTI(A=self.A_D, B=b, C=self.C, D=np.zeros((self.p, b.shape[1])))
 
@@ -159,7 +256,24 @@ class SampledDataPlant:
         raise ArgumentError(f"model must be 'norm_invariant' or 'zoh'; got {model!r}")
 
     def discrete_plant(self, *, model: Literal["norm_invariant", "zoh"] = "norm_invariant") -> LinearPlant:
-        """The discrete :class:`LinearPlant` ``(A_D, B_D, C, E=E_J or E_D, Fx=Fx_J or Fx_D, Ts)``."""
+        """The discrete :class:`LinearPlant` ``(A_D, B_D, C, E=E_J or E_D, Fx=Fx_J or Fx_D, Ts)``.
+
+        Parameters
+        ----------
+        model : {"norm_invariant", "zoh"}
+            ``"norm_invariant"``: the norm-invariant discretisation of Lemma 1; ``"zoh"``: the input held
+            between samples.
+
+        Returns
+        -------
+        LinearPlant
+            The discrete plant, without noise covariances.
+
+        Raises
+        ------
+        ArgumentError
+            ``model`` is neither.
+        """
         return LinearPlant.create(A=self.A_D, B=self.B_D, C=self.C, E=self._input(model, "d"), Fx=self._input(model, "f"), Ts=self.Ts)
 
 

@@ -71,6 +71,26 @@ class Check:
     It passes only if both ``value`` and ``bound`` are finite numbers: a NaN
     or infinite measurement (a diverged solver, an overflowed model) or bound
     (a tolerance scaled by a NaN condition number) cannot certify anything.
+
+    Attributes
+    ----------
+    name : str
+        What is checked (``"residual_gain"``, say).
+    value : float
+        The measured quantity.
+    bound : float
+        What it must meet.
+    relation : {"<=", ">="}
+        How ``value`` must compare with ``bound``.
+    reason : str
+        Why the bound is what it is (a message shows it when the check fails).
+
+    Examples
+    --------
+    >>> Check("gain", 0.5, 1.0, "<=", "contraction").passed
+    True
+    >>> Check("gain", float("nan"), 1.0, "<=", "contraction").passed
+    False
     """
 
     name: str
@@ -81,12 +101,14 @@ class Check:
 
     @property
     def passed(self) -> bool:
+        """``value <relation> bound``, both finite."""
         v, b = float(self.value), float(self.bound)
         if not (math.isfinite(v) and math.isfinite(b)):
             return False
         return v <= b if self.relation == "<=" else v >= b
 
     def to_dict(self) -> dict[str, object]:
+        """The check as the gain file's certificate records it (with ``passed``)."""
         return {
             "name": self.name,
             "value": float(self.value),
@@ -99,7 +121,17 @@ class Check:
 
 @dataclass(frozen=True)
 class Certificate:
-    """A named set of checks plus informational figures (not pass/fail)."""
+    """A named set of checks plus informational figures (not pass/fail).
+
+    Attributes
+    ----------
+    subject : str
+        What is certified (the design's name).
+    checks : tuple of Check
+        The verified quantities; the certificate passes when all of them do.
+    info : Mapping of str to object
+        Informational figures (recorded, never pass/fail).
+    """
 
     subject: str
     checks: tuple[Check, ...]
@@ -107,17 +139,46 @@ class Certificate:
 
     @classmethod
     def of(cls, subject: str, checks: Iterable[Check], info: Mapping[str, object] | None = None) -> Certificate:
+        """A certificate from any iterable of checks.
+
+        Parameters
+        ----------
+        subject : str
+            What is certified.
+        checks : iterable of Check
+            The verified quantities.
+        info : Mapping of str to object, optional
+            Informational figures.
+
+        Returns
+        -------
+        Certificate
+            The certificate (``checks`` as a tuple, ``info`` copied).
+        """
         return cls(subject=subject, checks=tuple(checks), info=dict(info or {}))
 
     @property
     def passed(self) -> bool:
+        """Every check passed."""
         return all(c.passed for c in self.checks)
 
     def failed(self) -> list[Check]:
+        """The checks that did not pass, in order."""
         return [c for c in self.checks if not c.passed]
 
     def require(self) -> Certificate:
-        """Return ``self`` if every check passed, else raise :class:`CertificateError`."""
+        """Return ``self`` if every check passed, else raise :class:`CertificateError`.
+
+        Returns
+        -------
+        Certificate
+            ``self``.
+
+        Raises
+        ------
+        CertificateError
+            One line naming every failed check, its value, its bound and the reason for the bound.
+        """
         bad = self.failed()
         if bad:
             lines = "; ".join(f"{c.name} = {v} (must be {c.relation} {b}: {c.reason})" for c in bad for v, b in [distinct_digits(c.value, c.bound)])
@@ -125,6 +186,7 @@ class Certificate:
         return self
 
     def to_dict(self) -> dict[str, object]:
+        """The certificate as the gain file records it (plain JSON values)."""
         return {
             "subject": self.subject,
             "passed": self.passed,
