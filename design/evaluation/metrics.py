@@ -95,13 +95,102 @@ __doc__ = (__doc__ or "") + "\n" + "\n".join(f"{name}\n    {text}" for name, tex
 
 
 def binomial_interval(n: int, p: float, *, alpha: float = 1e-3) -> tuple[int, int]:
-    """Counts ``[lo, hi]`` holding ``Binomial(n, p)`` with probability ≥ ``1 − alpha``."""
+    """Counts ``[lo, hi]`` holding ``Binomial(n, p)`` with probability ≥ ``1 − alpha``.
+
+    Parameters
+    ----------
+    n : int
+        The number of trials (fault-free samples).
+    p : float
+        The probability of an event per trial (a statistic's ``P_f``).
+    alpha : float
+        The probability left outside the interval, half on each side.
+
+    Returns
+    -------
+    tuple of int
+        The lowest and highest count of the interval.
+
+    Examples
+    --------
+    >>> binomial_interval(1000, 0.01)
+    (2, 22)
+    """
     dist = scipy.stats.binom(n, p)
     return int(dist.ppf(alpha / 2)), int(dist.isf(alpha / 2))
 
 
 @dataclass(frozen=True)
 class ScenarioMetrics:
+    """The Monte Carlo's result for one design in one scenario (definitions: :data:`DEFINITIONS`).
+
+    Rates are fractions in [0, 1]; a figure that does not apply (a detection delay in a fault-free scenario,
+    an isolation accuracy for a fault the diagnoser has no class for) is ``None``.
+
+    Attributes
+    ----------
+    scenario : str
+        The scenario's name.
+    fault : str or None
+        The fault it injects (``None``: fault-free).
+    runs : int
+        Monte Carlo runs.
+    samples_per_run : int
+        Samples in each run.
+    Ts : float
+        The sample time in seconds.
+    false_alarm_rate : float
+        Fraction of fault-free samples with an alarm.
+    false_alarm_runs : float
+        Fraction of runs with at least one false alarm.
+    missed_detection_rate : float or None
+        Fraction of runs with no alarm while the fault is active.
+    missed_alarm_fraction : float or None
+        Fraction of fault-active samples without alarm.
+    detection_delay_mean_s, detection_delay_median_s, detection_delay_max_s : float or None
+        The detection delay of the runs that detected, in seconds.
+    detection_delay_mean_samples : float or None
+        The mean detection delay in samples.
+    detection_delay_max_samples : int or None
+        The longest detection delay in samples.
+    isolation_accuracy : float or None
+        Fraction of runs whose most frequent isolation decision names the true fault.
+    first_isolation_accuracy : float or None
+        The same for each run's first decision.
+    sample_isolation_accuracy : float or None
+        Among fault-active samples with an alarm, the fraction with the true fault isolated.
+    statistic_exceedance : list of float
+        Per statistic, the fraction of fault-free samples with ``J > threshold``.
+    statistic_exceedance_interval : list of tuple of float
+        Per statistic, the two-sided 99.9 % binomial interval of that fraction at its ``P_f``.
+    fault_free_samples : int
+        Fault-free samples per run (outside the fault and its recovery window).
+    nonfinite_samples : int
+        Samples whose inputs or outputs held a non-finite value (all runs).
+    false_alarm_episodes : int
+        False-alarm episodes (all runs).
+    mean_time_between_false_alarms_s : float or None
+        Fault-free time over the episodes; ``None`` when no false alarm was seen (the interval's lower end
+        still bounds it).
+    mean_time_between_false_alarms_interval_s : tuple of (float, float or None)
+        Garwood's exact 95 % interval of it (upper end ``None`` when no false alarm was seen).
+    arl0_budget_s : float or None
+        The false-alarm time the design was made for.
+    fault_information : float or None
+        Largest KL information per sample the fault brings to one generator (nats).
+    lorden_bound_samples : float or None
+        The Lorden bound on the mean detection delay, in samples.
+    delay_bound_ratio : float or None
+        The mean detection delay over the Lorden bound.
+    false_isolation_rate : float or None
+        Fraction of runs whose most frequent decision names another fault.
+    fault_free_histogram : list of list of int
+        Per statistic, its fault-free samples counted in the bins :data:`HISTOGRAM_EDGES` ``× threshold`` (below
+        the first edge, each bin, at or above the last); empty for a statistic without a finite positive threshold.
+    extra : Mapping of str to object
+        Figures beyond detection (``Problem.extra_metrics``, else the diagnoser kind's).
+    """
+
     scenario: str
     fault: str | None
     runs: int
@@ -125,21 +214,17 @@ class ScenarioMetrics:
     nonfinite_samples: int
     false_alarm_episodes: int = 0
     mean_time_between_false_alarms_s: float | None = None
-    """``None`` when no false alarm was seen (the interval's lower end still bounds it)."""
     mean_time_between_false_alarms_interval_s: tuple[float, float | None] = (0.0, None)
     arl0_budget_s: float | None = None
     fault_information: float | None = None
-    """Largest KL information per sample the fault brings to one generator (nats)."""
     lorden_bound_samples: float | None = None
     delay_bound_ratio: float | None = None
     false_isolation_rate: float | None = None
     fault_free_histogram: list[list[int]] = field(default_factory=list)
-    """Per statistic, its fault-free samples counted in the bins :data:`HISTOGRAM_EDGES` ``× threshold`` (below the
-    first edge, each bin, at or above the last); empty for a statistic without a finite positive threshold."""
     extra: Mapping[str, Any] = field(default_factory=dict)
-    """Figures beyond detection (``Problem.extra_metrics``, else the diagnoser kind's)."""
 
     def to_dict(self) -> dict[str, object]:
+        """The metrics as a plain dict (the Monte Carlo's JSON), field by field."""
         return asdict(self)
 
 
@@ -160,9 +245,43 @@ def scenario_metrics(
     budget_s: float | None = None,
     lorden: tuple[float, float] | None = None,
 ) -> ScenarioMetrics:
-    """Metrics of one scenario. ``alarm``, ``isolated``: ``R × N``; ``J``: ``R × N × nj``.
+    """Metrics of one scenario from its stacked runs (the reference :class:`MetricsAccumulator` must equal).
 
-    ``budget_s``: the design's false-alarm budget; ``lorden``: ``(I, bound in samples)`` of the fault.
+    Parameters
+    ----------
+    scenario : str
+        The scenario's name.
+    fault : str or None
+        The fault it injects (``None``: fault-free).
+    fault_index : int or None
+        The true fault's class in the gain file (``None``: none of its classes).
+    active : numpy.ndarray
+        ``N`` booleans: the samples where the fault is active.
+    alarm : numpy.ndarray
+        The alarms, ``R × N``.
+    isolated : numpy.ndarray
+        The isolated classes, ``R × N`` (−1: none).
+    J : numpy.ndarray
+        The statistics, ``R × N × nj``.
+    thresholds : sequence of float
+        One threshold per statistic.
+    P_f : sequence of float
+        Each statistic's per-sample false-alarm probability.
+    Ts : float
+        The sample time in seconds.
+    recovery : int
+        Samples after the fault's end that do not count as fault-free.
+    nonfinite : int
+        Samples that held a non-finite value (all runs).
+    budget_s : float, optional
+        The design's false-alarm budget in seconds.
+    lorden : tuple of float, optional
+        ``(I, bound in samples)`` of the fault.
+
+    Returns
+    -------
+    ScenarioMetrics
+        The scenario's figures.
     """
     alarm = np.asarray(alarm, dtype=bool)
     isolated = np.asarray(isolated, dtype=int)
@@ -251,7 +370,20 @@ def scenario_metrics(
 
 def fault_free_histogram(J: np.ndarray, thresholds: Sequence[float]) -> list[np.ndarray]:
     """Per statistic, the counts of the samples ``J`` (``samples × nj``) in the bins :data:`HISTOGRAM_EDGES` ``× h``
-    (see :attr:`ScenarioMetrics.fault_free_histogram`)."""
+    (see :attr:`ScenarioMetrics.fault_free_histogram`).
+
+    Parameters
+    ----------
+    J : numpy.ndarray
+        The fault-free statistics, ``samples × nj``.
+    thresholds : sequence of float
+        The threshold ``h`` of each statistic.
+
+    Returns
+    -------
+    list of numpy.ndarray
+        Per statistic, ``len(HISTOGRAM_EDGES) + 1`` counts; empty for a threshold that is not finite and positive.
+    """
     out = []
     for j, h in enumerate(thresholds):
         if not (np.isfinite(h) and h > 0):
@@ -264,7 +396,22 @@ def fault_free_histogram(J: np.ndarray, thresholds: Sequence[float]) -> list[np.
 
 def poisson_time_interval(count: int, exposure: float, *, level: float = 0.95) -> tuple[float, float | None]:
     """Garwood's exact interval for the mean time between events, ``count`` events in ``exposure``:
-    ``exposure / λ`` over the Poisson interval of the count (upper end ``None`` when no event was seen)."""
+    ``exposure / λ`` over the Poisson interval of the count (upper end ``None`` when no event was seen).
+
+    Parameters
+    ----------
+    count : int
+        The events seen (false-alarm episodes).
+    exposure : float
+        The time they were seen in (fault-free seconds).
+    level : float
+        The interval's coverage.
+
+    Returns
+    -------
+    tuple of (float, float or None)
+        The interval's lower and upper ends.
+    """
     a = 1.0 - level
     hi_count = float(scipy.stats.chi2.ppf(1.0 - a / 2, 2 * count + 2)) / 2.0
     lo = exposure / hi_count if hi_count > 0 else 0.0
@@ -286,6 +433,21 @@ class MetricsPlan:
     measures the fault's shift (Lorden bound; ``None``: fault-free scenario);
     ``fault_index``: the true fault's class in the gain file (``None``: none of
     its classes). ``extra``: the extra figures' per-run part and reduction.
+
+    Attributes
+    ----------
+    active : numpy.ndarray
+        ``N`` booleans: the fault's samples.
+    quiet : numpy.ndarray
+        ``N`` booleans: the fault-free samples (outside the fault and its recovery window).
+    on : numpy.ndarray or None
+        ``N`` booleans: the samples whose residual mean measures the fault's shift (``None``: fault-free).
+    fault_index : int or None
+        The true fault's class in the gain file.
+    thresholds : tuple of float
+        One threshold per statistic.
+    extra : object
+        The extra figures' per-run part and reduction (``None``: none).
     """
 
     active: np.ndarray
@@ -297,7 +459,24 @@ class MetricsPlan:
 
     @classmethod
     def of(cls, scenario: Any, gf: Any, t: np.ndarray, extra: Any = None) -> MetricsPlan:
-        """The plan of ``gf``'s diagnoser in ``scenario`` (a :class:`~fdisyn.simulation.problem.Scenario`) at times ``t``."""
+        """The plan of ``gf``'s diagnoser in ``scenario`` at times ``t``.
+
+        Parameters
+        ----------
+        scenario : Scenario
+            The scenario (:class:`~fdisyn.simulation.problem.Scenario`).
+        gf : GainFile
+            The diagnoser (its kind gives the recovery and Lorden windows).
+        t : numpy.ndarray
+            The sample times.
+        extra : object, optional
+            The extra figures' per-run part and reduction.
+
+        Returns
+        -------
+        MetricsPlan
+            The plan.
+        """
         from fdisyn.synthesis.kinds import lorden_window, recovery_samples
 
         active = scenario.active(np.asarray(t))
@@ -329,6 +508,31 @@ class RunSummaries:
     ``nonfinite``: samples with a non-finite input; ``histogram``: the chunk's
     fault-free histogram (:func:`fault_free_histogram`); ``extra``: each run's
     value of the extra figures (``None`` without them).
+
+    Attributes
+    ----------
+    quiet_alarms, episodes : numpy.ndarray
+        Alarmed fault-free samples and false-alarm episodes, per run.
+    exceed : numpy.ndarray
+        Fault-free samples above each threshold (``R × nj``).
+    first_alarm : numpy.ndarray
+        Position of the first alarm among the fault's samples (−1: none).
+    alarmed_fault : numpy.ndarray
+        Alarmed fault samples.
+    first_isolation, mode_isolation : numpy.ndarray
+        The first and the most frequent isolation decision in the fault (−1: none).
+    correct_isolated : numpy.ndarray
+        Alarmed fault samples with the true fault isolated.
+    r_on, r_off : numpy.ndarray
+        Residual sums with the fault's shift and without (``R × nr``).
+    rr_off : numpy.ndarray
+        The residuals' outer products without it (``R × nr × nr``).
+    nonfinite : numpy.ndarray
+        Samples with a non-finite input.
+    histogram : list of numpy.ndarray
+        The chunk's fault-free histogram.
+    extra : list or None
+        Each run's value of the extra figures.
     """
 
     quiet_alarms: np.ndarray
@@ -348,12 +552,28 @@ class RunSummaries:
 
     @property
     def runs(self) -> int:
+        """The number of runs in the chunk."""
         return len(self.quiet_alarms)
 
 
 def summarise_runs(plan: MetricsPlan, runs: Any, scenario: Any = None, gf: Any = None) -> RunSummaries:
-    """The summaries of a chunk of runs (``runs``: a :class:`~fdisyn.evaluation.runs.DesignRuns`, or anything
-    with its ``r``, ``J``, ``alarm``, ``isolated``, ``status``); ``scenario`` and ``gf`` for the extra figures."""
+    """The summaries of a chunk of runs.
+
+    Parameters
+    ----------
+    plan : MetricsPlan
+        What the summaries are taken over.
+    runs : DesignRuns
+        A :class:`~fdisyn.evaluation.runs.DesignRuns`, or anything with its ``r``, ``J``, ``alarm``,
+        ``isolated``, ``status``.
+    scenario, gf : optional
+        The scenario and the gain file, for the extra figures.
+
+    Returns
+    -------
+    RunSummaries
+        A few numbers per run.
+    """
     alarm = np.asarray(runs.alarm, dtype=bool)
     isolated = np.asarray(runs.isolated, dtype=np.int64)
     J = np.asarray(runs.J, dtype=float)
@@ -402,7 +622,22 @@ def summarise_runs(plan: MetricsPlan, runs: Any, scenario: Any = None, gf: Any =
 
 
 def extra_values(plan: MetricsPlan, runs: Any, scenario: Any = None, gf: Any = None) -> list[Any] | None:
-    """Each run's value of the plan's extra figures (``None`` without them), ``runs`` as :func:`summarise_runs` takes them."""
+    """Each run's value of the plan's extra figures (``None`` without them).
+
+    Parameters
+    ----------
+    plan : MetricsPlan
+        Its ``extra`` computes the figures.
+    runs : DesignRuns
+        As :func:`summarise_runs` takes them.
+    scenario, gf : optional
+        The scenario and the gain file.
+
+    Returns
+    -------
+    list or None
+        One value per run.
+    """
     if plan.extra is None:
         return None
     rows = {"alarm": np.asarray(runs.alarm, dtype=bool).astype(np.int64), "isolated": np.asarray(runs.isolated, dtype=np.int64),
@@ -418,6 +653,13 @@ class MetricsAccumulator:
     only): its size does not grow with the runs but by those values. Sums of floating-point numbers are added run
     by run in run order, so the result does not depend on how the runs were
     chunked or where they ran.
+
+    Parameters
+    ----------
+    plan : MetricsPlan
+        What every chunk's summaries were taken over.
+    samples : int
+        Samples per run.
     """
 
     def __init__(self, plan: MetricsPlan, samples: int) -> None:
@@ -438,7 +680,13 @@ class MetricsAccumulator:
         self.extra: list[Any] = []
 
     def add(self, s: RunSummaries) -> None:
-        """Merge the next chunk's summaries (the chunks in run order)."""
+        """Merge the next chunk's summaries (the chunks in run order).
+
+        Parameters
+        ----------
+        s : RunSummaries
+            The next chunk's summaries.
+        """
         p = self.plan
         self.runs += s.runs
         self.quiet_alarms += int(s.quiet_alarms.sum())
@@ -475,8 +723,28 @@ class MetricsAccumulator:
         self, *, scenario: str, fault: str | None, P_f: Sequence[float], Ts: float, budget_s: float | None = None,
         lorden: tuple[float, float] | None = None,
     ) -> ScenarioMetrics:
-        """The merged :class:`ScenarioMetrics` (``lorden``: ``(I, bound)`` from :attr:`sums`; the rest as
-        :func:`scenario_metrics` takes them)."""
+        """The merged :class:`ScenarioMetrics`.
+
+        Parameters
+        ----------
+        scenario : str
+            The scenario's name.
+        fault : str or None
+            The fault it injects.
+        P_f : sequence of float
+            Each statistic's per-sample false-alarm probability.
+        Ts : float
+            The sample time in seconds.
+        budget_s : float, optional
+            The design's false-alarm budget in seconds.
+        lorden : tuple of float, optional
+            ``(I, bound in samples)`` of the fault, from :attr:`sums`.
+
+        Returns
+        -------
+        ScenarioMetrics
+            Equal to the last bit to :func:`scenario_metrics` of the stacked runs.
+        """
         p, runs, n = self.plan, self.runs, self.samples
         n_quiet = int(p.quiet.sum())
         far = self.quiet_alarms / (runs * n_quiet) if n_quiet else 0.0
