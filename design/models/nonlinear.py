@@ -118,6 +118,35 @@ class NonlinearPlant:
     (strings). ``f`` has ports ``(x, u, theta) → x_next`` and ``h`` has
     ``(x, theta) → y``; both are SX Functions, checked for shapes and for
     non-differentiable operations.
+
+    Attributes
+    ----------
+    f : casadi.Function
+        The next state, ``(x, u, theta) → x_next``.
+    h : casadi.Function
+        The outputs, ``(x, theta) → y``.
+    states, inputs, outputs, parameters : tuple of str
+        The names of the states, inputs, outputs and parameters θ, in the order of the ports.
+    theta_nominal : numpy.ndarray
+        Nominal parameter values, in the order of :attr:`parameters`.
+    Q : numpy.ndarray
+        Process-noise covariance of ``v`` (the paper's ``Q1``, eq. (2.1)).
+    R : numpy.ndarray
+        Measurement-noise covariance of ``e`` (the paper's ``Q2``, eq. (2.1)); positive definite.
+    Ts : float or None
+        Sample time in seconds (informational; the model is already discrete).
+    expressions : Mapping or None
+        The expression strings the plant was built from, if any (for reports and gain files).
+    units : Mapping of str to str
+        A unit per name.
+
+    Examples
+    --------
+    >>> plant = NonlinearPlant.from_expressions(
+    ...     states=["x"], inputs=["u"], outputs=["y"], parameters=["a"], nominal={"a": 0.9},
+    ...     f={"x": "a*x + u"}, h={"y": "x"}, Q=[[0.01]], R=[[0.01]])
+    >>> plant.n, plant.m, plant.p, plant.l
+    (1, 1, 1, 1)
     """
 
     f: ca.Function
@@ -127,15 +156,10 @@ class NonlinearPlant:
     outputs: tuple[str, ...]
     parameters: tuple[str, ...]
     theta_nominal: np.ndarray
-    """Nominal parameter values, in the order of :attr:`parameters`."""
     Q: np.ndarray
-    """Process-noise covariance of ``v`` (the paper's ``Q1``, eq. (2.1))."""
     R: np.ndarray
-    """Measurement-noise covariance of ``e`` (the paper's ``Q2``, eq. (2.1)); positive definite."""
     Ts: float | None = None
-    """Sample time in seconds (informational; the model is already discrete)."""
     expressions: Mapping[str, object] | None = None
-    """The expression strings the plant was built from, if any (for reports and gain files)."""
     units: Mapping[str, str] = field(default_factory=dict)
 
     # construction ------------------------------------------------------------
@@ -157,6 +181,33 @@ class NonlinearPlant:
         expressions: Mapping[str, object] | None = None,
     ) -> NonlinearPlant:
         """Validate and build a plant from CasADi Functions ``f(x, u, θ)`` and ``h(x, θ)``.
+
+        Parameters
+        ----------
+        f : casadi.Function
+            ``(x, u, theta) → x_next``, an SX Function.
+        h : casadi.Function
+            ``(x, theta) → y``, an SX Function.
+        states, inputs, outputs, parameters : sequence of str
+            The names of the states, inputs, outputs and parameters θ, in the order of the ports (distinct, each
+            following :mod:`fdisyn.runtime.names`; there may be no inputs).
+        nominal : Mapping of str to float
+            The nominal value of every parameter.
+        Q : array_like
+            The process-noise covariance of ``v`` (the paper's ``Q1``).
+        R : array_like
+            The measurement-noise covariance of ``e`` (the paper's ``Q2``); positive definite.
+        Ts : float, optional
+            The sample time in seconds (informational; the model is already discrete).
+        units : Mapping of str to str, optional
+            A unit per name.
+        expressions : Mapping, optional
+            The expression strings ``f`` and ``h`` were built from (recorded for reports and gain files).
+
+        Returns
+        -------
+        NonlinearPlant
+            The validated plant.
 
         Raises
         ------
@@ -218,6 +269,33 @@ class NonlinearPlant:
         names (``+ - * / ^ **``, parentheses, numbers, ``pi``) and the smooth
         functions of :data:`~fdisyn.models.expressions.SMOOTH_FUNCTIONS`. The output expressions may not
         use inputs (the measurement of eq. (2.1) is ``H(θ) X``, no feedthrough).
+
+        Parameters
+        ----------
+        states, inputs, outputs, parameters : sequence of str
+            The names of the states, inputs, outputs and parameters θ, in the order of the ports (distinct, each
+            following :mod:`fdisyn.runtime.names`; there may be no inputs).
+        nominal : Mapping of str to float
+            The nominal value of every parameter.
+        Q : array_like
+            The process-noise covariance of ``v`` (the paper's ``Q1``).
+        R : array_like
+            The measurement-noise covariance of ``e`` (the paper's ``Q2``); positive definite.
+        Ts : float, optional
+            The sample time in seconds (informational; the model is already discrete).
+        units : Mapping of str to str, optional
+            A unit per name.
+        f : Mapping of str to str
+            One next-state expression per state.
+        h : Mapping of str to str
+            One expression per output (no inputs).
+        constants : Mapping of str to float, optional
+            Named constants the expressions may use.
+
+        Returns
+        -------
+        NonlinearPlant
+            The validated plant.
 
         Raises
         ------
@@ -288,18 +366,22 @@ class NonlinearPlant:
     # dimensions -------------------------------------------------------------
     @property
     def n(self) -> int:
+        """The number of states."""
         return len(self.states)
 
     @property
     def m(self) -> int:
+        """The number of inputs."""
         return len(self.inputs)
 
     @property
     def p(self) -> int:
+        """The number of outputs."""
         return len(self.outputs)
 
     @property
     def l(self) -> int:
+        """The number of parameters θ."""
         return len(self.parameters)
 
     # derivatives ------------------------------------------------------------
@@ -324,7 +406,29 @@ class NonlinearPlant:
         )
 
     def linearise(self, *, x: object, u: object, theta: object | None = None) -> dict[str, np.ndarray]:
-        """The values of :meth:`derivatives` at a point (``theta`` defaults to nominal), as numpy arrays."""
+        """The values of :meth:`derivatives` at a point, as numpy arrays.
+
+        Parameters
+        ----------
+        x : array_like
+            The state (``n`` entries).
+        u : array_like
+            The input (``m`` entries).
+        theta : array_like, optional
+            The parameters (``l`` entries); default: nominal.
+
+        Returns
+        -------
+        dict of str to numpy.ndarray
+            ``f``, ``F_x``, ``F_theta``, ``h``, ``H_x`` and ``H_theta`` at the point.
+
+        Raises
+        ------
+        ArgumentError
+            A vector that does not hold real numbers.
+        ShapeError
+            A vector of the wrong length.
+        """
         th = self.theta_nominal if theta is None else theta
         vals = self.derivatives().call(
             {
@@ -344,6 +448,22 @@ class NonlinearPlant:
         filters at such a point: a model that is not finite there (``x/0``,
         ``log(x)`` at ``x = 0``, ``x**x`` whose derivative at ``x = 0`` is
         ``0·∞``) would make the first step diverge and every later one reset.
+
+        Parameters
+        ----------
+        x : array_like
+            The state (``n`` entries).
+        u : array_like
+            The input (``m`` entries).
+        theta : array_like, optional
+            The parameters (``l`` entries); default: nominal.
+        point : str
+            What the refusal calls the point.
+
+        Raises
+        ------
+        ArgumentError
+            A value or derivative that is not finite there.
         """
         vals = self.linearise(x=x, u=u, theta=theta)
         rows = {"f": self.states, "h": self.outputs}
