@@ -14,7 +14,9 @@ Contract (shared by every diagnoser kind, and by the generated C)::
 
 all dense double vectors; ``alarm`` ∈ {0, 1}; ``isolated`` ∈ {−1, 0..nf−1};
 ``status`` 1 when the sample held a non-finite value (see
-:mod:`fdisyn.runtime.reference` for the linear semantics).
+:mod:`fdisyn.runtime.reference` for the linear semantics). A kind names its independent NumPy reference run
+(:attr:`DiagnoserKind.reference`, :func:`reference_run`), against which its CasADi step and generated C are checked;
+tests/design/test_kind_contract.py holds every registered kind to this contract.
 
 Importing this module is light (no CasADi, no cvxpy).
 """
