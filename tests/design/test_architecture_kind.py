@@ -106,7 +106,8 @@ def test_the_worked_example_is_a_complete_kind(limit_check: ModuleType, tmp_path
     T = 10_000
     Y = simulate(plant, T, 1, slice(T // 2, T // 2 + 200), 1, 6.0 * sigma[1]) + np.array(nominal)
     U = np.zeros((T, plant.m))
-    cd = CompiledDiagnoser(fdisyn.export(gf, tmp_path / "c") / "liblimit_check.so", gf)
+    built = fdisyn.export(gf, tmp_path / "c")
+    cd = CompiledDiagnoser(built / "liblimit_check.so", gf)
     got = cd.run(U, Y)
     alarm, isolated = band_truth(Y, np.array(nominal), np.array(pay["sigma"]), pay["z"], 2)
     np.testing.assert_array_equal(got.alarm, alarm)
@@ -117,6 +118,11 @@ def test_the_worked_example_is_a_complete_kind(limit_check: ModuleType, tmp_path
     outside = np.abs(Y[: T // 2] - nominal) > z * sigma
     assert np.all((0.4 * P_F < outside.mean(axis=0)) & (outside.mean(axis=0) < 2.5 * P_F)), outside.mean(axis=0)
     assert kinds.false_alarm_budget(gf) == pytest.approx(plant.Ts / (2 * P_F), rel=1e-9)
+    # the Monitor runs it too, naming the sensor
+    monitor = fdisyn.load(built)
+    far = np.array(nominal) + [0.0, 10.0 * sigma[1]]
+    first, second = monitor.update(np.zeros(plant.m), far), monitor.update(np.zeros(plant.m), far)
+    assert (first.alarm, second.alarm, second.fault) == (False, True, plant.outputs[1])
 
 
 def test_the_worked_example_passes_the_contract_of_every_kind(limit_check: ModuleType, tmp_path: Path) -> None:
