@@ -461,7 +461,7 @@ def _cmd_methods(a: argparse.Namespace) -> None:
             for o in m.options:
                 given = "required" if o.default is REQUIRED else f"default {default(o)}"
                 where = f"; a plant file takes it from {o.plant_file}" if o.plant_file else ""
-                print(f"  {o.name} ({given}): {o.doc}; {o.kind}{where}")
+                print(f"  {o.name} ({given}): {o.doc}; {o.expected}{where}")
         return
     pattern = "*" if a.option is None else a.option.lower()
 
@@ -489,7 +489,7 @@ def _cmd_methods(a: argparse.Namespace) -> None:
         for o in opts:
             head = f"    {o.name:<{width}}  {default(o):<{dwidth}}  "
             doc = o.doc + (f" (a plant file: {o.plant_file})" if o.plant_file else "")
-            for text, first_indent in ((o.kind, head), (doc, indent)):  # words stay whole: formulas keep their hyphens
+            for text, first_indent in ((o.expected, head), (doc, indent)):  # words stay whole: formulas keep their hyphens
                 print(textwrap.fill(text, 119, initial_indent=first_indent, subsequent_indent=indent, break_on_hyphens=False, break_long_words=False))
 
 

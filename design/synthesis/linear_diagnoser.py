@@ -565,7 +565,7 @@ MIN_FAULT = Option(
 LINEAR_WINDOW = replace(
     WINDOW,
     default=None,
-    kind=f"a whole number of samples in 1..{MAX_WSSR_WINDOW}",
+    expected=f"a whole number of samples in 1..{MAX_WSSR_WINDOW}",
     accepts=lambda v: is_count(v) and v <= MAX_WSSR_WINDOW,
     doc="WSSR window N in samples (Long & Wang, Aeroengine 43(5), 2017, section 2), or the GLR's onset window; "
     "default 1 for 'wssr', chosen from the designed faults for 'glr'",
@@ -918,7 +918,7 @@ def _check_ts(plant: Any, options: Mapping[str, Any], where: str) -> None:
     if isinstance(plant, LinearPlant) and plant.is_discrete and options.get("Ts") is not None:
         raise ArgumentError(f"{at(where, 'Ts')} = {options['Ts']!r}: the plant is discrete (Ts = {plant.Ts}); give Ts for a continuous plant only")
     if isinstance(plant, LinearPlant) and not plant.is_discrete and options.get("Ts") is None:
-        raise ArgumentError(f"{where}: missing option 'Ts': expected {TS.kind} to sample the continuous plant")
+        raise ArgumentError(f"{where}: missing option 'Ts': expected {TS.expected} to sample the continuous plant")
 
 
 def linear_method(

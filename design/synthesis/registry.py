@@ -89,7 +89,7 @@ def is_count(v: Any) -> bool:
 class Option:
     """One option of a method: its name, default, one-line doc and domain.
 
-    ``accepts`` tests the domain ``kind`` describes (values arrive as JSON or
+    ``accepts`` tests the domain ``expected`` describes (values arrive as JSON or
     TOML, so they are checked rather than converted: ``int(1.5)`` would
     silently become 1); ``refine`` then checks what depends on the plant (an
     output name, one pole per state) and returns the value the design gets.
@@ -98,7 +98,7 @@ class Option:
     name: str
     default: Any
     doc: str
-    kind: str
+    expected: str
     accepts: Callable[[Any], bool] = _anything
     refine: Callable[[Any, str, Any], Any] | None = None
     """``(value, where, plant) -> value``; raises :class:`ArgumentError` naming ``at(where, name)``."""
@@ -115,7 +115,7 @@ class Option:
         if value is None and self.default is None:
             return None
         if not self.accepts(value):
-            raise ArgumentError(f"{label} = {shown(value)}: expected {self.kind}")
+            raise ArgumentError(f"{label} = {shown(value)}: expected {self.expected}")
         if isinstance(self.default, float) and isinstance(value, int) and not isinstance(value, bool):
             value = float(value)
         if self.refine is not None:
@@ -296,7 +296,7 @@ def check_options(method: Method, options: Mapping[str, Any], *, plant: Any = No
             out[o.name] = o.validate(options[o.name], where, plant)
         elif o.required:
             word = "key" if where.endswith("]") else "option"
-            raise ArgumentError(f"{where}: missing {word} {o.name!r}: expected {o.kind}")
+            raise ArgumentError(f"{where}: missing {word} {o.name!r}: expected {o.expected}")
         else:
             out[o.name] = o.default
     defaulted = _budget(method, out, where)

@@ -64,7 +64,7 @@ def test_the_option_table_of_each_method_is_the_registry(name, capsys) -> None:
     for o in m.options:
         default = "required" if o.default is REQUIRED else repr(o.default)
         doc = o.doc + (f" (a plant file: {o.plant_file})" if o.plant_file else "")
-        row = " ".join(f"{o.name} {default} {o.kind} {doc}".split())
+        row = " ".join(f"{o.name} {default} {o.expected} {doc}".split())
         found = out.find(row, at)
         assert found > at, (name, o.name, row)
         at = found

@@ -77,14 +77,14 @@ BEARD_OPTIONS: tuple[Option, ...] = (
     Option("h", None, "magnitude threshold on the window RMS of the residual; default: its 1 − P_f quantile (as explicit_level)",
            f"a positive number, at most {MAX_MAGNITUDE:g}", _level),
     replace(WINDOW, default=20, doc="window N (samples) of the RMS and the mean of the residual",
-            kind=f"a whole number of samples in 1..{MAX_WINDOW} (at most (2040 − states) / outputs: the state limit)",
+            expected=f"a whole number of samples in 1..{MAX_WINDOW} (at most (2040 − states) / outputs: the state limit)",
             accepts=lambda v: is_count(v) and v <= MAX_WINDOW),
     replace(P_F, doc="false-alarm probability per sample of the magnitude test, and the quantile of the explicit level, "
             "given instead of arl0 (the per-sample choice; default: none, the budget is arl0)"),
     replace(ARL0, doc="the filter's mean time between false alarms (s): the magnitude test's rate Ts/arl0 per sample, "
             "and the quantile of the explicit level (read where h or explicit_level is left to the design; default: "
             f"{DEFAULT_ARL0:g} s, one hour, unless P_f is given; give one of arl0 and P_f)",
-            kind="a positive number of seconds, more than Ts"),
+            expected="a positive number of seconds, more than Ts"),
     PERSISTENCE,
     Option("noise_gain", 2.0, "the optimised filter's residual RMS under the design noise at most noise_gain × the plain one's",
            f"a number in [1, {MAX_NOISE_GAIN:g}]", lambda v: is_real(v) and 1 <= v <= MAX_NOISE_GAIN),

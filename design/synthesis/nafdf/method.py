@@ -63,13 +63,13 @@ NAFDF_OPTIONS: tuple[Option, ...] = (
     replace(P_F, doc="false-alarm probability of the WSSR test per sample under H0 (threshold rule 'chi2'); for CUSUM and GLR 1/ARL₀ in samples; "
             "given instead of arl0 (the per-sample choice; default: none, the budget is arl0)"),
     replace(WINDOW, doc="WSSR window N in samples (Zhou, Xi & Zhang c. 1991, eq. (2.4)), or the GLR's onset window (detector 'glr')",
-            kind=f"a whole number of samples in 1..{MAX_WINDOW}", accepts=lambda v: is_count(v) and v <= MAX_WINDOW),
+            expected=f"a whole number of samples in 1..{MAX_WINDOW}", accepts=lambda v: is_count(v) and v <= MAX_WINDOW),
     replace(
         DETECTOR,
         default="wssr",
         doc="the fast detection's statistic on the EKF innovations: 'wssr' (eq. (2.4)), 'cusum' (Page's CUSUM per normalised "
         "innovation and sign, tuned to min_shift) or 'glr' (windowed GLR per normalised innovation, Willsky & Jones 1976)",
-        kind="'wssr', 'cusum' or 'glr'",
+        expected="'wssr', 'cusum' or 'glr'",
         accepts=lambda v: v in ("wssr", "cusum", "glr"),
     ),
     replace(ARL0, doc="the diagnoser's mean time between false alarms (s): the detector's rate 1/(arl0/Ts − 2·classifier_window) per sample "
