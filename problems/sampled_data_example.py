@@ -25,7 +25,7 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
-from fdisyn.reporting.report import Claim, ReportContext, false_alarms_pooled, fmt, shade, subplots, table
+from fdisyn.reporting.kit import Claim, ReportContext, false_alarms_pooled, fmt, shade, subplots, table
 from fdisyn.simulation.sample_models import SampleModel, sampled_data_sample_model
 from fdisyn.simulation.sampled_data import simulate_sampled_data
 from fdisyn.models.linear import LinearPlant

@@ -575,7 +575,7 @@ def _window_mean(r: np.ndarray, window: int) -> np.ndarray:
 def _report(ctx: Any) -> list[tuple[str, str]]:
     """Cones (plain against optimised), the paper's angle figures, the residual in output space, the fault-size sweep
     and the model-error sweep."""
-    from fdisyn.reporting.report import fmt, shade, subplots, table
+    from fdisyn.reporting.kit import fmt, shade, subplots, table
     from fdisyn.evaluation.metrics import scenario_metrics
     from fdisyn.numerics.robust_cones import implicit_thresholds, sampled_model_error
     from fdisyn.synthesis.beard_fdf.payload import beard_from_gain_file
@@ -768,7 +768,7 @@ def _model(**_options: object) -> LinearPlant:
 
 def _claims(ctx: Any) -> list[Any]:
     """He, Zhang & Wu c. 1999 (its qualitative results; its numbers were lost) against the Monte Carlo."""
-    from fdisyn.reporting.report import Claim, false_alarms_pooled, fmt
+    from fdisyn.reporting.kit import Claim, false_alarms_pooled, fmt
     from fdisyn.synthesis.beard_fdf.payload import beard_from_gain_file
 
     v = ctx.variants[0]

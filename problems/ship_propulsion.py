@@ -44,7 +44,7 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
-from fdisyn.reporting.report import Claim, ReportContext, fmt, shade, subplots, table
+from fdisyn.reporting.kit import Claim, ReportContext, fmt, shade, subplots, table
 from fdisyn.simulation.sample_models import SampleModel, nonlinear_sample_model
 from fdisyn.models.nonlinear import NonlinearPlant
 from fdisyn.simulation.nonlinear import simulate_nonlinear_runs

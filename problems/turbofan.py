@@ -575,7 +575,7 @@ def _chosen(gf: GainFile) -> Mapping[str, Any]:
 
 
 def _structure_section() -> str:
-    from fdisyn.reporting.report import fmt, folded, table
+    from fdisyn.reporting.kit import fmt, folded, table
     from fdisyn.synthesis.uio_gos import completed_condition, output_groups
 
     rows = [[pos, printed, value, why] for pos, printed, value, why in TRANSCRIPTION]
@@ -614,7 +614,7 @@ def _structure_section() -> str:
 
 
 def _estimate_section(ctx: Any, gf: GainFile) -> str:
-    from fdisyn.reporting.report import fmt, folded, subplots, table
+    from fdisyn.reporting.kit import fmt, folded, subplots, table
 
     ch = _chosen(gf)
     s = np.asarray(ch["E_singular_values"])
@@ -642,7 +642,7 @@ def _estimate_section(ctx: Any, gf: GainFile) -> str:
 
 
 def _residual_figures(ctx: Any, v: Any) -> str:
-    from fdisyn.reporting.report import folded, shade, subplots
+    from fdisyn.reporting.kit import folded, shade, subplots
 
     ex, bt = v.evaluation.examples, v.evaluation.batches
     out = []
@@ -696,7 +696,7 @@ def _residual_figures(ctx: Any, v: Any) -> str:
 
 def _rank_comparison(v: Any) -> str:
     """Fault-free run 0 through banks with E of rank 1 (the gap rule) and of the design's rank: peak WSSR/threshold."""
-    from fdisyn.reporting.report import table
+    from fdisyn.reporting.kit import table
     from fdisyn.runtime.reference import LinearReference
 
     bt = v.evaluation.batches
@@ -723,7 +723,7 @@ def _rank_comparison(v: Any) -> str:
 
 def _grouping_section(v: Any) -> str:
     """The grouped bank against one UIO bank on all nine outputs: fault-free alarms, T5 and T25 delays and isolation."""
-    from fdisyn.reporting.report import table
+    from fdisyn.reporting.kit import table
 
     m = v.evaluation.metrics
     if not {"grouped", "ungrouped"} <= set(m):
@@ -743,7 +743,7 @@ def _grouping_section(v: Any) -> str:
 
 def _claims(ctx: Any) -> list[Any]:
     """Long & Wang 2017's claims (section 2 and figs. 10–12) against the transcribed model and the Monte Carlo."""
-    from fdisyn.reporting.report import Claim, fmt
+    from fdisyn.reporting.kit import Claim, fmt
 
     out = []
     rank = int(np.linalg.matrix_rank(C))
@@ -801,7 +801,7 @@ def _claims(ctx: Any) -> list[Any]:
 def _glr_section(v: Any, runs: int) -> str:
     """The budget of the detector comparison (``runs`` per scenario), and why the GLR is not in it: its onset sums
     against the step's limits."""
-    from fdisyn.reporting.report import fmt, folded, table
+    from fdisyn.reporting.kit import fmt, folded, table
     from fdisyn.runtime.schema import LIMITS
 
     gf = v.built["grouped"].gain_file

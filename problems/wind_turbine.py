@@ -36,7 +36,7 @@ from typing import Any
 
 import casadi as ca
 import numpy as np
-from fdisyn.reporting.report import Claim, ReportContext, fmt, folded, shade, subplots
+from fdisyn.reporting.kit import Claim, ReportContext, fmt, folded, shade, subplots
 from fdisyn.simulation.sample_models import SampleModel, clip_sx, linear_sample_model
 from fdisyn.simulation.signals import Signal
 from fdisyn.simulation.simulate import simulate_linear

@@ -42,7 +42,7 @@ from collections.abc import Mapping, Sequence
 
 import casadi as ca
 import numpy as np
-from fdisyn.reporting.report import Claim, ReportContext, fmt, shade, subplots
+from fdisyn.reporting.kit import Claim, ReportContext, fmt, shade, subplots
 from fdisyn.simulation.sample_models import SampleModel, nonlinear_sample_model
 from fdisyn.models.nonlinear import NonlinearPlant
 from fdisyn.simulation.nonlinear import simulate_nonlinear_runs

@@ -123,7 +123,7 @@ def claims_context(problem: object, variants: list[dict]) -> object:
 
 def check_claims(claims: list) -> None:
     """Every claim has a known verdict, and one that differs says why."""
-    from fdisyn.reporting.report import VERDICTS
+    from fdisyn.reporting.kit import VERDICTS
 
     assert claims
     for c in claims:

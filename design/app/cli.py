@@ -238,7 +238,7 @@ def _cmd_design(a: argparse.Namespace) -> None:
     with _user_paths("a writable directory with room for gains.json", ("--out", out)):
         path = write_gain_file(gf, out / "gains.json")
     print(f"wrote {path} ({gf.name}: {get_kind(gf.kind).describe(gf)}, certificate passed)")
-    from fdisyn.reporting.report import budget_line
+    from fdisyn.reporting.budget import budget_line
     from fdisyn.numerics.account import account_lines
 
     print(budget_line(gf))
@@ -381,7 +381,7 @@ def _cmd_reproduce(a: argparse.Namespace) -> None:
                     prob, runs=a.runs, reports=Path(a.reports), workdir=Path(a.workdir), variants=a.variants, source=spec, **where
                 )
             print(f"wrote {out}")
-    from fdisyn.reporting.report import summary_table
+    from fdisyn.reporting.page import summary_table
 
     print(summary_table(Path(a.reports), [p.name for p in problems]))
 

@@ -99,9 +99,9 @@ def _rounding_scale(gf: GainFile, states: np.ndarray, res: RunResult, U: np.ndar
     small difference of large terms (an integrating state, a large operating
     point) is compared against its terms, not against itself. A CUSUM or GLR
     statistic is a sum clamped to ``[0, 2h]`` or over a window, of terms of
-    its own size: ``|J| + h``. Other kinds: ``|r|`` and ``|J|``.
+    its own size: ``|J| + h``. A diagnoser without linear generators: ``|r|`` and ``|J|``.
     """
-    if gf.kind != "linear":
+    if not gf.generators:
         return np.abs(res.r), np.abs(res.J)
     lay = linear_state_layout(gf.generators, gf.evaluators)
     before = np.column_stack([gf.step.init_state, states[:, :-1]])  # the state each sample starts from
@@ -137,7 +137,7 @@ def _relative(a: np.ndarray, b: np.ndarray, scale: np.ndarray) -> float:
 
 
 def check_export(b: Built, U: np.ndarray, Y: np.ndarray) -> ExportCheck:
-    """Compare the compiled step with the CasADi step and (linear kind) the NumPy reference.
+    """Compare the compiled step with the CasADi step and (a bank of linear generators) the runtime's NumPy reference.
 
     ``r`` and ``J``: ``‖C − reference‖ / ‖s‖`` over the whole trace, ``s`` the
     rounding-error scale of :func:`_rounding_scale`; ``state``: normwise
@@ -148,7 +148,7 @@ def check_export(b: Built, U: np.ndarray, Y: np.ndarray) -> ExportCheck:
     c_res = b.diagnoser.run(U, Y)
     cas, states = _casadi_run(step_function(gf), gf.step.init_state, U, Y)
     refs: dict[str, RunResult] = {"casadi": cas}
-    if gf.kind == "linear":
+    if gf.generators:
         refs["numpy"] = LinearReference(gf).run(U, Y)
     s_r, s_j = _rounding_scale(gf, states, cas, U, Y)
     table: dict[str, dict[str, float | bool]] = {}
@@ -279,7 +279,7 @@ def reproduce_problem(
 
     ``variants``: the labels of the report variants to run (``"default"`` the main one; ``None``: all);
     ``workers``, ``client``, ``source``: where the Monte Carlo runs (:func:`~fdisyn.evaluation.evaluate.evaluate`)."""
-    from fdisyn.reporting.report import variant_tag, write_index, write_report
+    from fdisyn.reporting.page import variant_tag, write_index, write_report
 
     given = runs
     runs = problem.monte_carlo_runs if runs is None else runs  # 0 is refused by evaluate, not replaced

@@ -212,11 +212,11 @@ class Problem:
         standard-normal draws; ``None``: the runs stay on the Python path.
     claims : callable or None
         The paper's claims against ours, the table each report page opens with: ``claims(ctx)`` with ``ctx`` the
-        :class:`fdisyn.reporting.report.ReportContext`, returning :class:`fdisyn.reporting.report.Claim` rows.
+        :class:`fdisyn.reporting.kit.ReportContext`, returning :class:`fdisyn.reporting.kit.Claim` rows.
     labels : Mapping of str to str
         Readable physical names with units of internal names (signals, statistics, faults, designs), e.g.
         ``"omega_g_m1": "generator speed ω_g,m1 (rad/s)"``: what the report shows
-        (:func:`fdisyn.reporting.report.label`).
+        (:func:`fdisyn.reporting.kit.label`).
     model : callable or None
         ``model(**options)``: the design model (a ``LinearPlant`` or ``SampledDataPlant``) for the residuals'
         frequency responses and the plant's poles in the report; ``None`` for nonlinear problems.

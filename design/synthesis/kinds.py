@@ -134,6 +134,9 @@ class DiagnoserKind:
         it is active) — for a diagnoser that adapts its model to the fault, the samples before it can.
     budget_text : str or None
         The page's prose (HTML) on how the kind's false-alarm budget is set (None: the page's general text).
+    detectors_text : str or None
+        The page's phrase (HTML) naming the detectors its comparison at one false-alarm budget sets side by side (None:
+        the detectors the variants name, "statistics of the same generators").
     account_view : callable or None
         ``GainFile -> BankView``: the diagnoser as a bank of linear generators, on which the account of what it can
         see is computed (:mod:`fdisyn.numerics.account`); None: the kind has no account.
@@ -159,6 +162,7 @@ class DiagnoserKind:
     lorden_bound: Callable[[GainFile, np.ndarray, np.ndarray], tuple[float, float] | None] | None = None
     lorden_window: Callable[[GainFile], int] | None = None
     budget_text: str | None = None
+    detectors_text: str | None = None
     account_view: Callable[[GainFile], Any] | None = None
     """``GainFile -> fdisyn.numerics.account.BankView`` (annotated ``Any``: SciPy is not imported here)."""
     account_note: str | None = None

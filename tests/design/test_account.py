@@ -230,7 +230,7 @@ def test_public_api_exports_fault_account() -> None:
 
 
 def test_report_shows_the_account_folded_beside_the_certificate(motor) -> None:
-    from fdisyn.reporting.report import _certificate_html
+    from fdisyn.reporting.certificates import _certificate_html
 
     prob, gf = motor
     page = _certificate_html(gf, prob)

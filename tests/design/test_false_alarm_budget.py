@@ -12,7 +12,9 @@ import numpy as np
 import pytest
 from fdisyn.app.cli import main
 from fdisyn.app.examples import EXAMPLES
-from fdisyn.reporting.report import _summary_false_alarms, budget_line, duration, false_alarm_time, false_alarms_pooled
+from fdisyn.reporting.budget import budget_line
+from fdisyn.reporting.kit import duration, false_alarm_time, false_alarms_pooled
+from fdisyn.reporting.page import _summary_false_alarms
 from fdisyn.models.linear import LinearPlant
 from fdisyn.models.nonlinear import NonlinearPlant
 from fdisyn.runtime.errors import ArgumentError
@@ -180,7 +182,7 @@ def test_the_summary_cell_states_the_time_beside_the_rate() -> None:
 
 
 def test_the_glance_heads_each_design_with_its_false_alarm_time() -> None:
-    from fdisyn.reporting.report import _glance_section
+    from fdisyn.reporting.page import _glance_section
 
     def metric(fault: str | None, episodes: int) -> SimpleNamespace:
         return SimpleNamespace(fault=fault, fault_free_samples=1000, Ts=0.01, false_alarm_episodes=episodes, false_alarm_rate=episodes / 500,

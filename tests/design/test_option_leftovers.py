@@ -95,7 +95,7 @@ def test_a_repeated_key_in_an_option_is_one_line_and_status_2(tmp_path: Path, ca
 
 
 def test_a_metrics_document_with_a_repeated_key_is_refused(tmp_path: Path) -> None:
-    from fdisyn.reporting.report import summary_table, write_index
+    from fdisyn.reporting.page import summary_table, write_index
     from fdisyn.runtime.errors import FileError
 
     (tmp_path / "p").mkdir()

@@ -8,7 +8,7 @@ import sys
 
 import numpy as np
 import pytest
-from fdisyn.reporting.report import ReportContext, subplots, timeline
+from fdisyn.reporting.kit import ReportContext, subplots, timeline
 
 
 def test_importing_the_report_and_the_problems_selects_no_backend() -> None:
@@ -16,7 +16,7 @@ def test_importing_the_report_and_the_problems_selects_no_backend() -> None:
     draw the paper's figures) import without pyplot and without touching the backend."""
     script = (
         "import sys, matplotlib\n"
-        "import fdisyn.reporting.report, fdisyn.problems.wind_turbine, fdisyn.problems.ship_propulsion\n"
+        "import fdisyn.reporting.page, fdisyn.problems.wind_turbine, fdisyn.problems.ship_propulsion\n"
         "import fdisyn.problems.sampled_data_example, fdisyn.problems.wind_turbine_efficiency\n"
         "print(matplotlib.rcParams._get_backend_or_none(), 'matplotlib.pyplot' in sys.modules)\n"
     )
@@ -38,7 +38,7 @@ def test_a_figure_is_saved_as_png_without_pyplot(tmp_path) -> None:
 def test_the_detector_comparison_names_the_detectors_it_compares() -> None:
     from types import SimpleNamespace
 
-    from fdisyn.reporting.report import _compared_detectors
+    from fdisyn.reporting.budget import _compared_detectors
 
     def variants(*detectors: str) -> list[SimpleNamespace]:
         return [SimpleNamespace(options={"detector": None, "arl0": None})] + [SimpleNamespace(options={"detector": d, "arl0": 60.0}) for d in detectors]
@@ -51,7 +51,7 @@ def test_the_detector_comparison_names_the_detectors_it_compares() -> None:
 
 
 def test_fmt_one_number_format() -> None:
-    from fdisyn.reporting.report import fmt
+    from fdisyn.reporting.kit import fmt
 
     assert fmt(None) == "—"
     assert fmt(0.0) == "0" and fmt(0) == "0" and fmt(True) == "yes"
@@ -68,7 +68,8 @@ def test_fmt_one_number_format() -> None:
 
 def test_a_claim_that_differs_says_why() -> None:
     import pytest
-    from fdisyn.reporting.report import Claim, _verdict_section
+    from fdisyn.reporting.kit import Claim
+    from fdisyn.reporting.page import _verdict_section
 
     with pytest.raises(ValueError, match="say why"):
         Claim(claim="X detects at once (A, B 1(2), 2000, fig. 2)", paper="at once", ours="3 s", verdict="differs")
@@ -85,7 +86,7 @@ def test_a_claim_that_differs_says_why() -> None:
 def test_labels_map_internal_names() -> None:
     from types import SimpleNamespace
 
-    from fdisyn.reporting.report import label
+    from fdisyn.reporting.kit import label
 
     prob = SimpleNamespace(labels={"omega_g_m1": "generator speed ω_g,m1 (rad/s)"})
     assert label(prob, "omega_g_m1") == "generator speed ω_g,m1 (rad/s)"  # type: ignore[arg-type]
@@ -147,7 +148,7 @@ def test_the_index_links_every_page(two_reports) -> None:
 
 
 def test_the_summary_table_names_every_design(two_reports) -> None:
-    from fdisyn.reporting.report import summary_table
+    from fdisyn.reporting.page import summary_table
 
     text = summary_table(two_reports[0].parent.parent, ["sampled_data_example"])
     assert text.splitlines()[0].split()[:2] == ["problem", "design"]
@@ -169,7 +170,7 @@ def test_many_scenarios_read_at_a_glance() -> None:
     import re
     from types import SimpleNamespace
 
-    from fdisyn.reporting.report import _glance_section, _isolation_section
+    from fdisyn.reporting.page import _glance_section, _isolation_section
 
     scenarios = {"fault_free": None, **{f"s{k}": f"sensor{k // 3}" for k in range(30)}}
     metrics = {d: {s: _metric(f, 0.2 if s == "s4" else 1.0) for s, f in scenarios.items()} for d in ("a", "b")}
@@ -191,7 +192,7 @@ def test_certificate_columns_carry_the_generators_labels() -> None:
     side for a small bank and one row each for a large one."""
     from types import SimpleNamespace
 
-    from fdisyn.reporting.report import CERTIFICATE_COLUMNS, _certificate_table
+    from fdisyn.reporting.certificates import CERTIFICATE_COLUMNS, _certificate_table
 
     def gain_file(n: int) -> SimpleNamespace:
         check = {"name": "spectral radius of F", "reason": "F must be Schur stable", "value": 0.5, "relation": "<=", "bound": 1.0,

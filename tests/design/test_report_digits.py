@@ -8,7 +8,8 @@ import math
 
 import pytest
 from fdisyn.app.pipeline import EXPORT_TOL, ExportCheck, variant_specs
-from fdisyn.reporting.report import ROUND_OFF_MARGIN, below_margin, published_gain_name
+from fdisyn.reporting.kit import ROUND_OFF_MARGIN, below_margin
+from fdisyn.reporting.page import published_gain_name
 from fdisyn.simulation.problem import get_problem
 
 

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 import pytest
 from fdisyn.app.pipeline import variant_specs
-from fdisyn.reporting.report import published_gain_name
+from fdisyn.reporting.page import published_gain_name
 from fdisyn.simulation.problem import get_problem, problem_names
 
 pytestmark = pytest.mark.kernels

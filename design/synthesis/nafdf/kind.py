@@ -10,7 +10,7 @@ from fdisyn.synthesis.kinds import DiagnoserKind, register_kind
 from fdisyn.synthesis.nafdf.design import nafdf_extra_metrics
 from fdisyn.synthesis.nafdf.payload import nafdf_budget_seconds, nafdf_from_gain_file, nafdf_lorden_bound, nafdf_lorden_window
 
-__all__ = ["NAFDF_KIND", "NAFDF_BUDGET_TEXT", "NAFDF_ACCOUNT_NOTE"]
+__all__ = ["NAFDF_KIND", "NAFDF_BUDGET_TEXT", "NAFDF_DETECTORS_TEXT", "NAFDF_ACCOUNT_NOTE"]
 
 NAFDF_BUDGET_TEXT = (
     '<p class="small">Time between false alarms: fault-free time over the number of alarm episodes, with Garwood\'s exact '
@@ -25,6 +25,13 @@ NAFDF_BUDGET_TEXT = (
     "another parameter.</p>"
 )
 """How a NAFDF's false-alarm budget, its Lorden bound and its isolation figures are read (the report's HTML)."""
+
+NAFDF_DETECTORS_TEXT = (
+    "The NAFDF's fast detection on the EKF innovations: the WSSR (Zhou, Xi & Zhang c. 1991, eq. (2.4)), and CUSUM "
+    "(Page, Biometrika 41(1/2), 1954) and windowed GLR (Willsky & Jones, IEEE Transactions on Automatic Control "
+    "21(1), 1976) on the normalised innovations, the rest of the filter unchanged"
+)
+"""The detectors a NAFDF's page compares at one false-alarm budget (the report's HTML)."""
 
 NAFDF_ACCOUNT_NOTE = (
     "the account is computed for linear diagnosers only: the NAFDF's parameter faults act through a "
@@ -51,6 +58,7 @@ NAFDF_KIND = register_kind(
         lorden_bound=nafdf_lorden_bound,
         lorden_window=nafdf_lorden_window,
         budget_text=NAFDF_BUDGET_TEXT,
+        detectors_text=NAFDF_DETECTORS_TEXT,
         account_note=NAFDF_ACCOUNT_NOTE,
     )
 )

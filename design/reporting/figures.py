@@ -1,0 +1,343 @@
+"""The figures every page has where its data allow (statistics against their law, detection against the fault's
+size, the residuals' frequency responses, the generators' poles), and the run figures of a problem without its own
+report hook."""
+
+from __future__ import annotations
+
+import textwrap
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+from fdisyn.reporting.kit import MIN_FONT_PT, ReportContext, defined, figure_legend, fmt, folded, label, shade, subplots, table, timeline
+from fdisyn.simulation.problem import Problem
+
+__all__ = ["run_figures", "standard_figures", "POLE_LEGEND"]
+
+
+def run_figures(ctx: ReportContext) -> list[tuple[str, str]]:
+    """Figures of a problem without its own report hook (e.g. a TOML plant file).
+
+    For every design and scenario, run 0 through the generated C: each
+    statistic that has a fixed threshold, divided by it (an alarm is above 1);
+    the isolated fault; and for parameter estimators (``theta_hat_<θ>``
+    statistics) the estimate beside the simulated truth ``true_<θ>``.
+    """
+    v = ctx.variants[0]
+    ex, bt = v.evaluation.examples, v.evaluation.batches
+    body = []
+    for dname, built in v.built.items():
+        gf = built.gain_file
+        names = list(gf.step.statistic_names)
+        thr = np.asarray(gf.thresholds, dtype=float)
+        fixed = [j for j in range(len(names)) if np.isfinite(thr[j]) and thr[j] > 0]
+        for sname, res in ex.get(dname, {}).items():
+            b = bt[sname]
+            est = [(j, nm[len("theta_hat_") :]) for j, nm in enumerate(names) if nm.startswith("theta_hat_")]
+            est = [(j, q) for j, q in est if f"true_{q}" in b.extra]
+            rows = 2 + bool(est)
+            fig, axes = subplots(rows, 1, figsize=(9, 2.2 * rows + 0.6), sharex=True)
+            timeline(axes[0], b.t, res.J[:, fixed] / thr[fixed], [names[j] for j in fixed], threshold=1.0)
+            axes[0].set_ylabel("J / threshold")
+            shade(axes[0], b.t, b.active)
+            axes[0].legend(fontsize=7, ncol=3)
+            axes[1].step(b.t, res.isolated, where="post", lw=0.9)
+            axes[1].set_yticks(range(-1, len(gf.faults)), ["none", *(label(ctx.problem, f) for f in gf.faults)])
+            axes[1].set_ylabel("isolated")
+            axes[1].grid(alpha=0.3)
+            shade(axes[1], b.t, b.active)
+            for j, q in est:
+                axes[2].plot(b.t, res.J[:, j], lw=0.8, label=f"estimate of {q}")
+                axes[2].plot(b.t, b.extra[f"true_{q}"][0], "k--", lw=0.8, label=f"true {q}" if len(est) > 1 else "truth")
+            if est:
+                axes[2].set_ylabel("parameters")
+                axes[2].legend(fontsize=7, ncol=2)
+                axes[2].grid(alpha=0.3)
+            axes[-1].set_xlabel("t (s)")
+            body.append(
+                ctx.figure(
+                    f"{dname}_{sname}",
+                    fig,
+                    f"{label(ctx.problem, dname)}, scenario {label(ctx.problem, sname)} ({ctx.problem.scenarios[sname].description or 'no description'}): run 0 "
+                    "through the generated C — statistics over their thresholds, the isolated fault"
+                    + (", the parameter estimates against the truth." if est else "."),
+                )
+            )
+    return [("Figures", "".join(body))] if body else []
+
+
+def _fault_free_counts(variant: Any, design: str, nj: int) -> list[np.ndarray]:
+    """Per statistic, its fault-free samples of every run and scenario counted in the bins
+    :data:`~fdisyn.evaluation.metrics.HISTOGRAM_EDGES` ``× threshold`` (empty: the statistic has no threshold)."""
+    total: list[np.ndarray] = [np.zeros(0, dtype=np.int64)] * nj
+    for m in variant.evaluation.metrics.get(design, {}).values():
+        for j, c in enumerate(m.fault_free_histogram[:nj]):
+            c = np.asarray(c, dtype=np.int64)
+            if c.size:
+                total[j] = c if total[j].size == 0 else total[j] + c
+    return total
+
+
+def _law_figures(ctx: ReportContext) -> str:
+    """Per design, each statistic's fault-free histogram over every run against its law: χ²(dof) for a χ² statistic;
+    for the others (WSSR, CUSUM, GLR, …) the empirical tail P(J ≥ x) against the threshold and the design's P_f."""
+    import scipy.stats
+    from fdisyn.evaluation.metrics import HISTOGRAM_EDGES
+    from matplotlib.ticker import MaxNLocator
+
+    v, problem, out = ctx.variants[0], ctx.problem, []
+    for k, (d, b) in enumerate(v.built.items()):
+        gf = b.gain_file
+        names = list(gf.step.statistic_names)
+        counts = _fault_free_counts(v, d, len(names))
+        shown = [j for j, c in enumerate(counts) if c.size and c.sum() > 0][:8]
+        if not shown:
+            continue
+        with_threshold = sum(1 for c in counts if c.size)
+        cols = min(4, len(shown))
+        rows = -(-len(shown) // cols)
+        fig, axes = subplots(rows, cols, figsize=(2.6 * cols, 2.9 * rows + 0.4), squeeze=False)
+        thr = np.asarray(gf.thresholds, dtype=float)
+        samples = 0
+        for j, ax in zip(shown, axes.ravel(), strict=False):
+            c, h = counts[j], float(thr[j])
+            n = int(c.sum())
+            samples = max(samples, n)
+            edges = HISTOGRAM_EDGES * h
+            ev = gf.evaluators[j] if j < len(gf.evaluators) else None
+            if ev is not None and ev.kind == "chi2":
+                dens = c[1:-1] / (n * np.diff(edges))
+                ax.stairs(np.where(dens > 0, dens, np.nan), edges, fill=True, color="tab:blue", alpha=0.6)
+                grid = np.linspace(edges[-1] / 400, edges[-1], 400)
+                ax.plot(grid, scipy.stats.chi2.pdf(grid, ev.dof), "k", lw=1.0)
+                ax.set_ylabel("density")
+                ax.set_ylim(bottom=0.3 / (n * (edges[1] - edges[0])))  # below one sample per bin the law is not seen
+                law = f"χ²({ev.dof})"
+            else:
+                # P(J ≥ edge): the samples in the bins from that edge up, over all
+                tail = np.cumsum(c[::-1])[::-1][1:] / n
+                ax.step(edges, np.where(tail > 0, tail, np.nan), where="post", color="tab:blue")
+                ax.set_ylabel("P(J ≥ x)")
+                ax.set_ylim(bottom=0.3 / n)
+                if ev is not None and ev.P_f is not None and ev.P_f > 0:
+                    ax.axhline(ev.P_f, color="tab:red", ls=":", lw=1.0)
+                law = "empirical tail"
+            ax.set_yscale("log")
+            ax.axvline(h, color="k", ls="--", lw=0.9)
+            # the statistic's name above its panel (wrapped), the axis only "J": long names side by side overlap
+            ax.set_title(textwrap.fill(label(problem, names[j]), 30) + f"\n{law}", fontsize=MIN_FONT_PT)
+            ax.set_xlabel("J")
+            ax.xaxis.set_major_locator(MaxNLocator(4))  # a narrow panel: a few ticks that do not run into each other
+            ax.ticklabel_format(axis="x", style="sci", scilimits=(-2, 3), useMathText=True)  # 2·10⁻⁴, not 0.0002
+            ax.grid(alpha=0.3)
+        for ax in axes.ravel()[len(shown):]:
+            ax.set_visible(False)
+        fig.tight_layout()
+        caption = (
+            f"{label(problem, d)}: the fault-free samples of every run and scenario ({fmt(samples)} per statistic), binned from "
+            "0 to 3 thresholds in steps of a twentieth. χ² statistics: histogram (density) against the χ² density with the "
+            "statistic's degrees of freedom (black); other statistics: the empirical tail P(J ≥ x) against the design's P_f "
+            "(red, dotted). Dashed: the threshold."
+            + (f" The first {len(shown)} of the {with_threshold} statistics with a threshold." if len(shown) < with_threshold else "")
+        )
+        body = ctx.figure(f"law_{d}", fig, caption)
+        out.append(body if k == 0 else folded(body, label(problem, d)))
+    return "".join(out)
+
+
+def _sweep_figure(ctx: ReportContext) -> str:
+    """Mean detection delay and missed detections against the fault's size, per design and faulty scenario."""
+    v, problem = ctx.variants[0], ctx.problem
+    sweep = getattr(v, "sweep", None)
+    if sweep is None or not sweep.scenarios:
+        return ""
+    designs = list(v.evaluation.metrics)
+    fig, axes = subplots(len(designs), 2, figsize=(9.0, 2.2 * len(designs) + 0.4), squeeze=False)
+    rows = []
+    for i, d in enumerate(designs):
+        for base, by_factor in sweep.scenarios.items():
+            pts = []
+            for f in sorted({1.0, *by_factor}):
+                m = v.evaluation.metrics[d][base] if f == 1.0 else sweep.evaluation.metrics[d][by_factor[f]]
+                pts.append((f, m.detection_delay_mean_s, m.missed_detection_rate))
+                rows.append([label(problem, d), label(problem, base), f, m.runs, m.missed_detection_rate, m.detection_delay_mean_s])
+            f_, delay, missed = zip(*pts, strict=False)
+            axes[i, 0].plot(f_, [np.nan if x is None else x for x in delay], "o-", lw=1.0, ms=3)
+            axes[i, 1].plot(f_, missed, "o-", lw=1.0, ms=3, label=label(problem, base))
+        axes[i, 0].set_title(label(problem, d), loc="left", fontsize=MIN_FONT_PT)
+        axes[i, 0].set_ylabel("mean delay (s)")
+        axes[i, 1].set_ylabel("missed detection")
+        axes[i, 1].set_ylim(-0.03, 1.03)
+        ticks = sorted({1.0, *sweep.factors})
+        for ax in axes[i]:
+            ax.set_xscale("log")
+            ax.set_xticks(ticks, [fmt(f) for f in ticks])
+            ax.minorticks_off()
+            ax.grid(alpha=0.3)
+    for ax in axes[-1]:
+        ax.set_xlabel("fault size (× the scenario's)")
+    figure_legend(fig, *axes[0, 1].get_legend_handles_labels())
+    return ctx.figure(
+        "fault_size_sweep",
+        fig,
+        f"Detection against the fault's size: each faulty scenario with its fault scaled by {', '.join(fmt(f) for f in sweep.factors)} "
+        f"({fmt(sweep.evaluation.runs)} runs each; 1 is the scenario itself with the page's runs). Offsets and drifts scale "
+        "their value, a gain fault its deviation from 1.",
+    ) + (
+        folded(table(["design", "scenario", "size (×)", "runs", defined("missed detection (of runs)", "missed detection"),
+                      defined("delay mean (s)", "detection delay")], rows, left=2))
+    )
+
+
+def _discrete_model(problem: Problem, variant: Any, gf: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, np.ndarray]] | None:
+    """``(A, E, C, fault directions)`` of the design model in discrete time: each fault of the gain file that is a
+    component fault (a column of ``Fx``, into the state) or a single sensor (into the output)."""
+    if problem.model is None:
+        return None
+    model = problem.model(**dict(variant.options))
+    if hasattr(model, "A_D"):  # a sampled-data plant: exact sampling of the disturbance, the fault held
+        A, E, C, Fx = model.A_D, model.E_J, model.C, model.Fx_D
+        comp = list(gf.faults) if Fx.shape[1] == len(gf.faults) else []
+        outputs: list[str] = list(gf.outputs)
+    else:
+        plant = model if model.is_discrete else model.discretise(gf.Ts)
+        A, E, C, Fx = plant.A, plant.E, plant.C, plant.Fx
+        comp, outputs = list(plant.component_faults), list(plant.outputs)
+    if C.shape[0] != len(gf.outputs):
+        return None
+    dirs: dict[str, np.ndarray] = {}
+    for f in gf.faults:
+        if f in comp:
+            dirs[f] = np.concatenate([Fx[:, comp.index(f)], np.zeros(C.shape[0])])
+        elif f in outputs:
+            dirs[f] = np.concatenate([np.zeros(A.shape[0]), np.eye(C.shape[0])[outputs.index(f)]])
+    return A, E, C, dirs
+
+
+def _responses(A: np.ndarray, E: np.ndarray, C: np.ndarray, dirs: Mapping[str, np.ndarray], gen: Any, w: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """σ̄(G_rd(e^{jω})) and |G_rf(e^{jω})| per fault of one generator driven by the plant (state and sensor inputs)."""
+    n, ns = A.shape[0], gen.Ar.shape[0]
+    Acl = np.block([[A, np.zeros((n, ns))], [gen.By @ C, gen.Ar]])
+    Ccl = np.hstack([gen.Dy @ C, gen.Cr])
+    Bd = np.vstack([E, np.zeros((ns, E.shape[1]))])
+    rd = np.zeros(w.size)
+    rf = {f: np.zeros(w.size) for f in dirs}
+    for i, z in enumerate(np.exp(1j * w)):
+        M = z * np.eye(n + ns) - Acl
+        rd[i] = np.linalg.norm(Ccl @ np.linalg.solve(M, Bd), 2) if E.shape[1] else 0.0
+        for f, v in dirs.items():
+            bx, by = v[:n], v[n:]
+            B = np.concatenate([bx, gen.By @ by])
+            rf[f][i] = float(np.linalg.norm(Ccl @ np.linalg.solve(M, B) + gen.Dy @ by))
+    return rd, rf
+
+
+def _frequency_figures(ctx: ReportContext) -> str:
+    """Per design, each generator's |G_rf| per fault against σ̄ G_rd: one panel per generator, a fault in the same
+    colour on every panel, one legend (up to four panels a row for a large bank)."""
+    from matplotlib import colormaps
+    from matplotlib.lines import Line2D
+
+    v, problem, out = ctx.variants[0], ctx.problem, []
+    for k, (d, b) in enumerate(v.built.items()):
+        gf = b.gain_file
+        if not gf.generators:  # the responses of a bank of linear generators
+            continue
+        got = _discrete_model(problem, v, gf)
+        if got is None:
+            continue
+        A, E, C, dirs = got
+        w = np.logspace(-3, 0, 300) * np.pi
+        gens = list(gf.generators)
+        cols = min(2 if len(gens) <= 4 else 4, len(gens))
+        rows = -(-len(gens) // cols)
+        palette = colormaps["tab10" if len(dirs) <= 10 else "tab20"]
+        colour = {f: palette(i % palette.N) for i, f in enumerate(dirs)}
+        seen: set[str] = set()
+        fig, axes = subplots(rows, cols, figsize=(4.6 * cols, 2.6 * rows + 0.4) if cols <= 2 else (2.6 * cols, 1.8 * rows + 0.4),
+                             squeeze=False)
+        for gen, ax in zip(gens, axes.ravel(), strict=False):
+            rd, rf = _responses(A, E, C, dirs, gen, w)
+            om = w / gf.Ts
+            if E.shape[1]:
+                ax.loglog(om, np.maximum(rd, 1e-12), "k", lw=1.2)
+            for f, r in rf.items():
+                if np.max(r) > 1e-9:
+                    ax.loglog(om, np.maximum(r, 1e-12), lw=1.0, color=colour[f])
+                    seen.add(f)
+            ax.set_title(textwrap.fill(label(problem, gen.name), 34 if cols <= 2 else 22), fontsize=MIN_FONT_PT)
+            lo, hi = ax.get_ylim()
+            if hi < 10 * lo:  # under a decade: a linear axis reads better than log ticks
+                ax.set_yscale("linear")
+            ax.grid(alpha=0.3, which="both")
+        for ax in axes.ravel()[max(len(gens) - cols, 0) : len(gens)]:  # the lowest panel of each column
+            ax.set_xlabel("ω (rad/s)")
+        handles = ([Line2D([], [], color="k", lw=1.2)] if E.shape[1] else []) + [Line2D([], [], color=colour[f], lw=1.0) for f in dirs if f in seen]
+        texts = (["σ̄ G_rd (disturbance)"] if E.shape[1] else []) + [f"|G_rf| {label(problem, f)}" for f in dirs if f in seen]
+        for ax in axes.ravel()[len(gens):]:
+            ax.set_visible(False)
+        figure_legend(fig, handles, texts)
+        body = ctx.figure(
+            f"frequency_{d}",
+            fig,
+            f"{label(problem, d)}: the residual's response to each fault it sees (|G_rf(e^(jωTs))|, Euclidean norm over the residual) "
+            "against the largest singular value of its response to the disturbance (σ̄ G_rd), per generator, up to the Nyquist "
+            "frequency, from the design model and the gain file's generators.",
+        )
+        out.append(body if k == 0 else folded(body, label(problem, d)))
+    return "".join(out)
+
+
+POLE_LEGEND = 8
+"""Generators of a bank whose poles the pole figure tells apart, one colour each; a larger bank's share one."""
+
+
+def _pole_figure(ctx: ReportContext) -> str:
+    v, problem = ctx.variants[0], ctx.problem
+    linear = [(d, b.gain_file) for d, b in v.built.items() if b.gain_file.generators]  # banks of linear generators
+    if not linear:
+        return ""
+    fig, axes = subplots(1, len(linear), figsize=(3.4 * len(linear) + 1.6, 3.6), squeeze=False)
+    plant_poles = None
+    if problem.model is not None:
+        got = _discrete_model(problem, v, linear[0][1])
+        plant_poles = None if got is None else np.linalg.eigvals(got[0])
+    th = np.linspace(0, 2 * np.pi, 400)
+    rows = []
+    for (d, gf), ax in zip(linear, axes[0], strict=False):
+        ax.plot(np.cos(th), np.sin(th), "k", lw=0.8)
+        if plant_poles is not None:
+            ax.plot(plant_poles.real, plant_poles.imag, "x", color="0.4", ms=6, label="plant")
+        for gen in gf.generators:
+            ev = np.linalg.eigvals(gen.Ar) if gen.Ar.size else np.zeros(0)
+            if len(gf.generators) <= POLE_LEGEND:
+                ax.plot(ev.real, ev.imag, "o", ms=4, fillstyle="none", label=label(problem, gen.name) if len(gf.generators) > 1 else "generator")
+            else:  # a large bank: its generators in one colour (their spectral radii in the table)
+                ax.plot(ev.real, ev.imag, "o", ms=4, fillstyle="none", color="tab:blue", label="generators" if gen is gf.generators[0] else None)
+            rows.append([label(problem, d), label(problem, gen.name), gen.Ar.shape[0], float(np.max(np.abs(ev))) if ev.size else None])
+        ax.set_aspect("equal")
+        ax.set_title(textwrap.fill(label(problem, d), 28), fontsize=MIN_FONT_PT)
+        ax.set_xlabel("Re z")
+        ax.grid(alpha=0.3)
+    for ax in axes[0]:
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend()
+    axes[0, 0].set_ylabel("Im z")
+    fig.tight_layout()
+    return ctx.figure(
+        "generator_poles",
+        fig,
+        "The generators' poles (eigenvalues of Ar) against the unit circle"
+        + (", with the design model's poles (×)." if plant_poles is not None else "."),
+    ) + folded(table(["design", "generator", "order", "spectral radius of Ar"], rows, left=2))
+
+
+def standard_figures(ctx: ReportContext) -> list[tuple[str, str]]:
+    """The figures every page has where its data allow: statistics against their law, detection against the fault's
+    size, the residuals' frequency responses, the generators' poles."""
+    return [
+        ("Fault-free statistics against their law", _law_figures(ctx)),
+        ("Detection against fault size", _sweep_figure(ctx)),
+        ("Residual frequency responses", _frequency_figures(ctx)),
+        ("Generator poles", _pole_figure(ctx)),
+    ]
