@@ -3,13 +3,18 @@ fault-free hypothesis."""
 
 from __future__ import annotations
 
+from typing import Any
+
+import casadi as ca
 import numpy as np
 import scipy.stats
+from fdisyn.detectors.symbolic import Evaluated, LinearStatistic, above_threshold, chi2
+from fdisyn.detectors.table import BankRequest, Detector, register
 from fdisyn.numerics.linalg import rank_tol
 from fdisyn.runtime.errors import ArgumentError, ExistenceError
 from fdisyn.runtime.gainfile import Evaluator
 
-__all__ = ["chi2_threshold", "chi2_evaluator", "CHI2_RANK_RTOL"]
+__all__ = ["chi2_threshold", "chi2_evaluator", "CHI2_RANK_RTOL", "DETECTOR"]
 
 
 def chi2_threshold(P_f: float, dof: int) -> float:
@@ -58,3 +63,29 @@ def chi2_evaluator(generator: int, sigma_r: np.ndarray, P_f: float, *, rank_rtol
         Sigma_r=s,
         W=0.5 * (w + w.T),
     )
+
+
+# --------------------------------------------------------------------------- the detector's entry
+
+
+def _update(r: ca.SX, block: ca.SX | None, ev: Evaluator) -> Evaluated:
+    return Evaluated(chi2(r, ev.W))
+
+
+def _bank(request: BankRequest) -> tuple[list[Evaluator], list[Any], list[Any], dict[str, Any]]:
+    evals = [chi2_evaluator(i, s, 1.0 / request.arl_samples) for i, s in enumerate(request.sigma_r)]
+    return evals, list(request.generators), list(request.sigma_r), {}
+
+
+DETECTOR = register(
+    Detector(
+        kind="chi2",
+        doc="q = rᵀ W r per sample",
+        windowed=False,
+        no_window="window = {window} needs evaluator = 'wssr'; the χ² evaluator ('chi2') uses one sample",
+        sequential=False,
+        evaluators=_bank,
+        statistic=LinearStatistic(None, False, _update, above_threshold),
+    )
+)
+"""The χ² detector (:class:`~fdisyn.detectors.table.Detector`)."""

@@ -33,13 +33,26 @@ from collections.abc import Callable, Sequence
 from dataclasses import replace
 from typing import Any
 
+import casadi as ca
 import numpy as np
 import scipy.optimize
 import scipy.special
 import scipy.stats
 from fdisyn.detectors.chi2 import chi2_evaluator
+from fdisyn.detectors.symbolic import (
+    Evaluated,
+    LinearStatistic,
+    constant,
+    cusum_latch,
+    cusum_update,
+    glr_hold,
+    glr_statistic,
+    glr_update,
+)
+from fdisyn.detectors.table import Detector, register
 from fdisyn.runtime.errors import ArgumentError, ExistenceError, ShapeError, SolverError
-from fdisyn.runtime.gainfile import Evaluator
+from fdisyn.runtime.gainfile import Evaluator, glr_weights, release_level
+from fdisyn.runtime.schema import MAX_GLR_WINDOW
 from fdisyn.runtime.names import shown
 
 __all__ = [
@@ -55,6 +68,8 @@ __all__ = [
     "ARL_RTOL",
     "MAX_ARL_SAMPLES",
     "check_arl_samples",
+    "CUSUM",
+    "GLR",
 ]
 
 ARL_RTOL = 1e-6
@@ -525,3 +540,82 @@ def glr_evaluator(
         information=np.concatenate(info),
         hypotheses=tuple(labels),
     )
+
+
+# --------------------------------------------------------------------------- the detectors' entries
+
+
+def _cusum_update(r: ca.SX, block: ca.SX | None, ev: Evaluator) -> Evaluated:
+    assert block is not None and ev.directions is not None and ev.drift is not None
+    m2 = 2 * ev.directions.shape[0]
+    J, sums = cusum_update(ca.mtimes(constant(ev.directions), r), block[:m2], ev.drift, ev.threshold)
+    latches, latched = cusum_latch(sums, block[m2:], ev.threshold)
+    return Evaluated(J, ca.vertcat(sums, latches), latched)
+
+
+def _cusum_counter(value: Evaluated, J: ca.SX, count: ca.SX, ev: Evaluator) -> ca.SX:
+    assert value.latched is not None
+    return ca.if_else(value.latched, 1, 0)
+
+
+def _glr_update(r: ca.SX, block: ca.SX | None, ev: Evaluator) -> Evaluated:
+    assert block is not None and ev.directions is not None
+    sums = glr_update(ca.mtimes(constant(ev.directions), r), block, int(ev.window))
+    return Evaluated(glr_statistic(sums, glr_weights(ev.information, ev.window)), sums)
+
+
+def _glr_counter(value: Evaluated, J: ca.SX, count: ca.SX, ev: Evaluator) -> ca.SX:
+    return glr_hold(J, count, ev.threshold, release_level(ev))
+
+
+def _cusum_hypotheses(
+    gi: int, sigma: np.ndarray, visible: Sequence[str], steady: dict[str, np.ndarray], infos: dict[str, float],
+    arl_samples: float, window: int | None, response: Callable[[str, int], np.ndarray],
+) -> Evaluator:
+    return cusum_evaluator(gi, sigma, [steady[k] for k in visible], arl_samples, names=visible)
+
+
+def _glr_hypotheses(
+    gi: int, sigma: np.ndarray, visible: Sequence[str], steady: dict[str, np.ndarray], infos: dict[str, float],
+    arl_samples: float, window: int | None, response: Callable[[str, int], np.ndarray],
+) -> Evaluator:
+    m = window
+    if m is None:  # twice the Lorden delay of the weakest hypothesis, clipped to 25…100 samples
+        weakest = min(infos[k] for k in visible)
+        m = int(min(100, max(25, math.ceil(2.0 * lorden_delay(arl_samples, weakest)))))
+    if not 1 <= int(m) <= MAX_GLR_WINDOW:
+        raise ArgumentError(f"window = {m}: a GLR onset window must be 1..{MAX_GLR_WINDOW} samples")
+    signatures = [response(k, int(m)) for k in visible]
+    return glr_evaluator(gi, sigma, signatures, arl_samples, int(m), names=visible)
+
+
+CUSUM = register(
+    Detector(
+        kind="cusum",
+        doc="Page's CUSUM for each fault class's designed minimum fault",
+        windowed=False,
+        no_window="window = {window}: the CUSUM has no window (give it for 'wssr' or 'glr')",
+        sequential=True,
+        evaluators=lambda request: request.sequential(CUSUM),
+        statistic=LinearStatistic("sequential", True, _cusum_update, _cusum_counter),
+        hypotheses=_cusum_hypotheses,
+    )
+)
+"""The CUSUM detector (:class:`~fdisyn.detectors.table.Detector`): Page, Biometrika 41(1/2), 1954."""
+
+GLR = register(
+    Detector(
+        kind="glr",
+        doc="the windowed GLR of Willsky & Jones for a fault of unknown size and onset",
+        windowed=True,
+        no_window="",
+        sequential=True,
+        evaluators=lambda request: request.sequential(GLR),
+        statistic=LinearStatistic("sequential", True, _glr_update, _glr_counter),
+        hypotheses=_glr_hypotheses,
+        window_doc="the GLR's onset window",
+        window_default="chosen from the designed faults",
+    )
+)
+"""The windowed GLR detector (:class:`~fdisyn.detectors.table.Detector`): Willsky & Jones, IEEE Transactions on
+Automatic Control 21(1), 1976."""

@@ -13,8 +13,9 @@ is an argument or the caller's choice, never a second implementation. Each funct
 compares in the order of the NumPy reference (:mod:`fdisyn.runtime.reference`), the independent oracle
 these updates are tested against (a window summed newest first, a CUSUM's increment before its drift,
 a GLR's ``d·d·w``); matrix products are CasADi's, which may add their terms in another order than
-NumPy's (round-off only). A linear diagnoser's statistic of a given kind is looked up in
-:data:`LINEAR_STATISTICS`, so that its step names no detector.
+NumPy's (round-off only). A linear diagnoser's statistic of a given kind is its detector's
+:attr:`~fdisyn.detectors.table.Detector.statistic` (a :class:`LinearStatistic` its module registers in
+:data:`~fdisyn.detectors.table.DETECTORS`), so that its step names no detector.
 
 ==========  ========================================================================================
 detector    per-sample update
@@ -37,7 +38,7 @@ from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
-from fdisyn.runtime.gainfile import Evaluator, glr_weights, release_level
+from fdisyn.runtime.gainfile import Evaluator
 
 __all__ = [
     "finite",
@@ -60,7 +61,7 @@ __all__ = [
     "persistence_count",
     "Evaluated",
     "LinearStatistic",
-    "LINEAR_STATISTICS",
+    "above_threshold",
 ]
 
 
@@ -488,7 +489,7 @@ class LinearStatistic:
     other statistics' of its generator, in the reference's order); ``evaluate(r, block, ev)``: its value and
     new block from the generator's residual ``r`` and the block before the sample;
     ``counter(value, J, counter, ev)``: its alarm counter after a valid sample (``J`` the reported value).
-    Adding a statistic kind adds its functions above and one entry to :data:`LINEAR_STATISTICS`; the
+    Adding a statistic kind adds one in its detector's module (:class:`fdisyn.detectors.table.Detector`); the
     linear step is unchanged.
     """
 
@@ -498,47 +499,24 @@ class LinearStatistic:
     counter: Callable[[Evaluated, ca.SX, ca.SX, Evaluator], ca.SX]
 
 
-def _above_threshold(value: Evaluated, J: ca.SX, count: ca.SX, ev: Evaluator) -> ca.SX:
+def above_threshold(value: Evaluated, J: ca.SX, count: ca.SX, ev: Evaluator) -> ca.SX:
+    """The alarm counter of a statistic compared with its threshold on each sample (χ², WSSR): consecutive
+    exceedances (:func:`persistence_count`).
+
+    Parameters
+    ----------
+    value : Evaluated
+        This sample's value (unused: the rule reads ``J``).
+    J : casadi.SX
+        The reported value.
+    count : casadi.SX
+        The counter before the sample.
+    ev : Evaluator
+        The statistic (its ``threshold``).
+
+    Returns
+    -------
+    casadi.SX
+        The counter after the sample.
+    """
     return persistence_count(J > ev.threshold, count)
-
-
-def _chi2(r: ca.SX, block: ca.SX | None, ev: Evaluator) -> Evaluated:
-    return Evaluated(chi2(r, ev.W))
-
-
-def _wssr(r: ca.SX, block: ca.SX | None, ev: Evaluator) -> Evaluated:
-    assert block is not None
-    J, window, _ = wssr_update(chi2(r, ev.W), block)
-    return Evaluated(J, window)
-
-
-def _cusum(r: ca.SX, block: ca.SX | None, ev: Evaluator) -> Evaluated:
-    assert block is not None and ev.directions is not None and ev.drift is not None
-    m2 = 2 * ev.directions.shape[0]
-    J, sums = cusum_update(ca.mtimes(constant(ev.directions), r), block[:m2], ev.drift, ev.threshold)
-    latches, latched = cusum_latch(sums, block[m2:], ev.threshold)
-    return Evaluated(J, ca.vertcat(sums, latches), latched)
-
-
-def _cusum_counter(value: Evaluated, J: ca.SX, count: ca.SX, ev: Evaluator) -> ca.SX:
-    assert value.latched is not None
-    return ca.if_else(value.latched, 1, 0)
-
-
-def _glr(r: ca.SX, block: ca.SX | None, ev: Evaluator) -> Evaluated:
-    assert block is not None and ev.directions is not None
-    sums = glr_update(ca.mtimes(constant(ev.directions), r), block, int(ev.window))
-    return Evaluated(glr_statistic(sums, glr_weights(ev.information, ev.window)), sums)
-
-
-def _glr_counter(value: Evaluated, J: ca.SX, count: ca.SX, ev: Evaluator) -> ca.SX:
-    return glr_hold(J, count, ev.threshold, release_level(ev))
-
-
-LINEAR_STATISTICS: dict[str, LinearStatistic] = {
-    "chi2": LinearStatistic(None, False, _chi2, _above_threshold),
-    "wssr": LinearStatistic("window", False, _wssr, _above_threshold),
-    "cusum": LinearStatistic("sequential", True, _cusum, _cusum_counter),
-    "glr": LinearStatistic("sequential", True, _glr, _glr_counter),
-}
-"""Each kind of :data:`~fdisyn.runtime.schema.EVALUATOR_KINDS`: how the linear step evaluates it."""

@@ -10,18 +10,21 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
-from typing import Literal
+from typing import Any, Literal
 
+import casadi as ca
 import numpy as np
 import scipy.stats
 from fdisyn.detectors.chi2 import chi2_evaluator
+from fdisyn.detectors.symbolic import Evaluated, LinearStatistic, above_threshold, chi2, wssr_update
+from fdisyn.detectors.table import BankRequest, Detector, register
 from fdisyn.detectors.window import window_energy_quantile
 from fdisyn.runtime.errors import ArgumentError, ShapeError
 from fdisyn.runtime.gainfile import Evaluator
 from fdisyn.runtime.schema import MAX_MAGNITUDE, MAX_WSSR_WINDOW
 from fdisyn.runtime.names import shown
 
-__all__ = ['wssr_threshold_table', 'wssr_evaluator']
+__all__ = ['wssr_threshold_table', 'wssr_evaluator', 'DETECTOR']
 
 # The largest finite double: what the NAFDF step saturates an overflowed statistic to (JSON has no inf).
 _NEVER = float(np.finfo(float).max)
@@ -78,3 +81,37 @@ def _window(value: object) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 1 <= int(value) <= MAX_WSSR_WINDOW:
         raise ArgumentError(f"window must be a whole number of samples in 1..{MAX_WSSR_WINDOW}; got {shown(value)}")
     return int(value)
+
+
+# --------------------------------------------------------------------------- the detector's entry
+
+
+def _update(r: ca.SX, block: ca.SX | None, ev: Evaluator) -> Evaluated:
+    assert block is not None
+    J, window, _ = wssr_update(chi2(r, ev.W), block)
+    return Evaluated(J, window)
+
+
+def _bank(request: BankRequest) -> tuple[list[Evaluator], list[Any], list[Any], dict[str, Any]]:
+    n = 1 if request.window is None else int(request.window)
+    evals = [
+        wssr_evaluator(i, s, request.autocovariances(g, n - 1), 1.0 / request.arl_samples, n)
+        for i, (g, s) in enumerate(zip(request.generators, request.sigma_r, strict=True))
+    ]
+    return evals, list(request.generators), list(request.sigma_r), {}
+
+
+DETECTOR = register(
+    Detector(
+        kind="wssr",
+        doc="the sum of q over the last window samples",
+        windowed=True,
+        no_window="",
+        sequential=False,
+        evaluators=_bank,
+        statistic=LinearStatistic("window", False, _update, above_threshold),
+        window_doc="WSSR window N in samples (Long & Wang, Aeroengine 43(5), 2017, section 2)",
+        window_default="1",
+    )
+)
+"""The WSSR detector (:class:`~fdisyn.detectors.table.Detector`)."""

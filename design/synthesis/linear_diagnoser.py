@@ -24,15 +24,15 @@ from typing import Any
 
 import numpy as np
 from fdisyn.detectors.chi2 import chi2_evaluator
-from fdisyn.detectors.sequential import MAX_ARL_SAMPLES, cusum_evaluator, glr_evaluator, lorden_delay, split_budget
-from fdisyn.detectors.wssr import wssr_evaluator
+from fdisyn.detectors.sequential import MAX_ARL_SAMPLES, lorden_delay, split_budget
+from fdisyn.detectors.table import DETECTORS, BankRequest, option_texts, quoted, windowed_kinds
 from fdisyn.models.linear import LinearPlant
 from fdisyn.numerics.certificate import Certificate, Check
 from fdisyn.numerics.linalg import transfer_size
 from fdisyn.runtime.errors import ArgumentError, ExistenceError, FdisynError, ShapeError, SolverError
 from fdisyn.runtime.gainfile import Decision, Evaluator, GainFile, Generator, StepSpec
 from fdisyn.runtime.layout import linear_state_layout
-from fdisyn.runtime.schema import EVALUATOR_KINDS, MAX_GLR_WINDOW, MAX_WSSR_WINDOW, SEQUENTIAL_KINDS
+from fdisyn.runtime.schema import EVALUATOR_KINDS, MAX_WSSR_WINDOW
 from fdisyn.runtime.names import check_fault_name, shown
 from fdisyn.synthesis.registry import (
     ARL0,
@@ -155,11 +155,10 @@ def linear_diagnoser(
         raise ArgumentError(f"persistence must be a positive number of samples; got {persistence!r}")
     if evaluator not in EVALUATOR_KINDS:
         raise ArgumentError(f"detector must be one of {', '.join(map(repr, EVALUATOR_KINDS))}; got {shown(evaluator)}")
-    if evaluator == "chi2" and window not in (1, None):
-        raise ArgumentError(f"window = {shown(window)} needs evaluator = 'wssr'; the χ² evaluator ('chi2') uses one sample")
-    if evaluator == "cusum" and window not in (1, None):
-        raise ArgumentError(f"window = {shown(window)}: the CUSUM has no window (give it for 'wssr' or 'glr')")
-    if evaluator in SEQUENTIAL_KINDS and int(persistence) != 1:
+    detector = DETECTORS[evaluator]
+    if not detector.windowed and window not in (1, None):
+        raise ArgumentError(detector.no_window.format(window=shown(window)))
+    if detector.sequential and int(persistence) != 1:
         raise ArgumentError(
             f"persistence = {persistence!r} with detector {evaluator!r}: a sequential statistic accumulates the evidence "
             "itself; use persistence 1 (set the false-alarm budget with arl0)"
@@ -167,19 +166,20 @@ def linear_diagnoser(
     gens = list(generators)
     check_budget(evaluator, P_f, arl0, float(plant.Ts or 1.0), len(gens), where)
     arl_stat = split_budget(arl0 / float(plant.Ts or 1.0), len(gens)) if arl0 is not None else 1.0 / float(P_f)
-    sequential_info: dict[str, Any] = {}
-    if evaluator in SEQUENTIAL_KINDS:
-        evals, gens, sigma_r, sequential_info = sequential_evaluators(
-            plant, gens, faults, kind=evaluator, arl_samples=arl_stat, window=window, min_fault=min_fault
-        )
-    elif evaluator == "wssr":
-        n = 1 if window is None else int(window)
-        evals = [
-            wssr_evaluator(i, s, residual_autocovariances(g, plant, n - 1), 1.0 / arl_stat, n)
-            for i, (g, s) in enumerate(zip(gens, sigma_r, strict=True))
-        ]
-    else:
-        evals = [chi2_evaluator(i, s, 1.0 / arl_stat) for i, s in enumerate(sigma_r)]
+    request = BankRequest(
+        plant=plant,
+        generators=gens,
+        sigma_r=sigma_r,
+        faults=faults,
+        arl_samples=arl_stat,
+        window=window,
+        min_fault=min_fault,
+        autocovariances=lambda g, lags: residual_autocovariances(g, plant, lags),
+        sequential=lambda d: sequential_evaluators(
+            plant, gens, faults, kind=d.kind, arl_samples=arl_stat, window=window, min_fault=min_fault
+        ),
+    )
+    evals, gens, sigma_r, sequential_info = detector.evaluators(request)
     sig = np.array([[_expected(fault, gens[ev.generator], plant) for ev in evals] for fault in faults], dtype=int)
     checks, sensitivity = _bank_checks(gens, evals, plant)
     info: dict[str, object] = {"min_detectable_bias": sensitivity, "arl_per_statistic_samples": arl_stat}
@@ -301,6 +301,7 @@ def sequential_evaluators(
     returned holds, per generator and class, the steady-state Kullback–Leibler information per sample of the
     designed fault and its Lorden delay ``ln(ARL) / I`` at this statistic's share of the budget.
     """
+    detector = DETECTORS[kind]
     sizes = fault_sizes(plant, faults, min_fault)
     # a class merged from look-alikes ("a|b": a or b) is tested as each of its alternatives, each from its own size
     tested = [(f, part) for f in faults for part in _alternatives(f)]
@@ -341,17 +342,8 @@ def sequential_evaluators(
             "hypotheses": visible,
             "faults": {k: {"information": infos[k], "lorden_samples": lorden_delay(arl_samples, infos[k])} for k in visible},
         }
-        if kind == "cusum":
-            evals.append(cusum_evaluator(gi, sig, [hyp[k] for k in visible], arl_samples, names=visible))
-        else:
-            m = window
-            if m is None:
-                weakest = min(infos[k] for k in visible)
-                m = int(min(100, max(25, math.ceil(2.0 * lorden_delay(arl_samples, weakest)))))
-            if not 1 <= int(m) <= MAX_GLR_WINDOW:
-                raise ArgumentError(f"window = {m}: a GLR onset window must be 1..{MAX_GLR_WINDOW} samples")
-            signatures = [fault_step_response(gen, plant, *sizes[k], int(m)) for k in visible]
-            evals.append(glr_evaluator(gi, sig, signatures, arl_samples, int(m), names=visible))
+        response = lambda k, m, gen=gen: fault_step_response(gen, plant, *sizes[k], m)  # noqa: E731
+        evals.append(detector.hypotheses(gi, sig, visible, hyp, infos, arl_samples, window, response))
     return evals, gens, sigmas, {"kind": kind, "generators": table, "min_fault": {k: [a.tolist(), b.tolist()] for k, (a, b) in sizes.items()}, "checks": checks}
 
 
@@ -431,7 +423,7 @@ def _bank_checks(
             energy = float(g @ ev.W @ g)
             scale = float(np.linalg.norm(gen.Dy[:, j]) + np.linalg.norm(gen.Cr) * np.linalg.norm(gen.By[:, j]))
             visible = energy > 1e-20 * scale**2 * np.linalg.norm(ev.W, 2)  # a DC gain cancelled to round-off
-            if ev.kind not in SEQUENTIAL_KINDS:  # a sequential statistic's sensitivity is its hypotheses' information
+            if not DETECTORS[ev.kind].sequential:  # a sequential statistic's sensitivity is its hypotheses' information
                 row[plant.outputs[j]] = float(np.sqrt(ev.threshold / (ev.window * energy))) if visible else None
             checks.append(
                 Check(
@@ -551,14 +543,14 @@ EVALUATOR = Option(
     "evaluator",
     None,
     "the statistic of each generator (the same option as detector, its earlier name; default 'chi2')",
-    "'chi2', 'wssr', 'cusum' or 'glr'",
+    option_texts()["kinds"],
     lambda v: v in EVALUATOR_KINDS,
 )
 MIN_FAULT = Option(
     "min_fault",
     None,
-    "the designed minimum fault of each class for 'cusum' and 'glr', in the fault's units (default: one noise standard "
-    "deviation of each sensor, 1 for a component fault)",
+    f"the designed minimum fault of each class for {option_texts()['sequential']}, in the fault's units (default: one "
+    "noise standard deviation of each sensor, 1 for a component fault)",
     "a table fault-class name → positive size",
     lambda v: isinstance(v, Mapping) and all(isinstance(k, str) and is_real(x) and x > 0 for k, x in v.items()),
 )
@@ -567,8 +559,7 @@ LINEAR_WINDOW = replace(
     default=None,
     expected=f"a whole number of samples in 1..{MAX_WSSR_WINDOW}",
     accepts=lambda v: is_count(v) and v <= MAX_WSSR_WINDOW,
-    doc="WSSR window N in samples (Long & Wang, Aeroengine 43(5), 2017, section 2), or the GLR's onset window; "
-    "default 1 for 'wssr', chosen from the designed faults for 'glr'",
+    doc=f"{option_texts()['window']}; default {option_texts()['window_default']}",
 )
 BANK_OPTIONS: tuple[Option, ...] = (P_F, ARL0, PERSISTENCE, DETECTOR, EVALUATOR, LINEAR_WINDOW, MIN_FAULT, BANK, FAULTS)
 """The options of every linear method: the bank and its evaluation (χ²: Hu et al. 2013, Acta Automatica Sinica 39(8),
@@ -627,7 +618,7 @@ def bank_diagnoser(
 
     chosen: dict[str, object] | None = None
     if bank is None and plant.p >= 2:
-        designed, chosen = default_bank(discrete, one_sequential if kind in SEQUENTIAL_KINDS else one, faults, where)
+        designed, chosen = default_bank(discrete, one_sequential if is_sequential(kind) else one, faults, where)
     else:
         groups = bank if bank is not None else {"g0_" + "_".join(plant.outputs): tuple(range(plant.p))}
         designed = []
@@ -883,11 +874,51 @@ def check_budget(kind: str, P_f: float, arl0: float | None, Ts: float, statistic
                 + (f"arl0 > {Ts / statistics:.6g} s (one sample per statistic)" if low else
                    f"arl0 ≤ {most * Ts / statistics:.6g} s (thresholds are computed up to {most:g} samples per statistic)")
             )
-    elif kind in SEQUENTIAL_KINDS and not float(P_f) * most >= 1.0:
+    elif is_sequential(kind) and not float(P_f) * most >= 1.0:
         raise ArgumentError(
             f"{label('P_f')} = {shown(P_f)} with detector {kind!r} is a mean run length of more than {most:g} samples; "
             f"expected P_f ≥ {1.0 / most:g} (the thresholds are computed up to {most:g} samples)"
         )
+
+
+def check_window(kind: str, window: object, where: str) -> None:
+    """Refuse a window for a detector that has none (:attr:`fdisyn.detectors.table.Detector.windowed`).
+
+    Parameters
+    ----------
+    kind : str
+        The chosen detector (:func:`chosen_detector`).
+    window : object
+        The option ``window`` as given (``None``: not given; 1 is every detector's).
+    where : str
+        Prefixes the message (see :func:`fdisyn.synthesis.registry.at`).
+
+    Raises
+    ------
+    ArgumentError
+        A window other than 1 for a detector without one.
+    """
+    if kind in DETECTORS and not DETECTORS[kind].windowed and window not in (None, 1):
+        raise ArgumentError(
+            f"{at(where, 'window')} = {shown(window)} needs detector = {quoted(windowed_kinds())} "
+            f"(the {kind!r} statistic has no window)"
+        )
+
+
+def is_sequential(kind: str) -> bool:
+    """Whether ``kind`` is a registered sequential detector (:attr:`fdisyn.detectors.table.Detector.sequential`).
+
+    Parameters
+    ----------
+    kind : str
+        A detector's kind, possibly not one.
+
+    Returns
+    -------
+    bool
+        True for a sequential detector.
+    """
+    return kind in DETECTORS and DETECTORS[kind].sequential
 
 
 def check_min_fault(kind: str, min_fault: object, where: str) -> None:
@@ -907,10 +938,11 @@ def check_min_fault(kind: str, min_fault: object, where: str) -> None:
     ArgumentError
         ``min_fault`` given with ``'chi2'`` or ``'wssr'``: only the sequential detectors are designed for a fault size.
     """
-    if min_fault is not None and kind not in SEQUENTIAL_KINDS:
+    if min_fault is not None and not is_sequential(kind):
+        sequential = [k for k, d in DETECTORS.items() if d.sequential]
         raise ArgumentError(
-            f"{at(where, 'min_fault')} is read only by the detectors 'cusum' and 'glr' (their designed fault sizes); "
-            f"the detector here is {kind!r}: remove min_fault, or choose detector = 'cusum' or 'glr'"
+            f"{at(where, 'min_fault')} is read only by the detectors {quoted(sequential, 'and')} (their designed fault "
+            f"sizes); the detector here is {kind!r}: remove min_fault, or choose detector = {quoted(sequential)}"
         )
 
 
@@ -940,12 +972,8 @@ def linear_method(
 
     def checks(plant: Any, opts: Mapping[str, Any], where: str) -> None:
         kind = chosen_detector(opts.get("detector"), opts.get("evaluator"), where)
-        if kind in ("chi2", "cusum") and opts.get("window") not in (None, 1):
-            raise ArgumentError(
-                f"{at(where, 'window')} = {shown(opts['window'])} needs detector = 'wssr' or 'glr' "
-                f"(the {kind!r} statistic has no window)"
-            )
-        if kind in SEQUENTIAL_KINDS and opts.get("persistence", 1) != 1:
+        check_window(kind, opts.get("window"), where)
+        if is_sequential(kind) and opts.get("persistence", 1) != 1:
             raise ArgumentError(
                 f"{at(where, 'persistence')} = {shown(opts['persistence'])} with detector {kind!r}: a sequential statistic "
                 "accumulates the evidence itself; use persistence 1 (set the false-alarm budget with arl0)"

@@ -6,7 +6,8 @@ from __future__ import annotations
 
 import casadi as ca
 import numpy as np
-from fdisyn.detectors.symbolic import LINEAR_STATISTICS, all_finite, all_of, constant, finite
+from fdisyn.detectors.symbolic import all_finite, all_of, constant, finite
+from fdisyn.detectors.table import DETECTORS
 from fdisyn.runtime.gainfile import GainFile
 from fdisyn.runtime.layout import linear_state_layout
 from fdisyn.synthesis.kinds import STEP_INPUTS, STEP_OUTPUTS
@@ -43,12 +44,12 @@ def linear_step_function(gf: GainFile) -> ca.Function:
         values = {}
         for j in evs:
             ev = gf.evaluators[j]
-            stat = LINEAR_STATISTICS[ev.kind]
+            stat = DETECTORS[ev.kind].statistic
             block = None if stat.block is None else lay[f"{stat.block}{j}"]
             values[j] = stat.evaluate(r_g, None if block is None else state[block.start : block.stop], ev)
         # the statistics' values checked in the order the reference lists them: direct ones, then sequential
-        j_g = {j: values[j].J for j in evs if not LINEAR_STATISTICS[gf.evaluators[j].kind].sequential}
-        j_g.update({j: values[j].J for j in evs if LINEAR_STATISTICS[gf.evaluators[j].kind].sequential})
+        j_g = {j: values[j].J for j in evs if not DETECTORS[gf.evaluators[j].kind].statistic.sequential}
+        j_g.update({j: values[j].J for j in evs if DETECTORS[gf.evaluators[j].kind].statistic.sequential})
         windows = {j: values[j].state for j in evs if values[j].state is not None}
         # a finite but absurd value can overflow: the sample is then skipped like a non-finite one
         results_ok = all_finite(r_g, xi_next, *j_g.values(), *windows.values())
@@ -59,13 +60,13 @@ def linear_step_function(gf: GainFile) -> ca.Function:
         nxt[lay["ready"].start + g] = ca.if_else(ok, 1, ca.if_else(inputs_ok, 0, ready))
         r_parts.append(ca.if_else(ok, r_g, 0))
         for j, window in windows.items():
-            ws = lay[f"{LINEAR_STATISTICS[gf.evaluators[j].kind].block}{j}"]
+            ws = lay[f"{DETECTORS[gf.evaluators[j].kind].statistic.block}{j}"]
             nxt[ws.start : ws.stop] = ca.if_else(ok, window, state[ws.start : ws.stop])
         for j in evs:
             jj = ca.if_else(ok, j_g[j], 0)
             c = state[lay["counters"].start + j]
             ev = gf.evaluators[j]
-            c_next = ca.if_else(ok, LINEAR_STATISTICS[ev.kind].counter(values[j], jj, c, ev), c)
+            c_next = ca.if_else(ok, DETECTORS[ev.kind].statistic.counter(values[j], jj, c, ev), c)
             nxt[lay["counters"].start + j] = c_next
             flags[j] = ca.logic_and(ok, c_next >= persistence)
             j_parts[j] = jj

@@ -23,6 +23,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from typing import Any
 
+from fdisyn.detectors.table import option_texts
 from fdisyn.runtime.errors import ArgumentError
 from fdisyn.runtime.gainfile import GainFile
 from fdisyn.runtime.schema import EVALUATOR_KINDS, LIMITS
@@ -415,10 +416,8 @@ PERSISTENCE = Option(
 DETECTOR = Option(
     "detector",
     None,
-    "the statistic of each generator: 'chi2', q = rᵀ W r per sample; 'wssr', the sum of q over the last window samples; "
-    "'cusum', Page's CUSUM for each fault class's designed minimum fault; 'glr', the windowed GLR of Willsky & Jones "
-    "for a fault of unknown size and onset (default: evaluator's value)",
-    "'chi2', 'wssr', 'cusum' or 'glr'",
+    f"the statistic of each generator: {option_texts()['detector']} (default: evaluator's value)",
+    option_texts()["kinds"],
     lambda v: v in EVALUATOR_KINDS,
 )
 ARL0 = Option(

@@ -52,6 +52,7 @@ from fdisyn.numerics.certificate import Certificate, Check
 from fdisyn.numerics.linalg import rank
 from fdisyn.runtime.errors import ArgumentError, ExistenceError, FdisynError, ShapeError, TraceError
 from fdisyn.runtime.gainfile import GainFile
+from fdisyn.detectors.table import windowed_kinds
 from fdisyn.runtime.names import shown
 from fdisyn.runtime.trace import Trace, TraceReader
 from fdisyn.synthesis.linear_diagnoser import (
@@ -59,6 +60,7 @@ from fdisyn.synthesis.linear_diagnoser import (
     _sensor_indices,
     check_budget,
     check_min_fault,
+    check_window,
     chosen_detector,
     default_fault_classes,
     linear_diagnoser,
@@ -397,6 +399,13 @@ def gos_bank(
     return gens, sigmas, certs
 
 
+DEFAULT_DETECTOR = "wssr"
+"""The bank's statistic when neither ``detector`` nor ``evaluator`` is given: the paper's WSSR."""
+
+DEFAULT_WINDOW = 25
+"""The window of :data:`DEFAULT_DETECTOR` when ``window`` is not given (samples)."""
+
+
 def gos_diagnoser(
     plant: LinearPlant,
     groups: Sequence[Sequence[int]],
@@ -406,8 +415,8 @@ def gos_diagnoser(
     design: str,
     P_f: float,
     persistence: int = 1,
-    evaluator: str = "wssr",
-    window: int | None = 25,
+    evaluator: str = DEFAULT_DETECTOR,
+    window: int | None = DEFAULT_WINDOW,
     sensors: Sequence[int] | None = None,
     faults: Sequence[FaultClass] | None = None,
     arl0: float | None = None,
@@ -489,10 +498,6 @@ def _training_option(value: Any, where: str, plant: LinearPlant | None) -> Any:
     return str(value)
 
 
-DEFAULT_DETECTOR = "wssr"
-"""The bank's statistic when neither ``detector`` nor ``evaluator`` is given: the paper's WSSR."""
-
-
 def _statistics(plant: LinearPlant, groups: Sequence[Sequence[int]], sensors: Sequence[int] | None) -> int:
     """The statistics of the bank :func:`gos_bank` builds: one per diagnosed sensor of each group."""
     want = set(range(plant.p) if sensors is None else sensors)
@@ -501,8 +506,7 @@ def _statistics(plant: LinearPlant, groups: Sequence[Sequence[int]], sensors: Se
 
 def _check(plant: Any, opts: Mapping[str, Any], where: str) -> None:
     kind = chosen_detector(opts.get("detector"), opts.get("evaluator"), where, default=DEFAULT_DETECTOR)
-    if kind in ("chi2", "cusum") and opts["window"] not in (None, 1):
-        raise ArgumentError(f"{at(where, 'window')} = {shown(opts['window'])} needs detector = 'wssr' or 'glr' (the {kind!r} statistic has no window)")
+    check_window(kind, opts["window"], where)
     check_min_fault(kind, opts.get("min_fault"), where)
     if isinstance(plant, LinearPlant):
         if plant.is_discrete and opts["Ts"] is not None:
@@ -641,7 +645,7 @@ def gos_design(
     where = where or "method 'kalman_uio_gos'"
     evaluator = chosen_detector(detector, evaluator, where, default=DEFAULT_DETECTOR)
     if window is None:
-        window = {"wssr": 25, "glr": None}.get(evaluator, 1)
+        window = DEFAULT_WINDOW if evaluator == DEFAULT_DETECTOR else None if evaluator in windowed_kinds() else 1
     want = tuple(range(plant.p)) if sensors is None else tuple(sensors)
     if groups == "auto":
         try:

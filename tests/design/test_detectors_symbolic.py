@@ -16,8 +16,8 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 import pytest
+from fdisyn.detectors.table import DETECTORS
 from fdisyn.detectors.symbolic import (
-    LINEAR_STATISTICS,
     all_finite,
     chi2,
     cusum_latch,
@@ -243,7 +243,7 @@ def test_a_value_the_reference_skips_on_overflow_is_not_finite_in_the_update(kin
     rng = np.random.default_rng(20)
     ev = _evaluator(kind, rng, 3 if kind in ("wssr", "glr") else 1)
     gf = _diagnoser(ev)
-    stat = LINEAR_STATISTICS[kind]
+    stat = DETECTORS[kind].statistic
     block = f"{stat.block}0" if stat.block else None
     r, s, _ = _symbols(gf, block)
     value = stat.evaluate(r, s if block else None, ev)
@@ -273,13 +273,14 @@ def test_finite_is_false_for_nan_and_infinities_only():
 
 def test_every_statistic_kind_of_a_gain_file_has_its_symbolic_update_and_the_linear_step_names_none():
     """A statistic kind the gain file accepts is evaluated by the linear step through its entry of
-    LINEAR_STATISTICS alone: its state block and sequential flag agree with the file's layout."""
+    detector's entry alone (:data:`fdisyn.detectors.table.DETECTORS`): its state block and sequential flag agree
+    with the file's layout."""
     import inspect
 
     import fdisyn.synthesis.linear_step as linear_step
 
-    assert set(LINEAR_STATISTICS) == set(EVALUATOR_KINDS)
-    for kind, stat in LINEAR_STATISTICS.items():
+    assert set(DETECTORS) == set(EVALUATOR_KINDS)
+    for kind, stat in ((k, d.statistic) for k, d in DETECTORS.items()):
         assert stat.sequential == (kind in SEQUENTIAL_KINDS)
         gf = _diagnoser(_evaluator(kind, np.random.default_rng(0), 1 if kind in ("chi2", "cusum") else 2))
         blocks = {name for name, _, _ in linear_state_layout(gf.generators, gf.evaluators).entries}

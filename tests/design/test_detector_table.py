@@ -1,0 +1,130 @@
+"""The detector table: every statistic kind the runtime reads has one design-side entry with its symbolic
+update, and no module outside the detectors' own names a detector in code."""
+
+from __future__ import annotations
+
+import ast
+import pathlib
+
+import pytest
+from fdisyn.detectors.symbolic import LinearStatistic
+from fdisyn.detectors.table import DETECTORS, option_texts, quoted, windowed_kinds
+from fdisyn.runtime.schema import EVALUATOR_KINDS, SEQUENTIAL_KINDS
+from fdisyn.synthesis.linear_diagnoser import check_window, is_sequential
+from fdisyn.runtime.errors import ArgumentError
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+
+OWN_MODULES = {
+    "design/detectors/chi2.py",
+    "design/detectors/wssr.py",
+    "design/detectors/sequential.py",
+    "runtime/schema.py",  # the runtime's list of the kinds a gain file holds
+}
+"""The detectors' own modules: they name their kinds."""
+
+ALLOWED = {
+    # path: (the kinds it may name and how often, None: any; why)
+    "design/detectors/symbolic.py": ({"chi2": 1}, "its __all__ lists its function chi2 (q = rᵀ W r), the shared vocabulary"),
+    "design/synthesis/linear_diagnoser.py": ({"chi2": 2}, "the linear methods' default detector (linear_diagnoser, chosen_detector)"),
+    "design/synthesis/uio_gos.py": ({"wssr": 1}, "kalman_uio_gos's default detector (DEFAULT_DETECTOR, the paper's WSSR)"),
+    "design/synthesis/beard_fdf/kind.py": ({"wssr": 1}, "the Beard filter's window RMS shown to the report as a WSSR-like statistic"),
+    "design/synthesis/nafdf/design.py": (None, "the NAFDF's own fast detection (its settings and payload, not the linear table)"),
+    "design/synthesis/nafdf/method.py": (None, "the NAFDF's own fast detection"),
+    "design/synthesis/nafdf/payload.py": (None, "the NAFDF's own fast detection"),
+    "design/synthesis/nafdf/settings.py": (None, "the NAFDF's own fast detection"),
+    "design/synthesis/nafdf/step.py": (None, "the NAFDF's own fast detection"),
+    "problems/sampled_data_example.py": (None, "a problem chooses the detectors its study compares"),
+    "problems/ship_propulsion.py": (None, "a problem chooses the detectors its study compares (NAFDF fast detection)"),
+    "problems/turbofan.py": (None, "a problem chooses the detectors its study compares"),
+    "problems/wind_turbine.py": (None, "a problem chooses the detectors its study compares"),
+    "problems/wind_turbine_efficiency.py": (None, "a problem chooses the detectors its study compares (NAFDF fast detection)"),
+}
+"""Modules that may name a detector kind in code, and why."""
+
+NOT_YET = {
+    "design/numerics/account.py": "each statistic's smallest detectable size and its wording: numerics lies below "
+    "detectors, so the table cannot be read there without moving the account up a layer",
+    "design/reporting/budget.py": "the report's detector names",
+    "design/reporting/certificates.py": "the report's detection-rule wording",
+    "design/reporting/figures.py": "the χ² density drawn over a statistic's histogram",
+    "design/app/pipeline.py": "the C-versus-reference tolerance of a WSSR's windowed sum",
+    "runtime/gainfile.py": "the reader's and writer's per-kind fields and release_level",
+    "runtime/layout.py": "the state blocks of windowed and sequential statistics",
+    "runtime/reference.py": "the NumPy oracle's per-kind update and alarm rule",
+    "runtime/validate.py": "the per-kind window and field rules",
+}
+"""Modules that still name detectors and should read a table instead (left as they are, with the reason)."""
+
+KINDS = frozenset(EVALUATOR_KINDS)
+
+
+def _named_kinds(path: pathlib.Path) -> list[tuple[int, str]]:
+    """String constants in code (not docstrings) that are exactly a detector kind."""
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    docs = set()
+    for node in ast.walk(tree):
+        body = getattr(node, "body", None)
+        if isinstance(body, list):
+            docs.update(
+                id(s.value) for s in body if isinstance(s, ast.Expr) and isinstance(s.value, ast.Constant)
+            )
+    return sorted(
+        (n.lineno, n.value)
+        for n in ast.walk(tree)
+        if isinstance(n, ast.Constant) and isinstance(n.value, str) and n.value in KINDS and id(n) not in docs
+    )
+
+
+def test_every_kind_of_the_gain_file_has_one_design_entry_and_symbolic_update_and_vice_versa():
+    assert tuple(DETECTORS) == EVALUATOR_KINDS
+    for kind, d in DETECTORS.items():
+        assert d.kind == kind
+        assert isinstance(d.statistic, LinearStatistic)
+        assert d.statistic.sequential == d.sequential == (kind in SEQUENTIAL_KINDS)
+        assert (d.hypotheses is not None) == d.sequential
+        assert bool(d.no_window) != d.windowed and bool(d.window_doc) == d.windowed == bool(d.window_default)
+        assert d.evaluators is not None and d.doc
+
+
+def test_the_option_texts_list_every_detector_in_the_order_of_the_gain_file():
+    texts = option_texts()
+    assert texts["kinds"] == quoted(EVALUATOR_KINDS) == "'chi2', 'wssr', 'cusum' or 'glr'"
+    assert all(f"{k!r}, " in texts["detector"] for k in EVALUATOR_KINDS)
+    assert texts["sequential"] == quoted(SEQUENTIAL_KINDS, "and")
+    assert set(windowed_kinds()) <= KINDS
+
+
+def test_the_window_and_sequential_rules_come_from_the_table():
+    for kind, d in DETECTORS.items():
+        assert is_sequential(kind) == d.sequential
+        check_window(kind, None, "m")
+        check_window(kind, 1, "m")
+        if d.windowed:
+            check_window(kind, 5, "m")
+        else:
+            with pytest.raises(ArgumentError, match=f"needs detector = {quoted(windowed_kinds())}"):
+                check_window(kind, 5, "m")
+    assert not is_sequential("nonsense")
+    check_window("nonsense", 5, "m")  # an unknown detector is refused by the option's own domain
+
+
+def test_no_module_outside_the_detectors_names_a_detector_kind_in_code():
+    found = {}
+    for top in ("design", "runtime", "problems"):
+        for path in sorted((ROOT / top).rglob("*.py")):
+            rel = path.relative_to(ROOT).as_posix()
+            if rel in OWN_MODULES or rel in NOT_YET:
+                continue
+            named = _named_kinds(path)
+            allowed = ALLOWED[rel][0] if rel in ALLOWED else {}
+            counts = {k: sum(1 for _, n in named if n == k) for _, k in named}
+            if allowed is not None and any(c > allowed.get(k, 0) for k, c in counts.items()):
+                found[rel] = named
+    assert not found, f"modules naming a detector kind in code (read fdisyn.detectors.table.DETECTORS instead): {found}"
+
+
+def test_the_exceptions_are_still_needed():
+    """An exception that no longer names a detector is removed from the lists."""
+    stale = [rel for rel in (*ALLOWED, *NOT_YET) if (ROOT / rel).exists() and not _named_kinds(ROOT / rel)]
+    assert not stale, f"listed as naming a detector but naming none: {stale}"
