@@ -30,7 +30,8 @@ from fdisyn.runtime.errors import ArgumentError, CertificateError
 from fdisyn.runtime.gainfile import GainFile
 from fdisyn.runtime.layout import linear_state_layout
 from fdisyn.runtime.schema import SEQUENTIAL_KINDS
-from fdisyn.runtime.reference import LinearReference, RunResult
+from fdisyn.runtime.reference import RunResult
+from fdisyn.synthesis.kinds import reference_run
 
 __all__ = ["EXPORT_TOL", "ExportCheck", "check_export", "FaultSizeSweep", "fault_size_sweep", "VariantResult", "reproduce_problem"]
 
@@ -137,7 +138,8 @@ def _relative(a: np.ndarray, b: np.ndarray, scale: np.ndarray) -> float:
 
 
 def check_export(b: Built, U: np.ndarray, Y: np.ndarray) -> ExportCheck:
-    """Compare the compiled step with the CasADi step and (a bank of linear generators) the runtime's NumPy reference.
+    """Compare the compiled step with the CasADi step and with its kind's independent NumPy reference, where it has one
+    (:func:`fdisyn.synthesis.kinds.reference_run`).
 
     ``r`` and ``J``: ``‖C − reference‖ / ‖s‖`` over the whole trace, ``s`` the
     rounding-error scale of :func:`_rounding_scale`; ``state``: normwise
@@ -148,8 +150,9 @@ def check_export(b: Built, U: np.ndarray, Y: np.ndarray) -> ExportCheck:
     c_res = b.diagnoser.run(U, Y)
     cas, states = _casadi_run(step_function(gf), gf.step.init_state, U, Y)
     refs: dict[str, RunResult] = {"casadi": cas}
-    if gf.generators:
-        refs["numpy"] = LinearReference(gf).run(U, Y)
+    numpy_run = reference_run(gf, U, Y)
+    if numpy_run is not None:
+        refs["numpy"] = numpy_run
     s_r, s_j = _rounding_scale(gf, states, cas, U, Y)
     table: dict[str, dict[str, float | bool]] = {}
     for name, ref in refs.items():
