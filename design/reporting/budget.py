@@ -121,8 +121,9 @@ def budget_table(problem: Problem, pairs: Sequence[tuple[Any, str]], scen: Seque
               defined("Lorden bound (s)", "Lorden bound"), defined("delay / bound", "delay ratio"),
               defined("isolation acc.", "isolation accuracy"), defined("false isolation", "false isolation")]
     own = {get_kind(v.built[d].gain_file.kind).budget_text for v, d in pairs}
-    if len(own) == 1 and None not in own:  # the designs' kinds share their own prose
-        return "<h4>False-alarm budget and the Lorden bound</h4>" + own.pop() + table(header, rows, left=3 if by_variant else 2)
+    shared = next(iter(own)) if len(own) == 1 else None
+    if shared is not None:  # the designs' kinds share their own prose
+        return "<h4>False-alarm budget and the Lorden bound</h4>" + shared + table(header, rows, left=3 if by_variant else 2)
     return (
         "<h4>False-alarm budget and the Lorden bound</h4>"
         '<p class="small">Time between false alarms: fault-free time over the number of false-alarm episodes, with Garwood\'s '

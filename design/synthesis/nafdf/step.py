@@ -165,6 +165,7 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
     if s.detector == "wssr":
         buf_old, cnt_old = old["wssr_buffer"], old["wssr_count"]
         stat, buf_new, cnt_new = wssr_update(q_safe, buf_old, cnt_old)  # L(t); unfilled slots are zero
+        assert cnt_new is not None  # given a count, the update returns the new one
         thr = wssr_threshold(cnt_new, thresholds)
         stat_hold, cnt_hold = wssr_held(buf_old, cnt_old)
         thr_hold = wssr_threshold(cnt_hold, thresholds)
