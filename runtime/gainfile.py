@@ -34,7 +34,7 @@ field, what was expected and what was found:
 * an evaluator's ``W`` (χ² and WSSR alike) must be symmetric positive
   semidefinite with rank ``dof`` and the pseudo-inverse of ``Sigma_r`` on its
   range (``W Σ_r W = W``), its threshold positive; ``window`` is 1 for a χ²
-  evaluator and a whole number in 1..:data:`~fdisyn.runtime.schema.MAX_WSSR_WINDOW` (required) for a
+  evaluator and a whole number in 1..:data:`~fdisyn.runtime.statistics.MAX_WSSR_WINDOW` (required) for a
   WSSR one;
 * sizes stay within :data:`~fdisyn.runtime.schema.LIMITS`, checked before any costly step (the
   generated C grows with the number of coefficients; gcc's time and memory
@@ -63,7 +63,8 @@ import numpy as np
 from fdisyn.runtime.errors import GainFileError
 from fdisyn.runtime.jsondata import parse_json_data, read_regular_file, to_jsonable
 from fdisyn.runtime.names import shown
-from fdisyn.runtime.schema import FORMAT, FORMAT_FAMILY, LIMITS, MATRIX_KEYS, SEQUENTIAL_KINDS
+from fdisyn.runtime.schema import FORMAT, FORMAT_FAMILY, LIMITS, MATRIX_KEYS
+from fdisyn.runtime.statistics import STATISTICS
 from fdisyn.runtime.validate import check_certificate, check_magnitudes, validate_gain_file, validate_generator
 from fdisyn.runtime.values import real_number
 
@@ -77,7 +78,6 @@ __all__ = [
     "write_gain_file",
     "gain_file_from_dict",
     "gain_file_sha256",
-    "glr_weights",
     "release_level",
 ]
 
@@ -242,7 +242,7 @@ class Evaluator:
       ``ρ_i(ℓ)`` ``ℓ`` samples after a unit step fault, and ``information[i·M + n − 1] = c_i(n) =
       Σ_{ℓ<n} ρ_i(ℓ)ᵀ W ρ_i(ℓ)``. The state holds ``d_i(n) = Σ_{ℓ<n} ρ_i(ℓ)ᵀ W r(k − n + 1 + ℓ)`` for the onsets
       ``n = 1 … M`` samples ago; ``J = max_{i,n} d_i(n)² / (2 c_i(n))`` over the onsets whose information is
-      above ``1e-12`` of the hypothesis's largest (:func:`glr_weights`). At start-up the onsets older than
+      above ``1e-12`` of the hypothesis's largest (:func:`~fdisyn.runtime.statistics.glr_weights`). At start-up the onsets older than
       the first sample see zeros for the samples before it (their ``d`` sums fewer terms than ``c`` counts:
       conservative).
 
@@ -295,40 +295,6 @@ class Evaluator:
     hypotheses: tuple[str, ...] = ()
 
 
-def glr_weights(information: np.ndarray | None, window: int) -> np.ndarray:
-    """``1 / (2 c_i(n))`` for each onset, 0 where ``c_i(n)`` is below ``1e-12`` of hypothesis ``i``'s largest
-    (an onset too recent for the fault to have shown: ``d_i(n)`` is then 0 too, and the term is left out).
-
-    Parameters
-    ----------
-    information : numpy.ndarray or None
-        A GLR evaluator's ``information``: ``window`` cumulative informations per hypothesis.
-    window : int
-        The evaluator's onset window ``M``.
-
-    Returns
-    -------
-    numpy.ndarray
-        One weight per onset, hypothesis-major (the layout of ``information``).
-
-    Raises
-    ------
-    GainFileError
-        ``information`` is ``None`` (not a GLR evaluator).
-
-    Examples
-    --------
-    >>> glr_weights(np.array([0.0, 1.0, 2.0]), 3).tolist()
-    [0.0, 0.5, 0.25]
-    """
-    if information is None:
-        raise GainFileError("a GLR evaluator needs its information")
-    c = np.asarray(information, dtype=float).reshape(-1, int(window))
-    top = np.max(c, axis=1, keepdims=True)
-    with np.errstate(divide="ignore"):
-        return np.where(c > 1e-12 * top, 0.5 / np.where(c > 0, c, 1.0), 0.0).reshape(-1)
-
-
 def release_level(e: Evaluator) -> float:
     """Where a raised sequential alarm ends: each latched CUSUM sum at 0; the GLR's ``J`` at half the threshold.
 
@@ -342,7 +308,7 @@ def release_level(e: Evaluator) -> float:
     float
         The release level.
     """
-    return 0.0 if e.kind == "cusum" else 0.5 * float(e.threshold)
+    return STATISTICS[e.kind].release(e)
 
 
 @dataclass(frozen=True, eq=False)
@@ -529,11 +495,11 @@ class GainFile:
                     "Sigma_r": to_jsonable(e.Sigma_r),
                     "W": to_jsonable(e.W),
                     # a χ² evaluator's window is 1 and not written: its files stay as they were
-                    **({"window": int(e.window)} if e.kind != "chi2" else {}),
+                    **({"window": int(e.window)} if STATISTICS[e.kind].window_written else {}),
                     **({"directions": to_jsonable(e.directions)} if e.directions is not None else {}),
                     **({"drift": to_jsonable(e.drift)} if e.drift is not None else {}),
                     **({"information": to_jsonable(e.information)} if e.information is not None else {}),
-                    **({"hypotheses": list(e.hypotheses)} if e.kind in SEQUENTIAL_KINDS else {}),
+                    **({"hypotheses": list(e.hypotheses)} if STATISTICS[e.kind].sequential else {}),
                 }
                 for e in self.evaluators
             ]
@@ -736,8 +702,10 @@ def gain_file_from_dict(doc: object, *, source: str = "gain file") -> GainFile:
             er = _Reader(ed, f"{source}: evaluators[{i}]")
             ev_kind = er.string("kind")
             # a χ² evaluator's window is 1 when not written (the files of earlier versions); a WSSR one needs it
-            window = er.integer("window") if ev_kind in ("wssr", "glr") or "window" in er.doc else 1
-            sequential = ev_kind in SEQUENTIAL_KINDS
+            stat = STATISTICS.get(ev_kind)  # an unknown kind is refused by the validator, naming it
+            window = er.integer("window") if (stat is not None and stat.window_read) or "window" in er.doc else 1
+            sequential = stat is not None and stat.sequential
+            vectors = stat.vectors if stat is not None else ()
             evs.append(
                 Evaluator(
                     kind=ev_kind,
@@ -749,8 +717,8 @@ def gain_file_from_dict(doc: object, *, source: str = "gain file") -> GainFile:
                     W=er.matrix("W"),
                     window=window,
                     directions=er.matrix("directions") if sequential else None,
-                    drift=er.vector("drift") if ev_kind == "cusum" else None,
-                    information=er.vector("information") if ev_kind == "glr" else None,
+                    drift=er.vector("drift") if "drift" in vectors else None,
+                    information=er.vector("information") if "information" in vectors else None,
                     hypotheses=er.strings("hypotheses") if sequential else (),
                 )
             )

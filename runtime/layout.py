@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 from fdisyn.runtime.errors import ShapeError
-from fdisyn.runtime.schema import SEQUENTIAL_KINDS
+from fdisyn.runtime.statistics import STATISTICS
 
 __all__ = ["StateLayout", "linear_state_layout"]
 
@@ -115,11 +115,12 @@ def linear_state_layout(generators: Sequence[Any], evaluators: Sequence[Any]) ->
     """
     blocks = [(f"xi{g}", gen.n_state, 1) for g, gen in enumerate(generators)]
     blocks += [("counters", len(evaluators), 1), ("ready", len(generators), 1), ("nonfinite", 1, 1)]
-    blocks += [(f"window{j}", int(e.window), 1) for j, e in enumerate(evaluators) if e.kind == "wssr"]
-    blocks += [
-        (f"sequential{j}", int(e.directions.shape[0]) * (4 if e.kind == "cusum" else 1), 1)
-        for j, e in enumerate(evaluators)
-        if e.kind in SEQUENTIAL_KINDS and e.directions is not None
-    ]
+    # each statistic's block, grouped by prefix in the order the table first names it (window, then sequential)
+    stats = [STATISTICS.get(e.kind) for e in evaluators]
+    for prefix in dict.fromkeys(s.block for s in STATISTICS.values() if s.block is not None):
+        for j, (e, s) in enumerate(zip(evaluators, stats, strict=True)):
+            rows = s.block_rows(e) if s is not None and s.block == prefix else None
+            if rows is not None:
+                blocks.append((f"{prefix}{j}", rows, 1))
     return StateLayout(tuple(blocks), scalars=frozenset({"nonfinite"}))
 

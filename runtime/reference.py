@@ -49,9 +49,9 @@ from dataclasses import dataclass
 
 import numpy as np
 from fdisyn.runtime.errors import ArgumentError, ShapeError
-from fdisyn.runtime.gainfile import GainFile, glr_weights, release_level
+from fdisyn.runtime.gainfile import GainFile, release_level
 from fdisyn.runtime.layout import linear_state_layout
-from fdisyn.runtime.schema import SEQUENTIAL_KINDS
+from fdisyn.runtime.statistics import STATISTICS, glr_weights
 
 __all__ = ["StepOutput", "RunResult", "LinearReference", "ChangeEstimate", "glr_estimates", "sample_vector", "sample_block", "step_state"]
 
@@ -172,7 +172,7 @@ def glr_estimates(gf: GainFile, state: np.ndarray) -> list[ChangeEstimate]:
     st = step_state(np.asarray(state, dtype=np.float64).copy(), gf.step.nstate)
     out = []
     for j, ev in enumerate(gf.evaluators):
-        if ev.kind != "glr":
+        if not STATISTICS[ev.kind].onset_sums:
             continue
         d = st[lay[f"sequential{j}"]]
         w = glr_weights(ev.information, ev.window)
@@ -206,7 +206,8 @@ class LinearReference:
         self.persistence = int(gf.decision.persistence)
         offsets = np.cumsum([0] + [g.n_residual for g in gf.generators])
         self.release = [release_level(e) for e in gf.evaluators]
-        self.glr_weights = {j: glr_weights(e.information, e.window) for j, e in enumerate(gf.evaluators) if e.kind == "glr"}
+        self.statistics = [STATISTICS[e.kind] for e in gf.evaluators]
+        self.prepared = [s.prepare(e) for s, e in zip(self.statistics, gf.evaluators, strict=True)]
         self.r_slices = [slice(int(offsets[i]), int(offsets[i + 1])) for i in range(len(gf.generators))]
         # looked up once rather than at every sample: the state's blocks by name, the outputs each generator
         # reads and the statistics each feeds
@@ -243,31 +244,14 @@ class LinearReference:
                 rg = gen.Cr @ xi + gen.Du @ us + gen.Dy @ ys
                 xi_next = gen.Ar @ xi + gen.Bu @ us + gen.By @ ys
                 evs = self.statistics_of[g]
-                jg = {j: float(rg @ gf.evaluators[j].W @ rg) for j in evs if gf.evaluators[j].kind not in SEQUENTIAL_KINDS}
+                # q = rᵀ W r of every non-sequential statistic first, then each statistic's update in order
+                jg = {j: float(rg @ gf.evaluators[j].W @ rg) for j in evs if not self.statistics[j].sequential}
                 windows = {}
                 for j in evs:
-                    ev = gf.evaluators[j]
-                    if ev.kind == "wssr":
-                        windows[j] = np.concatenate([[jg[j]], state[lay[f"window{j}"]][:-1]])
-                        jg[j] = float(np.add.accumulate(windows[j])[-1])  # in order, newest first
-                    elif ev.kind == "cusum":
-                        assert ev.directions is not None and ev.drift is not None
-                        z = ev.directions @ rg
-                        old = state[lay[f"sequential{j}"]]
-                        m2 = 2 * ev.directions.shape[0]
-                        sums = old[:m2] + np.concatenate([z, -z]) - np.concatenate([ev.drift, ev.drift])
-                        sums = np.minimum(np.maximum(sums, 0.0), 2.0 * ev.threshold)
-                        latch = np.where((sums > ev.threshold) | ((old[m2:] > 0.0) & (sums > 0.0)), 1.0, 0.0)
-                        windows[j] = np.concatenate([sums, latch])
-                        jg[j] = float(np.max(sums))
-                    elif ev.kind == "glr":
-                        assert ev.directions is not None
-                        m = ev.window
-                        z = (ev.directions @ rg).reshape(-1, m)
-                        old = state[lay[f"sequential{j}"]].reshape(-1, m)
-                        d = np.concatenate([z[:, :1], old[:, :-1] + z[:, 1:]], axis=1).reshape(-1)
-                        windows[j] = d
-                        jg[j] = float(np.max(d * d * self.glr_weights[j]))
+                    stat = self.statistics[j]
+                    if stat.update is not None:
+                        old = state[lay[f"{stat.block}{j}"]]
+                        jg[j], windows[j] = stat.update(gf.evaluators[j], rg, jg.get(j), old, self.prepared[j])
             # a finite but absurd value can overflow: the sample is then skipped like a non-finite one
             if not (np.isfinite(rg).all() and np.isfinite(xi_next).all() and np.isfinite(list(jg.values())).all()):
                 overflow = True
@@ -277,15 +261,12 @@ class LinearReference:
             r[self.r_slices[g]] = rg
             state[sl] = xi_next
             for j, window in windows.items():
-                state[lay[("window" if gf.evaluators[j].kind == "wssr" else "sequential") + str(j)]] = window
+                state[lay[f"{self.statistics[j].block}{j}"]] = window
             for j, value in jg.items():
                 jv[j] = value
-                if gf.evaluators[j].kind == "cusum":  # any latched sum
-                    counters[j] = float(np.any(windows[j][2 * gf.evaluators[j].directions.shape[0] :] > 0.0))  # type: ignore[union-attr]
-                elif gf.evaluators[j].kind == "glr":  # raised above the threshold, held down to the release level
-                    counters[j] = 1.0 if value > self.thresholds[j] or (counters[j] > 0.0 and value > self.release[j]) else 0.0
-                else:
-                    counters[j] = counters[j] + 1.0 if value > self.thresholds[j] else 0.0
+                counters[j] = self.statistics[j].counter(
+                    gf.evaluators[j], value, counters[j], self.thresholds[j], self.release[j], windows.get(j)
+                )
                 flags[j] = int(counters[j] >= self.persistence)
         state[lay["ready"]] = ready
         state[lay["counters"]] = counters

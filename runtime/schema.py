@@ -8,14 +8,14 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
+from fdisyn.runtime.statistics import STATISTICS
+
 __all__ = [
     "FORMAT",
     "FORMAT_FAMILY",
     "MATRIX_KEYS",
     "EVALUATOR_KINDS",
     "SEQUENTIAL_KINDS",
-    "MAX_GLR_WINDOW",
-    "MAX_WSSR_WINDOW",
     "LIMITS",
     "ACCOUNT_FORMAT",
     "ACCOUNT_EFFECTS",
@@ -28,15 +28,11 @@ FORMAT_FAMILY = "fdisyn.gains/"
 """The prefix every version of the format shares (a file of another version is named as such)."""
 MATRIX_KEYS = ("Ar", "Bu", "By", "Cr", "Du", "Dy", "Xu", "Xy")
 """A generator's matrices, in the order the file and the step list them (:class:`~fdisyn.runtime.gainfile.Generator`)."""
-EVALUATOR_KINDS = ("chi2", "wssr", "cusum", "glr")
-"""The statistics a linear diagnoser evaluates (:class:`~fdisyn.runtime.gainfile.Evaluator`)."""
-SEQUENTIAL_KINDS = ("cusum", "glr")
+EVALUATOR_KINDS = tuple(STATISTICS)
+"""The statistics a linear diagnoser evaluates (:class:`~fdisyn.runtime.gainfile.Evaluator`; one entry each of
+:data:`~fdisyn.runtime.statistics.STATISTICS`)."""
+SEQUENTIAL_KINDS = tuple(k for k, s in STATISTICS.items() if s.sequential)
 """Statistics that accumulate evidence over time (:class:`~fdisyn.runtime.gainfile.Evaluator`): their alarm holds until the evidence is gone."""
-MAX_GLR_WINDOW = 1000
-"""Largest GLR onset window accepted: the step updates ``window`` sums per hypothesis and sample."""
-MAX_WSSR_WINDOW = 100_000
-"""Largest WSSR window accepted in a gain file. The window's ``q`` values are part of the state, so
-``nstate`` ≤ :data:`LIMITS` ``["nstate"]`` bounds the windows of a compiled diagnoser further."""
 
 LIMITS: Mapping[str, int] = {
     # every kind

@@ -30,11 +30,10 @@ from fdisyn.runtime.schema import (
     FORMAT,
     LIMITS,
     MATRIX_KEYS,
-    MAX_GLR_WINDOW,
     MAX_MAGNITUDE,
-    MAX_WSSR_WINDOW,
     SEQUENTIAL_KINDS,
 )
+from fdisyn.runtime.statistics import STATISTICS
 from fdisyn.runtime.values import real_number
 
 # The gain file's types (:mod:`fdisyn.runtime.gainfile`) run these checks when they are built, so this module cannot
@@ -347,20 +346,16 @@ def _validate_sequential(e: _Evaluator, w: str, ng: int, decision: _Decision | N
     rows = e.directions.shape[0]
     _shape(e.directions, f"{w}.directions", (rows, ng))
     check_magnitudes(e.directions, f"{w}.directions")
-    per = int(e.window) if e.kind == "glr" else 1
+    stat = STATISTICS[e.kind]
+    per = stat.rows_per_hypothesis(e)
     if rows == 0 or rows % per:
         _fail(f"{w}.directions must hold {per} row(s) per fault hypothesis and at least one hypothesis, found {rows} rows")
-    if e.kind == "cusum":
-        assert e.drift is not None
-        check_magnitudes(e.drift, f"{w}.drift")
-        if e.drift.shape != (rows,) or not np.all(e.drift > 0):
-            _fail(f"{w}.drift must hold one positive number per direction ({rows}), found {shown(e.drift.tolist())}")
-    else:
-        assert e.information is not None
-        check_magnitudes(e.information, f"{w}.information")
-        c = e.information.reshape(-1, per) if e.information.shape == (rows,) else None
-        if c is None or not np.all(c >= 0) or not np.all(np.diff(c, axis=1) >= -1e-9 * c[:, -1:]) or not np.all(c[:, -1] > 0):
-            _fail(f"{w}.information must hold, per hypothesis, {per} nondecreasing cumulative informations ending positive")
+    for name in stat.vectors:
+        assert getattr(e, name) is not None
+        check_magnitudes(getattr(e, name), f"{w}.{name}")
+    refusal = stat.check_vectors(e, w, rows, per) if stat.check_vectors is not None else ""
+    if refusal:
+        _fail(refusal)
     if decision is not None and decision.persistence != 1:
         _fail(f"decision.persistence must be 1 with a sequential ({e.kind!r}) evaluator, found {decision.persistence}")
     if len(e.hypotheses) != rows // per:
@@ -447,16 +442,12 @@ def _validate_linear(gf: _GainFile) -> None:
         w = f"evaluators[{j}]"
         if e.kind not in EVALUATOR_KINDS:
             _fail(f"{w}.kind {e.kind!r} is not supported (supported: {', '.join(map(repr, EVALUATOR_KINDS))})")
-        if e.kind == "chi2" and not (type(e.window) is int and e.window == 1):
-            _fail(f"{w}.window must be 1 for a 'chi2' evaluator (one sample), found {shown(e.window)}; use kind 'wssr' for a window")
-        if e.kind == "wssr" and not (type(e.window) is int and 1 <= e.window <= MAX_WSSR_WINDOW):
-            _fail(f"{w}.window must be a whole number of samples in 1..{MAX_WSSR_WINDOW}, found {shown(e.window)}")
-        if e.kind == "cusum" and not (type(e.window) is int and e.window == 1):
-            _fail(f"{w}.window must be 1 for a 'cusum' evaluator (it has no window), found {shown(e.window)}")
-        if e.kind == "glr" and not (type(e.window) is int and 1 <= e.window <= MAX_GLR_WINDOW):
-            _fail(f"{w}.window must be a whole number of onsets in 1..{MAX_GLR_WINDOW} for a 'glr' evaluator, found {shown(e.window)}")
+        refusal = STATISTICS[e.kind].window_rule(e, w)
+        if refusal:
+            _fail(refusal)
         if (e.kind in SEQUENTIAL_KINDS) != (e.directions is not None):
-            _fail(f"{w}.directions: {'required' if e.kind in SEQUENTIAL_KINDS else 'only allowed'} for a 'cusum' or 'glr' evaluator")
+            kinds = " or ".join(map(repr, SEQUENTIAL_KINDS))
+            _fail(f"{w}.directions: {'required' if e.kind in SEQUENTIAL_KINDS else 'only allowed'} for a {kinds} evaluator")
         if not 0 <= e.generator < len(gf.generators):
             _fail(f"{w}.generator {e.generator} is not a generator index (0..{len(gf.generators) - 1})")
         ng = gf.generators[e.generator].n_residual

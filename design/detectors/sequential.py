@@ -51,8 +51,8 @@ from fdisyn.detectors.symbolic import (
 )
 from fdisyn.detectors.table import Detector, register
 from fdisyn.runtime.errors import ArgumentError, ExistenceError, ShapeError, SolverError
-from fdisyn.runtime.gainfile import Evaluator, glr_weights, release_level
-from fdisyn.runtime.schema import MAX_GLR_WINDOW
+from fdisyn.runtime.gainfile import Evaluator, release_level
+from fdisyn.runtime.statistics import MAX_GLR_WINDOW, glr_weights
 from fdisyn.runtime.names import shown
 
 __all__ = [

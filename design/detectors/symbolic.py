@@ -410,7 +410,7 @@ def glr_statistic(sums: ca.SX, weights: np.ndarray) -> ca.SX:
     sums : casadi.SX
         The onset sums (any shape; taken in column-major order).
     weights : numpy.ndarray
-        The weight of each sum, same shape (:func:`fdisyn.runtime.gainfile.glr_weights`); at least one positive.
+        The weight of each sum, same shape (:func:`fdisyn.runtime.statistics.glr_weights`); at least one positive.
 
     Returns
     -------

@@ -21,7 +21,8 @@ from fdisyn.detectors.table import BankRequest, Detector, register
 from fdisyn.detectors.window import window_energy_quantile
 from fdisyn.runtime.errors import ArgumentError, ShapeError
 from fdisyn.runtime.gainfile import Evaluator
-from fdisyn.runtime.schema import MAX_MAGNITUDE, MAX_WSSR_WINDOW
+from fdisyn.runtime.schema import MAX_MAGNITUDE
+from fdisyn.runtime.statistics import MAX_WSSR_WINDOW
 from fdisyn.runtime.names import shown
 
 __all__ = ['wssr_threshold_table', 'wssr_evaluator', 'DETECTOR']

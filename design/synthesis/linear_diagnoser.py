@@ -32,7 +32,8 @@ from fdisyn.numerics.linalg import transfer_size
 from fdisyn.runtime.errors import ArgumentError, ExistenceError, FdisynError, ShapeError, SolverError
 from fdisyn.runtime.gainfile import Decision, Evaluator, GainFile, Generator, StepSpec
 from fdisyn.runtime.layout import linear_state_layout
-from fdisyn.runtime.schema import EVALUATOR_KINDS, MAX_WSSR_WINDOW
+from fdisyn.runtime.schema import EVALUATOR_KINDS
+from fdisyn.runtime.statistics import MAX_WSSR_WINDOW
 from fdisyn.runtime.names import check_fault_name, shown
 from fdisyn.synthesis.registry import (
     ARL0,

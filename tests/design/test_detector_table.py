@@ -12,6 +12,7 @@ from fdisyn.detectors.table import DETECTORS, option_texts, quoted, windowed_kin
 from fdisyn.runtime.schema import EVALUATOR_KINDS, SEQUENTIAL_KINDS
 from fdisyn.synthesis.linear_diagnoser import check_window, is_sequential
 from fdisyn.runtime.errors import ArgumentError
+from fdisyn.runtime.statistics import STATISTICS
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 
@@ -19,7 +20,7 @@ OWN_MODULES = {
     "design/detectors/chi2.py",
     "design/detectors/wssr.py",
     "design/detectors/sequential.py",
-    "runtime/schema.py",  # the runtime's list of the kinds a gain file holds
+    "runtime/statistics.py",  # the runtime's entry of each kind: its fields, state block and NumPy oracle
 }
 """The detectors' own modules: they name their kinds."""
 
@@ -49,10 +50,6 @@ NOT_YET = {
     "design/reporting/certificates.py": "the report's detection-rule wording",
     "design/reporting/figures.py": "the χ² density drawn over a statistic's histogram",
     "design/app/pipeline.py": "the C-versus-reference tolerance of a WSSR's windowed sum",
-    "runtime/gainfile.py": "the reader's and writer's per-kind fields and release_level",
-    "runtime/layout.py": "the state blocks of windowed and sequential statistics",
-    "runtime/reference.py": "the NumPy oracle's per-kind update and alarm rule",
-    "runtime/validate.py": "the per-kind window and field rules",
 }
 """Modules that still name detectors and should read a table instead (left as they are, with the reason)."""
 
@@ -77,11 +74,15 @@ def _named_kinds(path: pathlib.Path) -> list[tuple[int, str]]:
 
 
 def test_every_kind_of_the_gain_file_has_one_design_entry_and_symbolic_update_and_vice_versa():
-    assert tuple(DETECTORS) == EVALUATOR_KINDS
+    assert tuple(DETECTORS) == tuple(STATISTICS) == EVALUATOR_KINDS
     for kind, d in DETECTORS.items():
-        assert d.kind == kind
+        runtime = STATISTICS[kind]
+        assert d.kind == runtime.kind == kind
         assert isinstance(d.statistic, LinearStatistic)
-        assert d.statistic.sequential == d.sequential == (kind in SEQUENTIAL_KINDS)
+        assert d.statistic.sequential == d.sequential == runtime.sequential == (kind in SEQUENTIAL_KINDS)
+        assert d.statistic.block == runtime.block  # the symbolic step reads the block the oracle writes
+        assert (runtime.update is None) == (runtime.block is None)
+        assert d.windowed == runtime.window_read
         assert (d.hypotheses is not None) == d.sequential
         assert bool(d.no_window) != d.windowed and bool(d.window_doc) == d.windowed == bool(d.window_default)
         assert d.evaluators is not None and d.doc

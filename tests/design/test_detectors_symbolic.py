@@ -31,10 +31,11 @@ from fdisyn.detectors.symbolic import (
     wssr_threshold,
     wssr_update,
 )
-from fdisyn.runtime.gainfile import Decision, Evaluator, GainFile, Generator, StepSpec, glr_weights, release_level
+from fdisyn.runtime.gainfile import Decision, Evaluator, GainFile, Generator, StepSpec, release_level
 from fdisyn.runtime.layout import linear_state_layout
 from fdisyn.runtime.schema import EVALUATOR_KINDS, SEQUENTIAL_KINDS
 from fdisyn.runtime.reference import LinearReference
+from fdisyn.runtime.statistics import glr_weights
 
 RTOL = 1e-12
 P = 2  # residual size
