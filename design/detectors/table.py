@@ -2,7 +2,7 @@
 
 Each detector's module (:mod:`fdisyn.detectors.chi2`, :mod:`~fdisyn.detectors.wssr`,
 :mod:`~fdisyn.detectors.sequential`) registers its entry with :func:`register` when it is imported
-(:mod:`fdisyn.detectors` imports them all); the bank's checks and evaluators
+(:mod:`fdisyn.detectors` imports every module of the package); the bank's checks and evaluators
 (:mod:`fdisyn.synthesis.linear_diagnoser`), the option ``detector`` (:mod:`fdisyn.synthesis.registry`),
 the linear step (:mod:`fdisyn.synthesis.linear_step`) and the methods read :data:`DETECTORS` and name
 no detector. The runtime's oracle and gain-file rules for the same kinds are
@@ -14,6 +14,8 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
+
+from fdisyn.runtime.statistics import STATISTICS
 
 __all__ = ["Detector", "BankRequest", "DETECTORS", "register", "windowed_kinds", "quoted", "option_texts"]
 
@@ -103,7 +105,8 @@ class Detector:
 
 
 DETECTORS: dict[str, Detector] = {}
-"""Every registered detector by kind, in the order of :data:`fdisyn.runtime.schema.EVALUATOR_KINDS`."""
+"""Every registered detector by kind, in the order of :data:`fdisyn.runtime.schema.EVALUATOR_KINDS` (a kind the
+runtime does not know last)."""
 
 
 def register(detector: Detector) -> Detector:
@@ -120,6 +123,10 @@ def register(detector: Detector) -> Detector:
         The entry, registered.
     """
     DETECTORS[detector.kind] = detector
+    order = list(STATISTICS)  # the gain file's order, whatever order the modules are imported in
+    ranked = sorted(DETECTORS.items(), key=lambda kv: order.index(kv[0]) if kv[0] in order else len(order))
+    DETECTORS.clear()
+    DETECTORS.update(ranked)
     return detector
 
 

@@ -129,3 +129,19 @@ def test_the_exceptions_are_still_needed():
     """An exception that no longer names a detector is removed from the lists."""
     stale = [rel for rel in (*ALLOWED, *NOT_YET) if (ROOT / rel).exists() and not _named_kinds(ROOT / rel)]
     assert not stale, f"listed as naming a detector but naming none: {stale}"
+
+
+def test_a_new_detector_is_one_registration_and_the_option_texts_and_rules_follow(monkeypatch):
+    """What a new detector's module does (register an entry) is all the bank's checks and the option texts need."""
+    from dataclasses import replace
+
+    from fdisyn.detectors.table import register
+
+    monkeypatch.setattr("fdisyn.detectors.table.DETECTORS", dict(DETECTORS))
+    import fdisyn.detectors.table as table
+
+    register(replace(DETECTORS["wssr"], kind="toy", doc="a toy statistic", window_doc="the toy's window", window_default="2"))
+    assert list(table.DETECTORS)[-1] == "toy" and list(table.DETECTORS)[:4] == list(EVALUATOR_KINDS)
+    texts = table.option_texts()
+    assert texts["kinds"].endswith("'glr' or 'toy'") and "'toy', a toy statistic" in texts["detector"]
+    assert texts["window_default"].endswith("2 for 'toy'") and "'toy'" in quoted(table.windowed_kinds())
