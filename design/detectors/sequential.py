@@ -589,7 +589,7 @@ def _glr_hypotheses(
     return glr_evaluator(gi, sigma, signatures, arl_samples, int(m), names=visible)
 
 
-CUSUM = register(
+CUSUM: Detector = register(
     Detector(
         kind="cusum",
         doc="Page's CUSUM for each fault class's designed minimum fault",
@@ -603,7 +603,7 @@ CUSUM = register(
 )
 """The CUSUM detector (:class:`~fdisyn.detectors.table.Detector`): Page, Biometrika 41(1/2), 1954."""
 
-GLR = register(
+GLR: Detector = register(
     Detector(
         kind="glr",
         doc="the windowed GLR of Willsky & Jones for a fault of unknown size and onset",

@@ -344,6 +344,7 @@ def sequential_evaluators(
             "faults": {k: {"information": infos[k], "lorden_samples": lorden_delay(arl_samples, infos[k])} for k in visible},
         }
         response = lambda k, m, gen=gen: fault_step_response(gen, plant, *sizes[k], m)  # noqa: E731
+        assert detector.hypotheses is not None  # a sequential detector builds its hypotheses
         evals.append(detector.hypotheses(gi, sig, visible, hyp, infos, arl_samples, window, response))
     return evals, gens, sigmas, {"kind": kind, "generators": table, "min_fault": {k: [a.tolist(), b.tolist()] for k, (a, b) in sizes.items()}, "checks": checks}
 

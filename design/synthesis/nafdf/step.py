@@ -164,8 +164,9 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
     q_safe = ca.fmin(_select(_all_finite(nis_e), nis_e, 0.0), _Q_CAP)
     if s.detector == "wssr":
         buf_old, cnt_old = old["wssr_buffer"], old["wssr_count"]
-        stat, buf_new, cnt_new = wssr_update(q_safe, buf_old, cnt_old)  # L(t); unfilled slots are zero
-        assert cnt_new is not None  # given a count, the update returns the new one
+        stat, buf_new, cnt_updated = wssr_update(q_safe, buf_old, cnt_old)  # L(t); unfilled slots are zero
+        assert cnt_updated is not None  # given a count, the update returns the new one
+        cnt_new: ca.SX = cnt_updated
         thr = wssr_threshold(cnt_new, thresholds)
         stat_hold, cnt_hold = wssr_held(buf_old, cnt_old)
         thr_hold = wssr_threshold(cnt_hold, thresholds)
