@@ -26,12 +26,10 @@ from fdisyn.runtime.names import (
 from fdisyn.runtime.schema import (
     ACCOUNT_EFFECTS,
     ACCOUNT_FORMAT,
-    EVALUATOR_KINDS,
     FORMAT,
     LIMITS,
     MATRIX_KEYS,
     MAX_MAGNITUDE,
-    SEQUENTIAL_KINDS,
 )
 from fdisyn.runtime.statistics import STATISTICS
 from fdisyn.runtime.values import real_number
@@ -113,6 +111,10 @@ def validate_gain_file(gf: _GainFile) -> None:
         validate_account(gf)
 
 
+_RULE_MAX = 400
+"""Longest definition of a statistic's smallest size in the ``account`` block (one clause, shown on a page)."""
+
+
 def validate_account(gf: _GainFile) -> None:
     """The optional ``account`` block: informational, but what a page and a terminal show of it must be sound.
 
@@ -120,7 +122,8 @@ def validate_account(gf: _GainFile) -> None:
     :data:`LIMITS` ``["faults"]`` component faults), each with a fault ``name``, ``type`` ``"sensor"`` (an output of
     the file) or ``"component"``, ``unit`` text or null, ``effect`` one of :data:`ACCOUNT_EFFECTS`, ``size`` and
     ``size_50`` null or finite non-negative numbers, ``seen_by`` and ``persistent_in`` lists of generator labels, and
-    per generator ``effect``, ``peak_gain`` and ``dc_gain`` (null or finite ≥ 0); ``classes.groups`` lists of fault
+    per generator ``effect``, ``peak_gain`` and ``dc_gain`` (null or finite ≥ 0); ``statistics`` objects with a
+    ``name`` and a ``kind`` (labels) and optionally a ``rule`` (one printable line); ``classes.groups`` lists of fault
     names of the block with a ``reason``, ``classes.unseen`` fault names. Anything else is refused naming the field.
     """
     acc = gf.account
@@ -172,6 +175,18 @@ def validate_account(gf: _GainFile) -> None:
             number(v.get("dc_gain"), f"{fw}.generators.{shown(g)}.dc_gain")
     if len(set(names)) != len(names):
         _fail(f"{w}.faults names a fault twice: {sorted({n for n in names if names.count(n) > 1})}")
+    stats = acc.get("statistics", [])
+    if not isinstance(stats, list):
+        _fail(f"{w}.statistics must be a list, found {shown(stats)}")
+    for i, st in enumerate(stats):
+        sw = f"{w}.statistics[{i}]"
+        if not isinstance(st, Mapping) or not all(isinstance(st.get(k), str) for k in ("name", "kind")):
+            _fail(f"{sw} must be an object with a 'name' and a 'kind', found {shown(st)}")
+        check_label(st["name"], f"{sw}.name", error=GainFileError)
+        check_label(st["kind"], f"{sw}.kind", error=GainFileError)
+        rule = st.get("rule")
+        if rule is not None and not (isinstance(rule, str) and 0 < len(rule) <= _RULE_MAX and rule.isprintable()):
+            _fail(f"{sw}.rule must be one line of at most {_RULE_MAX} printable characters, found {shown(rule)}")
     classes = acc.get("classes")
     if not isinstance(classes, Mapping) or not isinstance(classes.get("groups"), list):
         _fail(f"{w}.classes must be an object with a list 'groups', found {shown(classes)}")
@@ -440,14 +455,15 @@ def _validate_linear(gf: _GainFile) -> None:
         _fail("a linear diagnoser needs at least one evaluator")
     for j, e in enumerate(gf.evaluators):
         w = f"evaluators[{j}]"
-        if e.kind not in EVALUATOR_KINDS:
-            _fail(f"{w}.kind {e.kind!r} is not supported (supported: {', '.join(map(repr, EVALUATOR_KINDS))})")
-        refusal = STATISTICS[e.kind].window_rule(e, w)
+        if e.kind not in STATISTICS:  # the table read live: a statistic added to it is known everywhere at once
+            _fail(f"{w}.kind {e.kind!r} is not supported (supported: {', '.join(map(repr, STATISTICS))})")
+        stat = STATISTICS[e.kind]
+        refusal = stat.window_rule(e, w)
         if refusal:
             _fail(refusal)
-        if (e.kind in SEQUENTIAL_KINDS) != (e.directions is not None):
-            kinds = " or ".join(map(repr, SEQUENTIAL_KINDS))
-            _fail(f"{w}.directions: {'required' if e.kind in SEQUENTIAL_KINDS else 'only allowed'} for a {kinds} evaluator")
+        if stat.sequential != (e.directions is not None):
+            kinds = " or ".join(repr(k) for k, s in STATISTICS.items() if s.sequential)
+            _fail(f"{w}.directions: {'required' if stat.sequential else 'only allowed'} for a {kinds} evaluator")
         if not 0 <= e.generator < len(gf.generators):
             _fail(f"{w}.generator {e.generator} is not a generator index (0..{len(gf.generators) - 1})")
         ng = gf.generators[e.generator].n_residual
@@ -459,7 +475,7 @@ def _validate_linear(gf: _GainFile) -> None:
         if not e.threshold > 0:
             _fail(f"{w}.threshold must be positive, found {e.threshold}")
         _validate_chi2_weight(e, w)
-        if e.kind in SEQUENTIAL_KINDS:
+        if stat.sequential:
             _validate_sequential(e, w, ng, gf.decision)
     d = gf.decision
     if d is None:

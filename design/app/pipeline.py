@@ -21,6 +21,7 @@ import casadi as ca
 import numpy as np
 from fdisyn.app import WORKDIR
 from fdisyn.codegen.step import step_function
+from fdisyn.detectors.table import DETECTORS
 from fdisyn.evaluation.campaign import problem_source
 from fdisyn.evaluation.built import Built, build
 from fdisyn.evaluation.evaluate import Evaluation, evaluate
@@ -29,7 +30,6 @@ from fdisyn.simulation.problem import Problem, scaled_scenario
 from fdisyn.runtime.errors import ArgumentError, CertificateError
 from fdisyn.runtime.gainfile import GainFile
 from fdisyn.runtime.layout import linear_state_layout
-from fdisyn.runtime.schema import SEQUENTIAL_KINDS
 from fdisyn.runtime.reference import RunResult
 from fdisyn.synthesis.kinds import reference_run
 
@@ -95,7 +95,7 @@ def _rounding_scale(gf: GainFile, states: np.ndarray, res: RunResult, U: np.ndar
     A linear generator computes ``r = Cr ξ + Du u + Dy y``, whose rounding
     error is bounded by a few ulps of ``s_r = |Cr||ξ| + |Du||u| + |Dy||y|``;
     ``J = rᵀ W r`` then errs by up to ``s_J = |r|ᵀ|W|(|r| + 2 s_r)`` times
-    the same factor; a WSSR statistic sums that scale over its window (the
+    the same factor; a windowed statistic (WSSR) sums that scale over its window (the
     last ``window`` samples its generator evaluated). A residual that is a
     small difference of large terms (an integrating state, a large operating
     point) is compared against its terms, not against itself. A CUSUM or GLR
@@ -120,10 +120,11 @@ def _rounding_scale(gf: GainFile, states: np.ndarray, res: RunResult, U: np.ndar
         for j, ev in enumerate(gf.evaluators):
             if ev.generator == g:
                 s_j[:, j] = np.einsum("ki,ij,kj->k", r_abs, np.abs(ev.W), r_abs + 2.0 * block)
-                if ev.kind in SEQUENTIAL_KINDS:
+                detector = DETECTORS[ev.kind]
+                if detector.sequential:
                     # clamped (CUSUM) or windowed (GLR) sums of terms of the size of J and h: errors of |J| + h
                     s_j[:, j] = np.abs(res.J[:, j]) + ev.threshold
-                elif ev.kind == "wssr":
+                elif detector.windowed:  # a sum of q over the window (WSSR): the window's errors add up
                     valid = np.all(np.isfinite(U), axis=1) & np.all(np.isfinite(Y[:, list(gen.outputs_used)]), axis=1)
                     summed = np.convolve(s_j[valid, j], np.ones(ev.window))[: int(np.sum(valid))]
                     s_j[:, j] = 0.0

@@ -10,6 +10,7 @@ import numpy as np
 import scipy.stats
 from fdisyn.detectors.symbolic import Evaluated, LinearStatistic, above_threshold, chi2
 from fdisyn.detectors.table import BankRequest, Detector, register
+from fdisyn.numerics.account import SizeLaw, quadratic_sizes
 from fdisyn.numerics.linalg import rank_tol
 from fdisyn.runtime.errors import ArgumentError, ExistenceError
 from fdisyn.runtime.gainfile import Evaluator
@@ -86,6 +87,9 @@ DETECTOR = register(
         sequential=False,
         evaluators=_bank,
         statistic=LinearStatistic(None, False, _update, above_threshold),
+        size_law=SizeLaw("chi2", "χ²: P(J > threshold) = 95 % (50 %) on a sample", quadratic_sizes),
+        cited="per-sample χ²",
+        null_law=lambda ev: (lambda x: scipy.stats.chi2.pdf(x, ev.dof), f"χ²({ev.dof})"),
     )
 )
 """The χ² detector (:class:`~fdisyn.detectors.table.Detector`)."""

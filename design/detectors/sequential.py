@@ -50,6 +50,7 @@ from fdisyn.detectors.symbolic import (
     glr_update,
 )
 from fdisyn.detectors.table import Detector, register
+from fdisyn.numerics.account import PROBABILITIES, SizeLaw, Sizes, ncx2_lambda
 from fdisyn.runtime.errors import ArgumentError, ExistenceError, ShapeError, SolverError
 from fdisyn.runtime.gainfile import Evaluator, release_level
 from fdisyn.runtime.statistics import MAX_GLR_WINDOW, glr_weights
@@ -589,6 +590,30 @@ def _glr_hypotheses(
     return glr_evaluator(gi, sigma, signatures, arl_samples, int(m), names=visible)
 
 
+def _glr_sizes(ev: Evaluator, g: np.ndarray, context: Any = None) -> Sizes:
+    """The GLR's sizes from its full-window term ``d²/(2c)`` alone (a lower bound on ``J``, so the sizes are upper
+    bounds): for the hypothesis best aligned with the shift, ``2·term`` is noncentral χ²(1)."""
+    m = int(ev.window)
+    rows = np.asarray(ev.directions).reshape(-1, m, g.shape[0])
+    info = np.asarray(ev.information).reshape(-1, m)[:, -1]
+    best = max(float((rows[i] @ g).sum()) ** 2 / float(info[i]) for i in range(rows.shape[0]))
+    if not best > 0:
+        return None, None, "no hypothesis of the GLR is aligned with its steady-state shift"
+    sizes = [math.sqrt(ncx2_lambda(2.0 * float(ev.threshold), 1, p) / best) for p in PROBABILITIES]
+    return sizes[0], sizes[1], None
+
+
+def _cusum_sizes(ev: Evaluator, g: np.ndarray, context: Any = None) -> Sizes:
+    """The size above which the CUSUM's best sum drifts upward: its mean increment ``a·(a_iᵀ g) − drift_i`` turns
+    positive, so the fault is detected with probability one (no 50 % size)."""
+    rows = np.asarray(ev.directions)
+    drift = np.asarray(ev.drift)
+    bounds = [float(drift[i]) / abs(float(rows[i] @ g)) for i in range(rows.shape[0]) if abs(float(rows[i] @ g)) > 0]
+    if not bounds:
+        return None, None, "no hypothesis of the CUSUM is aligned with its steady-state shift"
+    return min(bounds), None, None
+
+
 CUSUM: Detector = register(
     Detector(
         kind="cusum",
@@ -598,6 +623,8 @@ CUSUM: Detector = register(
         sequential=True,
         evaluators=lambda request: request.sequential(CUSUM),
         statistic=LinearStatistic("sequential", True, _cusum_update, _cusum_counter),
+        size_law=SizeLaw("cusum", "CUSUM: the size above which its sum drifts up (detected with probability 1)", _cusum_sizes),
+        cited="CUSUM (Page, Biometrika 41(1/2), 1954)",
         hypotheses=_cusum_hypotheses,
     )
 )
@@ -612,6 +639,8 @@ GLR: Detector = register(
         sequential=True,
         evaluators=lambda request: request.sequential(GLR),
         statistic=LinearStatistic("sequential", True, _glr_update, _glr_counter),
+        size_law=SizeLaw("glr", "GLR: P(full-window term > threshold) = 95 % (50 %)", _glr_sizes),
+        cited="windowed GLR (Willsky & Jones, IEEE Transactions on Automatic Control 21(1), 1976)",
         hypotheses=_glr_hypotheses,
         window_doc="the GLR's onset window",
         window_default="chosen from the designed faults",

@@ -15,6 +15,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from fdisyn.numerics.account import SizeLaw
 from fdisyn.runtime.statistics import STATISTICS
 
 __all__ = ["Detector", "BankRequest", "DETECTORS", "register", "windowed_kinds", "quoted", "option_texts"]
@@ -86,10 +87,19 @@ class Detector:
         ``None`` otherwise.
     statistic : Any
         Its symbolic update in the linear step (:class:`fdisyn.detectors.symbolic.LinearStatistic`).
+    size_law : SizeLaw
+        The law of its smallest detectable fault in the account of what a design can see
+        (:class:`fdisyn.numerics.account.SizeLaw`: its computation and its wording).
+    cited : str
+        How a report names it, with its source (e.g. ``"CUSUM (Page, Biometrika 41(1/2), 1954)"``).
     window_doc : str
         A windowed detector's clause in the option ``window``'s text: what its window is.
     window_default : str
         A windowed detector's window when the option is not given, in words.
+    null_law : Callable or None
+        ``null_law(ev)``: its statistic's exact law without a fault, ``(density, label)`` with ``density(x)`` the
+        probability density the report draws over the fault-free histogram (e.g. χ²(dof)); ``None``: no closed
+        form (the report draws the empirical tail against ``P_f``).
     """
 
     kind: str
@@ -99,9 +109,12 @@ class Detector:
     sequential: bool
     evaluators: Callable[[BankRequest], tuple[list[Any], list[Any], list[Any], dict[str, Any]]]
     statistic: Any
+    size_law: SizeLaw
+    cited: str
     hypotheses: Callable[..., Any] | None = None
     window_doc: str = ""
     window_default: str = ""
+    null_law: Callable[[Any], tuple[Callable[[Any], Any], str]] | None = None
 
 
 DETECTORS: dict[str, Detector] = {}

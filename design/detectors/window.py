@@ -245,7 +245,7 @@ def quadratic_form_quantile(eigenvalues: object, P_f: object) -> float:
     return top * x
 
 
-def window_energy_quantile(R_list: object, window: object, P_f: object) -> float:
+def window_energy_quantile(R_list: object, window: object, P_f: object, weights: object = None) -> float:
     """The ``1 − P_f`` quantile of the window energy ``Σ_{j<N} ‖ε(k−j)‖²`` at stationarity.
 
     ``R_list`` holds ``R(0), R(1), …`` (``R(τ) = E[ε(k+τ) ε(k)ᵀ]``, ``p × p``; at least ``N = window`` of
@@ -264,6 +264,12 @@ def window_energy_quantile(R_list: object, window: object, P_f: object) -> float
     both = np.concatenate([np.transpose(r[:0:-1], (0, 2, 1)), r])
     idx = np.arange(n)[None, :] - np.arange(n)[:, None] + n - 1
     cov = np.transpose(both[idx], (0, 2, 1, 3)).reshape(n * p, n * p)
+    if weights is not None:
+        w = real_array(weights, "weights")
+        if w.shape != (n,) or not np.all(w >= 0) or not np.any(w > 0):
+            raise ArgumentError(f"weights must be {n} non-negative numbers, one per sample of the window, not all zero; got shape {w.shape}")
+        d = np.repeat(np.sqrt(w), p)
+        cov = d[:, None] * cov * d[None, :]
     mu = _covariance_eigenvalues(0.5 * (cov + cov.T), "the window covariance of R_list")
     return quadratic_form_quantile(mu, P_f)
 

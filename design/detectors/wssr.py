@@ -19,13 +19,14 @@ from fdisyn.detectors.chi2 import chi2_evaluator
 from fdisyn.detectors.symbolic import Evaluated, LinearStatistic, above_threshold, chi2, wssr_update
 from fdisyn.detectors.table import BankRequest, Detector, register
 from fdisyn.detectors.window import window_energy_quantile
+from fdisyn.numerics.account import SizeLaw, window_context, window_sizes
 from fdisyn.runtime.errors import ArgumentError, ShapeError
 from fdisyn.runtime.gainfile import Evaluator
 from fdisyn.runtime.schema import MAX_MAGNITUDE
 from fdisyn.runtime.statistics import MAX_WSSR_WINDOW
 from fdisyn.runtime.names import shown
 
-__all__ = ['wssr_threshold_table', 'wssr_evaluator', 'DETECTOR']
+__all__ = ['wssr_threshold_table', 'wssr_evaluator', 'whitened_autocovariances', 'DETECTOR', 'SIZE_LAW']
 
 # The largest finite double: what the NAFDF step saturates an overflowed statistic to (JSON has no inf).
 _NEVER = float(np.finfo(float).max)
@@ -69,13 +70,39 @@ def wssr_evaluator(generator: int, sigma_r: np.ndarray, R_list: np.ndarray, P_f:
     """
     n = _window(window)
     chi2 = chi2_evaluator(generator, sigma_r, P_f)
+    rz = whitened_autocovariances(chi2, R_list, n)
+    return replace(chi2, kind="wssr", window=n, threshold=window_energy_quantile(rz, n, P_f))
+
+
+def whitened_autocovariances(chi2: Evaluator, R_list: np.ndarray, lags: int) -> np.ndarray:
+    """``T R(τ) Tᵀ``, ``τ < lags``: the autocovariances of ``T r`` with ``T = Λ^{−1/2} Vᵀ`` on the ``dof`` kept
+    directions of a χ² evaluator (``Tᵀ T = W``), so that ``q = rᵀ W r = ‖T r‖²``.
+
+    Parameters
+    ----------
+    chi2 : Evaluator
+        The χ² evaluator of the residual (:func:`~fdisyn.detectors.chi2.chi2_evaluator`: its ``W`` and ``dof``).
+    R_list : numpy.ndarray
+        ``R(0) … R(lags−1)`` of the residual (at least ``lags`` of them).
+    lags : int
+        How many.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``lags × dof × dof``.
+
+    Raises
+    ------
+    ShapeError
+        ``R_list`` holds fewer lags or matrices of another size.
+    """
     lam, vec = np.linalg.eigh(chi2.W)
     t = np.sqrt(lam[-chi2.dof :])[:, None] * vec[:, -chi2.dof :].T
     r = np.asarray(R_list, dtype=float)
-    if r.ndim != 3 or r.shape[0] < n or r.shape[1:] != chi2.W.shape:
-        raise ShapeError(f"R_list must hold R(0)…R({n - 1}), each {chi2.W.shape}; got shape {r.shape}")
-    rz = np.einsum("ai,tij,bj->tab", t, r[:n], t)
-    return replace(chi2, kind="wssr", window=n, threshold=window_energy_quantile(rz, n, P_f))
+    if r.ndim != 3 or r.shape[0] < lags or r.shape[1:] != chi2.W.shape:
+        raise ShapeError(f"R_list must hold R(0)…R({lags - 1}), each {chi2.W.shape}; got shape {r.shape}")
+    return np.einsum("ai,tij,bj->tab", t, r[:lags], t)
 
 
 def _window(value: object) -> int:
@@ -102,6 +129,14 @@ def _bank(request: BankRequest) -> tuple[list[Evaluator], list[Any], list[Any], 
     return evals, list(request.generators), list(request.sigma_r), {}
 
 
+SIZE_LAW = SizeLaw(
+    "wssr",
+    "WSSR: P(J > threshold) = 95 % (50 %) over a window (four-moment law of Liu, Tang & Zhang 2009)",
+    window_sizes,
+    window_context,
+)
+"""The WSSR's smallest detectable fault: its window's noncentral quadratic form (:func:`fdisyn.numerics.account.window_sizes`)."""
+
 DETECTOR = register(
     Detector(
         kind="wssr",
@@ -111,6 +146,8 @@ DETECTOR = register(
         sequential=False,
         evaluators=_bank,
         statistic=LinearStatistic("window", False, _update, above_threshold),
+        size_law=SIZE_LAW,
+        cited="WSSR (Long & Wang, Aeroengine 43(5), 2017, section 2)",
         window_doc="WSSR window N in samples (Long & Wang, Aeroengine 43(5), 2017, section 2)",
         window_default="1",
     )

@@ -12,13 +12,11 @@ plant's ``Fx``) — the account states:
   sees: its effect grows);
 * its **smallest detectable size**: the size ``a`` of a step (bias) fault, in the fault's own units, whose steady-state
   residual shift ``a·G(1)`` makes the design's own statistic exceed its own threshold with probability 95 % (and 50 %)
-  on a sample in steady state — the noncentral χ² law of ``J = rᵀ W r`` (χ²), the law of the windowed sum (WSSR:
-  the window's stacked covariance from the residual's autocovariance, its noncentral quadratic form by the
-  four-moment approximation of Liu, Tang & Zhang, Computational Statistics & Data Analysis 53(4), 2009), the GLR's
-  full-window term ``d²/(2c)`` (a lower bound on ``J``: the size is an upper bound); for the CUSUM, the size above
-  which its sum drifts upward (its mean increment turns positive), so that the fault is detected with probability
-  one, after a mean delay of about ``h / (mean increment)``; the Beard filter's window RMS against ``h``. The bank's
-  size is the smallest over its statistics;
+  on a sample in steady state, by the statistic's :class:`SizeLaw` (its detector's: the noncentral χ² law of
+  ``J = rᵀ W r`` for a sample, :func:`quadratic_sizes`; a weighted window sum's noncentral quadratic form, its
+  stacked covariance from the residual's autocovariances, by the four-moment approximation of Liu, Tang & Zhang,
+  Computational Statistics & Data Analysis 53(4), 2009, :func:`window_sizes`; the sequential detectors' own laws).
+  The bank's size is the smallest over its statistics;
 * the **fault classes**: each fault's signature (the generators that see it persistently, and those that see it at
   all), the groups of faults with equal signatures — the bank cannot tell them apart — with the reason, and the
   classes of the gain file's decision table.
@@ -50,7 +48,8 @@ import scipy.stats
 from fdisyn.runtime.gainfile import GainFile
 from fdisyn.runtime.schema import ACCOUNT_EFFECTS, ACCOUNT_FORMAT
 
-__all__ = ["BankView", "bank_account", "unaccounted", "account_lines", "default_bank_of", "ZERO_RTOL", "PROBABILITIES",
+__all__ = ["BankView", "SizeLaw", "Sizes", "bank_account", "size_rules", "quadratic_sizes", "window_context",
+           "window_sizes", "ncx2_lambda", "size_for", "unaccounted", "account_lines", "default_bank_of", "ZERO_RTOL", "PROBABILITIES",
            "NUMERIC_FAILURES"]
 
 ZERO_RTOL = 1e-8
@@ -165,8 +164,28 @@ def _ncx2_sf(x: float, dof: float, lam: float) -> float:
     return value
 
 
-def _ncx2_lambda(threshold: float, dof: float, p: float) -> float:
-    """The noncentrality ``λ`` with ``P(χ²_dof(λ) > threshold) = p``."""
+def ncx2_lambda(threshold: float, dof: float, p: float) -> float:
+    """The noncentrality ``λ`` with ``P(χ²_dof(λ) > threshold) = p``.
+
+    Parameters
+    ----------
+    threshold : float
+        The level.
+    dof : float
+        Degrees of freedom.
+    p : float
+        The exceedance probability wanted.
+
+    Returns
+    -------
+    float
+        ``λ ≥ 0`` (0 when the central law already exceeds ``threshold`` with probability ``p``).
+
+    Examples
+    --------
+    >>> round(ncx2_lambda(3.841458820694124, 1, 0.5), 3)  # χ²(1)'s 95 % point, crossed half the time at λ ≈ 1.96²
+    3.841
+    """
     sf = lambda lam: _ncx2_sf(threshold, dof, lam)  # noqa: E731
     if sf(0.0) >= p:
         return 0.0
@@ -218,37 +237,54 @@ def _autocovariances(gen: Any, plant: Mapping[str, np.ndarray], lags: int) -> np
     return out
 
 
-def _window_operator(ev: Any, acov: np.ndarray) -> tuple[np.ndarray, list[float]]:
-    """``(𝒲𝒮, [tr((𝒲𝒮)^k), k = 1…4])`` of a WSSR statistic: ``𝒮`` the stacked covariance of its window (block
-    Toeplitz of the residual's autocovariances), ``𝒲 = I ⊗ W``."""
-    n_w, nr = int(ev.window), acov.shape[1]
+def _window_operator(ev: Any, acov: np.ndarray, weights: np.ndarray) -> tuple[np.ndarray, list[float], np.ndarray]:
+    """``(𝒲𝒮, [tr((𝒲𝒮)^k), k = 1…4], weights)`` of a weighted window sum: ``𝒮`` the stacked covariance of its
+    window (block Toeplitz of the residual's autocovariances), ``𝒲 = diag(weights) ⊗ W``."""
+    n_w, nr = len(weights), acov.shape[1]
     big = np.empty((n_w * nr, n_w * nr))
     for i in range(n_w):
         for j in range(n_w):
             big[i * nr : (i + 1) * nr, j * nr : (j + 1) * nr] = acov[i - j] if i >= j else acov[j - i].T
-    ws = np.kron(np.eye(n_w), ev.W) @ big
+    ws = np.kron(np.diag(weights), ev.W) @ big
     t, pk = [], np.eye(n_w * nr)
     for _ in range(4):
         pk = pk @ ws
         t.append(float(np.trace(pk)))
-    return ws, t
+    return ws, t, weights
 
 
-def _window_moments(g: np.ndarray, ev: Any, op: tuple[np.ndarray, list[float]]) -> tuple[list[float], list[float]]:
-    """``(t_k, q_k)``, ``k = 1…4``: ``c_k(a) = t_k + k a² q_k`` are the moments of Liu, Tang & Zhang of the WSSR ``J``
-    in steady state under the residual shift ``a·g`` (``q_k = 𝗺ᵀ(𝒲𝒮)^(k−1)𝒲𝗺``, ``𝗺 = 1 ⊗ g``)."""
-    ws, t = op
-    n_w = int(ev.window)
-    m = np.tile(g, n_w)
-    q, v = [], np.kron(np.ones(n_w), ev.W @ g)
+def _window_moments(g: np.ndarray, ev: Any, op: tuple[np.ndarray, list[float], np.ndarray]) -> tuple[list[float], list[float]]:
+    """``(t_k, q_k)``, ``k = 1…4``: ``c_k(a) = t_k + k a² q_k`` are the moments of Liu, Tang & Zhang of the window sum
+    ``J`` in steady state under the residual shift ``a·g`` (``q_k = 𝗺ᵀ(𝒲𝒮)^(k−1)𝒲𝗺``, ``𝗺 = 1 ⊗ g``)."""
+    ws, t, weights = op
+    m = np.tile(g, len(weights))
+    q, v = [], np.kron(weights, ev.W @ g)
     for _ in range(4):
         q.append(float(m @ v))
         v = ws @ v
     return t, q
 
 
-def _size_for(prob: Any, p: float) -> float | None:
-    """The smallest ``a > 0`` with ``prob(a) ≥ p`` (monotone in ``a``), by bracketing then bisection."""
+def size_for(prob: Callable[[float], float], p: float) -> float | None:
+    """The smallest ``a > 0`` with ``prob(a) ≥ p`` (``prob`` nondecreasing in ``a``), by bracketing then bisection.
+
+    Parameters
+    ----------
+    prob : callable
+        ``prob(a)``: the detection probability of a fault of size ``a``.
+    p : float
+        The probability wanted.
+
+    Returns
+    -------
+    float or None
+        The size, ``None`` when no size below ``2⁴⁰⁰`` reaches ``p``.
+
+    Examples
+    --------
+    >>> round(size_for(lambda a: min(a / 10.0, 1.0), 0.5), 9)
+    5.0
+    """
     lo, hi = 0.0, 1.0
     if prob(hi) < p:
         for _ in range(400):
@@ -268,40 +304,118 @@ def _size_for(prob: Any, p: float) -> float | None:
     return float(scipy.optimize.brentq(lambda a: prob(a) - p, lo, hi, xtol=1e-12 * hi, rtol=1e-9))
 
 
-def _statistic_sizes(ev: Any, g: np.ndarray, acov: Any) -> tuple[float | None, float | None, str | None]:
-    """``(size at 95 %, size at 50 %, why not)`` of one statistic for a fault whose unit step shifts its residual by
-    ``g`` in steady state (see the module docstring for each kind's definition)."""
+Sizes = tuple[float | None, float | None, str | None]
+"""``(size at 95 %, size at 50 %, why not)`` of one statistic for one fault (``None`` sizes with the reason)."""
+
+
+@dataclass(frozen=True)
+class SizeLaw:
+    """How the account computes one statistic's smallest detectable size, and how it says so.
+
+    Each detector names its law (:attr:`fdisyn.detectors.table.Detector.size_law`); the account reads the laws of a
+    :class:`BankView` and names no detector.
+
+    Attributes
+    ----------
+    name : str
+        The statistic's kind in the account block (its evaluator's ``kind``).
+    rule : str
+        How its size is defined, one clause for the terminal and the report (e.g. ``"χ²: P(J > threshold) = 95 %
+        (50 %) on a sample"``).
+    sizes : callable
+        ``sizes(ev, g, context) -> (s95, s50, why_not)``: the sizes of a fault whose unit step shifts the residual
+        by ``g`` in steady state, the statistic's energy ``gᵀ W g`` already checked positive.
+    context : callable or None
+        ``context(ev, generator, model)``: what ``sizes`` reads that depends on the statistic alone (computed once
+        per statistic, e.g. its window's covariance); ``None``: nothing.
+    """
+
+    name: str
+    rule: str
+    sizes: Callable[[Any, np.ndarray, Any], Sizes]
+    context: Callable[[Any, Any, Mapping[str, np.ndarray]], Any] | None = None
+
+
+def quadratic_sizes(ev: Any, g: np.ndarray, context: Any = None) -> Sizes:
+    """The sizes of ``J = rᵀ W r`` against its ``threshold`` on one sample: ``J`` is noncentral χ²(``dof``) with
+    noncentrality ``a² gᵀ W g`` (exact when ``W`` whitens the residual on its ``dof`` directions).
+
+    Parameters
+    ----------
+    ev : Evaluator
+        The statistic (``threshold``, ``dof``, ``W``).
+    g : numpy.ndarray
+        The residual's steady-state shift per unit of fault.
+    context : Any
+        Unused.
+
+    Returns
+    -------
+    tuple
+        ``(size at 95 %, size at 50 %, None)``.
+    """
     energy = float(g @ ev.W @ g)
-    if not energy > 0:
-        return None, None, "its steady-state shift lies where the statistic has no weight"
-    if ev.kind == "chi2":
-        sizes = [math.sqrt(_ncx2_lambda(float(ev.threshold), int(ev.dof), p) / energy) for p in PROBABILITIES]
-        return sizes[0], sizes[1], None
-    if ev.kind == "wssr":
-        if acov is None:
-            return None, None, "the residual has no stationary law on the design model (a mode on the unit circle)"
-        if isinstance(acov, str):
-            return None, None, f"the window's stacked covariance would be of order {int(ev.window) * g.shape[0]} (> {_WINDOW_MAX})"
-        t, q = _window_moments(g, ev, acov)  # acov: the statistic's window operator (_window_operator)
-        law = lambda a: _ltz_sf(float(ev.threshold), [t[k] + (k + 1) * a * a * q[k] for k in range(4)])  # noqa: E731
-        s95, s50 = (_size_for(law, p) for p in PROBABILITIES)
-        return s95, s50, None
-    if ev.kind == "glr":
-        m = int(ev.window)
-        rows = np.asarray(ev.directions).reshape(-1, m, g.shape[0])
-        info = np.asarray(ev.information).reshape(-1, m)[:, -1]
-        best = max(float((rows[i] @ g).sum()) ** 2 / float(info[i]) for i in range(rows.shape[0]))
-        if not best > 0:
-            return None, None, "no hypothesis of the GLR is aligned with its steady-state shift"
-        sizes = [math.sqrt(_ncx2_lambda(2.0 * float(ev.threshold), 1, p) / best) for p in PROBABILITIES]
-        return sizes[0], sizes[1], None
-    # CUSUM: the size above which its best sum's mean increment a·(a_iᵀ g) − drift_i is positive
-    rows = np.asarray(ev.directions)
-    drift = np.asarray(ev.drift)
-    bounds = [float(drift[i]) / abs(float(rows[i] @ g)) for i in range(rows.shape[0]) if abs(float(rows[i] @ g)) > 0]
-    if not bounds:
-        return None, None, "no hypothesis of the CUSUM is aligned with its steady-state shift"
-    return min(bounds), None, None
+    sizes = [math.sqrt(ncx2_lambda(float(ev.threshold), int(ev.dof), p) / energy) for p in PROBABILITIES]
+    return sizes[0], sizes[1], None
+
+
+def window_context(ev: Any, gen: Any, model: Mapping[str, np.ndarray], weights: np.ndarray | None = None) -> Any:
+    """What :func:`window_sizes` reads of a window sum ``J = Σ_{l<N} w_l r(k−l)ᵀ W r(k−l)``: its window's stacked
+    covariance operator, or why there is none (a text).
+
+    Parameters
+    ----------
+    ev : Evaluator
+        The statistic (its ``W``; its ``window`` ``N`` when ``weights`` is not given).
+    gen : Generator
+        Its residual generator.
+    model : Mapping
+        The design model with its noise ``Q`` and ``R``.
+    weights : numpy.ndarray, optional
+        ``w_l``, newest first (its length is the window); default ``N`` ones (the WSSR).
+
+    Returns
+    -------
+    tuple or str
+        ``(𝒲𝒮, traces, weights)`` (see :func:`window_sizes`), or the reason no law is formed.
+    """
+    w = np.ones(int(ev.window)) if weights is None else np.asarray(weights, dtype=float)
+    if len(w) * gen.n_residual > _WINDOW_MAX:
+        return f"the window's stacked covariance would be of order {len(w) * gen.n_residual} (> {_WINDOW_MAX})"
+    try:
+        ac = _autocovariances(gen, model, len(w))
+    except NUMERIC_FAILURES:
+        ac = None
+    if ac is None:
+        return "the residual has no stationary law on the design model (a mode on the unit circle)"
+    return _window_operator(ev, ac, w)
+
+
+def window_sizes(ev: Any, g: np.ndarray, context: Any) -> Sizes:
+    """The sizes of a window sum ``J = Σ_{l<N} w_l r(k−l)ᵀ W r(k−l)`` against its ``threshold``: the noncentral
+    Gaussian quadratic form of the window (its stacked covariance from the residual's autocovariances) by the
+    four-moment law of Liu, Tang & Zhang (Computational Statistics & Data Analysis 53(4), 2009).
+
+    Parameters
+    ----------
+    ev : Evaluator
+        The statistic (``threshold``, ``window``, ``W``).
+    g : numpy.ndarray
+        The residual's steady-state shift per unit of fault.
+    context : tuple or str
+        :func:`window_context` of the statistic.
+
+    Returns
+    -------
+    tuple
+        ``(size at 95 %, size at 50 %, None)``, or ``(None, None, why)``.
+    """
+    if isinstance(context, str):
+        return None, None, context
+    t, q = _window_moments(g, ev, context)
+    law = lambda a: _ltz_sf(float(ev.threshold), [t[k] + (k + 1) * a * a * q[k] for k in range(4)])  # noqa: E731
+    s95, s50 = (size_for(law, p) for p in PROBABILITIES)
+    return s95, s50, None
 
 
 # --------------------------------------------------------------------------- the account
@@ -314,14 +428,13 @@ class BankView:
     generators : sequence of Generator
         The residual generators (canonical form).
     statistics : sequence
-        One per statistic: its ``kind`` (``"chi2"``, ``"wssr"``, ``"glr"`` or ``"cusum"``: the law its size is
-        computed by), ``generator`` (index into ``generators``) and what that law reads (``threshold``, ``W``,
-        ``dof``, ``window``; a CUSUM's ``directions`` and ``drift``).
+        One per statistic: its ``generator`` (index into ``generators``), its weight ``W`` and what its law reads
+        (``threshold``, ``dof``, ``window``; a sequential statistic's ``directions`` and ``drift``).
     statistic_names : sequence of str
         The statistics' names, in order.
-    statistic_kinds : sequence of str
-        How the account names each statistic's size rule (:func:`account_lines`: ``chi2``, ``wssr``, ``glr``,
-        ``cusum`` or ``rms``).
+    laws : sequence of SizeLaw
+        Each statistic's law of its smallest detectable size (its detector's
+        :attr:`~fdisyn.detectors.table.Detector.size_law`).
     model : Mapping
         The design model: ``A`` and ``C`` (a plant given to the account must have them), the noise ``Q`` and ``R``
         when the gain file holds them (else they are taken from the plant given), and what the transfers read.
@@ -341,7 +454,7 @@ class BankView:
     generators: Sequence[Any]
     statistics: Sequence[Any]
     statistic_names: Sequence[str]
-    statistic_kinds: Sequence[str]
+    laws: Sequence[SizeLaw]
     model: Mapping[str, np.ndarray]
     persistence: int
     signatures: np.ndarray | None = None
@@ -419,7 +532,7 @@ def bank_account(gf: GainFile, view: BankView, plant: Any = None) -> dict[str, A
     faults: list[tuple[str, str, Any]] = [(o, "sensor", j) for j, o in enumerate(gf.outputs)]
     if fx is not None:
         faults += [(c, "component", fx[:, k]) for k, c in enumerate(comp_names)]
-    acov: dict[int, Any] = {}
+    context: dict[int, Any] = {}  # each statistic's law context, computed once
     entries = []
     for name, ftype, col in faults:
         per_gen: dict[str, dict[str, Any]] = {}
@@ -444,15 +557,14 @@ def bank_account(gf: GainFile, view: BankView, plant: Any = None) -> dict[str, A
                 continue
             if "Q" not in model:
                 continue
-            if ev.kind == "wssr" and si not in acov:
-                try:
-                    ac = _autocovariances(gens[gi], model, int(ev.window))
-                except NUMERIC_FAILURES:
-                    ac = None
-                small = ac is not None and int(ev.window) * gens[gi].n_residual <= _WINDOW_MAX
-                acov[si] = _window_operator(ev, ac) if small and ac is not None else (None if ac is None else "large")
+            law = view.laws[si]
+            if law.context is not None and si not in context:
+                context[si] = law.context(ev, gens[gi], model)
             try:
-                s95, s50, why_not = _statistic_sizes(ev, dcs[gi], acov.get(si))
+                if not float(dcs[gi] @ ev.W @ dcs[gi]) > 0:
+                    s95, s50, why_not = None, None, "its steady-state shift lies where the statistic has no weight"
+                else:
+                    s95, s50, why_not = law.sizes(ev, dcs[gi], context.get(si))
             except NUMERIC_FAILURES as exc:
                 s95, s50, why_not = None, None, f"its law could not be evaluated ({type(exc).__name__}: {exc})"
             if s95 is None:
@@ -487,7 +599,7 @@ def bank_account(gf: GainFile, view: BankView, plant: Any = None) -> dict[str, A
         "kind": gf.kind,
         "zero_rtol": ZERO_RTOL,
         "persistence": persistence,
-        "statistics": [{"name": stat_names[i], "kind": view.statistic_kinds[i]} for i in range(len(evs))],
+        "statistics": [{"name": stat_names[i], "kind": law.name, "rule": law.rule} for i, law in enumerate(view.laws)],
         "faults": entries,
         "classes": _classes(gf, view, entries),
         "notes": notes,
@@ -606,6 +718,23 @@ def _unit(e: Mapping[str, Any]) -> str:
     return str(e["unit"]) if e.get("unit") else f"in the units of {e['name']}"
 
 
+def size_rules(account: Mapping[str, Any]) -> str:
+    """How the account's smallest sizes are defined, one clause per law of its statistics (``"; "``-separated, in
+    the order the statistics first use them).
+
+    Parameters
+    ----------
+    account : Mapping
+        A gain file's ``account`` block.
+
+    Returns
+    -------
+    str
+        The clauses; a statistic of a file written before the rules were stored is named by its kind.
+    """
+    return "; ".join(dict.fromkeys(str(st.get("rule") or st["kind"]) for st in account["statistics"]))
+
+
 def account_lines(account: Mapping[str, Any] | None, not_computed: str | None = None) -> list[str]:
     """The account as ``fdisyn design`` prints it: a table (fault, effect, smallest size with its unit, the
     generators that see it) and the classes that merge.
@@ -625,29 +754,20 @@ def account_lines(account: Mapping[str, Any] | None, not_computed: str | None = 
     """
     if account is None:
         return [f"what the design can see: not computed — {not_computed or 'not a linear diagnoser'}"]
-    kinds = sorted({s["kind"] for s in account["statistics"]})
-    rule = {
-        "chi2": "χ²: P(J > threshold) = 95 % per sample",
-        "wssr": "WSSR: P(J > threshold) = 95 % per window",
-        "glr": "GLR: P(full-window term > threshold) = 95 %",
-        "cusum": "CUSUM: the size above which its sum drifts up (detected with probability 1)",
-        "rms": "window RMS: P(RMS > h) = 95 % per window",
-    }
-    out = [
-        "what the design can see (a step fault in steady state; smallest size: " + "; ".join(rule[k] for k in kinds) + "):",
-    ]
-    rows = [("fault", "effect", "smallest size", "seen by")]
+    out = ["what the design can see (a step fault in steady state; smallest size: " + size_rules(account) + "):"]
+    rows = [("fault", "effect", "smallest size (95 %)", "50 %", "seen by")]
     for e in account["faults"]:
         size = "—" if e["size"] is None else f"{e['size']:.3g} ({_unit(e)})"
+        half = "—" if e.get("size_50") is None else f"{e['size_50']:.3g}"
         if e["effect"] == "transient":
-            size = "none at steady state"
+            size, half = "none at steady state", "—"
         elif e["effect"] == "zero":
-            size = "undetectable"
+            size, half = "undetectable", "—"
         seen = e["seen_by"]
         by = ", ".join(seen) if len(seen) <= 3 else f"{len(seen)} generators ({', '.join(seen[:2])}, …)"
-        rows.append((f"{e['name']} ({e['type']})", e["effect"], size, by or "no generator"))
-    widths = [max(len(r[i]) for r in rows) for i in range(3)]
-    out += ["  " + "  ".join(r[i].ljust(widths[i]) for i in range(3)) + "  " + r[3] for r in rows]
+        rows.append((f"{e['name']} ({e['type']})", e["effect"], size, half, by or "no generator"))
+    widths = [max(len(r[i]) for r in rows) for i in range(4)]
+    out += ["  " + "  ".join(r[i].ljust(widths[i]) for i in range(4)) + "  " + r[4] for r in rows]
     groups = account["classes"]["groups"]
     if groups:
         out.append("faults the bank cannot tell apart:")

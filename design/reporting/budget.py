@@ -8,6 +8,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
 from fdisyn.reporting.kit import defined, duration, fmt, folded, label, table, variant_name
+from fdisyn.detectors.table import DETECTORS
 from fdisyn.simulation.problem import Problem
 from fdisyn.synthesis.kinds import false_alarm_budget, get_kind
 
@@ -141,19 +142,10 @@ def budget_table(problem: Problem, pairs: Sequence[tuple[Any, str]], scen: Seque
     )
 
 
-_DETECTOR_NAMES = {
-    "chi2": "per-sample χ²",
-    "wssr": "WSSR (Long & Wang, Aeroengine 43(5), 2017, section 2)",
-    "cusum": "CUSUM (Page, Biometrika 41(1/2), 1954)",
-    "glr": "windowed GLR (Willsky & Jones, IEEE Transactions on Automatic Control 21(1), 1976)",
-}
-"""The detectors of the comparison as its introduction names them, in its order."""
-
-
 def _compared_detectors(variants: Sequence[Any]) -> str:
     """The detectors of the variants with an ``arl0``, named for the comparison's first sentence: "WSSR (…) and CUSUM (…)"."""
     used = {v.options.get("detector") for v in variants if v.options.get("arl0") is not None}
-    named = [name for key, name in _DETECTOR_NAMES.items() if key in used]
+    named = [d.cited for key, d in DETECTORS.items() if key in used]  # in the table's order
     listed = (", ".join(named[:-1]) + " and " + named[-1] if len(named) > 1 else "".join(named)) or "the"
     return listed[:1].upper() + listed[1:]
 

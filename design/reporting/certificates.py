@@ -7,6 +7,7 @@ import html
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from fdisyn.numerics.account import size_rules
 from fdisyn.reporting.kit import below_margin, fmt, folded, label, table, variant_name
 from fdisyn.simulation.problem import Problem
 from fdisyn.synthesis.kinds import get_kind
@@ -60,14 +61,6 @@ def _account_html(gf: Any, problem: Problem | None = None) -> str:
     if acc is None:
         why = get_kind(gf.kind).account_note
         return f'<p class="small">What the design can see: not computed — {html.escape(why)}.</p>' if why else ""
-    kinds = sorted({s["kind"] for s in acc["statistics"]})
-    rules = {
-        "chi2": "χ²: the statistic exceeds its threshold with probability 95 % (50 %) on a sample",
-        "wssr": "WSSR: with probability 95 % (50 %) over a window (four-moment law of Liu, Tang &amp; Zhang 2009)",
-        "glr": "GLR: its full-window term alone exceeds the threshold with probability 95 % (50 %)",
-        "cusum": "CUSUM: the size above which its sum drifts upward, so the fault is detected with probability 1",
-        "rms": "window RMS: exceeds h with probability 95 % (50 %) over a window",
-    }
     rows = []
     for e in acc["faults"]:
         unit = e.get("unit") or f"units of {label(problem, e['name'])}"
@@ -85,7 +78,7 @@ def _account_html(gf: Any, problem: Problem | None = None) -> str:
         '<p class="small">A step (bias) fault in steady state, before any Monte Carlo. Effect: zero (its transfer to '
         "every residual cancels, to round-off), transient (only its onset shows: zero steady-state gain) or "
         "persistent. Smallest detectable size, at the design's own statistics and thresholds — "
-        + "; ".join(rules[k] for k in kinds)
+        + html.escape(size_rules(acc))
         + ".</p>"
         + table(["fault", "effect", "smallest size (95 %)", "50 %", "seen by"], rows, left=2)
     )

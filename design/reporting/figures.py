@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 from fdisyn.reporting.kit import MIN_FONT_PT, ReportContext, defined, figure_legend, fmt, folded, label, shade, subplots, table, timeline
+from fdisyn.detectors.table import DETECTORS
 from fdisyn.simulation.problem import Problem
 
 __all__ = ["run_figures", "standard_figures", "POLE_LEGEND"]
@@ -79,9 +80,10 @@ def _fault_free_counts(variant: Any, design: str, nj: int) -> list[np.ndarray]:
 
 
 def _law_figures(ctx: ReportContext) -> str:
-    """Per design, each statistic's fault-free histogram over every run against its law: χ²(dof) for a χ² statistic;
-    for the others (WSSR, CUSUM, GLR, …) the empirical tail P(J ≥ x) against the threshold and the design's P_f."""
-    import scipy.stats
+    """Per design, each statistic's fault-free histogram over every run against its law: its density against the
+    closed-form law of its detector where it has one (:attr:`fdisyn.detectors.table.Detector.null_law`: χ²(dof) for a
+    χ² statistic); for the others (WSSR, CUSUM, GLR, …) the empirical tail P(J ≥ x) against the threshold and the
+    design's P_f."""
     from fdisyn.evaluation.metrics import HISTOGRAM_EDGES
     from matplotlib.ticker import MaxNLocator
 
@@ -105,14 +107,15 @@ def _law_figures(ctx: ReportContext) -> str:
             samples = max(samples, n)
             edges = HISTOGRAM_EDGES * h
             ev = gf.evaluators[j] if j < len(gf.evaluators) else None
-            if ev is not None and ev.kind == "chi2":
+            null = None if ev is None or DETECTORS.get(ev.kind) is None else DETECTORS[ev.kind].null_law
+            if null is not None:  # a closed-form fault-free law: the histogram's density against it
+                density, law = null(ev)
                 dens = c[1:-1] / (n * np.diff(edges))
                 ax.stairs(np.where(dens > 0, dens, np.nan), edges, fill=True, color="tab:blue", alpha=0.6)
                 grid = np.linspace(edges[-1] / 400, edges[-1], 400)
-                ax.plot(grid, scipy.stats.chi2.pdf(grid, ev.dof), "k", lw=1.0)
+                ax.plot(grid, density(grid), "k", lw=1.0)
                 ax.set_ylabel("density")
                 ax.set_ylim(bottom=0.3 / (n * (edges[1] - edges[0])))  # below one sample per bin the law is not seen
-                law = f"χ²({ev.dof})"
             else:
                 # P(J ≥ edge): the samples in the bins from that edge up, over all
                 tail = np.cumsum(c[::-1])[::-1][1:] / n

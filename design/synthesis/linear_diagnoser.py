@@ -32,7 +32,6 @@ from fdisyn.numerics.linalg import transfer_size
 from fdisyn.runtime.errors import ArgumentError, ExistenceError, FdisynError, ShapeError, SolverError
 from fdisyn.runtime.gainfile import Decision, Evaluator, GainFile, Generator, StepSpec
 from fdisyn.runtime.layout import linear_state_layout
-from fdisyn.runtime.schema import EVALUATOR_KINDS
 from fdisyn.runtime.statistics import MAX_WSSR_WINDOW
 from fdisyn.runtime.names import check_fault_name, shown
 from fdisyn.synthesis.registry import (
@@ -154,8 +153,8 @@ def linear_diagnoser(
         raise ShapeError(f"{len(generators)} generators need as many residual covariances and certificates")
     if int(persistence) < 1:
         raise ArgumentError(f"persistence must be a positive number of samples; got {persistence!r}")
-    if evaluator not in EVALUATOR_KINDS:
-        raise ArgumentError(f"detector must be one of {', '.join(map(repr, EVALUATOR_KINDS))}; got {shown(evaluator)}")
+    if evaluator not in DETECTORS:
+        raise ArgumentError(f"detector must be one of {quoted(list(DETECTORS))}; got {shown(evaluator)}")
     detector = DETECTORS[evaluator]
     if not detector.windowed and window not in (1, None):
         raise ArgumentError(detector.no_window.format(window=shown(window)))
@@ -546,7 +545,7 @@ EVALUATOR = Option(
     None,
     "the statistic of each generator (the same option as detector, its earlier name; default 'chi2')",
     option_texts()["kinds"],
-    lambda v: v in EVALUATOR_KINDS,
+    lambda v: v in DETECTORS,  # read live: a registered detector is accepted
 )
 MIN_FAULT = Option(
     "min_fault",

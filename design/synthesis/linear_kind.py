@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 from fdisyn.detectors.sequential import lorden_delay
+from fdisyn.detectors.table import DETECTORS
 from fdisyn.models.linear import LinearPlant
 from fdisyn.numerics.account import BankView, default_bank_of
 from fdisyn.runtime.gainfile import GainFile
@@ -100,7 +101,7 @@ def linear_account_view(gf: GainFile) -> BankView:
         generators=list(gf.generators),
         statistics=list(gf.evaluators),
         statistic_names=list(gf.step.statistic_names),
-        statistic_kinds=[ev.kind for ev in gf.evaluators],
+        laws=[DETECTORS[ev.kind].size_law for ev in gf.evaluators],
         model=gf.plant,
         persistence=int(gf.decision.persistence) if gf.decision is not None else 1,
         signatures=None if gf.decision is None else gf.decision.signatures,

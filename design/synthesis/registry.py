@@ -23,10 +23,10 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from typing import Any
 
-from fdisyn.detectors.table import option_texts
+from fdisyn.detectors.table import DETECTORS, option_texts
 from fdisyn.runtime.errors import ArgumentError
 from fdisyn.runtime.gainfile import GainFile
-from fdisyn.runtime.schema import EVALUATOR_KINDS, LIMITS
+from fdisyn.runtime.schema import LIMITS
 from fdisyn.runtime.names import shown
 from fdisyn.synthesis import kinds
 
@@ -418,7 +418,7 @@ DETECTOR = Option(
     None,
     f"the statistic of each generator: {option_texts()['detector']} (default: evaluator's value)",
     option_texts()["kinds"],
-    lambda v: v in EVALUATOR_KINDS,
+    lambda v: v in DETECTORS,  # read live: a registered detector is accepted
 )
 ARL0 = Option(
     "arl0",

@@ -29,7 +29,6 @@ ALLOWED = {
     "design/detectors/symbolic.py": ({"chi2": 1}, "its __all__ lists its function chi2 (q = rᵀ W r), the shared vocabulary"),
     "design/synthesis/linear_diagnoser.py": ({"chi2": 2}, "the linear methods' default detector (linear_diagnoser, chosen_detector)"),
     "design/synthesis/uio_gos.py": ({"wssr": 1}, "kalman_uio_gos's default detector (DEFAULT_DETECTOR, the paper's WSSR)"),
-    "design/synthesis/beard_fdf/kind.py": ({"wssr": 1}, "the Beard filter's window RMS shown to the report as a WSSR-like statistic"),
     "design/synthesis/nafdf/design.py": (None, "the NAFDF's own fast detection (its settings and payload, not the linear table)"),
     "design/synthesis/nafdf/method.py": (None, "the NAFDF's own fast detection"),
     "design/synthesis/nafdf/payload.py": (None, "the NAFDF's own fast detection"),
@@ -43,15 +42,8 @@ ALLOWED = {
 }
 """Modules that may name a detector kind in code, and why."""
 
-NOT_YET = {
-    "design/numerics/account.py": "each statistic's smallest detectable size and its wording: numerics lies below "
-    "detectors, so the table cannot be read there without moving the account up a layer",
-    "design/reporting/budget.py": "the report's detector names",
-    "design/reporting/certificates.py": "the report's detection-rule wording",
-    "design/reporting/figures.py": "the χ² density drawn over a statistic's histogram",
-    "design/app/pipeline.py": "the C-versus-reference tolerance of a WSSR's windowed sum",
-}
-"""Modules that still name detectors and should read a table instead (left as they are, with the reason)."""
+NOT_YET: dict[str, str] = {}
+"""Modules that still name detectors and should read a table instead (left as they are, with the reason): none."""
 
 KINDS = frozenset(EVALUATOR_KINDS)
 

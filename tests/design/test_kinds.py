@@ -174,10 +174,10 @@ def test_a_kind_has_an_account_view_or_says_why_not(kind: str, designed: dict[st
         assert account_lines(None, k.account_note) == [f"what the design can see: not computed — {k.account_note}"]
         return
     view = k.account_view(gf)
-    assert isinstance(view, BankView) and len(view.statistics) == len(view.statistic_names) == len(view.statistic_kinds)
+    assert isinstance(view, BankView) and len(view.statistics) == len(view.statistic_names) == len(view.laws)
     assert {"A", "C"} <= set(view.model)
     recomputed = fault_account(replace(gf, account=None))
-    assert recomputed is not None and [s["kind"] for s in recomputed["statistics"]] == list(view.statistic_kinds)
+    assert recomputed is not None and [s["kind"] for s in recomputed["statistics"]] == [law.name for law in view.laws]
     assert gf.account is not None and gf.account["kind"] == kind
 
 

@@ -5,9 +5,11 @@ false-alarm budget."""
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
+from fdisyn.detectors.wssr import SIZE_LAW as WSSR_SIZE_LAW
 from fdisyn.numerics.account import BankView
 from fdisyn.runtime.gainfile import GainFile, Generator
 from fdisyn.runtime.reference import RunResult
@@ -70,14 +72,16 @@ def _beard_generator(gf: GainFile) -> Generator:
 
 
 class _RmsStatistic:
-    """The Beard filter's window RMS as a WSSR-like statistic: ``Σ_{l<N} ‖ε‖² > N h²`` (``W = I``)."""
-
-    kind = "wssr"
+    """The Beard filter's window RMS as a window sum: ``Σ_{l<N} ‖ε‖² > N h²`` (``W = I``)."""
 
     generator = 0
 
     def __init__(self, window: int, h: float, nr: int) -> None:
         self.window, self.threshold, self.W, self.dof = window, window * h * h, np.eye(nr), nr
+
+
+_RMS_LAW = replace(WSSR_SIZE_LAW, name="rms", rule="window RMS: P(RMS > h) = 95 % (50 %) over a window")
+"""The window RMS's smallest detectable fault: the WSSR's law of its window sum ``N·RMS²`` against ``N h²``."""
 
 
 def _beard_classes(gf: GainFile, entries: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
@@ -116,7 +120,7 @@ def beard_account_view(gf: GainFile) -> BankView:
         generators=[gen],
         statistics=[_RmsStatistic(int(pay["window"]), float(pay["h"]), gen.n_residual)],
         statistic_names=[gf.step.statistic_names[0]],
-        statistic_kinds=["rms"],
+        laws=[_RMS_LAW],
         model={k: np.asarray(pay[k], dtype=float) for k in ("A", "C")},
         persistence=int(pay.get("persistence", 1)),
         classes=_beard_classes,
