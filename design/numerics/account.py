@@ -560,6 +560,9 @@ def bank_account(gf: GainFile, view: BankView, plant: Any = None) -> dict[str, A
             law = view.laws[si]
             if law.context is not None and si not in context:
                 context[si] = law.context(ev, gens[gi], model)
+            s95: float | None
+            s50: float | None
+            why_not: str | None
             try:
                 if not float(dcs[gi] @ ev.W @ dcs[gi]) > 0:
                     s95, s50, why_not = None, None, "its steady-state shift lies where the statistic has no weight"
