@@ -164,35 +164,84 @@ def _fault_cells(problem: Problem, faulty: Sequence[tuple[str, str]]) -> list[li
     return [[label(problem, s), label(problem, f) if k == 0 or faulty[k - 1][1] != f else ""] for k, (s, f) in enumerate(faulty)]
 
 
-def _most(value: float | None, bad: bool) -> Any:
-    """A rate as a table cell, bold red when ``bad`` (the glance's "in most runs")."""
-    return f'<span class="bad">{fmt(value)}</span>' if value is not None and bad else value
+GOOD = {"missed": 0.05, "held": 0.9, "isolated": 0.9, "false_isolation": 0.05}
+"""When a faulty scenario's figures are good (green on the glance): missed in at most 5 % of the runs, the alarm
+held over at least 90 % of the fault's duration, the true fault isolated over at least 90 % of it (where the
+diagnoser isolates), another fault named in at most 5 % of the runs."""
+
+
+def _percent(value: float | None, bad: bool) -> str | None:
+    """A fraction as a percentage cell, bold red when ``bad``."""
+    if value is None:
+        return None
+    text = f"{fmt(100.0 * value)} %"
+    return f'<span class="bad">{html.escape(text)}</span>' if bad else text
+
+
+def glance_verdict(m: Any) -> tuple[dict[str, bool], bool]:
+    """Which of a faulty scenario's glance figures fall short of :data:`GOOD`, and whether all are good.
+
+    Parameters
+    ----------
+    m : ScenarioMetrics
+        A faulty scenario's metrics.
+
+    Returns
+    -------
+    tuple
+        ``({"missed", "held", "isolated", "false_isolation"} → short of the goal), all good``; a figure that is
+        not measured (no isolation) is neither.
+    """
+    held, iso = m.alarm_held_fraction, m.isolated_held_fraction
+    bad = {
+        "missed": m.missed_detection_rate is not None and m.missed_detection_rate > GOOD["missed"],
+        "held": held is not None and held < GOOD["held"],
+        "isolated": iso is not None and iso < GOOD["isolated"],
+        "false_isolation": m.false_isolation_rate is not None and m.false_isolation_rate > GOOD["false_isolation"],
+    }
+    return bad, m.missed_detection_rate is not None and not any(bad.values())
 
 
 def _glance_section(problem: Problem, variant: Any) -> str:
-    """The main variant's detection figures: one row per faulty scenario, the designs side by side (missed detection,
-    delay, isolation), each design headed by its false alarms pooled over every scenario's fault-free samples."""
+    """The main variant's detection figures: one row per faulty scenario, the designs side by side (time to first
+    alarm, the fraction of the fault's duration with the alarm held and with the true fault isolated, false
+    isolations), each design headed by its false alarms pooled over every scenario's fault-free samples; a design's
+    figures are green only when all of them are good (:func:`glance_verdict`)."""
     ev = variant.evaluation
     designs = list(ev.metrics)
     faulty = _faulty_scenarios(variant)
     groups = []
     for d in designs:
         groups.append((f'<span>{html.escape(label(problem, d))}<br><span class="small">{defined("false alarms", "mean time between false alarms")}: '
-                       f"{html.escape(false_alarms_pooled(ev.metrics[d].values()))}</span></span>", 3))
+                       f"{html.escape(false_alarms_pooled(ev.metrics[d].values()))}</span></span>", 4))
     rows = []
     for (s, _), lead in zip(faulty, _fault_cells(problem, faulty), strict=True):
-        row = list(lead)
+        row: list[Any] = list(lead)
         for d in designs:
             m = ev.metrics[d][s]
-            missed, iso = m.missed_detection_rate, m.isolation_accuracy
-            row += [_most(missed, missed is not None and missed > 0.5), m.detection_delay_mean_s, _most(iso, iso is not None and iso < 0.5)]
+            bad, good = glance_verdict(m)
+            missed = m.missed_detection_rate
+            first = "never" if missed == 1.0 else fmt(m.detection_delay_mean_s)
+            if missed and missed < 1.0:
+                first += f" (missed in {fmt(100.0 * missed)} % of runs)"
+            cells: list[Any] = [f'<span class="bad">{html.escape(first)}</span>' if bad["missed"] else first,
+                     _percent(m.alarm_held_fraction, bad["held"]), _percent(m.isolated_held_fraction, bad["isolated"]),
+                     _percent(m.false_isolation_rate, bad["false_isolation"])]
+            if good:  # every figure good: the design's cells in green
+                cells = [f'<span class="ok">{html.escape(c)}</span>' if isinstance(c, str) else c for c in cells]
+            row += cells
         rows.append(row)
-    per = [defined("missed (of runs)", "missed detection"), defined("delay mean (s)", "detection delay"),
-           defined("isolated (of runs)", "isolation accuracy")]
+    per = [defined("first alarm (s)", "detection delay"), defined("alarm held (% of fault)", "alarm held"),
+           defined("isolated (% of fault)", "isolated held"), defined("false isolation (% of runs)", "false isolation")]
     return (
         f'<p class="small">{fmt(ev.runs)} runs per scenario; every design sees the same runs; false alarms over every '
-        "scenario's fault-free samples. Bold red: missed, or not isolated, in more than half of the runs. Each scenario's "
-        'false alarms and the other figures: <a href="#monte-carlo-metrics">Monte Carlo metrics</a>.</p>'
+        "scenario's fault-free samples. First alarm: the mean time from the fault's onset to the first alarm over the runs "
+        "that detected. Alarm held and isolated: the share of the fault's duration (all runs) with the alarm on, and with "
+        "the true fault named — a fault alarmed briefly and then silent is not counted as found. "
+        f"Green: missed in at most {fmt(100 * GOOD['missed'])} % of the runs, alarm held and true fault isolated over at least "
+        f"{fmt(100 * GOOD['held'])} % of the fault, another fault named in at most {fmt(100 * GOOD['false_isolation'])} % of the "
+        "runs; bold red: the figure that falls short. Each scenario's false alarms and the other figures: "
+        '<a href="#monte-carlo-metrics">Monte Carlo metrics</a>.</p>'
         + f'<div class="glance">{table(["scenario", "fault", *(per * len(designs))], rows, left=2, groups=groups)}</div>'
     )
 
@@ -336,7 +385,8 @@ def _rounded(x: Any) -> Any:
 
 def _summary_rows(problem: Problem, variant: Any) -> list[dict[str, Any]]:
     """Per design of the main variant: false alarms (rate over every fault-free sample), missed detections,
-    mean delay and isolation accuracy (means over the faulty scenarios that have them)."""
+    mean delay, isolation accuracy and the fractions of the faults' duration with the alarm held and with the true
+    fault isolated (means over the faulty scenarios that have them)."""
     out = []
     for d, per in variant.evaluation.metrics.items():
         ms = list(per.values())
@@ -356,6 +406,8 @@ def _summary_rows(problem: Problem, variant: Any) -> list[dict[str, Any]]:
                 "missed_detection_rate": mean([m.missed_detection_rate for m in faulty]),
                 "detection_delay_mean_s": mean([m.detection_delay_mean_s for m in faulty]),
                 "isolation_accuracy": mean([m.isolation_accuracy for m in faulty]),
+                "alarm_held_fraction": mean([m.alarm_held_fraction for m in faulty]),
+                "isolated_held_fraction": mean([m.isolated_held_fraction for m in faulty]),
             }
         )
     return out
@@ -540,17 +592,24 @@ def _summary_false_alarms(row: Mapping[str, Any]) -> str:
     return text if episodes == 0 or rate is None else f"{text} ({fmt(rate)} per sample)"
 
 
+def _share(x: float | None) -> str:
+    """A fraction of a fault's duration as the terminal shows it: ``97 %``, ``—`` when not measured."""
+    return "—" if x is None else f"{fmt(100.0 * x)} %"
+
+
 def summary_table(reports: Path, names: Sequence[str]) -> str:
     """The end-of-``reproduce`` summary for the terminal: per problem and design, false alarms, missed detections,
-    delay, isolation and the claims reproduced (from each problem's ``metrics.json``)."""
-    header = ["problem", "design", "false alarms", "missed detection", "delay (s)", "isolation", "claims reproduced"]
+    delay, the share of the faults' duration with the alarm held and with the true fault isolated (means over the
+    faulty scenarios), and the claims reproduced (from each problem's ``metrics.json``)."""
+    header = ["problem", "design", "false alarms", "missed detection", "delay (s)", "alarm held", "isolated held", "claims reproduced"]
     rows = []
     for doc in _documents(reports, names):
         v = doc.get("verdict") or {}
         claims = f"{v['reproduced']}/{v['claims']}" if v.get("claims") else "—"
         for k, r in enumerate(doc.get("summary", [])):
             rows.append([doc["problem"] if k == 0 else "", r["design"], _summary_false_alarms(r), fmt(r["missed_detection_rate"]),
-                         fmt(r["detection_delay_mean_s"]), fmt(r["isolation_accuracy"]), claims if k == 0 else ""])
+                         fmt(r["detection_delay_mean_s"]), _share(r.get("alarm_held_fraction")),
+                         _share(r.get("isolated_held_fraction")), claims if k == 0 else ""])
     widths = [max(len(str(c)) for c in col) for col in zip(header, *rows, strict=False)]
     lines = ["  ".join(str(c).ljust(w) if i < 2 else str(c).rjust(w) for i, (c, w) in enumerate(zip(row, widths, strict=False))) for row in [header, *rows]]
     lines.insert(1, "  ".join("-" * w for w in widths))

@@ -187,7 +187,8 @@ def test_the_glance_heads_each_design_with_its_false_alarm_time() -> None:
     def metric(fault: str | None, episodes: int) -> SimpleNamespace:
         return SimpleNamespace(fault=fault, fault_free_samples=1000, Ts=0.01, false_alarm_episodes=episodes, false_alarm_rate=episodes / 500,
                                missed_detection_rate=None if fault is None else 0.0, detection_delay_mean_s=None if fault is None else 0.5,
-                               isolation_accuracy=None if fault is None else 1.0)
+                               isolation_accuracy=None if fault is None else 1.0, false_isolation_rate=None if fault is None else 0.0,
+                               alarm_held_fraction=None if fault is None else 1.0, isolated_held_fraction=None if fault is None else 1.0)
 
     metrics = {"a": {"fault_free": metric(None, 2), "s": metric("f", 0)}, "b": {"fault_free": metric(None, 0), "s": metric("f", 0)}}
     glance = _glance_section(SimpleNamespace(labels={}), SimpleNamespace(evaluation=SimpleNamespace(runs=2, metrics=metrics)))  # type: ignore[arg-type]

@@ -161,7 +161,8 @@ def _metric(fault: str | None, isolated: float = 1.0):
     return SimpleNamespace(fault=fault, fault_free_samples=100, Ts=0.01, false_alarm_episodes=1, false_alarm_rate=0.01,
                            missed_detection_rate=None if fault is None else 0.0,
                            detection_delay_mean_s=None if fault is None else 0.5, isolation_accuracy=None if fault is None else isolated,
-                           false_isolation_rate=None if fault is None else 0.0)
+                           false_isolation_rate=None if fault is None else 0.0, alarm_held_fraction=None if fault is None else 1.0,
+                           isolated_held_fraction=None if fault is None else isolated)
 
 
 def test_many_scenarios_read_at_a_glance() -> None:
@@ -182,7 +183,7 @@ def test_many_scenarios_read_at_a_glance() -> None:
         assert visible.count("design A") == 1 and visible.count("design B") == 1
         assert visible.count("the first sensor") == 1  # named once for its three scenarios
     glance = _glance_section(prob, variant)  # type: ignore[arg-type]
-    assert glance.count('<span class="bad">0.2</span>') == 2  # not isolated in most runs, both designs
+    assert glance.count('<span class="bad">20 %</span>') == 2  # isolated over 20 % of the fault, both designs
     folded = _isolation_section(prob, variant)  # type: ignore[arg-type]
     assert folded.count("<details>") == 1 and re.search(r"<details>.*design A.*</details>", folded, flags=re.S)
 
@@ -205,3 +206,37 @@ def test_certificate_columns_carry_the_generators_labels() -> None:
         page = _certificate_table(gain_file(n), prob)  # type: ignore[arg-type]
         assert "the observer on ω_r,m1" in page and ">uio_0<" not in page and ">uio_1<" in page
         assert page.count("<table>") == (1 if n <= CERTIFICATE_COLUMNS else 2)
+
+
+def test_the_glance_does_not_flatter_a_fault_alarmed_briefly() -> None:
+    """A bias detected at once, alarmed for two samples and then silent for the rest of its 1000 samples: the
+    glance shows its first alarm, and its alarm held and isolation over 0.2 % of the fault in bold red, never
+    green; a fault alarmed and isolated throughout is green. The figures come from the metrics of the alarm
+    traces themselves (:func:`fdisyn.evaluation.metrics.scenario_metrics`)."""
+    from types import SimpleNamespace
+
+    import numpy as np
+    from fdisyn.evaluation.metrics import scenario_metrics
+    from fdisyn.reporting.page import _glance_section, glance_verdict
+
+    runs, n, onset = 4, 1200, 200
+    active = np.arange(n) >= onset
+
+    def metrics(alarmed: slice) -> object:
+        alarm = np.zeros((runs, n), dtype=bool)
+        alarm[:, alarmed] = True
+        isolated = np.where(alarm, 0, -1)
+        return scenario_metrics(scenario="s", fault="f", fault_index=0, active=active, alarm=alarm, isolated=isolated,
+                                J=np.zeros((runs, n, 1)), thresholds=[1.0], P_f=[1e-3], Ts=0.004, recovery=0)
+
+    brief, held = metrics(slice(onset + 2, onset + 4)), metrics(slice(onset + 2, n))
+    assert brief.missed_detection_rate == 0.0 and brief.detection_delay_mean_s == 0.008
+    assert brief.alarm_held_fraction == pytest.approx(0.002, rel=1e-12) and brief.isolated_held_fraction == pytest.approx(0.002, rel=1e-12)
+    assert glance_verdict(brief) == ({"missed": False, "held": True, "isolated": True, "false_isolation": False}, False)
+    assert glance_verdict(held)[1] is True
+    for m, green in ((brief, False), (held, True)):
+        ev = SimpleNamespace(runs=runs, metrics={"d": {"fault_free": _metric(None, 1.0), "s": m}})
+        glance = _glance_section(SimpleNamespace(labels={}), SimpleNamespace(evaluation=ev))  # type: ignore[arg-type]
+        assert ('class="ok"' in glance) is green
+        if not green:
+            assert glance.count('<span class="bad">0.2 %</span>') == 2 and ">0.008<" in glance
