@@ -65,6 +65,7 @@ __all__ = [
     "lorden_delay",
     "split_budget",
     "cusum_evaluator",
+    "scaled_signatures",
     "glr_evaluator",
     "ARL_RTOL",
     "MAX_ARL_SAMPLES",
@@ -569,16 +570,63 @@ def _glr_counter(value: Evaluated, J: ca.SX, count: ca.SX, ev: Evaluator) -> ca.
     return glr_hold(J, count, ev.threshold, release_level(ev))
 
 
+def scaled_signatures(
+    signatures: Sequence[np.ndarray], names: Sequence[str], weight: np.ndarray, shifts: Sequence[float] | None
+) -> tuple[list[np.ndarray], list[str]]:
+    """Each signature ``μ`` rescaled to the whitened shifts ``δ`` (``‖μ‖_W = sqrt(μᵀ W μ) = δ``), one per shift,
+    with its name repeated: the hypotheses of a multi-scale CUSUM; ``shifts`` ``None``: the signatures as given.
+
+    A CUSUM tuned to ``δ₀`` detects a shift ``δ`` after about ``h / (δ δ₀ − δ₀²/2)`` samples against Lorden's
+    ``h / (δ²/2)``: within 10 % for ``δ`` within a factor √2 of ``δ₀``, but 2.5 times it at a factor 4. Shifts a
+    factor 2 apart keep every shift between them near the bound, for ``ln(#shifts)`` more threshold (Lorden,
+    Annals of Mathematical Statistics 42(6), 1971, on several CUSUMs run together).
+
+    Parameters
+    ----------
+    signatures : sequence of numpy.ndarray
+        The hypotheses' steady-state residual signatures.
+    names : sequence of str
+        Their names.
+    weight : numpy.ndarray
+        ``W``, the inverse residual covariance.
+    shifts : sequence of float or None
+        The whitened shifts.
+
+    Returns
+    -------
+    tuple
+        ``(signatures, names)``; a signature the weight does not see is kept as given.
+
+    Examples
+    --------
+    >>> sig, names = scaled_signatures([np.array([2.0, 0.0])], ["a"], np.eye(2), [0.5, 1.0])
+    >>> [s.tolist() for s in sig], names
+    ([[0.5, 0.0], [1.0, 0.0]], ['a', 'a'])
+    """
+    if shifts is None:
+        return [np.asarray(m, dtype=float) for m in signatures], list(names)
+    out, labels = [], []
+    for mu, name in zip(signatures, names, strict=True):
+        mu = np.asarray(mu, dtype=float)
+        size = math.sqrt(max(float(mu @ weight @ mu), 0.0))
+        for delta in shifts if size > 0 else [size]:
+            out.append(mu * (float(delta) / size) if size > 0 else mu)
+            labels.append(name)
+    return out, labels
+
+
 def _cusum_hypotheses(
     gi: int, sigma: np.ndarray, visible: Sequence[str], steady: dict[str, np.ndarray], infos: dict[str, float],
-    arl_samples: float, window: int | None, response: Callable[[str, int], np.ndarray],
+    arl_samples: float, window: int | None, response: Callable[[str, int], np.ndarray], shifts: Sequence[float] | None = None,
 ) -> Evaluator:
-    return cusum_evaluator(gi, sigma, [steady[k] for k in visible], arl_samples, names=visible)
+    weight = chi2_evaluator(gi, sigma, 0.5).W
+    signatures, names = scaled_signatures([steady[k] for k in visible], visible, weight, shifts)
+    return cusum_evaluator(gi, sigma, signatures, arl_samples, names=names)
 
 
 def _glr_hypotheses(
     gi: int, sigma: np.ndarray, visible: Sequence[str], steady: dict[str, np.ndarray], infos: dict[str, float],
-    arl_samples: float, window: int | None, response: Callable[[str, int], np.ndarray],
+    arl_samples: float, window: int | None, response: Callable[[str, int], np.ndarray], shifts: Sequence[float] | None = None,
 ) -> Evaluator:
     m = window
     if m is None:  # twice the Lorden delay of the weakest hypothesis, clipped to 25…100 samples
@@ -617,7 +665,7 @@ def _cusum_sizes(ev: Evaluator, g: np.ndarray, context: Any = None) -> Sizes:
 CUSUM: Detector = register(
     Detector(
         kind="cusum",
-        doc="Page's CUSUM for each fault class's designed minimum fault",
+        doc="Page's CUSUM for each fault class's designed minimum fault (or, with shifts, for each of several sizes)",
         windowed=False,
         no_window="window = {window}: the CUSUM has no window (give it for 'wssr' or 'glr')",
         sequential=True,
@@ -626,6 +674,7 @@ CUSUM: Detector = register(
         size_law=SizeLaw("cusum", "CUSUM: the size above which its sum drifts up (detected with probability 1)", _cusum_sizes),
         cited="CUSUM (Page, Biometrika 41(1/2), 1954)",
         hypotheses=_cusum_hypotheses,
+        reads_shifts=True,
     )
 )
 """The CUSUM detector (:class:`~fdisyn.detectors.table.Detector`): Page, Biometrika 41(1/2), 1954."""

@@ -82,9 +82,9 @@ class Detector:
         generators, sigma_r, info)`` — a sequential detector returns the whitened generators and its table.
     hypotheses : Callable or None
         A sequential detector's statistic of one whitened generator: ``hypotheses(gi, sigma, visible,
-        steady, infos, arl_samples, window, response)`` with ``steady[k]`` the steady-state residual of fault
+        steady, infos, arl_samples, window, response, shifts)`` with ``steady[k]`` the steady-state residual of fault
         class ``k``, ``infos[k]`` its information per sample and ``response(k, m)`` its first ``m`` samples;
-        ``None`` otherwise.
+        ``shifts`` the option ``shifts`` (``None``: not given); ``None`` otherwise.
     statistic : Any
         Its symbolic update in the linear step (:class:`fdisyn.detectors.symbolic.LinearStatistic`).
     size_law : SizeLaw
@@ -96,6 +96,8 @@ class Detector:
         A windowed detector's clause in the option ``window``'s text: what its window is.
     window_default : str
         A windowed detector's window when the option is not given, in words.
+    reads_shifts : bool
+        Its hypotheses read the option ``shifts`` (the whitened mean shifts each is tuned to).
     null_law : Callable or None
         ``null_law(ev)``: its statistic's exact law without a fault, ``(density, label)`` with ``density(x)`` the
         probability density the report draws over the fault-free histogram (e.g. χ²(dof)); ``None``: no closed
@@ -115,6 +117,7 @@ class Detector:
     window_doc: str = ""
     window_default: str = ""
     null_law: Callable[[Any], tuple[Callable[[Any], Any], str]] | None = None
+    reads_shifts: bool = False
 
 
 DETECTORS: dict[str, Detector] = {}

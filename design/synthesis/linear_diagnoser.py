@@ -129,6 +129,7 @@ def linear_diagnoser(
     min_fault: Mapping[str, float] | None = None,
     options: Mapping[str, object] | None = None,
     where: str = "",
+    shifts: Sequence[float] | None = None,
 ) -> GainFile:
     """Build and check the gain file of a bank of linear residual generators.
 
@@ -140,7 +141,7 @@ def linear_diagnoser(
     the residual's autocovariance on ``plant``; or a sequential statistic,
     ``"cusum"`` or ``"glr"`` (:func:`sequential_evaluators`: each generator is
     whitened first, and ``window`` is the GLR's onset window, ``None`` to
-    choose it). ``arl0`` (seconds), when given, is the diagnoser's mean time
+    choose it; ``shifts``, for a detector that reads them, the whitened shifts each hypothesis is tuned to). ``arl0`` (seconds), when given, is the diagnoser's mean time
     between false alarms and sets every threshold in place of ``P_f``: each
     statistic gets an equal share (:func:`~fdisyn.detectors.sequential.split_budget`),
     ``Ts / (n · arl0)`` per sample for χ² and WSSR. ``faults`` name the fault
@@ -176,7 +177,7 @@ def linear_diagnoser(
         min_fault=min_fault,
         autocovariances=lambda g, lags: residual_autocovariances(g, plant, lags),
         sequential=lambda d: sequential_evaluators(
-            plant, gens, faults, kind=d.kind, arl_samples=arl_stat, window=window, min_fault=min_fault
+            plant, gens, faults, kind=d.kind, arl_samples=arl_stat, window=window, min_fault=min_fault, shifts=shifts
         ),
     )
     evals, gens, sigma_r, sequential_info = detector.evaluators(request)
@@ -288,6 +289,7 @@ def sequential_evaluators(
     arl_samples: float,
     window: int | None,
     min_fault: Mapping[str, float] | None,
+    shifts: Sequence[float] | None = None,
 ) -> tuple[list[Evaluator], list[Generator], list[np.ndarray], dict[str, Any]]:
     """CUSUM or GLR statistics for a bank: ``(evaluators, whitened generators, their covariances, information)``.
 
@@ -299,7 +301,9 @@ def sequential_evaluators(
     bias that looks like the decoupled unknown input, say: only its onset shows). ``window`` (GLR)
     ``None``: twice the Lorden delay of the weakest hypothesis, clipped to 25…100 samples. The information
     returned holds, per generator and class, the steady-state Kullback–Leibler information per sample of the
-    designed fault and its Lorden delay ``ln(ARL) / I`` at this statistic's share of the budget.
+    designed fault and its Lorden delay ``ln(ARL) / I`` at this statistic's share of the budget. ``shifts``: the
+    whitened shift sizes a detector that reads them (:attr:`~fdisyn.detectors.table.Detector.reads_shifts`) tunes
+    each hypothesis to, along its designed fault's signature (``None``: the designed fault itself).
     """
     detector = DETECTORS[kind]
     sizes = fault_sizes(plant, faults, min_fault)
@@ -344,8 +348,9 @@ def sequential_evaluators(
         }
         response = lambda k, m, gen=gen: fault_step_response(gen, plant, *sizes[k], m)  # noqa: E731
         assert detector.hypotheses is not None  # a sequential detector builds its hypotheses
-        evals.append(detector.hypotheses(gi, sig, visible, hyp, infos, arl_samples, window, response))
-    return evals, gens, sigmas, {"kind": kind, "generators": table, "min_fault": {k: [a.tolist(), b.tolist()] for k, (a, b) in sizes.items()}, "checks": checks}
+        evals.append(detector.hypotheses(gi, sig, visible, hyp, infos, arl_samples, window, response, shifts))
+    extra = {"shifts": [float(x) for x in shifts]} if shifts is not None else {}
+    return evals, gens, sigmas, {"kind": kind, "generators": table, "min_fault": {k: [a.tolist(), b.tolist()] for k, (a, b) in sizes.items()}, **extra, "checks": checks}
 
 
 def default_fault_classes(plant: LinearPlant, generators: Sequence[Generator]) -> list[FaultClass]:
@@ -555,6 +560,19 @@ MIN_FAULT = Option(
     "a table fault-class name → positive size",
     lambda v: isinstance(v, Mapping) and all(isinstance(k, str) and is_real(x) and x > 0 for k, x in v.items()),
 )
+MAX_SHIFTS = 8
+"""Most shifts of a multi-scale sequential statistic: each adds a pair of sums per hypothesis to the step."""
+SHIFTS = Option(
+    "shifts",
+    None,
+    "the whitened mean shifts (in residual standard deviations, along each fault class's signature) a sequential "
+    "statistic is tuned to: one pair of sums per shift and hypothesis under one threshold, a multi-scale CUSUM whose "
+    "delay stays near the Lorden bound over their range, e.g. [0.25, 0.5, 1, 2, 4] (default: the designed minimum "
+    f"fault alone); read by {quoted([k for k, d in DETECTORS.items() if d.reads_shifts], 'and')}",
+    f"a list of 1 to {MAX_SHIFTS} distinct positive numbers, each at most 100",
+    lambda v: isinstance(v, (list, tuple)) and 1 <= len(v) <= MAX_SHIFTS and all(is_real(x) and 0 < x <= 100 for x in v)
+    and len({float(x) for x in v}) == len(v),
+)
 LINEAR_WINDOW = replace(
     WINDOW,
     default=None,
@@ -562,7 +580,7 @@ LINEAR_WINDOW = replace(
     accepts=lambda v: is_count(v) and v <= MAX_WSSR_WINDOW,
     doc=f"{option_texts()['window']}; default {option_texts()['window_default']}",
 )
-BANK_OPTIONS: tuple[Option, ...] = (P_F, ARL0, PERSISTENCE, DETECTOR, EVALUATOR, LINEAR_WINDOW, MIN_FAULT, BANK, FAULTS)
+BANK_OPTIONS: tuple[Option, ...] = (P_F, ARL0, PERSISTENCE, DETECTOR, EVALUATOR, LINEAR_WINDOW, MIN_FAULT, SHIFTS, BANK, FAULTS)
 """The options of every linear method: the bank and its evaluation (χ²: Hu et al. 2013, Acta Automatica Sinica 39(8),
 eq. (20); WSSR: Long & Wang, Aeroengine 43(5), 2017, section 2)."""
 
@@ -587,6 +605,7 @@ def bank_diagnoser(
     detector: str | None = None,
     arl0: float | None = None,
     min_fault: Mapping[str, float] | None = None,
+    shifts: Sequence[float] | None = None,
     faults: Sequence[FaultClass] | None,
     Ts: float | None = None,
     sampled_data: bool = False,
@@ -648,6 +667,7 @@ def bank_diagnoser(
         min_fault=min_fault,
         options=record,
         where=where,
+        shifts=shifts,
     )
     if chosen is None:
         return gf
@@ -947,6 +967,31 @@ def check_min_fault(kind: str, min_fault: object, where: str) -> None:
         )
 
 
+def check_shifts(kind: str, shifts: object, where: str) -> None:
+    """Refuse ``shifts`` for a detector that does not read them.
+
+    Parameters
+    ----------
+    kind : str
+        The chosen detector (:func:`chosen_detector`).
+    shifts : object
+        The option as given (``None``: not given).
+    where : str
+        Prefixes the message (see :func:`fdisyn.synthesis.registry.at`).
+
+    Raises
+    ------
+    ArgumentError
+        ``shifts`` given with a detector whose :attr:`~fdisyn.detectors.table.Detector.reads_shifts` is false.
+    """
+    if shifts is not None and not (kind in DETECTORS and DETECTORS[kind].reads_shifts):
+        readers = [k for k, d in DETECTORS.items() if d.reads_shifts]
+        raise ArgumentError(
+            f"{at(where, 'shifts')} is read only by {quoted(readers, 'and')} (the shifts its sums are tuned to); the "
+            f"detector here is {kind!r}: remove shifts, or choose detector = {quoted(readers)}"
+        )
+
+
 def _check_ts(plant: Any, options: Mapping[str, Any], where: str) -> None:
     if isinstance(plant, LinearPlant) and plant.is_discrete and options.get("Ts") is not None:
         raise ArgumentError(f"{at(where, 'Ts')} = {options['Ts']!r}: the plant is discrete (Ts = {plant.Ts}); give Ts for a continuous plant only")
@@ -980,6 +1025,7 @@ def linear_method(
                 "accumulates the evidence itself; use persistence 1 (set the false-alarm budget with arl0)"
             )
         check_min_fault(kind, opts.get("min_fault"), where)
+        check_shifts(kind, opts.get("shifts"), where)
         if not sampled_data:
             _check_ts(plant, opts, where)
         ts = opts.get("Ts") if not (isinstance(plant, LinearPlant) and plant.is_discrete) else plant.Ts
