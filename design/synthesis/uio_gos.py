@@ -60,6 +60,7 @@ from fdisyn.synthesis.linear_diagnoser import (
     _sensor_indices,
     check_budget,
     check_min_fault,
+    check_shifts,
     check_window,
     chosen_detector,
     default_fault_classes,
@@ -423,6 +424,7 @@ def gos_diagnoser(
     min_fault: Mapping[str, float] | None = None,
     options: Mapping[str, object] | None = None,
     where: str = "",
+    shifts: Sequence[float] | None = None,
 ) -> GainFile:
     """The gain file of the generalised observer scheme: :func:`gos_bank` with the linear diagnoser's statistics.
 
@@ -449,6 +451,7 @@ def gos_diagnoser(
         min_fault=min_fault,
         options=options,
         where=where,
+        shifts=shifts,
     )
 
 
@@ -508,6 +511,7 @@ def _check(plant: Any, opts: Mapping[str, Any], where: str) -> None:
     kind = chosen_detector(opts.get("detector"), opts.get("evaluator"), where, default=DEFAULT_DETECTOR)
     check_window(kind, opts["window"], where)
     check_min_fault(kind, opts.get("min_fault"), where)
+    check_shifts(kind, opts.get("shifts"), where)
     if isinstance(plant, LinearPlant):
         if plant.is_discrete and opts["Ts"] is not None:
             raise ArgumentError(f"{at(where, 'Ts')} = {shown(opts['Ts'])}: the plant is discrete (Ts = {plant.Ts}); give Ts for a continuous plant only")
@@ -617,6 +621,7 @@ def gos_design(
     detector: str | None = None,
     arl0: float | None = None,
     min_fault: Mapping[str, float] | None = None,
+    shifts: Sequence[float] | None = None,
     faults: Sequence[FaultClass] | None = None,
     Ts: float | None = None,
     groups: Any = "auto",
@@ -724,12 +729,13 @@ def gos_design(
         min_fault=min_fault,
         options={**(record or {}), "chosen": info},
         where=where,
+        shifts=shifts,
     )
     return GosDesign(gain_file=gf, groups=grouping, virtual=virt, estimate=est, plant=discrete)
 
 
 def _register() -> None:
-    from fdisyn.synthesis.linear_diagnoser import EVALUATOR, FAULTS, LINEAR_WINDOW, MIN_FAULT, TS
+    from fdisyn.synthesis.linear_diagnoser import EVALUATOR, FAULTS, LINEAR_WINDOW, MIN_FAULT, SHIFTS, TS
     from fdisyn.synthesis.registry import ARL0, DETECTOR, P_F, PERSISTENCE, Method, is_count, is_real, register
 
     options = (
@@ -740,6 +746,7 @@ def _register() -> None:
         replace(EVALUATOR, doc="the statistic of each generator (the same option as detector, its earlier name; default 'wssr')"),
         replace(LINEAR_WINDOW, default=None, doc="WSSR window N in samples, or the GLR's onset window (default 25 for 'wssr', chosen for 'glr')"),
         MIN_FAULT,
+        SHIFTS,
         FAULTS,
         TS,
         Option(
