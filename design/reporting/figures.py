@@ -149,28 +149,42 @@ def _law_figures(ctx: ReportContext) -> str:
 
 
 def _sweep_figure(ctx: ReportContext) -> str:
-    """Mean detection delay and missed detections against the fault's size, per design and faulty scenario."""
+    """Mean detection delay, missed detections and, where the diagnoser has a Lorden bound, the delay over the
+    bound against the fault's size, per design and faulty scenario."""
+    from fdisyn.reporting.budget import RATIO_GOAL
+
     v, problem = ctx.variants[0], ctx.problem
     sweep = getattr(v, "sweep", None)
     if sweep is None or not sweep.scenarios:
         return ""
     designs = list(v.evaluation.metrics)
-    fig, axes = subplots(len(designs), 2, figsize=(9.0, 2.2 * len(designs) + 0.4), squeeze=False)
+
+    def metric(d: str, base: str, f: float) -> Any:
+        return v.evaluation.metrics[d][base] if f == 1.0 else sweep.evaluation.metrics[d][sweep.scenarios[base][f]]
+
+    factors = {base: sorted({1.0, *by_factor}) for base, by_factor in sweep.scenarios.items()}
+    bounded = any(metric(d, b, f).delay_bound_ratio is not None for d in designs for b, fs in factors.items() for f in fs)
+    cols = 3 if bounded else 2
+    fig, axes = subplots(len(designs), cols, figsize=(4.5 * cols, 2.2 * len(designs) + 0.4), squeeze=False)
     rows = []
     for i, d in enumerate(designs):
-        for base, by_factor in sweep.scenarios.items():
-            pts = []
-            for f in sorted({1.0, *by_factor}):
-                m = v.evaluation.metrics[d][base] if f == 1.0 else sweep.evaluation.metrics[d][by_factor[f]]
-                pts.append((f, m.detection_delay_mean_s, m.missed_detection_rate))
-                rows.append([label(problem, d), label(problem, base), f, m.runs, m.missed_detection_rate, m.detection_delay_mean_s])
-            f_, delay, missed = zip(*pts, strict=False)
-            axes[i, 0].plot(f_, [np.nan if x is None else x for x in delay], "o-", lw=1.0, ms=3)
-            axes[i, 1].plot(f_, missed, "o-", lw=1.0, ms=3, label=label(problem, base))
+        for base, fs in factors.items():
+            ms = [metric(d, base, f) for f in fs]
+            rows += [[label(problem, d), label(problem, base), f, m.runs, m.missed_detection_rate, m.detection_delay_mean_s,
+                      m.delay_bound_ratio] for f, m in zip(fs, ms, strict=True)]
+            axes[i, 0].plot(fs, [np.nan if m.detection_delay_mean_s is None else m.detection_delay_mean_s for m in ms], "o-", lw=1.0, ms=3)
+            axes[i, 1].plot(fs, [m.missed_detection_rate for m in ms], "o-", lw=1.0, ms=3, label=label(problem, base))
+            if bounded:
+                axes[i, 2].plot(fs, [np.nan if m.delay_bound_ratio is None else m.delay_bound_ratio for m in ms], "o-", lw=1.0, ms=3)
         axes[i, 0].set_title(label(problem, d), loc="left", fontsize=MIN_FONT_PT)
         axes[i, 0].set_ylabel("mean delay (s)")
         axes[i, 1].set_ylabel("missed detection")
         axes[i, 1].set_ylim(-0.03, 1.03)
+        if bounded:
+            axes[i, 2].set_ylabel("delay / Lorden bound")
+            axes[i, 2].axhline(1.0, color="k", lw=0.8)
+            axes[i, 2].axhline(RATIO_GOAL, color="tab:red", ls=":", lw=1.0)
+            axes[i, 2].set_yscale("log")
         ticks = sorted({1.0, *sweep.factors})
         for ax in axes[i]:
             ax.set_xscale("log")
@@ -185,10 +199,12 @@ def _sweep_figure(ctx: ReportContext) -> str:
         fig,
         f"Detection against the fault's size: each faulty scenario with its fault scaled by {', '.join(fmt(f) for f in sweep.factors)} "
         f"({fmt(sweep.evaluation.runs)} runs each; 1 is the scenario itself with the page's runs). Offsets and drifts scale "
-        "their value, a gain fault its deviation from 1.",
+        "their value, a gain fault its deviation from 1."
+        + (f" Right: the mean delay over the Lorden bound ln(ARL)/I of the fault at that size (black: the bound; red, dotted: "
+           f"the goal {fmt(RATIO_GOAL)}); a detector tuned to one size falls behind the bound at the others." if bounded else ""),
     ) + (
         folded(table(["design", "scenario", "size (×)", "runs", defined("missed detection (of runs)", "missed detection"),
-                      defined("delay mean (s)", "detection delay")], rows, left=2))
+                      defined("delay mean (s)", "detection delay"), defined("delay / bound", "delay ratio")], rows, left=2))
     )
 
 
