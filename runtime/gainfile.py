@@ -102,6 +102,9 @@ class Generator:
         ``Xu u + Xy y`` of its first valid sample.
     method : Mapping
         What the design method records about it (informational).
+    warmup : int
+        Valid samples over which the step estimates its initial state by least squares before its statistics
+        run (:mod:`fdisyn.runtime.warmup`); 0: none, it starts at the equilibrium of its first valid sample.
     Ts : float or None
         Sample time of the gain file that holds the generator (set by :class:`GainFile`; not written:
         the file's ``Ts`` is).
@@ -125,6 +128,7 @@ class Generator:
     Xy: np.ndarray
     method: Mapping[str, Any] = field(default_factory=dict)
     Ts: float | None = None
+    warmup: int = 0
 
     def __post_init__(self) -> None:
         validate_generator(self)
@@ -482,6 +486,7 @@ class GainFile:
                     "outputs_used": list(g.outputs_used),
                     **{k: to_jsonable(getattr(g, k)) for k in MATRIX_KEYS},
                     "method": to_jsonable(dict(g.method)),
+                    **({"warmup": int(g.warmup)} if g.warmup else {}),  # absent: a file as it was before warm-ups
                 }
                 for g in self.generators
             ]
@@ -693,7 +698,8 @@ def gain_file_from_dict(doc: object, *, source: str = "gain file") -> GainFile:
             matrices: dict[str, Any] = {k: gr.matrix(k) for k in MATRIX_KEYS}
             name, outputs_used, method = gr.string("name"), tuple(gr.integers("outputs_used")), gr.obj("method")
             try:
-                gens.append(Generator(name=name, outputs_used=outputs_used, **matrices, method=method))
+                warmup = gr.integer("warmup", minimum=0) if "warmup" in gr.doc else 0
+                gens.append(Generator(name=name, outputs_used=outputs_used, **matrices, method=method, warmup=warmup))
             except GainFileError as exc:
                 raise GainFileError(f"{source}: generators[{i}]: {exc}") from None
         kwargs["generators"] = tuple(gens)

@@ -99,8 +99,10 @@ def linear_state_layout(generators: Sequence[Any], evaluators: Sequence[Any]) ->
     """Where each part of a linear diagnoser's state vector lives.
 
     ``xi<g>``: generator ``g``'s state; ``counters``: one persistence counter
-    per statistic; ``ready``: one flag per generator (0 until its first valid
-    sample has initialised it at equilibrium); ``nonfinite``: the number of
+    per statistic; ``ready``: per generator, its valid samples since it started
+    (0 until its first valid sample initialises it at equilibrium), counted up
+    to its ``warmup`` + 1 — its statistics run from the sample after the
+    ``warmup``-th, and a non-finite sample before then restarts it; ``nonfinite``: the number of
     samples that held a non-finite input or output; ``window<j>``: for each
     WSSR statistic ``j``, the ``q`` of its generator's last ``window`` valid
     samples, newest first (a shift register: each valid sample shifts it by
@@ -111,7 +113,8 @@ def linear_state_layout(generators: Sequence[Any], evaluators: Sequence[Any]) ->
     statistic its sums ``S_i^+``, ``S_i^−`` then their latches (1 from crossing the
     threshold until the sum returns to 0), for each GLR statistic its onset sums ``d_i(n)``
     (hypothesis-major, ``n = 1 … M``). A sequential statistic's persistence
-    counter holds its raised alarm (1) or 0.
+    counter holds its raised alarm (1) or 0. ``acc<g>``: for each generator with a
+    warm-up, its accumulated ``Σ Φ_kᵀ W r_k`` (:mod:`fdisyn.runtime.warmup`).
     """
     blocks = [(f"xi{g}", gen.n_state, 1) for g, gen in enumerate(generators)]
     blocks += [("counters", len(evaluators), 1), ("ready", len(generators), 1), ("nonfinite", 1, 1)]
@@ -122,5 +125,6 @@ def linear_state_layout(generators: Sequence[Any], evaluators: Sequence[Any]) ->
             rows = s.block_rows(e) if s is not None and s.block == prefix else None
             if rows is not None:
                 blocks.append((f"{prefix}{j}", rows, 1))
+    blocks += [(f"acc{g}", gen.n_state, 1) for g, gen in enumerate(generators) if getattr(gen, "warmup", 0)]
     return StateLayout(tuple(blocks), scalars=frozenset({"nonfinite"}))
 

@@ -52,6 +52,7 @@ from fdisyn.runtime.errors import ArgumentError, ShapeError
 from fdisyn.runtime.gainfile import GainFile, release_level
 from fdisyn.runtime.layout import linear_state_layout
 from fdisyn.runtime.statistics import STATISTICS, glr_weights
+from fdisyn.runtime.warmup import generator_warmup
 
 __all__ = ["StepOutput", "RunResult", "LinearReference", "ChangeEstimate", "glr_estimates", "sample_vector", "sample_block", "step_state"]
 
@@ -214,6 +215,8 @@ class LinearReference:
         self.blocks = {name: self.layout[name] for name, _, _ in self.layout.entries}
         self.outputs_used = [list(gen.outputs_used) for gen in gf.generators]
         self.statistics_of = [[j for j, ev in enumerate(gf.evaluators) if ev.generator == g] for g in range(len(gf.generators))]
+        # each generator's warm-up: its length and constants (the first statistic's weight), None without one
+        self.warmup = [generator_warmup(gf, g) for g in range(len(gf.generators))]
 
     def init_state(self) -> np.ndarray:
         return self.gf.step.init_state.copy()
@@ -236,14 +239,27 @@ class LinearReference:
         flags = np.zeros(gf.step.nj, dtype=int)
         overflow = False
         for g, gen in enumerate(gf.generators):
+            n_warm = gen.warmup
             if not (all_u and fin_y[self.outputs_used[g]].all()):
+                if ready[g] < n_warm:  # a gap in the warm-up: it starts again at the next valid sample
+                    ready[g] = 0.0
                 continue
             sl = lay[f"xi{g}"]
             xi = gen.Xu @ us + gen.Xy @ ys if ready[g] == 0.0 else state[sl]
+            live = ready[g] >= n_warm  # the warm-up done: the statistics run
+            acc = None
             with np.errstate(over="ignore", invalid="ignore"):
                 rg = gen.Cr @ xi + gen.Du @ us + gen.Dy @ ys
                 xi_next = gen.Ar @ xi + gen.Bu @ us + gen.By @ ys
-                evs = self.statistics_of[g]
+                warm = self.warmup[g]
+                if not live and warm is not None:
+                    gains, correction = warm
+                    k = int(ready[g])
+                    acc = (0.0 if k == 0 else state[lay[f"acc{g}"]]) + gains[k] @ rg
+                    if k == n_warm - 1:  # the last warm-up sample: its least-squares initial error removed
+                        xi_next = xi_next + correction @ acc
+                        acc = np.zeros_like(acc)  # used: the accumulator is emptied
+                evs = self.statistics_of[g]  # evaluated in the warm-up too: an absurd sample overflows as it would later
                 # q = rᵀ W r of every non-sequential statistic first, then each statistic's update in order
                 jg = {j: float(rg @ gf.evaluators[j].W @ rg) for j in evs if not self.statistics[j].sequential}
                 windows = {}
@@ -253,13 +269,18 @@ class LinearReference:
                         old = state[lay[f"{stat.block}{j}"]]
                         jg[j], windows[j] = stat.update(gf.evaluators[j], rg, jg.get(j), old, self.prepared[j])
             # a finite but absurd value can overflow: the sample is then skipped like a non-finite one
-            if not (np.isfinite(rg).all() and np.isfinite(xi_next).all() and np.isfinite(list(jg.values())).all()):
+            if not (np.isfinite(rg).all() and np.isfinite(xi_next).all() and np.isfinite(list(jg.values())).all()
+                    and (acc is None or np.isfinite(acc).all())):
                 overflow = True
                 ready[g] = 0.0  # restart at the next valid sample: the state may hold an absurd value
                 continue
-            ready[g] = 1.0
-            r[self.r_slices[g]] = rg
+            ready[g] = min(ready[g] + 1.0, n_warm + 1.0)
             state[sl] = xi_next
+            if acc is not None:
+                state[lay[f"acc{g}"]] = acc
+            r[self.r_slices[g]] = rg
+            if not live:  # the warm-up: the statistics are held
+                continue
             for j, window in windows.items():
                 state[lay[f"{self.statistics[j].block}{j}"]] = window
             for j, value in jg.items():

@@ -32,6 +32,7 @@ from fdisyn.runtime.schema import (
     MAX_MAGNITUDE,
 )
 from fdisyn.runtime.statistics import STATISTICS
+from fdisyn.runtime.warmup import MAX_WARMUP
 from fdisyn.runtime.values import real_number
 
 # The gain file's types (:mod:`fdisyn.runtime.gainfile`) run these checks when they are built, so this module cannot
@@ -83,6 +84,8 @@ def validate_generator(g: _Generator) -> None:
     unused = [j for j in range(p) if j not in g.outputs_used]
     if unused and (np.any(g.By[:, unused]) or np.any(g.Dy[:, unused])):
         _fail(f"{w} reads outputs {unused} that are not in outputs_used")
+    if isinstance(g.warmup, bool) or not isinstance(g.warmup, (int, np.integer)) or not 0 <= g.warmup <= MAX_WARMUP:
+        _fail(f"{w}.warmup must be a whole number of samples in 0..{MAX_WARMUP}, found {shown(g.warmup)}")
 
 
 def validate_gain_file(gf: _GainFile) -> None:

@@ -23,6 +23,7 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
+import scipy.linalg
 from fdisyn.detectors.chi2 import chi2_evaluator
 from fdisyn.detectors.sequential import MAX_ARL_SAMPLES, lorden_delay, split_budget
 from fdisyn.detectors.table import DETECTORS, BankRequest, option_texts, quoted, windowed_kinds
@@ -32,6 +33,7 @@ from fdisyn.numerics.linalg import transfer_size
 from fdisyn.runtime.errors import ArgumentError, ExistenceError, FdisynError, ShapeError, SolverError
 from fdisyn.runtime.gainfile import Decision, Evaluator, GainFile, Generator, StepSpec
 from fdisyn.runtime.layout import linear_state_layout
+from fdisyn.runtime.warmup import MAX_WARMUP, PINV_RTOL
 from fdisyn.runtime.statistics import MAX_WSSR_WINDOW
 from fdisyn.runtime.names import check_fault_name, shown
 from fdisyn.synthesis.registry import (
@@ -181,9 +183,12 @@ def linear_diagnoser(
         ),
     )
     evals, gens, sigma_r, sequential_info = detector.evaluators(request)
+    weights = [next((ev.W for ev in evals if ev.generator == i), None) for i in range(len(gens))]
+    gens = [replace(g, warmup=warmup_length(g, w)) for g, w in zip(gens, weights, strict=True)]
     sig = np.array([[_expected(fault, gens[ev.generator], plant) for ev in evals] for fault in faults], dtype=int)
     checks, sensitivity = _bank_checks(gens, evals, plant)
-    info: dict[str, object] = {"min_detectable_bias": sensitivity, "arl_per_statistic_samples": arl_stat}
+    info: dict[str, object] = {"min_detectable_bias": sensitivity, "arl_per_statistic_samples": arl_stat,
+                               "warmup_samples": {g.name: g.warmup for g in gens}}
     if arl0 is not None:
         info["arl0_s"] = float(arl0)
     if sequential_info:
@@ -278,6 +283,53 @@ def fault_sizes(plant: LinearPlant, faults: Sequence[FaultClass], min_fault: Map
             comp[plant.component_faults.index(name)] = float(given.get(f.name, 1.0))
         out[f.name] = (sens, comp)
     return out
+
+
+WARMUP_RESIDUE = 0.5
+"""What a warm-up may leave of a generator's initial error, as the expected weighted residual energy it adds over all
+later samples, ``tr((O_∞ − O_N) O_N⁺)`` with ``O_N = Σ_{k<N} Φ_kᵀ W Φ_k`` (a white residual of covariance ``W⁻¹``):
+half the mean of one sample's χ² of one degree of freedom, whatever the initial error was."""
+
+
+def warmup_length(gen: Generator, weight: np.ndarray | None) -> int:
+    """The warm-up of a generator (:mod:`fdisyn.runtime.warmup`): the fewest samples ``N`` whose least-squares
+    estimate of its initial error sees every direction the residual will ever see and leaves at most
+    :data:`WARMUP_RESIDUE` of it.
+
+    Parameters
+    ----------
+    gen : Generator
+        A Schur-stable generator.
+    weight : numpy.ndarray or None
+        Its first statistic's ``W`` (``None``: the identity).
+
+    Returns
+    -------
+    int
+        ``N`` (0 for a generator without state), at most :data:`~fdisyn.runtime.warmup.MAX_WARMUP`.
+    """
+    ns = gen.n_state
+    if ns == 0:
+        return 0
+    w = np.eye(gen.n_residual) if weight is None else np.asarray(weight, dtype=float)
+    total = scipy.linalg.solve_discrete_lyapunov(gen.Ar.T, gen.Cr.T @ w @ gen.Cr)
+    total = 0.5 * (total + total.T)
+    top = float(np.max(np.linalg.eigvalsh(total))) if total.size else 0.0
+    if not top > 0:
+        return 0  # the residual never sees the state
+    seen = int(np.sum(np.linalg.eigvalsh(total) > PINV_RTOL * top))
+    info, power = np.zeros((ns, ns)), np.eye(ns)
+    for n in range(1, MAX_WARMUP + 1):
+        phi = gen.Cr @ power
+        info += phi.T @ w @ phi
+        power = gen.Ar @ power
+        lam = np.linalg.eigvalsh(0.5 * (info + info.T))
+        if int(np.sum(lam > PINV_RTOL * top)) < seen:
+            continue
+        left = float(np.trace((total - info) @ np.linalg.pinv(info, rcond=PINV_RTOL, hermitian=True)))
+        if left <= WARMUP_RESIDUE:
+            return n
+    return MAX_WARMUP
 
 
 def sequential_evaluators(

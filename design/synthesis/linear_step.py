@@ -10,6 +10,7 @@ from fdisyn.detectors.symbolic import all_finite, all_of, constant, finite
 from fdisyn.detectors.table import DETECTORS
 from fdisyn.runtime.gainfile import GainFile
 from fdisyn.runtime.layout import linear_state_layout
+from fdisyn.runtime.warmup import generator_warmup
 from fdisyn.synthesis.kinds import STEP_INPUTS, STEP_OUTPUTS
 
 __all__ = ["linear_step_function"]
@@ -40,6 +41,18 @@ def linear_step_function(gf: GainFile) -> ca.Function:
         xi = ca.if_else(ready == 0, xi_eq, state[sl.start : sl.stop])
         r_g = ca.mtimes(constant(gen.Cr), xi) + ca.mtimes(constant(gen.Du), us) + ca.mtimes(constant(gen.Dy), ys)
         xi_next = ca.mtimes(constant(gen.Ar), xi) + ca.mtimes(constant(gen.Bu), us) + ca.mtimes(constant(gen.By), ys)
+        n_warm = gen.warmup
+        warm = generator_warmup(gf, g)
+        live: ca.SX = ca.SX(1)  # the statistics run (after the warm-up)
+        acc_new = None
+        if warm is not None:  # the warm-up: accumulate, correct after the last sample, hold the statistics till then
+            gains, correction = warm
+            acc_sl = lay[f"acc{g}"]
+            acc_new = ca.if_else(ready == 0, ca.SX.zeros(gen.n_state), state[acc_sl.start : acc_sl.stop])
+            for k in range(n_warm):
+                acc_new = acc_new + ca.if_else(ready == k, ca.mtimes(constant(gains[k]), r_g), ca.SX.zeros(gen.n_state))
+            xi_next = xi_next + ca.if_else(ready == n_warm - 1, ca.mtimes(constant(correction), acc_new), ca.SX.zeros(gen.n_state))
+            live = ready >= n_warm
         evs = [j for j, ev in enumerate(gf.evaluators) if ev.generator == g]
         values = {}
         for j in evs:
@@ -52,23 +65,33 @@ def linear_step_function(gf: GainFile) -> ca.Function:
         j_g.update({j: values[j].J for j in evs if DETECTORS[gf.evaluators[j].kind].statistic.sequential})
         windows = {j: values[j].state for j in evs if values[j].state is not None}
         # a finite but absurd value can overflow: the sample is then skipped like a non-finite one
-        results_ok = all_finite(r_g, xi_next, *j_g.values(), *windows.values())
+        # the statistics are evaluated in the warm-up too: an absurd sample overflows as it would later
+        results_ok = all_finite(r_g, xi_next, *j_g.values(), *windows.values(), *([] if acc_new is None else [acc_new]))
         ok = ca.logic_and(inputs_ok, results_ok)
         overflow = ca.logic_or(overflow, ca.logic_and(inputs_ok, 1 - results_ok))
         nxt[sl.start : sl.stop] = ca.if_else(ok, xi_next, state[sl.start : sl.stop])
         # after an overflow the generator restarts at its next valid sample
-        nxt[lay["ready"].start + g] = ca.if_else(ok, 1, ca.if_else(inputs_ok, 0, ready))
+        if warm is None:
+            nxt[lay["ready"].start + g] = ca.if_else(ok, 1, ca.if_else(inputs_ok, 0, ready))
+        else:  # its valid samples counted to warmup + 1; a gap in the warm-up restarts it
+            held = ca.if_else(ready < n_warm, 0, ready)
+            nxt[lay["ready"].start + g] = ca.if_else(ok, ca.fmin(ready + 1, n_warm + 1), ca.if_else(inputs_ok, 0, held))
+            acc_sl = lay[f"acc{g}"]
+            assert acc_new is not None
+            emptied = ca.if_else(ready == n_warm - 1, ca.SX.zeros(gen.n_state), acc_new)  # used: the accumulator is emptied
+            nxt[acc_sl.start : acc_sl.stop] = ca.if_else(ca.logic_and(ok, 1 - live), emptied, state[acc_sl.start : acc_sl.stop])
+        running = ok if warm is None else ca.logic_and(ok, live)
         r_parts.append(ca.if_else(ok, r_g, 0))
         for j, window in windows.items():
             ws = lay[f"{DETECTORS[gf.evaluators[j].kind].statistic.block}{j}"]
-            nxt[ws.start : ws.stop] = ca.if_else(ok, window, state[ws.start : ws.stop])
+            nxt[ws.start : ws.stop] = ca.if_else(running, window, state[ws.start : ws.stop])
         for j in evs:
-            jj = ca.if_else(ok, j_g[j], 0)
+            jj = ca.if_else(running, j_g[j], 0)
             c = state[lay["counters"].start + j]
             ev = gf.evaluators[j]
-            c_next = ca.if_else(ok, DETECTORS[ev.kind].statistic.counter(values[j], jj, c, ev), c)
+            c_next = ca.if_else(running, DETECTORS[ev.kind].statistic.counter(values[j], jj, c, ev), c)
             nxt[lay["counters"].start + j] = c_next
-            flags[j] = ca.logic_and(ok, c_next >= persistence)
+            flags[j] = ca.logic_and(running, c_next >= persistence)
             j_parts[j] = jj
     r = ca.vertcat(*r_parts)
     bad = ca.logic_or(overflow, 1 - ca.logic_and(all_u, all_of(fin_y)))

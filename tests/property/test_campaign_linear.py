@@ -24,6 +24,7 @@ import os
 
 import numpy as np
 import pytest
+import scipy.stats
 
 import fdisyn
 from fdisyn.runtime.errors import FdisynError
@@ -241,6 +242,14 @@ def _replay(case: Case, gf, tmp_path) -> None:  # noqa: ANN001
         scale *= (2.0 if name == "J" else 1.0) * terms / r_max
         assert np.array_equal(np.isfinite(a), fin) and np.max(np.abs(a[fin] - b[fin]), initial=0.0) <= REPLAY_TOL * scale, name
     assert np.array_equal(res.alarm, ref.alarm) and np.array_equal(res.isolated, ref.isolated)
+    if gf.kind == "linear":
+        # quiet from switch-on: none in the warm-up, and the fault-free stretch's alarmed samples within the Poisson
+        # bound (10⁻⁶) of the statistics' false-alarm probabilities (persistence only lowers the rate)
+        warm = max((g.warmup for g in gf.generators), default=0)
+        assert not res.alarm[:warm].any(), f"an alarm in the warm-up of {warm} samples"
+        expected = onset * sum(float(ev.P_f) for ev in gf.evaluators)
+        assert int(res.alarm[:onset].sum()) <= scipy.stats.poisson.isf(1e-6, expected), (
+            f"{int(res.alarm[:onset].sum())} alarmed samples of {onset} fault-free ones ({expected:.3g} expected)")
     if size is None:
         return
     assert res.alarm[onset:].any(), f"a step of {size:.3g} on output {gf.outputs[j]} raised no alarm"
