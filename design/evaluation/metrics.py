@@ -63,6 +63,10 @@ DEFINITIONS: dict[str, str] = {
         "few samples)."
     ),
     "sample isolation accuracy": "among fault-active samples with an alarm, the fraction with the true fault isolated.",
+    "warm-up": (
+        "samples over which each linear generator estimates its initial state by least squares (the plant may be "
+        "moving when the diagnoser starts) before its statistics run; they are held, and raise no alarm, until then."
+    ),
     "alarm held": (
         "fraction of the fault's active samples (all runs) with the alarm on: 1 − the missed-alarm fraction. A fault "
         "alarmed for two samples and then silent holds its alarm for a small fraction, however fast it was detected."

@@ -80,6 +80,12 @@ def _versions() -> str:
     return ", ".join(f"{k} {v}" for k, v in items)
 
 
+def _warmups(gf: Any) -> str:
+    """The generators' warm-ups as a cell: ``4``, or ``2–5`` when they differ; ``0``: started at an equilibrium."""
+    lengths = sorted({int(getattr(g, "warmup", 0)) for g in gf.generators})
+    return str(lengths[0]) if len(lengths) == 1 else f"{lengths[0]}–{lengths[-1]}"
+
+
 def _design_rows(problem: Problem, variant: Any) -> str:
     """The variant's designs in one table (banks of linear generators: generators, dof, threshold, …; others: sizes)."""
     if not all(b.gain_file.generators for b in variant.built.values()):
@@ -103,12 +109,13 @@ def _design_rows(problem: Problem, variant: Any) -> str:
                 float(np.trace(gf.evaluators[0].Sigma_r)),
                 info0.get("spectral_radius_F"),
                 recovery_samples(gf),
+                _warmups(gf),
                 f"{n_checks}/{n_checks}",
             ]
         )
     return table(
         ["design", "gain file", "generators", "dof", "threshold J_th (gen. 0)", "trace Σ_r (gen. 0)", "ρ(F) (gen. 0)",
-         "recovery (samples)", "checks passed"],
+         "recovery (samples)", defined("warm-up (samples)", "warm-up"), "checks passed"],
         rows,
         left=2,
     )
