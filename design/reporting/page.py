@@ -181,7 +181,7 @@ def _percent(value: float | None, bad: bool) -> str | None:
     """A fraction as a percentage cell, bold red when ``bad``."""
     if value is None:
         return None
-    text = f"{fmt(100.0 * value)} %"
+    text = f"{fmt(100.0 * value)}\u00a0%"  # a no-break space: a narrow column keeps the number with its sign
     return f'<span class="bad">{html.escape(text)}</span>' if bad else text
 
 
@@ -230,7 +230,7 @@ def _glance_section(problem: Problem, variant: Any) -> str:
             missed = m.missed_detection_rate
             first = "never" if missed == 1.0 else fmt(m.detection_delay_mean_s)
             if missed and missed < 1.0:
-                first += f" (missed in {fmt(100.0 * missed)} % of runs)"
+                first += f" (missed in {fmt(100.0 * missed)}\u00a0% of runs)"
             cells: list[Any] = [f'<span class="bad">{html.escape(first)}</span>' if bad["missed"] else first,
                      _percent(m.alarm_held_fraction, bad["held"]), _percent(m.isolated_held_fraction, bad["isolated"]),
                      _percent(m.false_isolation_rate, bad["false_isolation"])]
@@ -238,13 +238,14 @@ def _glance_section(problem: Problem, variant: Any) -> str:
                 cells = [f'<span class="ok">{html.escape(c)}</span>' if isinstance(c, str) else c for c in cells]
             row += cells
         rows.append(row)
-    per = [defined("first alarm (s)", "detection delay"), defined("alarm held (% of fault)", "alarm held"),
-           defined("isolated (% of fault)", "isolated held"), defined("false isolation (% of runs)", "false isolation")]
+    per = [defined("first alarm (s)", "detection delay"), defined("alarm held", "alarm held"),
+           defined("isolated", "isolated held"), defined("wrong fault", "false isolation")]
     return (
         f'<p class="small">{fmt(ev.runs)} runs per scenario; every design sees the same runs; false alarms over every '
         "scenario's fault-free samples. First alarm: the mean time from the fault's onset to the first alarm over the runs "
         "that detected. Alarm held and isolated: the share of the fault's duration (all runs) with the alarm on, and with "
-        "the true fault named — a fault alarmed briefly and then silent is not counted as found. "
+        "the true fault named — a fault alarmed briefly and then silent is not counted as found. Wrong fault: the share "
+        "of the runs whose most frequent decision names another fault. "
         f"Green: missed in at most {fmt(100 * GOOD['missed'])} % of the runs, alarm held and true fault isolated over at least "
         f"{fmt(100 * GOOD['held'])} % of the fault, another fault named in at most {fmt(100 * GOOD['false_isolation'])} % of the "
         "runs; bold red: the figure that falls short. Each scenario's false alarms and the other figures: "

@@ -183,7 +183,7 @@ def test_many_scenarios_read_at_a_glance() -> None:
         assert visible.count("design A") == 1 and visible.count("design B") == 1
         assert visible.count("the first sensor") == 1  # named once for its three scenarios
     glance = _glance_section(prob, variant)  # type: ignore[arg-type]
-    assert glance.count('<span class="bad">20 %</span>') == 2  # isolated over 20 % of the fault, both designs
+    assert glance.count('<span class="bad">20\u00a0%</span>') == 2  # isolated over 20 % of the fault, both designs
     folded = _isolation_section(prob, variant)  # type: ignore[arg-type]
     assert folded.count("<details>") == 1 and re.search(r"<details>.*design A.*</details>", folded, flags=re.S)
 
@@ -239,4 +239,4 @@ def test_the_glance_does_not_flatter_a_fault_alarmed_briefly() -> None:
         glance = _glance_section(SimpleNamespace(labels={}), SimpleNamespace(evaluation=ev))  # type: ignore[arg-type]
         assert ('class="ok"' in glance) is green
         if not green:
-            assert glance.count('<span class="bad">0.2 %</span>') == 2 and ">0.008<" in glance
+            assert glance.count('<span class="bad">0.2\u00a0%</span>') == 2 and ">0.008<" in glance
