@@ -152,6 +152,7 @@ def _sweep_figure(ctx: ReportContext) -> str:
     """Mean detection delay, missed detections and, where the diagnoser has a Lorden bound, the delay over the
     bound against the fault's size, per design and faulty scenario."""
     from fdisyn.reporting.budget import RATIO_GOAL
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
     v, problem = ctx.variants[0], ctx.problem
     sweep = getattr(v, "sweep", None)
@@ -185,6 +186,9 @@ def _sweep_figure(ctx: ReportContext) -> str:
             axes[i, 2].axhline(1.0, color="k", lw=0.8)
             axes[i, 2].axhline(RATIO_GOAL, color="tab:red", ls=":", lw=1.0)
             axes[i, 2].set_yscale("log")
+            axes[i, 2].yaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))  # 1, 2, 5, 10: a ratio is read, not a decade
+            axes[i, 2].yaxis.set_major_formatter(FuncFormatter(lambda x, _: fmt(x)))
+            axes[i, 2].yaxis.set_minor_formatter(NullFormatter())
         ticks = sorted({1.0, *sweep.factors})
         for ax in axes[i]:
             ax.set_xscale("log")
