@@ -134,7 +134,11 @@ def _certified(gf: GainFile) -> list[Mapping[str, Any]]:
 
 
 def _describe(gf: GainFile) -> str:
-    return f"{len(gf.generators)} generators"
+    warm = sorted({g.warmup for g in gf.generators})
+    if warm == [0]:
+        return f"{len(gf.generators)} generators"
+    span = str(warm[0]) if len(warm) == 1 else f"{warm[0]}–{warm[-1]}"
+    return f"{len(gf.generators)} generators, a warm-up of {span} samples before the statistics run"
 
 
 LINEAR = register_kind(

@@ -7,6 +7,7 @@ import sys
 import textwrap
 from collections.abc import Mapping
 from dataclasses import fields, replace
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -63,7 +64,11 @@ def test_every_kind_is_complete_and_its_step_works(kind: str, designed: dict[str
 
 def test_what_each_kind_says(designed: dict[str, GainFile]) -> None:
     lin, nafdf, beard = designed["linear"], designed["nafdf"], designed["beard_fdf"]
-    assert get_kind("linear").describe(lin) == f"{len(lin.generators)} generators"
+    warm = sorted({g.warmup for g in lin.generators})
+    span = str(warm[0]) if len(warm) == 1 else f"{warm[0]}–{warm[-1]}"
+    assert get_kind("linear").describe(lin) == f"{len(lin.generators)} generators, a warm-up of {span} samples before the statistics run"
+    before = SimpleNamespace(generators=[replace(g, warmup=0) for g in lin.generators])  # a file written before warm-ups
+    assert get_kind("linear").describe(before) == f"{len(lin.generators)} generators"  # type: ignore[arg-type]
     assert get_kind("nafdf").describe(nafdf) == f"a nafdf step with {nafdf.step.nstate} states"
     assert get_kind("beard_fdf").describe(beard) == f"a beard_fdf step with {beard.step.nstate} states"
     assert get_kind("linear").certified(lin) == list(lin.certificate["generators"])
