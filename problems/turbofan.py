@@ -514,7 +514,7 @@ DETECTOR_DESIGNS = ("grouped",)
 """The design it compares: the paper's grouped bank."""
 GLR_AT_STATE_LIMIT = {"window": 16, "nstate": 2017, "coefficients": 21_459, "C_MB": 2.4, "gcc_s": 471.0, "gcc_GB": 1.85}
 """The GLR of the grouped bank at ``arl0`` = :data:`DETECTOR_ARL0` with the longest onset window the state limit
-allows, generated and compiled once with the limits lifted (the library and the replay program, gcc -O2 at low
+allowed before the generators' warm-up sums joined the state (16; 14 since), generated and compiled once with the limits lifted (the library and the replay program, gcc -O2 at low
 priority on a 2-core machine shared with other jobs; the largest gcc process): what the coefficient limit protects
 against (its own measurement: 9 774 coefficients, 16 s and 0.44 GB)."""
 
@@ -833,8 +833,9 @@ def _glr_section(v: Any, runs: int) -> str:
             + f"<p>The longest window within both limits has {fits} onset{'' if fits == 1 else 's'}: the GLR then only asks whether "
             "a fault began at the current sample, a per-sample test of each hypothesis's direction that accumulates no evidence, "
             "where the shortest "
-            f"predicted delay is {fmt(delays.min())} samples. At the longest window the state limit allows ({measured['window']} "
-            f"onsets, {measured['nstate']} state entries) the step has {measured['coefficients']} coefficients; with the limits "
+            f"predicted delay is {fmt(delays.min())} samples. At {measured['window']} onsets ({measured['nstate']} state entries: the "
+            "longest window the state limit allowed before each generator kept its warm-up sum, "
+            f"{fp.onsets_within('nstate')} now) the step has {measured['coefficients']} coefficients; with the limits "
             f"lifted, compiling its C ({fmt(measured['C_MB'])} MB, the library and the replay program) took gcc {fmt(measured['gcc_s'])} s "
             f"at low priority on this shared 2-core machine and {fmt(measured['gcc_GB'])} GB (measured once; the limit's own "
             "measurement: 9 774 coefficients, 16 s and 0.44 GB). The limits stay; a bank of fewer statistics or hypotheses "
