@@ -1011,12 +1011,7 @@ def check_min_fault(kind: str, min_fault: object, where: str) -> None:
     ArgumentError
         ``min_fault`` given with ``'chi2'`` or ``'wssr'``: only the sequential detectors are designed for a fault size.
     """
-    if min_fault is not None and not is_sequential(kind):
-        sequential = [k for k, d in DETECTORS.items() if d.sequential]
-        raise ArgumentError(
-            f"{at(where, 'min_fault')} is read only by the detectors {quoted(sequential, 'and')} (their designed fault "
-            f"sizes); the detector here is {kind!r}: remove min_fault, or choose detector = {quoted(sequential)}"
-        )
+    _refuse_unread("min_fault", min_fault, kind, where, lambda d: d.sequential, "the detectors {readers} (their designed fault sizes)")
 
 
 def check_shifts(kind: str, shifts: object, where: str) -> None:
@@ -1036,11 +1031,17 @@ def check_shifts(kind: str, shifts: object, where: str) -> None:
     ArgumentError
         ``shifts`` given with a detector whose :attr:`~fdisyn.detectors.table.Detector.reads_shifts` is false.
     """
-    if shifts is not None and not (kind in DETECTORS and DETECTORS[kind].reads_shifts):
-        readers = [k for k, d in DETECTORS.items() if d.reads_shifts]
+    _refuse_unread("shifts", shifts, kind, where, lambda d: d.reads_shifts, "{readers} (the shifts its sums are tuned to)")
+
+
+def _refuse_unread(name: str, value: object, kind: str, where: str, reads: Callable[[Any], bool], readers_text: str) -> None:
+    """Refuse option ``name`` given (not ``None``) with a detector that does not ``reads`` it, naming those that do
+    (``readers_text`` with ``{readers}`` standing for them)."""
+    if value is not None and not (kind in DETECTORS and reads(DETECTORS[kind])):
+        readers = [k for k, d in DETECTORS.items() if reads(d)]
         raise ArgumentError(
-            f"{at(where, 'shifts')} is read only by {quoted(readers, 'and')} (the shifts its sums are tuned to); the "
-            f"detector here is {kind!r}: remove shifts, or choose detector = {quoted(readers)}"
+            f"{at(where, name)} is read only by {readers_text.format(readers=quoted(readers, 'and'))}; the detector here is "
+            f"{kind!r}: remove {name}, or choose detector = {quoted(readers)}"
         )
 
 
