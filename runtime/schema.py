@@ -49,6 +49,7 @@ LIMITS: Mapping[str, int] = {
     "plant_states": 512,
     "unknown_inputs": 256,
     "coefficients": 10_000,
+    "warmup_coefficients": 40_000,
     "persistence": 10**9,
 }
 """Size limits of a gain file, checked by the reader before anything costly.
@@ -59,7 +60,12 @@ generated C holds one multiply-add per coefficient in straight-line code, and
 gcc -O2's memory grows by ~45 kB per coefficient (measured on a 2-core machine
 shared with other jobs: 4 974 coefficients took 11 s and 0.20 GB, 9 774 took
 14–16 s and 0.44 GB; a dense 400-state generator, ~170 000 coefficients,
-would take minutes and gigabytes). ``nstate`` ≤ 2048 keeps the step's copy
+would take minutes and gigabytes). ``warmup_coefficients`` — the warm-ups'
+gains and corrections (:func:`fdisyn.runtime.warmup.warmup_coefficients`),
+dense — are counted apart, against a limit that lets the turbofan's grouped
+bank (33 216 of them beside 8 915 coefficients) be generated: its C took 68 s
+and 2.4 GB of gcc, straight-line code for constants a loop over a table
+would hold. ``nstate`` ≤ 2048 keeps the step's copy
 of the state on the stack at 16 KiB; ``generator_states`` ≤ 256 bounds the
 stability check (an eigenvalue problem per generator); the signal, fault,
 generator and residual counts (``step_outputs``: residual and statistic names of any kind) bound the

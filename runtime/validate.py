@@ -32,7 +32,7 @@ from fdisyn.runtime.schema import (
     MAX_MAGNITUDE,
 )
 from fdisyn.runtime.statistics import STATISTICS
-from fdisyn.runtime.warmup import MAX_WARMUP
+from fdisyn.runtime.warmup import MAX_WARMUP, warmup_coefficients
 from fdisyn.runtime.values import real_number
 
 # The gain file's types (:mod:`fdisyn.runtime.gainfile`) run these checks when they are built, so this module cannot
@@ -241,7 +241,8 @@ def _validate_extension_thresholds(gf: _GainFile) -> None:
 
 
 def step_coefficients(generators: Sequence[_Generator], evaluators: Sequence[_Evaluator]) -> int:
-    """Nonzero coefficients a linear step multiplies by: the generated C has one multiply-add per coefficient."""
+    """Nonzero coefficients a linear step multiplies by: the generated C has one multiply-add per coefficient
+    (the warm-ups' constants are counted apart: :func:`fdisyn.runtime.warmup.warmup_coefficients`)."""
     count = sum(int(np.count_nonzero(getattr(g, k))) for g in generators for k in MATRIX_KEYS)
     return count + sum(int(np.count_nonzero(e.W)) + (int(np.count_nonzero(e.directions)) if e.directions is not None else 0) for e in evaluators)
 
@@ -281,6 +282,12 @@ def check_limits(gf: _GainFile) -> None:
         _fail(
             f"decision.persistence: {gf.decision.persistence}; at most {LIMITS['persistence']} consecutive exceedances are "
             "supported (the step counts them in a double: a larger persistence could never alarm)"
+        )
+    warm = sum(warmup_coefficients(int(g.warmup), g.n_state, g.n_residual) for g in gf.generators)
+    if warm > LIMITS["warmup_coefficients"]:
+        _fail(
+            f"the generators' warm-ups hold {warm} constants; at most {LIMITS['warmup_coefficients']} are supported (each "
+            "is a multiply-add of the generated C): expected shorter warm-ups (generators[*].warmup)"
         )
     coeffs = step_coefficients(gf.generators, gf.evaluators)
     if coeffs > LIMITS["coefficients"]:

@@ -16,24 +16,61 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["MAX_WARMUP", "PINV_RTOL", "warmup_constants", "generator_warmup"]
+__all__ = ["MAX_WARMUP", "PINV_RTOL", "equilibrated_pinv", "warmup_constants", "warmup_coefficients", "generator_warmup"]
 
 MAX_WARMUP = 1000
 """Most warm-up samples of one generator: each is a constant ``Φ_k`` of the step."""
 
 PINV_RTOL = 1e-10
-"""Directions of the warm-up's information ``Σ Φ_kᵀ W Φ_k`` below this fraction of its largest are not corrected:
-the residual does not see them over the warm-up (they are unobservable, or decay before a sample shows them)."""
+"""Directions of the warm-up's information ``Σ Φ_kᵀ W Φ_k`` (scaled to a unit diagonal: :func:`equilibrated_pinv`)
+below this fraction of its largest are not corrected: the residual does not see them over the warm-up (they are
+unobservable, or decay before a sample shows them)."""
 
 
-def warmup_constants(gen: Any, weight: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-    """``(G, M)`` of a generator's warm-up: ``G[k] = Φ_kᵀ W`` (``Φ_k = Cr Ar^k``) for ``k < warmup``, what the
-    ``k``-th sample's residual adds to the accumulator, and the correction ``M``.
+def equilibrated_pinv(a: np.ndarray, scale: np.ndarray | None = None) -> np.ndarray:
+    """The pseudo-inverse of a positive semidefinite ``a`` after scaling it to a unit diagonal: ``S (S a S)⁺ S``,
+    ``S = diag(d)^(-1/2)`` with ``d`` the diagonal of ``scale`` (default ``a``), zero where ``d`` is.
+
+    A state in metres beside one in micrometres gives an information matrix whose eigenvalues spread by 10¹², and a
+    relative cut-off on them would drop the small unit's direction as unseen. Scaled to a unit diagonal, the cut-off
+    :data:`PINV_RTOL` is on how well the residual separates the directions, whatever their units. ``S (S a S)⁺ S``
+    is ``a⁻¹`` for an invertible ``a``, and solves ``a δ = b`` for every ``b`` in its range otherwise.
 
     Parameters
     ----------
-    gen : Generator
-        A generator with ``warmup ≥ 1``.
+    a : numpy.ndarray
+        A symmetric positive semidefinite matrix.
+    scale : numpy.ndarray, optional
+        The matrix whose diagonal sets ``S`` (``a`` itself by default).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``S (S a S)⁺ S``.
+
+    Examples
+    --------
+    >>> a = np.diag([1e12, 1.0])
+    >>> np.allclose(equilibrated_pinv(a), np.diag([1e-12, 1.0]), rtol=1e-12, atol=0)
+    True
+    """
+    d = np.diag(a if scale is None else scale).astype(float)
+    s = np.where(d > 0, 1.0 / np.sqrt(np.where(d > 0, d, 1.0)), 0.0)
+    scaled = s[:, None] * a * s[None, :]
+    return s[:, None] * np.linalg.pinv(0.5 * (scaled + scaled.T), rcond=PINV_RTOL, hermitian=True) * s[None, :]
+
+
+def warmup_constants(Ar: np.ndarray, Cr: np.ndarray, warmup: int, weight: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """``(G, M)`` of a warm-up: ``G[k] = Φ_kᵀ W`` (``Φ_k = Cr Ar^k``) for ``k < warmup``, what the ``k``-th
+    sample's residual adds to the accumulator, and the correction ``M``.
+
+    Parameters
+    ----------
+    Ar, Cr : numpy.ndarray
+        The error dynamics and the residual's map of the state (a linear generator's ``Ar, Cr``; a Beard
+        filter's ``A − L C, C``).
+    warmup : int
+        ``N ≥ 1``.
     weight : numpy.ndarray or None
         ``W`` (``n_residual`` square); ``None``: the identity.
 
@@ -44,24 +81,38 @@ def warmup_constants(gen: Any, weight: np.ndarray | None) -> tuple[np.ndarray, n
 
     Examples
     --------
-    >>> from types import SimpleNamespace
-    >>> g = SimpleNamespace(Ar=np.array([[0.5]]), Cr=np.array([[2.0]]), warmup=2)
-    >>> phi, m = warmup_constants(g, None)
+    >>> phi, m = warmup_constants(np.array([[0.5]]), np.array([[2.0]]), 2, None)
     >>> phi.ravel().tolist(), m.round(6).tolist()  # G = Φ = [2, 1]; M = −0.25 / (4 + 1)
     ([2.0, 1.0], [[-0.05]])
     """
-    n, ns = int(gen.warmup), gen.Ar.shape[0]
-    w = np.eye(gen.Cr.shape[0]) if weight is None else np.asarray(weight, dtype=float)
-    gains = np.empty((n, ns, gen.Cr.shape[0]))
+    n, ns = int(warmup), Ar.shape[0]
+    w = np.eye(Cr.shape[0]) if weight is None else np.asarray(weight, dtype=float)
+    gains = np.empty((n, ns, Cr.shape[0]))
     power = np.eye(ns)
     info = np.zeros((ns, ns))
     for k in range(n):
-        phi = gen.Cr @ power
+        phi = Cr @ power
         gains[k] = phi.T @ w
         info += gains[k] @ phi
-        power = gen.Ar @ power
-    info = 0.5 * (info + info.T)
-    return gains, -power @ np.linalg.pinv(info, rcond=PINV_RTOL, hermitian=True)
+        power = Ar @ power
+    return gains, -power @ equilibrated_pinv(0.5 * (info + info.T))
+
+
+def warmup_coefficients(warmup: int, n_state: int, n_residual: int) -> int:
+    """The constants of a warm-up of ``warmup`` samples (:func:`fdisyn.runtime.warmup.warmup_constants`): its
+    gains and its correction, dense; 0 without a warm-up.
+
+    Parameters
+    ----------
+    warmup, n_state, n_residual : int
+        The warm-up's samples, the state's and the residual's sizes.
+
+    Returns
+    -------
+    int
+        ``warmup · n_state · n_residual + n_state²`` (0 when ``warmup`` is 0).
+    """
+    return warmup * n_state * n_residual + n_state * n_state if warmup else 0
 
 
 def generator_warmup(gf: Any, g: int) -> tuple[np.ndarray, np.ndarray] | None:
@@ -84,4 +135,4 @@ def generator_warmup(gf: Any, g: int) -> tuple[np.ndarray, np.ndarray] | None:
     if not gen.warmup:
         return None
     weights = [ev.W for ev in gf.evaluators if ev.generator == g]
-    return warmup_constants(gen, weights[0] if weights else None)
+    return warmup_constants(gen.Ar, gen.Cr, gen.warmup, weights[0] if weights else None)

@@ -142,6 +142,9 @@ class DiagnoserKind:
         see is computed (:mod:`fdisyn.numerics.account`); None: the kind has no account.
     account_note : str or None
         Why the kind has no account (printed by ``fdisyn design``, shown on its page).
+    warmups : callable or None
+        ``GainFile -> tuple of int``: the warm-up of each of its generators, in samples (:mod:`fdisyn.runtime.warmup`);
+        None: the kind has none.
     reference : callable or None
         ``(GainFile, U, Y) -> RunResult``: the kind's independent NumPy run over a trace (``U``: ``T × nu``,
         ``Y``: ``T × ny``) from the gain file's initial state, written from the specification without CasADi, against
@@ -167,6 +170,7 @@ class DiagnoserKind:
     """``GainFile -> fdisyn.numerics.account.BankView`` (annotated ``Any``: SciPy is not imported here)."""
     account_note: str | None = None
     reference: Callable[[GainFile, np.ndarray, np.ndarray], RunResult] | None = None
+    warmups: Callable[[GainFile], tuple[int, ...]] | None = None
 
 
 _KINDS: dict[str, DiagnoserKind] = {}
@@ -270,6 +274,27 @@ def get_kind(name: str) -> DiagnoserKind:
 def recovery_samples(gf: GainFile) -> int:
     """Samples after a fault during which the gain file's statistics still carry it (:attr:`DiagnoserKind.recovery_samples`)."""
     return int(get_kind(gf.kind).recovery_samples(gf))
+
+
+def warmup_text(gf: GainFile) -> str | None:
+    """The gain file's warm-up as the pages and the command line show it: ``"4"``, ``"2–5"`` when its generators'
+    differ, ``"0"`` (it starts at its first sample's equilibrium); None: its kind has none.
+
+    Parameters
+    ----------
+    gf : GainFile
+        Any gain file.
+
+    Returns
+    -------
+    str or None
+        The span of its generators' warm-ups in samples (:attr:`DiagnoserKind.warmups`).
+    """
+    of = get_kind(gf.kind).warmups
+    lengths = sorted(set(of(gf))) if of is not None else []
+    if not lengths:
+        return None
+    return str(lengths[0]) if len(lengths) == 1 else f"{lengths[0]}–{lengths[-1]}"
 
 
 def false_alarm_budget(gf: GainFile) -> float | None:

@@ -33,7 +33,8 @@ from fdisyn.numerics.linalg import transfer_size
 from fdisyn.runtime.errors import ArgumentError, ExistenceError, FdisynError, ShapeError, SolverError
 from fdisyn.runtime.gainfile import Decision, Evaluator, GainFile, Generator, StepSpec
 from fdisyn.runtime.layout import linear_state_layout
-from fdisyn.runtime.warmup import MAX_WARMUP, PINV_RTOL
+from fdisyn.runtime.schema import LIMITS
+from fdisyn.runtime.warmup import MAX_WARMUP, PINV_RTOL, equilibrated_pinv
 from fdisyn.runtime.statistics import MAX_WSSR_WINDOW
 from fdisyn.runtime.names import check_fault_name, shown
 from fdisyn.synthesis.registry import (
@@ -184,7 +185,10 @@ def linear_diagnoser(
     )
     evals, gens, sigma_r, sequential_info = detector.evaluators(request)
     weights = [next((ev.W for ev in evals if ev.generator == i), None) for i in range(len(gens))]
-    gens = [replace(g, warmup=warmup_length(g, w)) for g, w in zip(gens, weights, strict=True)]
+    # the warm-ups' constants share their size limit (a slow generator's warm-up is shortened to fit)
+    spare = LIMITS["warmup_coefficients"] - sum(g.n_state**2 for g in gens)
+    most = min(MAX_WARMUP, max(0, spare) // max(1, sum(g.n_state * g.n_residual for g in gens)))
+    gens = [replace(g, warmup=warmup_length(g.Ar, g.Cr, w, most=most)) for g, w in zip(gens, weights, strict=True)]
     sig = np.array([[_expected(fault, gens[ev.generator], plant) for ev in evals] for fault in faults], dtype=int)
     checks, sensitivity = _bank_checks(gens, evals, plant)
     info: dict[str, object] = {"min_detectable_bias": sensitivity, "arl_per_statistic_samples": arl_stat,
@@ -291,45 +295,51 @@ later samples, ``tr((O_∞ − O_N) O_N⁺)`` with ``O_N = Σ_{k<N} Φ_kᵀ W Φ
 half the mean of one sample's χ² of one degree of freedom, whatever the initial error was."""
 
 
-def warmup_length(gen: Generator, weight: np.ndarray | None) -> int:
+def warmup_length(Ar: np.ndarray, Cr: np.ndarray, weight: np.ndarray | None, *, most: int = MAX_WARMUP) -> int:
     """The warm-up of a generator (:mod:`fdisyn.runtime.warmup`): the fewest samples ``N`` whose least-squares
     estimate of its initial error sees every direction the residual will ever see and leaves at most
     :data:`WARMUP_RESIDUE` of it.
 
     Parameters
     ----------
-    gen : Generator
-        A Schur-stable generator.
+    Ar, Cr : numpy.ndarray
+        The error dynamics (Schur stable) and the residual's map of the state: a linear generator's ``Ar, Cr``,
+        a Beard filter's ``A − L C, C``.
     weight : numpy.ndarray or None
         Its first statistic's ``W`` (``None``: the identity).
+    most : int
+        The longest warm-up allowed (each sample is ``n_state × n_residual`` constants of the step).
 
     Returns
     -------
     int
-        ``N`` (0 for a generator without state), at most :data:`~fdisyn.runtime.warmup.MAX_WARMUP`.
+        ``N`` (0 for a generator without state), at most ``most``.
     """
-    ns = gen.n_state
-    if ns == 0:
+    ns, nr = Ar.shape[0], Cr.shape[0]
+    if ns == 0 or most < 1:
         return 0
-    w = np.eye(gen.n_residual) if weight is None else np.asarray(weight, dtype=float)
-    total = scipy.linalg.solve_discrete_lyapunov(gen.Ar.T, gen.Cr.T @ w @ gen.Cr)
+    w = np.eye(nr) if weight is None else np.asarray(weight, dtype=float)
+    total = scipy.linalg.solve_discrete_lyapunov(Ar.T, Cr.T @ w @ Cr)
     total = 0.5 * (total + total.T)
-    top = float(np.max(np.linalg.eigvalsh(total))) if total.size else 0.0
+    d = np.diag(total)
+    s = np.where(d > 0, 1.0 / np.sqrt(np.where(d > 0, d, 1.0)), 0.0)  # unit diagonal: directions counted whatever the units
+    lam = np.linalg.eigvalsh(s[:, None] * total * s[None, :])
+    top = float(np.max(lam)) if lam.size else 0.0
     if not top > 0:
         return 0  # the residual never sees the state
-    seen = int(np.sum(np.linalg.eigvalsh(total) > PINV_RTOL * top))
+    seen = int(np.sum(lam > PINV_RTOL * top))
     info, power = np.zeros((ns, ns)), np.eye(ns)
-    for n in range(1, MAX_WARMUP + 1):
-        phi = gen.Cr @ power
+    for n in range(1, most + 1):
+        phi = Cr @ power
         info += phi.T @ w @ phi
-        power = gen.Ar @ power
-        lam = np.linalg.eigvalsh(0.5 * (info + info.T))
+        power = Ar @ power
+        lam = np.linalg.eigvalsh(s[:, None] * (0.5 * (info + info.T)) * s[None, :])
         if int(np.sum(lam > PINV_RTOL * top)) < seen:
             continue
-        left = float(np.trace((total - info) @ np.linalg.pinv(info, rcond=PINV_RTOL, hermitian=True)))
+        left = float(np.trace((total - info) @ equilibrated_pinv(0.5 * (info + info.T))))
         if left <= WARMUP_RESIDUE:
             return n
-    return MAX_WARMUP
+    return most
 
 
 def sequential_evaluators(

@@ -18,7 +18,7 @@ from fdisyn.models.linear import LinearPlant
 from fdisyn.numerics.account import BankView, default_bank_of
 from fdisyn.runtime.gainfile import GainFile
 from fdisyn.runtime.reference import LinearReference, RunResult
-from fdisyn.synthesis.kinds import DiagnoserKind, register_kind
+from fdisyn.synthesis.kinds import DiagnoserKind, register_kind, warmup_text
 from fdisyn.synthesis.linear_step import linear_step_function
 from fdisyn.synthesis.residual import long_run_covariance
 
@@ -134,10 +134,9 @@ def _certified(gf: GainFile) -> list[Mapping[str, Any]]:
 
 
 def _describe(gf: GainFile) -> str:
-    warm = sorted({g.warmup for g in gf.generators})
-    if warm == [0]:
+    span = warmup_text(gf)
+    if span in (None, "0"):
         return f"{len(gf.generators)} generators"
-    span = str(warm[0]) if len(warm) == 1 else f"{warm[0]}–{warm[-1]}"
     return f"{len(gf.generators)} generators, a warm-up of {span} samples before the statistics run"
 
 
@@ -154,6 +153,7 @@ LINEAR = register_kind(
         lorden_bound=lorden_bound,
         account_view=linear_account_view,
         reference=linear_reference_run,
+        warmups=lambda gf: tuple(int(g.warmup) for g in gf.generators),
     )
 )
 """The ``linear`` kind, produced by every linear method (:func:`fdisyn.synthesis.linear_diagnoser.linear_method`,

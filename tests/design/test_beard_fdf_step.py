@@ -215,9 +215,9 @@ def hostile_trace(flt: BeardFilter, F: np.ndarray, plant: str, seed: int) -> tup
 
 
 @pytest.mark.parametrize("plant", list(PLANTS))
-@pytest.mark.parametrize("rho", [None, 3.0])
-def test_casadi_step_equals_the_numpy_reference(plant: str, rho: float | None) -> None:
-    flt, F = PLANTS[plant](**decision(plant, rho=rho))
+@pytest.mark.parametrize(("rho", "warmup"), [(None, 0), (3.0, 0), (None, 6)])
+def test_casadi_step_equals_the_numpy_reference(plant: str, rho: float | None, warmup: int) -> None:
+    flt, F = PLANTS[plant](**decision(plant, rho=rho, warmup=warmup))
     gf = gain_file(flt)
     U, Y = hostile_trace(flt, F, plant, seed=5)
     got = casadi_run(gf, U, Y)
@@ -238,8 +238,9 @@ def test_casadi_step_equals_the_numpy_reference(plant: str, rho: float | None) -
 # --------------------------------------------------------------------------- (c) the compiled C ≡ CasADi ≡ NumPy
 
 
-def test_compiled_c_equals_casadi_and_the_reference(tmp_path) -> None:  # noqa: ANN001 - a path
-    flt, F = four_state(**DECISION)
+@pytest.mark.parametrize("warmup", [0, 6])
+def test_compiled_c_equals_casadi_and_the_reference(tmp_path, warmup: int) -> None:  # noqa: ANN001 - a path
+    flt, F = four_state(**DECISION, warmup=warmup)
     gf = gain_file(flt, name="beard_four_state")
     write_gain_file(gf, tmp_path / "gains.json")
     cd = CompiledDiagnoser(codegen(tmp_path).library, read_gain_file(tmp_path / "gains.json"))
@@ -421,6 +422,10 @@ CORRUPTIONS = {
     "persistence_huge": (_set("persistence", 10**10), r"beard_fdf\.persistence must be"),
     "thresholds": (_set("thresholds", [0.05, 2.0, None, None, None, None]), r"beard_fdf\.thresholds must be \[h, 1\.0\]"),
     "design": (_set("design", [1, 2]), r"beard_fdf\.design must be an object"),
+    "warmup_negative": (_set("warmup", -1), r"beard_fdf\.warmup must be a whole number in 0\.\.1000; found -1"),
+    "warmup_bool": (_set("warmup", True), r"beard_fdf\.warmup must be a whole number in 0\.\.1000; found True"),
+    "warmup_huge": (_set("warmup", 1001), r"beard_fdf\.warmup must be a whole number in 0\.\.1000"),
+    "warmup_state": (_set("warmup", 3), r"step\.nstate is 19; .* implies 23"),  # its accumulator is not in the state
 }
 
 

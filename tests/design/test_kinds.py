@@ -17,7 +17,7 @@ from fdisyn.runtime.errors import ArgumentError, GainFileError
 from fdisyn.runtime.gainfile import GainFile
 from fdisyn.simulation.plant_file import load_spec
 from fdisyn.synthesis import kinds, registry
-from fdisyn.synthesis.kinds import STEP_INPUTS, STEP_OUTPUTS, DiagnoserKind, ExtraMetrics, get_kind
+from fdisyn.synthesis.kinds import STEP_INPUTS, STEP_OUTPUTS, DiagnoserKind, ExtraMetrics, get_kind, warmup_text
 
 EXAMPLE_OF = {"linear": "dc_motor", "beard_fdf": "beard_textbook", "nafdf": "ship"}
 """A shipped plant file whose default design is of each kind."""
@@ -67,10 +67,14 @@ def test_what_each_kind_says(designed: dict[str, GainFile]) -> None:
     warm = sorted({g.warmup for g in lin.generators})
     span = str(warm[0]) if len(warm) == 1 else f"{warm[0]}–{warm[-1]}"
     assert get_kind("linear").describe(lin) == f"{len(lin.generators)} generators, a warm-up of {span} samples before the statistics run"
-    before = SimpleNamespace(generators=[replace(g, warmup=0) for g in lin.generators])  # a file written before warm-ups
+    before = SimpleNamespace(kind="linear", generators=[replace(g, warmup=0) for g in lin.generators])  # a file written before warm-ups
     assert get_kind("linear").describe(before) == f"{len(lin.generators)} generators"  # type: ignore[arg-type]
     assert get_kind("nafdf").describe(nafdf) == f"a nafdf step with {nafdf.step.nstate} states"
-    assert get_kind("beard_fdf").describe(beard) == f"a beard_fdf step with {beard.step.nstate} states"
+    beard_warm = beard.extensions["beard_fdf"]["warmup"]
+    assert beard_warm >= 1
+    assert get_kind("beard_fdf").describe(beard) == (
+        f"a beard_fdf step with {beard.step.nstate} states, a warm-up of {beard_warm} samples before its window fills")
+    assert warmup_text(nafdf) is None and warmup_text(lin) == span and warmup_text(beard) == str(beard_warm)
     assert get_kind("linear").certified(lin) == list(lin.certificate["generators"])
     assert get_kind("nafdf").certified(nafdf) == [nafdf.certificate["nafdf"]]
     assert get_kind("linear").rate_unit == "per statistic and sample" and get_kind("nafdf").rate_unit == "per sample"

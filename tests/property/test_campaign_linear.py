@@ -217,13 +217,10 @@ def _replay(case: Case, gf, tmp_path) -> None:  # noqa: ANN001
     fault[j] = size
     U, Y = _simulate(case, gf, steps, onset, fault)
     res = mon.run(U, Y)
-    if gf.kind == "linear":
-        ref = LinearReference(gf).run(U, Y)
-    else:
-        from fdisyn.synthesis.beard_fdf.payload import beard_from_gain_file
-        from fdisyn.synthesis.beard_fdf.reference import beard_reference_run
+    from fdisyn.synthesis.beard_fdf.payload import beard_from_gain_file
+    from fdisyn.synthesis.beard_fdf.reference import beard_reference_run
 
-        ref = beard_reference_run(beard_from_gain_file(gf), U, Y)
+    ref = LinearReference(gf).run(U, Y) if gf.kind == "linear" else beard_reference_run(beard_from_gain_file(gf), U, Y)
     # Round-off in r follows the terms it is summed from, not r: on an unstable plant the outputs grow to 1e6
     # while the decoupled residual stays near the noise. Each generator's r = Cr ξ + Du u + Dy y sums terms of
     # about |Dy|·|y| and |Cr (I − Ar)⁻¹ By|·|y| (ξ follows y through the generator's own gain), likewise for u;
@@ -242,14 +239,17 @@ def _replay(case: Case, gf, tmp_path) -> None:  # noqa: ANN001
         scale *= (2.0 if name == "J" else 1.0) * terms / r_max
         assert np.array_equal(np.isfinite(a), fin) and np.max(np.abs(a[fin] - b[fin]), initial=0.0) <= REPLAY_TOL * scale, name
     assert np.array_equal(res.alarm, ref.alarm) and np.array_equal(res.isolated, ref.isolated)
+    # quiet from switch-on: none in the warm-up, and the fault-free stretch's alarmed samples within the Poisson
+    # bound (10⁻⁶) of the statistics' false-alarm probabilities (persistence only lowers the rate)
     if gf.kind == "linear":
-        # quiet from switch-on: none in the warm-up, and the fault-free stretch's alarmed samples within the Poisson
-        # bound (10⁻⁶) of the statistics' false-alarm probabilities (persistence only lowers the rate)
         warm = max((g.warmup for g in gf.generators), default=0)
-        assert not res.alarm[:warm].any(), f"an alarm in the warm-up of {warm} samples"
         expected = onset * sum(float(ev.P_f) for ev in gf.evaluators)
-        assert int(res.alarm[:onset].sum()) <= scipy.stats.poisson.isf(1e-6, expected), (
-            f"{int(res.alarm[:onset].sum())} alarmed samples of {onset} fault-free ones ({expected:.3g} expected)")
+    else:
+        flt = beard_from_gain_file(gf)
+        warm, expected = flt.warmup + flt.window - 1, onset * float(flt.design_info["P_f"])
+    assert not res.alarm[:warm].any(), f"an alarm in the warm-up of {warm} samples"
+    assert int(res.alarm[:onset].sum()) <= scipy.stats.poisson.isf(1e-6, expected), (
+        f"{int(res.alarm[:onset].sum())} alarmed samples of {onset} fault-free ones ({expected:.3g} expected)")
     if size is None:
         return
     assert res.alarm[onset:].any(), f"a step of {size:.3g} on output {gf.outputs[j]} raised no alarm"

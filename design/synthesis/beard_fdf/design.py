@@ -41,9 +41,11 @@ from fdisyn.runtime.errors import ArgumentError, ExistenceError
 from fdisyn.runtime.gainfile import GainFile
 from fdisyn.runtime.schema import LIMITS, MAX_MAGNITUDE
 from fdisyn.runtime.names import shown
+from fdisyn.runtime.warmup import MAX_WARMUP
 from fdisyn.synthesis.beard_fdf.eigenstructure import optimise_eigenstructure, residual_covariance_trace
 from fdisyn.synthesis.beard_fdf.payload import NSTATE_MARGIN, BeardFilter, beard_gain_file
 from fdisyn.synthesis.beard_fdf.reference import beard_reference_run
+from fdisyn.synthesis.linear_diagnoser import warmup_length
 from fdisyn.synthesis.registry import at
 
 __all__ = ["design_beard_fdf", "fault_directions", "cone_geometry"]
@@ -324,10 +326,18 @@ def design_beard_fdf(
     excess = max([float(worst_angle[j] / y_check[j]) for j in range(k) if informative[j] and y_check[j] > 0], default=0.0)
     tightness = [float(worst_angle[j] / y_check[j]) if informative[j] and y_check[j] > 0 else None for j in range(k)]
 
+    # the warm-up: the filter's initial error estimated by least squares over its first samples (a plant running at
+    # switch-on is at no equilibrium), within what the size limits leave to its constants
+    n_x, p_y = ad.shape[0], c.shape[0]
+    spare = LIMITS["warmup_coefficients"] - n_x * n_x
+    room = LIMITS["nstate"] - NSTATE_MARGIN - int(window) * p_y - 2 * n_x >= 0
+    warmup = warmup_length(g, c, None, most=min(MAX_WARMUP, max(0, spare) // (n_x * p_y))) if room else 0
+    info["warmup_samples"] = warmup
+
     # the explicit level and the magnitude threshold
     provisional = BeardFilter(
         A=ad, B=np.asarray(pd.B), C=c, D=np.asarray(pd.D), L=gain, axes=axes, Y_th=y_th, window=int(window),
-        h=1.0, explicit_level=1.0, rho=rho, persistence=int(persistence), design_info={},
+        h=1.0, explicit_level=1.0, rho=rho, persistence=int(persistence), design_info={}, warmup=warmup,
     )
     source = "given"
     if h is None or explicit_level is None:
@@ -399,6 +409,7 @@ def design_beard_fdf(
     flt = BeardFilter(
         A=ad, B=np.asarray(pd.B), C=c, D=np.asarray(pd.D), L=gain, axes=axes, Y_th=y_th, window=int(window),
         h=float(h), explicit_level=float(explicit_level), rho=rho, persistence=int(persistence), design_info=info,
+        warmup=warmup,
     )
     return beard_gain_file(
         flt, name=name, problem=problem or name, design_name=f"beard_fdf_{kind}", Ts=ts, inputs=tuple(pd.inputs),

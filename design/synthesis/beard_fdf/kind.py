@@ -16,7 +16,7 @@ from fdisyn.runtime.reference import RunResult
 from fdisyn.synthesis.beard_fdf.payload import beard_from_gain_file
 from fdisyn.synthesis.beard_fdf.reference import beard_reference_run
 from fdisyn.synthesis.beard_fdf.step import beard_step_function
-from fdisyn.synthesis.kinds import DiagnoserKind, register_kind
+from fdisyn.synthesis.kinds import DiagnoserKind, register_kind, step_states, warmup_text
 
 __all__ = ["BEARD_KIND", "SETTLED", "settling_samples", "beard_budget_seconds", "beard_recovery_samples", "beard_account_view", "beard_kind_reference"]
 
@@ -149,6 +149,16 @@ def beard_kind_reference(gf: GainFile, U: np.ndarray, Y: np.ndarray) -> RunResul
     return beard_reference_run(beard_from_gain_file(gf), U, Y)
 
 
+def _warmups(gf: GainFile) -> tuple[int, ...]:
+    """The filter's warm-up (0 in a file written before warm-ups)."""
+    return (beard_from_gain_file(gf).warmup,)
+
+
+def _describe(gf: GainFile) -> str:
+    span = warmup_text(gf)
+    return step_states(gf) + ("" if span in (None, "0") else f", a warm-up of {span} samples before its window fills")
+
+
 BEARD_KIND = register_kind(
     DiagnoserKind(
         name="beard_fdf",
@@ -158,6 +168,8 @@ BEARD_KIND = register_kind(
         false_alarm_budget=beard_budget_seconds,
         account_view=beard_account_view,
         reference=beard_kind_reference,
+        warmups=_warmups,
+        describe=_describe,
     )
 )
 """The ``beard_fdf`` kind, produced by the method ``beard_fdf`` (:mod:`fdisyn.synthesis.beard_fdf.method`)."""

@@ -9,7 +9,8 @@ the angle of the window mean to each axis (the cone test).
 ``extensions["beard_fdf"]`` (format 1) holds the discrete design model and gain, the equilibrium maps,
 one orthonormal basis per fault's output subspace, the implicit thresholds ``Y_th`` (radians), the
 window, the thresholds ``h`` (on the RMS) and ``explicit_level`` (``ε̄``), the optional fixed ``rho``,
-the persistence, the generic ``thresholds`` and an informational ``design`` object. The reader checks
+the persistence, the generic ``thresholds``, an informational ``design`` object and, optionally, the
+``warmup`` (samples; absent: 0, as in files written before warm-ups). The reader checks
 every field (:func:`beard_from_gain_file`) and raises :class:`GainFileError` naming it.
 """
 
@@ -32,6 +33,7 @@ from fdisyn.runtime.validate import check_magnitudes
 from fdisyn.runtime.layout import StateLayout
 from fdisyn.runtime.names import shown
 from fdisyn.runtime.values import real_number
+from fdisyn.runtime.warmup import MAX_WARMUP, warmup_coefficients, warmup_constants
 from fdisyn.synthesis.linear_diagnoser import provenance
 
 __all__ = [
@@ -48,8 +50,8 @@ KIND = "beard_fdf"
 """The diagnoser kind (gain file ``kind``) and the key of the payload in ``extensions``."""
 PAYLOAD_FORMAT = 1
 NSTATE_MARGIN = 8
-"""``N·p + n + NSTATE_MARGIN ≤ LIMITS["nstate"]``: the state holds ``N·p + n + 5`` entries; the margin
-is the specification's."""
+"""``N·p + n + NSTATE_MARGIN ≤ LIMITS["nstate"]``: the state holds ``N·p + n + 5`` entries (``n`` more with a
+warm-up, which the limit then counts too); the margin is the specification's."""
 _ORTHONORMAL_TOL = 1e-9
 _EQUILIBRIUM_RTOL = 1e-8
 """Stored ``Xu``, ``Xy`` against their recomputation from ``A B C D L``: a solve with ``I − G`` on another
@@ -58,6 +60,8 @@ _FIELDS = (
     "format", "A", "B", "C", "D", "L", "Xu", "Xy", "axes", "Y_th", "window", "h",
     "explicit_level", "rho", "persistence", "thresholds", "design",
 )  # fmt: skip
+_OPTIONAL = ("warmup",)
+"""Fields a payload may leave out: a file written before warm-ups has none (and runs without one)."""
 
 
 def _jsonable(info: Mapping[str, Any]) -> dict[str, Any]:
@@ -75,7 +79,10 @@ class BeardFilter:
     half-angle); ``window`` ``N``; ``h`` the threshold of the window RMS; ``explicit_level`` ``ε̄``, the
     fault-free bound of the window mean's norm; ``rho`` ``None`` (the cone widens by
     ``asin(ε̄/‖m‖)`` online) or a fixed ratio ``> 1``; ``persistence`` consecutive RMS exceedances
-    before an alarm; ``design_info`` informational (eigenvalues, σ, P_f, …), kept as JSON.
+    before an alarm; ``design_info`` informational (eigenvalues, σ, P_f, …), kept as JSON; ``warmup`` the
+    samples over which the filter's initial error is estimated by least squares before its window fills
+    (:mod:`fdisyn.runtime.warmup` on ``A − L C`` and ``C``; 0: none, the filter starts at its first valid
+    sample's equilibrium).
     """
 
     A: np.ndarray
@@ -91,6 +98,7 @@ class BeardFilter:
     rho: float | None = None
     persistence: int = 1
     design_info: Mapping[str, Any] = field(default_factory=dict)
+    warmup: int = 0
 
     def __post_init__(self) -> None:
         for key in ("A", "B", "C", "D", "L"):
@@ -102,12 +110,19 @@ class BeardFilter:
         object.__setattr__(self, "explicit_level", float(self.explicit_level))
         object.__setattr__(self, "rho", None if self.rho is None else float(self.rho))
         object.__setattr__(self, "persistence", int(self.persistence))
+        object.__setattr__(self, "warmup", int(self.warmup))
         object.__setattr__(self, "design_info", _jsonable(self.design_info))
 
     @cached_property
     def G(self) -> np.ndarray:
         """``A − L C``: the error dynamics ``e⁺ = G e + f_i μ_i``."""
         return self.A - self.L @ self.C
+
+    @cached_property
+    def warmup_gains(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(G, M)`` of the warm-up (:func:`fdisyn.runtime.warmup.warmup_constants`): the residual moves with the
+        estimate's error ``x̂ − x`` through ``Φ_k = −C (A − L C)^k``."""
+        return warmup_constants(self.G, -self.C, self.warmup, None)
 
     @cached_property
     def Xu(self) -> np.ndarray:
@@ -138,9 +153,11 @@ class BeardFilter:
 
     @property
     def layout(self) -> StateLayout:
-        """``xhat`` (n), ``ready``, ``buffer`` (``p × N``: column ``j`` one residual of the ring), ``head``
-        (the column written next), ``count`` (samples in the window, saturating at ``N``), ``counter``
-        (consecutive RMS exceedances, saturating at ``persistence``), ``nonfinite`` (samples skipped)."""
+        """``xhat`` (n), ``ready`` (valid samples since the filter started, counted to ``warmup + 1``),
+        ``buffer`` (``p × N``: column ``j`` one residual of the ring), ``head`` (the column written next),
+        ``count`` (samples in the window, saturating at ``N``), ``counter`` (consecutive RMS exceedances,
+        saturating at ``persistence``), ``nonfinite`` (samples skipped); with a warm-up, ``acc`` (n): its
+        accumulated ``Σ Φ_kᵀ ε_k``."""
         return StateLayout(
             (
                 ("xhat", self.n, 1),
@@ -150,6 +167,7 @@ class BeardFilter:
                 ("count", 1, 1),
                 ("counter", 1, 1),
                 ("nonfinite", 1, 1),
+                *((("acc", self.n, 1),) if self.warmup else ()),
             ),
             scalars=frozenset({"ready", "head", "count", "counter", "nonfinite"}),
             matrices=frozenset({"buffer"}),
@@ -186,6 +204,7 @@ def _payload(flt: BeardFilter) -> dict[str, Any]:
         "persistence": flt.persistence,
         "thresholds": _thresholds(flt),
         "design": dict(flt.design_info),
+        **({"warmup": flt.warmup} if flt.warmup else {}),
     }
 
 
@@ -286,7 +305,8 @@ def beard_from_gain_file(gf: GainFile) -> BeardFilter:
     :data:`~fdisyn.runtime.schema.MAX_MAGNITUDE` (so that no check below overflows), orthonormal axes
     (to 1e-9), ``0 ≤ Y_th ≤ π/2``, ``A − L C`` Schur stable, the equilibrium maps, the window within
     :data:`~fdisyn.runtime.schema.LIMITS` (``N·p + n + 8 ≤ nstate``), ``h, ε̄ > 0``, ``rho`` null or
-    ``> 1``, the persistence, the thresholds, and the step's sizes, names and initial state. Raises
+    ``> 1``, the persistence, the warm-up (0 to :data:`~fdisyn.runtime.warmup.MAX_WARMUP`), the thresholds, and
+    the step's sizes, names and initial state. Raises
     :class:`GainFileError` with one line naming the field, what was expected and what was found.
     """
     where = f"extensions.{KIND}"
@@ -299,7 +319,7 @@ def beard_from_gain_file(gf: GainFile) -> BeardFilter:
     if not isinstance(doc, Mapping):
         raise GainFileError(f"{where} must be an object; found {shown(doc)}")
     missing = [k for k in _FIELDS if k not in doc]
-    unknown = sorted(str(k) for k in doc if k not in _FIELDS)
+    unknown = sorted(str(k) for k in doc if k not in _FIELDS + _OPTIONAL)
     if missing or unknown:
         raise GainFileError(f"{where}: missing field(s) {missing}, unknown field(s) {shown(unknown)}")
     rd = _Reader(doc, where)
@@ -316,7 +336,9 @@ def beard_from_gain_file(gf: GainFile) -> BeardFilter:
     most = min(LIMITS["plant_states"], LIMITS["nstate"] - NSTATE_MARGIN - p)
     if not 1 <= n <= most:
         raise rd.fail("A", f"a square matrix of 1 to {most} rows")
-    window = rd.integer("window", 1, max(1, (LIMITS["nstate"] - NSTATE_MARGIN - n) // p))
+    warmup = rd.integer("warmup", 0, MAX_WARMUP) if "warmup" in doc else 0
+    acc = n if warmup else 0  # the warm-up's accumulator
+    window = rd.integer("window", 1, max(1, (LIMITS["nstate"] - NSTATE_MARGIN - n - acc) // p))
     persistence = rd.integer("persistence", 1, LIMITS["persistence"])
     A = rd.matrix("A", n, n)
     B = rd.matrix("B", n, m)
@@ -330,6 +352,9 @@ def beard_from_gain_file(gf: GainFile) -> BeardFilter:
             f"{where}: A B C D L and the equilibrium maps hold up to {coefficients} coefficients; at most "
             f"{LIMITS['coefficients']} are supported (the generated C has one multiply-add per coefficient)"
         )
+    if warmup_coefficients(warmup, n, p) > LIMITS["warmup_coefficients"]:
+        raise rd.fail("warmup", f"at most {max(0, (LIMITS['warmup_coefficients'] - n * n) // (n * p))} samples for {n} states and "
+                      f"{p} outputs (its constants, {LIMITS['warmup_coefficients']} at most, are multiply-adds of the generated C)")
     G = A - L @ C  # finite: entries within MAX_MAGNITUDE (see check_magnitudes)
     try:
         with np.errstate(over="ignore", invalid="ignore"):
@@ -372,7 +397,7 @@ def beard_from_gain_file(gf: GainFile) -> BeardFilter:
 
     flt = BeardFilter(
         A=A, B=B, C=C, D=D, L=L, axes=tuple(axes), Y_th=np.array(y_th, dtype=float), window=window, h=h,
-        explicit_level=level, rho=rho, persistence=persistence, design_info=doc["design"],
+        explicit_level=level, rho=rho, persistence=persistence, design_info=doc["design"], warmup=warmup,
     )  # fmt: skip
     for key in ("Xu", "Xy"):
         try:

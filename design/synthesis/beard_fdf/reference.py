@@ -32,6 +32,10 @@ def beard_reference_run(flt: BeardFilter, U: np.ndarray, Y: np.ndarray, state: n
     xhat = np.array(st["xhat"], dtype=float)
     buf = np.array(st["buffer"], dtype=float).reshape(p, N)
     ready, head, count, counter, nonfinite = (float(st[key]) for key in ("ready", "head", "count", "counter", "nonfinite"))  # type: ignore[arg-type]
+    n_warm = flt.warmup
+    if n_warm:
+        gains, correction = flt.warmup_gains
+        acc = np.array(st["acc"], dtype=float).reshape(-1)
     if flt.rho is None:
         fixed_x = None
     else:
@@ -44,21 +48,31 @@ def beard_reference_run(flt: BeardFilter, U: np.ndarray, Y: np.ndarray, state: n
         u, y = U[t], Y[t]
         if not (np.all(np.isfinite(u)) and np.all(np.isfinite(y))):
             nonfinite += 1
+            if ready < n_warm:  # a gap in the warm-up: it starts again at the next valid sample
+                ready = 0.0
             status_out[t] = 1
             continue
         x = flt.Xu @ u + flt.Xy @ y if ready == 0 else xhat
         eps = y - flt.C @ x - flt.D @ u
         x_next = flt.A @ x + flt.B @ u + flt.L @ eps
+        new_acc = None
+        with np.errstate(over="ignore", invalid="ignore"):
+            if n_warm and ready < n_warm:  # the warm-up: Σ Φ_jᵀ ε_j, and the least-squares correction after its last sample
+                new_acc = (np.zeros(flt.n) if ready == 0 else acc) + gains[int(ready)] @ eps
+                if ready == n_warm - 1:
+                    x_next = x_next + correction @ new_acc
+                    new_acc = np.zeros(flt.n)
+        live = ready >= n_warm  # the window runs from the sample after the warm-up
         new_buf = buf.copy()
-        for j in range(N):
-            if head == j:
-                new_buf[:, j] = eps
-        new_count = min(count + 1, N)
-        valid = new_count >= N
+        if live:
+            new_buf[:, int(head)] = eps
+        new_count = min(count + 1, N) if live else count
+        valid = live and new_count >= N
         with np.errstate(over="ignore", invalid="ignore"):
             stats = _statistics(flt, new_buf, fixed_x, half)
         J = stats[0] if valid else np.zeros(2 + 2 * k)
-        if not (np.all(np.isfinite(eps)) and np.all(np.isfinite(x_next)) and np.all(np.isfinite(J))):
+        finite = [eps, x_next, J] + ([new_acc] if new_acc is not None else [])
+        if not all(np.all(np.isfinite(v)) for v in finite):
             nonfinite += 1
             ready = 0.0
             status_out[t] = 1
@@ -70,12 +84,17 @@ def beard_reference_run(flt: BeardFilter, U: np.ndarray, Y: np.ndarray, state: n
         iso = -1
         if alarm and sum(inside) == 1 and (flt.rho is None or rho >= flt.rho):
             iso = inside.index(True)
-        xhat, buf, ready, count = x_next, new_buf, 1.0, float(new_count)
-        head = 0.0 if head + 1 >= N else head + 1
+        xhat, buf, count = x_next, new_buf, float(new_count)
+        ready = min(ready + 1.0, n_warm + 1.0)
+        if new_acc is not None:
+            acc = new_acc
+        if live:
+            head = 0.0 if head + 1 >= N else head + 1
         r_out[t], J_out[t], alarm_out[t], iso_out[t] = eps, J, int(alarm), iso
-    final = lay.pack(
-        {"xhat": xhat, "ready": ready, "buffer": buf, "head": head, "count": count, "counter": counter, "nonfinite": nonfinite}
-    )
+    blocks = {"xhat": xhat, "ready": ready, "buffer": buf, "head": head, "count": count, "counter": counter, "nonfinite": nonfinite}
+    if n_warm:
+        blocks["acc"] = acc
+    final = lay.pack(blocks)
     return RunResult(r=r_out, J=J_out, alarm=alarm_out, isolated=iso_out, status=status_out, state=final)
 
 

@@ -4,17 +4,20 @@ Per valid sample (Beard, MIT thesis, 1971; He, Zhang & Wu, Journal of Astronauti
 
     x̂      = x̂(k), or the equilibrium Xu u + Xy y at the first valid sample (ready = 0)
     ε       = y − C x̂ − D u                                 r
-    x̂(k+1) = A x̂ + B u + L ε
+    x̂(k+1) = A x̂ + B u + L ε   (− (A−LC)^W (Σ Φ_jᵀΦ_j)⁺ Σ Φ_jᵀ ε_j after the W-th sample of a warm-up)
     s       = sqrt((1/N) Σ_{j<N} ‖ε(k−j)‖²)                 the window RMS: the magnitude statistic
     m       = (1/N) Σ_{j<N} ε(k−j)                          the window mean: the direction
     ρ       = ‖m‖ / ε̄,   X = asin(min(1, 1/ρ))  (asin(1/rho) with a fixed rho)
     α_i     = atan2(‖(I − P_i) m‖, ‖P_i m‖)  (π/2 when m = 0),   I_i = min(π/2, X + Y_th,i)
 
-``J = [s, ρ, α_1..α_k, I_1..I_k]`` once the window is full (``N`` samples since the start), zeros before.
+With a warm-up of ``W`` samples (:mod:`fdisyn.runtime.warmup`, ``Φ_j = −C (A − L C)^j``) the window is written
+from the sample after it. ``J = [s, ρ, α_1..α_k, I_1..I_k]`` once the window is full (``W + N`` samples since
+the start), zeros before.
 ``alarm``: ``s > h`` for ``persistence`` consecutive samples; ``isolated``: the one cone ``α_i ≤ I_i`` the
 window mean lies in (with a fixed ``rho`` also ``ρ ≥ rho``), −1 when none or several. A sample with a
-non-finite ``u`` or ``y`` keeps the state (``nonfinite`` counts it), status 1, outputs zero; a finite
-sample whose results overflow does the same and restarts the filter at its next valid sample.
+non-finite ``u`` or ``y`` keeps the state (``nonfinite`` counts it), status 1, outputs zero (inside the warm-up
+it restarts the warm-up); a finite sample whose results overflow does the same and restarts the filter at its
+next valid sample.
 The NumPy twin is :func:`fdisyn.synthesis.beard_fdf.reference.beard_reference_run`.
 """
 
@@ -59,14 +62,24 @@ def beard_step(flt: BeardFilter) -> ca.Function:
     x = ca.if_else(ready == 0, x_eq, old["xhat"])
     eps = ys - ca.mtimes(constant(flt.C), x) - ca.mtimes(constant(flt.D), us)
     x_next = ca.mtimes(constant(flt.A), x) + ca.mtimes(constant(flt.B), us) + ca.mtimes(constant(flt.L), eps)
+    n_warm = flt.warmup
+    if n_warm:  # the warm-up: the least-squares initial error over its samples, removed after the last
+        gains, correction = flt.warmup_gains
+        acc = ca.if_else(ready == 0, ca.SX.zeros(flt.n), old["acc"])
+        for j in range(n_warm):
+            acc = acc + ca.if_else(ready == j, ca.mtimes(constant(gains[j]), eps), ca.SX.zeros(flt.n))
+        last = ready == n_warm - 1
+        x_next = x_next + ca.if_else(last, ca.mtimes(constant(correction), acc), ca.SX.zeros(flt.n))
+        acc_next = ca.if_else(last, ca.SX.zeros(flt.n), acc)  # used: the accumulator is emptied
+    live = ready >= n_warm
 
-    # ---- the window: ε written at column head of the ring
+    # ---- the window: ε written at column head of the ring, from the sample after the warm-up
     head, count = old["head"], old["count"]
     buf = old["buffer"]
-    buf_next = ca.horzcat(*[ca.if_else(head == j, eps, buf[:, j]) for j in range(N)])
-    head_next = ca.if_else(head + 1 >= N, 0, head + 1)
-    count_next = ca.fmin(count + 1, N)
-    valid = count_next >= N
+    buf_next = ca.horzcat(*[ca.if_else(ca.logic_and(live, head == j), eps, buf[:, j]) for j in range(N)])
+    head_next = ca.if_else(live, ca.if_else(head + 1 >= N, 0, head + 1), head)
+    count_next = ca.if_else(live, ca.fmin(count + 1, N), count)
+    valid = ca.logic_and(live, count_next >= N)
     s = ca.sqrt(ca.sumsqr(buf_next) / N)
     mean = ca.sum2(buf_next) / N
     norm_m = _norm(mean)
@@ -95,12 +108,15 @@ def beard_step(flt: BeardFilter) -> ca.Function:
     isolated = ca.if_else(decide, which, -1)
 
     # ---- a skipped sample: non-finite input, or finite input whose results overflow
-    ok = ca.logic_and(ok_in, all_finite(eps, x_next, J_proc))
+    ok = ca.logic_and(ok_in, all_finite(eps, x_next, J_proc, *((acc_next,) if n_warm else ())))
     overflow = ca.logic_and(ok_in, ca.logic_not(ok))
     new = dict(old)
-    new.update(xhat=x_next, ready=ca.SX(1), buffer=buf_next, head=head_next, count=count_next, counter=counter_next)
-    held = dict(old)
-    held.update(ready=ca.if_else(overflow, 0, ready), nonfinite=old["nonfinite"] + 1)
+    new.update(xhat=x_next, ready=ca.fmin(ready + 1, n_warm + 1), buffer=buf_next, head=head_next, count=count_next,
+               counter=counter_next)
+    if n_warm:
+        new.update(acc=acc_next)
+    held = dict(old)  # a gap in the warm-up restarts it at the next valid sample
+    held.update(ready=ca.if_else(ca.logic_or(overflow, ready < n_warm), 0, ready), nonfinite=old["nonfinite"] + 1)
     join = lambda blocks: ca.vertcat(*[ca.vec(ca.SX(blocks[name])) for name, _, _ in lay.entries])  # noqa: E731
     state_next = ca.if_else(ok, join(new), join(held))
     return ca.Function(
