@@ -92,11 +92,18 @@ def noise_plant(plant: SampledDataPlant = PLANT) -> LinearPlant:
     )
 
 
-def _diagnoser(design: str, observer: Any, *, P_f: float, detector: str | None = None, arl0: float | None = None) -> GainFile:
+SHIFTS = (0.25, 0.5, 1.0, 2.0, 4.0)
+"""The whitened mean shifts (σ) the multi-scale CUSUM variant is tuned to."""
+
+
+def _diagnoser(
+    design: str, observer: Any, *, P_f: float, detector: str | None = None, arl0: float | None = None, shifts: Sequence[float] | None = None
+) -> GainFile:
     dplant = noise_plant()
     gen = observer.generator(name=design)
+    named = "" if detector is None else f"_{detector}" + ("" if shifts is None else "_multiscale")
     gf = linear_diagnoser(
-        name=f"sampled_data_example_{design}" + ("" if detector is None else f"_{detector}"),
+        name=f"sampled_data_example_{design}{named}",
         problem="sampled_data_example",
         design=design,
         plant=dplant,
@@ -108,21 +115,27 @@ def _diagnoser(design: str, observer: Any, *, P_f: float, detector: str | None =
         evaluator=detector or "chi2",
         window=None,
         arl0=arl0,
-        options={"P_f": P_f, "J": dict(observer.J), "h": PLANT.Ts, **({"detector": detector, "arl0": arl0} if detector else {})},  # "h": the key gain files have always held
+        shifts=shifts,
+        options={"P_f": P_f, "J": dict(observer.J), "h": PLANT.Ts, **({"detector": detector, "arl0": arl0} if detector else {}),
+                 **({"shifts": list(shifts)} if shifts is not None else {})},  # "h": the key gain files have always held
     )
     return with_account(gf, dplant)  # what it can see: the fault f, its smallest size
 
 
 def _designs() -> dict[str, Callable[..., GainFile]]:
-    def direct(*, P_f: float = 1e-3, detector: str | None = None, arl0: float | None = None, **_: object) -> GainFile:
-        return _diagnoser("direct", optimal_diagnostic_observer(plant=PLANT, design="direct"), P_f=P_f, detector=detector, arl0=arl0)
+    def direct(*, P_f: float = 1e-3, detector: str | None = None, arl0: float | None = None, shifts: Sequence[float] | None = None,
+               **_: object) -> GainFile:
+        observer = optimal_diagnostic_observer(plant=PLANT, design="direct")
+        return _diagnoser("direct", observer, P_f=P_f, detector=detector, arl0=arl0, shifts=shifts)
 
-    def indirect(*, P_f: float = 1e-3, detector: str | None = None, arl0: float | None = None, **_: object) -> GainFile:
+    def indirect(*, P_f: float = 1e-3, detector: str | None = None, arl0: float | None = None, shifts: Sequence[float] | None = None,
+                 **_: object) -> GainFile:
         observer = optimal_diagnostic_observer(plant=PLANT, design="indirect")
-        return _diagnoser("indirect", observer, P_f=P_f, detector=detector, arl0=arl0)
+        return _diagnoser("indirect", observer, P_f=P_f, detector=detector, arl0=arl0, shifts=shifts)
 
-    def lmi(*, P_f: float = 1e-3, detector: str | None = None, arl0: float | None = None, **_: object) -> GainFile:
-        return _diagnoser("lmi", lmi_diagnostic_observer(plant=PLANT, eta="inf"), P_f=P_f, detector=detector, arl0=arl0)
+    def lmi(*, P_f: float = 1e-3, detector: str | None = None, arl0: float | None = None, shifts: Sequence[float] | None = None,
+            **_: object) -> GainFile:
+        return _diagnoser("lmi", lmi_diagnostic_observer(plant=PLANT, eta="inf"), P_f=P_f, detector=detector, arl0=arl0, shifts=shifts)
 
     return {"direct": direct, "indirect": indirect, "lmi": lmi}
 
@@ -398,12 +411,16 @@ PROBLEM = Problem(
     scenarios=SCENARIOS,
     simulate=_simulate,
     sample_model=_sample_model,
-    options={"P_f": 1e-3, "detector": None, "arl0": None},
+    options={"P_f": 1e-3, "detector": None, "arl0": None, "shifts": None},
     reference={"J_direct_detects_at_60s": True, "J_indirect_detects": False},
     monte_carlo_runs=200,
-    variants=tuple(
-        {"label": f"{label} at arl0 = 1000 s", "options": {"detector": det, "arl0": 1000.0}}
-        for det, label in (("chi2", "χ²"), ("cusum", "CUSUM"), ("glr", "GLR"))
+    shift_scenario="paper",
+    variants=(
+        *(
+            {"label": f"{label} at arl0 = 1000 s", "options": {"detector": det, "arl0": 1000.0}}
+            for det, label in (("chi2", "χ²"), ("cusum", "CUSUM"), ("glr", "GLR"))
+        ),
+        {"label": "multi-scale CUSUM at arl0 = 1000 s", "options": {"detector": "cusum", "arl0": 1000.0, "shifts": list(SHIFTS)}},
     ),
     report=_report,
     claims=_claims,

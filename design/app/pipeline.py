@@ -232,6 +232,99 @@ def fault_size_sweep(
     return FaultSizeSweep(factors=SWEEP_FACTORS, scenarios=by_base, evaluation=ev)
 
 
+SHIFT_SIGMAS = (0.25, 0.5, 1.0, 2.0, 4.0)
+"""Whitened mean shifts (σ of the residual, ``√(2 I)`` with ``I`` the fault's information per sample) of the
+report's delay-against-shift sweep."""
+
+SHIFT_RUNS = 20
+"""Runs per fault size of that sweep (at most the variant's runs)."""
+
+SHIFT_SPAN = 5.0
+"""The fault of that sweep acts for at least this many Lorden bounds at its smallest shift (the scenario is
+lengthened where it is shorter): a detector within 1.5 bounds then detects in nearly every run."""
+
+
+@dataclass(frozen=True, eq=False)
+class ShiftSweep:
+    """One variant's sequential designs on ``scenario`` at the fault sizes that shift their whitened residual by
+    ``sigmas``: ``metrics[design][σ]``, each design with its own sizes (``factors[design][σ]``, × the scenario's)."""
+
+    scenario: str
+    sigmas: tuple[float, ...]
+    factors: Mapping[str, Mapping[float, float]]
+    metrics: Mapping[str, Mapping[float, Any]]
+    runs: int
+
+
+def shift_sweep(
+    problem: Problem, built: Mapping[str, Built], evaluation: Evaluation, *, runs: int, workers: int | None = None,
+    client: Any = None, source: str | Path | None = None, **options: Any
+) -> ShiftSweep | None:
+    """The delay of each design with sequential statistics (CUSUM, GLR) against the shift of its whitened residual.
+
+    The fault of :attr:`Problem.shift_scenario` shifts the residual by ``s₁ = √(2 I)`` σ in ``evaluation`` (``I``
+    the information per sample the Monte Carlo measured); a bias scaled by ``k`` shifts it by ``k s₁``, so each
+    design runs the scenario at ``k = s / s₁`` for ``s`` in :data:`SHIFT_SIGMAS`.
+
+    Parameters
+    ----------
+    problem : Problem
+        The problem (its ``shift_scenario`` names the scenario; ``None``: no sweep).
+    built : Mapping of str to Built
+        The variant's designs.
+    evaluation : Evaluation
+        The variant's Monte Carlo, which ran the scenario.
+    runs : int
+        Runs per size.
+    workers, client, source
+        Where it runs (:func:`~fdisyn.evaluation.evaluate.evaluate`).
+    **options
+        The variant's options.
+
+    Returns
+    -------
+    ShiftSweep or None
+        ``None`` without a scenario, or when no design has sequential statistics that see its fault.
+    """
+    name = problem.shift_scenario
+    if name is None:
+        return None
+    scale = problem.scaled or scaled_scenario
+    base = problem.scenario(name)
+    src = problem_source(problem) if source is None else source
+    factors: dict[str, dict[float, float]] = {}
+    metrics: dict[str, dict[float, Any]] = {}
+    for d, b in built.items():
+        evs = b.gain_file.evaluators or ()
+        if not any(DETECTORS[ev.kind].sequential for ev in evs) or name not in evaluation.metrics.get(d, {}):
+            continue
+        info = evaluation.metrics[d][name].fault_information
+        if not info or info <= 0:
+            continue
+        s1 = float(np.sqrt(2.0 * info))
+        # the fault acts for at least SHIFT_SPAN Lorden bounds at the smallest shift (the bound grows as 1/s²)
+        bound1 = evaluation.metrics[d][name].lorden_bound_samples
+        active = (base.end if base.end is not None else base.duration) - float(base.onset or 0.0)
+        need = SHIFT_SPAN * float(bound1 or 0.0) * (s1 / min(SHIFT_SIGMAS)) ** 2 * float(b.gain_file.Ts)
+        longer = max(0.0, need - active)
+        copies = {}
+        for s in SHIFT_SIGMAS:
+            sc = scale(base, s / s1)
+            if sc is None:
+                break
+            copies[s] = replace(sc, name=f"{name}_{s:g}sigma", duration=sc.duration + longer,
+                                end=None if sc.end is None else sc.end + longer)
+        if len(copies) < len(SHIFT_SIGMAS):
+            continue
+        ev = evaluate(replace(problem, scenarios={c.name: c for c in copies.values()}), {d: b}, runs=runs, workers=workers,
+                      client=client, source=src, **options)
+        factors[d] = {s: s / s1 for s in copies}
+        metrics[d] = {s: ev.metrics[d][c.name] for s, c in copies.items()}
+    if not metrics:
+        return None
+    return ShiftSweep(scenario=name, sigmas=SHIFT_SIGMAS, factors=factors, metrics=metrics, runs=runs)
+
+
 @dataclass(frozen=True, eq=False)
 class VariantResult:
     """One report variant (e.g. a parameter set): its builds, checks and evaluation."""
@@ -244,6 +337,8 @@ class VariantResult:
     seconds: float
     sweep: FaultSizeSweep | None = None
     """Detection against the fault's size (the main variant only)."""
+    shifts: ShiftSweep | None = None
+    """The sequential designs' delay against their whitened shift (:func:`shift_sweep`)."""
 
 
 def variant_specs(
@@ -316,9 +411,11 @@ def reproduce_problem(
         sweep = None
         if label == "default":
             sweep = fault_size_sweep(problem, built, runs=min(n_runs, SWEEP_RUNS), scenarios=scen, **where, **opts)
+        shifts = shift_sweep(problem, built, ev, runs=min(n_runs, SHIFT_RUNS), **where, **opts)
         seconds = time.perf_counter() - t0
         results.append(
-            VariantResult(label=label, options=ev.options, built=built, exports=exports, evaluation=ev, seconds=seconds, sweep=sweep)
+            VariantResult(label=label, options=ev.options, built=built, exports=exports, evaluation=ev, seconds=seconds, sweep=sweep,
+                          shifts=shifts)
         )
     page = write_report(problem, results, reports / problem.name)
     write_index(reports)

@@ -40,7 +40,7 @@ from fdisyn.runtime.errors import FileError
 from fdisyn.runtime.gainfile import write_gain_file
 from fdisyn.runtime.jsondata import parse_json_data
 from fdisyn.simulation.problem import Problem
-from fdisyn.synthesis.kinds import recovery_samples
+from fdisyn.synthesis.kinds import recovery_samples, warmup_text
 
 __all__ = ["JSON_DIGITS", "write_report", "write_index", "summary_table", "variant_tag", "published_gain_name"]
 
@@ -55,7 +55,7 @@ figure{margin:1em 0}figcaption{font-size:.88em;color:#444}code{background:#f4f4f
 .small{font-size:.85em;color:#555}nav.toc ol{columns:2;font-size:.92em}
 details{margin:.6em 0;border-left:3px solid #e3e3e3;padding-left:.8em}summary{cursor:pointer;font-weight:600}
 dl.defs{display:grid;grid-template-columns:max-content 1fr;gap:.3em 1em}dl.defs dt{font-weight:600}dl.defs dd{margin:0}
-.glance td.l{white-space:nowrap}.glance td{padding:.1em .5em}
+.glance{overflow-x:auto}.glance td.l{white-space:nowrap}.glance td{padding:.1em .5em}
 """
 
 
@@ -80,20 +80,16 @@ def _versions() -> str:
     return ", ".join(f"{k} {v}" for k, v in items)
 
 
-def _warmups(gf: Any) -> str:
-    """The generators' warm-ups as a cell: ``4``, or ``2–5`` when they differ; ``0``: started at an equilibrium."""
-    lengths = sorted({int(getattr(g, "warmup", 0)) for g in gf.generators})
-    return str(lengths[0]) if len(lengths) == 1 else f"{lengths[0]}–{lengths[-1]}"
-
-
 def _design_rows(problem: Problem, variant: Any) -> str:
     """The variant's designs in one table (banks of linear generators: generators, dof, threshold, …; others: sizes)."""
     if not all(b.gain_file.generators for b in variant.built.values()):
         rows = []
         for d, b in variant.built.items():
             gf, st = b.gain_file, b.gain_file.step
-            rows.append([label(problem, d), gf.kind, gf.name, st.nu, st.ny, st.nr, st.nj, st.nstate, ", ".join(label(problem, f) for f in gf.faults)])
-        return table(["design", "kind", "gain file", "inputs", "outputs", "residual components", "statistics", "state size", "faults"], rows, left=3)
+            rows.append([label(problem, d), gf.kind, gf.name, st.nu, st.ny, st.nr, st.nj, st.nstate, warmup_text(gf) or "none",
+                         ", ".join(label(problem, f) for f in gf.faults)])
+        return table(["design", "kind", "gain file", "inputs", "outputs", "residual components", "statistics", "state size",
+                      defined("warm-up (samples)", "warm-up"), "faults"], rows, left=3)
     rows = []
     for d, b in variant.built.items():
         gf = b.gain_file
@@ -109,7 +105,7 @@ def _design_rows(problem: Problem, variant: Any) -> str:
                 float(np.trace(gf.evaluators[0].Sigma_r)),
                 info0.get("spectral_radius_F"),
                 recovery_samples(gf),
-                _warmups(gf),
+                warmup_text(gf),
                 f"{n_checks}/{n_checks}",
             ]
         )

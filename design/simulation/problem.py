@@ -223,6 +223,10 @@ class Problem:
     scaled : callable or None
         ``scaled(scenario, k)``: the scenario with its fault ``k`` times as large, for the report's fault-size
         sweep (``None`` from the hook: this scenario's fault has no size). Default: :func:`scaled_scenario`.
+    shift_scenario : str or None
+        A scenario whose fault is a persistent step (a bias): each report variant with sequential statistics
+        runs it again at the fault sizes that shift the whitened residual by 0.25σ … 4σ, for their delay
+        against the Lorden bound (``None``: no such sweep).
     """
 
     name: str
@@ -244,6 +248,7 @@ class Problem:
     labels: Mapping[str, str] = field(default_factory=dict)
     model: Callable[..., Any] | None = None
     scaled: Callable[[Scenario, float], Scenario | None] | None = None
+    shift_scenario: str | None = None
 
     def design(self, name: str | None = None, **options: Any) -> GainFile:
         """Make one of the problem's designs.

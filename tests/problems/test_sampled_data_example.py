@@ -122,3 +122,23 @@ def test_claims_say_why_the_indirect_design_detects_what_the_paper_says_it_canno
     assert verdicts["Optimal observer gain E of the direct design"] == "reproduced"  # the paper's "H"
     assert verdicts["Optimal observer gain L of the direct design"] == "differs"  # L[0,0] = e⁻¹ printed 0.38
     assert PROBLEM.model() is not None and PROBLEM.model().Ts == 1.0
+
+
+def test_the_shift_sweep_sets_the_whitened_shift(tmp_path):
+    """The delay-against-shift sweep scales the paper's fault so that its whitened shift is 0.25σ … 4σ: the
+    information per sample the Monte Carlo then measures is ``σ²/2`` (a bias scaled by ``k`` shifts the residual by
+    ``k`` times: the information by ``k²``), within the estimate's error; the fault acts long enough for the smallest
+    shift, and the delay over the bound counts the faulty samples seen (an alarm on the first is one)."""
+    from fdisyn.app.pipeline import SHIFT_SPAN, shift_sweep
+    from fdisyn.evaluation.evaluate import evaluate
+
+    opts = {"detector": "cusum", "arl0": 1000.0, "shifts": [0.25, 0.5, 1.0, 2.0, 4.0]}
+    b = {"direct": build(PROBLEM, "direct", tmp_path / "direct", **opts)}
+    ev = evaluate(PROBLEM, b, runs=10, scenarios=["paper"], workers=1, **opts)
+    sweep = shift_sweep(PROBLEM, b, ev, runs=10, workers=1, **opts)
+    assert sweep is not None and sweep.scenario == "paper" and list(sweep.metrics) == ["direct"]
+    for s, m in sweep.metrics["direct"].items():
+        # 10 runs of ≥ 800 faulty samples: the mean shift's relative error is ≲ 1/(0.25 √8000) ≈ 4.5 % at 0.25σ
+        assert m.fault_information == pytest.approx(s * s / 2, rel=0.2), s
+        assert m.samples_per_run * m.Ts - PROBLEM.scenario("paper").onset >= SHIFT_SPAN * m.lorden_bound_samples * m.Ts * 0.8
+        assert m.delay_bound_ratio == pytest.approx((m.detection_delay_mean_samples + 1) / m.lorden_bound_samples)
