@@ -60,7 +60,9 @@ def equilibrated_pinv(a: np.ndarray, scale: np.ndarray | None = None) -> np.ndar
     return s[:, None] * np.linalg.pinv(0.5 * (scaled + scaled.T), rcond=PINV_RTOL, hermitian=True) * s[None, :]
 
 
-def warmup_constants(Ar: np.ndarray, Cr: np.ndarray, warmup: int, weight: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+def warmup_constants(
+    Ar: np.ndarray, Cr: np.ndarray, warmup: int, weight: np.ndarray | None, *, equilibrate: bool = False
+) -> tuple[np.ndarray, np.ndarray]:
     """``(G, M)`` of a warm-up: ``G[k] = Φ_kᵀ W`` (``Φ_k = Cr Ar^k``) for ``k < warmup``, what the ``k``-th
     sample's residual adds to the accumulator, and the correction ``M``.
 
@@ -73,6 +75,10 @@ def warmup_constants(Ar: np.ndarray, Cr: np.ndarray, warmup: int, weight: np.nda
         ``N ≥ 1``.
     weight : numpy.ndarray or None
         ``W`` (``n_residual`` square); ``None``: the identity.
+    equilibrate : bool
+        Invert the information scaled to a unit diagonal (:func:`equilibrated_pinv`), as a Beard filter does: the
+        correction then does not depend on the states' units. Without it (a linear generator), directions below
+        :data:`PINV_RTOL` of the largest unscaled information are left uncorrected.
 
     Returns
     -------
@@ -95,7 +101,9 @@ def warmup_constants(Ar: np.ndarray, Cr: np.ndarray, warmup: int, weight: np.nda
         gains[k] = phi.T @ w
         info += gains[k] @ phi
         power = Ar @ power
-    return gains, -power @ equilibrated_pinv(0.5 * (info + info.T))
+    info = 0.5 * (info + info.T)
+    inverse = equilibrated_pinv(info) if equilibrate else np.linalg.pinv(info, rcond=PINV_RTOL, hermitian=True)
+    return gains, -power @ inverse
 
 
 def warmup_coefficients(warmup: int, n_state: int, n_residual: int) -> int:

@@ -295,7 +295,9 @@ later samples, ``tr((O_∞ − O_N) O_N⁺)`` with ``O_N = Σ_{k<N} Φ_kᵀ W Φ
 half the mean of one sample's χ² of one degree of freedom, whatever the initial error was."""
 
 
-def warmup_length(Ar: np.ndarray, Cr: np.ndarray, weight: np.ndarray | None, *, most: int = MAX_WARMUP) -> int:
+def warmup_length(
+    Ar: np.ndarray, Cr: np.ndarray, weight: np.ndarray | None, *, most: int = MAX_WARMUP, equilibrate: bool = False
+) -> int:
     """The warm-up of a generator (:mod:`fdisyn.runtime.warmup`): the fewest samples ``N`` whose least-squares
     estimate of its initial error sees every direction the residual will ever see and leaves at most
     :data:`WARMUP_RESIDUE` of it.
@@ -309,6 +311,9 @@ def warmup_length(Ar: np.ndarray, Cr: np.ndarray, weight: np.ndarray | None, *, 
         Its first statistic's ``W`` (``None``: the identity).
     most : int
         The longest warm-up allowed (each sample is ``n_state × n_residual`` constants of the step).
+    equilibrate : bool
+        Count the directions seen, and invert the information, scaled to a unit diagonal (as
+        :func:`~fdisyn.runtime.warmup.warmup_constants` with ``equilibrate``).
 
     Returns
     -------
@@ -322,7 +327,7 @@ def warmup_length(Ar: np.ndarray, Cr: np.ndarray, weight: np.ndarray | None, *, 
     total = scipy.linalg.solve_discrete_lyapunov(Ar.T, Cr.T @ w @ Cr)
     total = 0.5 * (total + total.T)
     d = np.diag(total)
-    s = np.where(d > 0, 1.0 / np.sqrt(np.where(d > 0, d, 1.0)), 0.0)  # unit diagonal: directions counted whatever the units
+    s = np.where(d > 0, 1.0 / np.sqrt(np.where(d > 0, d, 1.0)), 0.0) if equilibrate else np.ones(ns)
     lam = np.linalg.eigvalsh(s[:, None] * total * s[None, :])
     top = float(np.max(lam)) if lam.size else 0.0
     if not top > 0:
@@ -333,10 +338,12 @@ def warmup_length(Ar: np.ndarray, Cr: np.ndarray, weight: np.ndarray | None, *, 
         phi = Cr @ power
         info += phi.T @ w @ phi
         power = Ar @ power
-        lam = np.linalg.eigvalsh(s[:, None] * (0.5 * (info + info.T)) * s[None, :])
+        sym = 0.5 * (info + info.T)
+        lam = np.linalg.eigvalsh(s[:, None] * sym * s[None, :])
         if int(np.sum(lam > PINV_RTOL * top)) < seen:
             continue
-        left = float(np.trace((total - info) @ equilibrated_pinv(0.5 * (info + info.T))))
+        inverse = equilibrated_pinv(sym) if equilibrate else np.linalg.pinv(sym, rcond=PINV_RTOL, hermitian=True)
+        left = float(np.trace((total - info) @ inverse))
         if left <= WARMUP_RESIDUE:
             return n
     return most

@@ -111,12 +111,9 @@ def test_generator_to_control_is_the_residual_generator(motor) -> None:
         lam, vec = np.linalg.eigh(w)
         root = np.sqrt(np.clip(lam, 0.0, None))[:, None] * vec.T  # rootᵀ root = W
         stacked = np.vstack([root @ g.Cr @ np.linalg.matrix_power(g.Ar, j) for j in range(n)])
-        # the runtime scales Σ Φᵀ W Φ to a unit diagonal and leaves out its directions below PINV_RTOL of its largest:
-        # the stacked transient's columns scaled to unit norm, its singular values below sqrt(PINV_RTOL) of its largest
-        norms = np.linalg.norm(stacked, axis=0)
-        scale = np.where(norms > 0, 1.0 / np.where(norms > 0, norms, 1.0), 0.0)
-        rhs = np.concatenate([root @ early[j] for j in range(n)])
-        delta = scale * np.linalg.lstsq(stacked * scale, rhs, rcond=np.sqrt(PINV_RTOL))[0]
+        # the runtime leaves out the directions of Σ Φᵀ W Φ below PINV_RTOL of its largest: singular values of the
+        # stacked transient below sqrt(PINV_RTOL) of its largest
+        delta = np.linalg.lstsq(stacked, np.concatenate([root @ early[j] for j in range(n)]), rcond=np.sqrt(PINV_RTOL))[0]
         late = np.atleast_2d(control.forced_response(ss, U=np.hstack([U, Y]).T, X0=x0 - delta).outputs).T
         r = np.vstack([early[:n], late[n:]])
         assert np.allclose(r, r_ref[:, k : k + g.n_residual], rtol=1e-9, atol=1e-9 * np.max(np.abs(r)))

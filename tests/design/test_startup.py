@@ -71,10 +71,11 @@ def test_the_correction_is_the_least_squares_initial_error() -> None:
     np.testing.assert_allclose(lstsq, delta, atol=1e-12)
 
 
-def test_the_correction_does_not_depend_on_the_state_units() -> None:
-    """The same transient in states scaled from 10⁻³ to 10⁶ (a user's metres beside micrometres): the correction
-    still removes it exactly. A relative cut-off on the unscaled information (eigenvalues spread by 10¹⁸) would call
-    the small units' directions unseen and leave their transient in the residual."""
+def test_the_equilibrated_correction_does_not_depend_on_the_state_units() -> None:
+    """The same transient in states scaled from 10⁻³ to 10⁶ (a user's metres beside micrometres): the Beard filter's
+    correction, its information scaled to a unit diagonal, still removes it exactly. A relative cut-off on the unscaled
+    information (eigenvalues spread by 10¹⁸), as a linear generator's, calls the small units' directions unseen and
+    leaves their transient in the residual."""
     rng = np.random.default_rng(2)
     ns, nr, n = 4, 2, 6
     a = rng.standard_normal((ns, ns))
@@ -83,11 +84,13 @@ def test_the_correction_does_not_depend_on_the_state_units() -> None:
     units = 10.0 ** np.array([-3.0, 0.0, 3.0, 6.0])
     a_s, cr_s = units[:, None] * a / units[None, :], cr / units[None, :]
     delta = units * rng.standard_normal(ns)
-    gains, m = warmup_constants(a_s, cr_s, n, None)
+    gains, m = warmup_constants(a_s, cr_s, n, None, equilibrate=True)
     acc = sum(gains[k] @ (cr_s @ np.linalg.matrix_power(a_s, k) @ delta) for k in range(n))
     want = -np.linalg.matrix_power(a_s, n) @ delta
     np.testing.assert_allclose((m @ acc) / units, want / units, rtol=0, atol=1e-9 * np.max(np.abs(delta / units)))
-    assert warmup_length(a_s, cr_s, None) == warmup_length(a, cr, None)
+    assert warmup_length(a_s, cr_s, None, equilibrate=True) == warmup_length(a, cr, None, equilibrate=True)
+    _, unscaled = warmup_constants(a_s, cr_s, n, None)
+    assert np.max(np.abs((unscaled @ acc - want) / units)) > 1e-3 * np.max(np.abs(delta / units))
 
 
 @pytest.fixture(scope="module")

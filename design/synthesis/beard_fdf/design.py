@@ -331,7 +331,7 @@ def design_beard_fdf(
     n_x, p_y = ad.shape[0], c.shape[0]
     spare = LIMITS["warmup_coefficients"] - n_x * n_x
     room = LIMITS["nstate"] - NSTATE_MARGIN - int(window) * p_y - 2 * n_x >= 0
-    warmup = warmup_length(g, c, None, most=min(MAX_WARMUP, max(0, spare) // (n_x * p_y))) if room else 0
+    warmup = warmup_length(g, c, None, most=min(MAX_WARMUP, max(0, spare) // (n_x * p_y)), equilibrate=True) if room else 0
     info["warmup_samples"] = warmup
 
     # the explicit level and the magnitude threshold

@@ -120,9 +120,10 @@ class BeardFilter:
 
     @cached_property
     def warmup_gains(self) -> tuple[np.ndarray, np.ndarray]:
-        """``(G, M)`` of the warm-up (:func:`fdisyn.runtime.warmup.warmup_constants`): the residual moves with the
-        estimate's error ``x̂ − x`` through ``Φ_k = −C (A − L C)^k``."""
-        return warmup_constants(self.G, -self.C, self.warmup, None)
+        """``(G, M)`` of the warm-up (:func:`fdisyn.runtime.warmup.warmup_constants`, its information scaled to a
+        unit diagonal: the states of a user's plant may be in any units): the residual moves with the estimate's
+        error ``x̂ − x`` through ``Φ_k = −C (A − L C)^k``."""
+        return warmup_constants(self.G, -self.C, self.warmup, None, equilibrate=True)
 
     @cached_property
     def Xu(self) -> np.ndarray:
