@@ -229,7 +229,7 @@ def _shift_figure(ctx: ReportContext) -> str:
     swept = [v for v in ctx.variants if getattr(v, "shifts", None) is not None]
     if not swept:
         return ""
-    fig, axes = subplots(1, 2, figsize=(10.0, 3.6), squeeze=False)
+    fig, axes = subplots(1, 2, figsize=(13.0, 3.8), squeeze=False)  # wide: the legend names design and variant
     rows, handles, texts = [], [], []
     for v in swept:
         sw = v.shifts
