@@ -15,8 +15,9 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+from fdisyn.runtime.schema import LIMITS
 
-__all__ = ["MAX_WARMUP", "PINV_RTOL", "equilibrated_pinv", "warmup_constants", "warmup_coefficients", "generator_warmup"]
+__all__ = ["MAX_WARMUP", "PINV_RTOL", "equilibrated_pinv", "information_pinv", "longest_warmup", "warmup_constants", "warmup_coefficients", "generator_warmup"]
 
 MAX_WARMUP = 1000
 """Most warm-up samples of one generator: each is a constant ``Φ_k`` of the step."""
@@ -58,6 +59,49 @@ def equilibrated_pinv(a: np.ndarray, scale: np.ndarray | None = None) -> np.ndar
     s = np.where(d > 0, 1.0 / np.sqrt(np.where(d > 0, d, 1.0)), 0.0)
     scaled = s[:, None] * a * s[None, :]
     return s[:, None] * np.linalg.pinv(0.5 * (scaled + scaled.T), rcond=PINV_RTOL, hermitian=True) * s[None, :]
+
+
+def information_pinv(info: np.ndarray, *, equilibrate: bool) -> np.ndarray:
+    """The pseudo-inverse of a warm-up's symmetric information ``Σ Φ_kᵀ W Φ_k``: scaled to a unit diagonal
+    (:func:`equilibrated_pinv`, a Beard filter's) or not (a linear generator's), directions below :data:`PINV_RTOL`
+    of the largest left out.
+
+    Parameters
+    ----------
+    info : numpy.ndarray
+        The information (symmetric positive semidefinite).
+    equilibrate : bool
+        Scale it to a unit diagonal first.
+
+    Returns
+    -------
+    numpy.ndarray
+        Its pseudo-inverse.
+    """
+    return equilibrated_pinv(info) if equilibrate else np.linalg.pinv(info, rcond=PINV_RTOL, hermitian=True)
+
+
+def longest_warmup(shapes: list[tuple[int, int]]) -> int:
+    """The longest warm-up, common to generators of ``(n_state, n_residual)`` ``shapes``, whose constants stay
+    within ``LIMITS["warmup_coefficients"]`` (:func:`warmup_coefficients`) and :data:`MAX_WARMUP`.
+
+    Parameters
+    ----------
+    shapes : list of tuple of int
+        Each generator's state and residual sizes.
+
+    Returns
+    -------
+    int
+        The samples (0 when not even one fits).
+
+    Examples
+    --------
+    >>> longest_warmup([(12, 7)] * 16)  # the turbofan's grouped bank: (50 000 − 16·144) // (16·84)
+    35
+    """
+    spare = LIMITS["warmup_coefficients"] - sum(n * n for n, _ in shapes)
+    return min(MAX_WARMUP, max(0, spare) // max(1, sum(n * r for n, r in shapes)))
 
 
 def warmup_constants(
@@ -102,8 +146,7 @@ def warmup_constants(
         info += gains[k] @ phi
         power = Ar @ power
     info = 0.5 * (info + info.T)
-    inverse = equilibrated_pinv(info) if equilibrate else np.linalg.pinv(info, rcond=PINV_RTOL, hermitian=True)
-    return gains, -power @ inverse
+    return gains, -power @ information_pinv(info, equilibrate=equilibrate)
 
 
 def warmup_coefficients(warmup: int, n_state: int, n_residual: int) -> int:

@@ -33,8 +33,7 @@ from fdisyn.numerics.linalg import transfer_size
 from fdisyn.runtime.errors import ArgumentError, ExistenceError, FdisynError, ShapeError, SolverError
 from fdisyn.runtime.gainfile import Decision, Evaluator, GainFile, Generator, StepSpec
 from fdisyn.runtime.layout import linear_state_layout
-from fdisyn.runtime.schema import LIMITS
-from fdisyn.runtime.warmup import MAX_WARMUP, PINV_RTOL, equilibrated_pinv
+from fdisyn.runtime.warmup import MAX_WARMUP, PINV_RTOL, information_pinv, longest_warmup
 from fdisyn.runtime.statistics import MAX_WSSR_WINDOW
 from fdisyn.runtime.names import check_fault_name, shown
 from fdisyn.synthesis.registry import (
@@ -186,8 +185,7 @@ def linear_diagnoser(
     evals, gens, sigma_r, sequential_info = detector.evaluators(request)
     weights = [next((ev.W for ev in evals if ev.generator == i), None) for i in range(len(gens))]
     # the warm-ups' constants share their size limit (a slow generator's warm-up is shortened to fit)
-    spare = LIMITS["warmup_coefficients"] - sum(g.n_state**2 for g in gens)
-    most = min(MAX_WARMUP, max(0, spare) // max(1, sum(g.n_state * g.n_residual for g in gens)))
+    most = longest_warmup([(g.n_state, g.n_residual) for g in gens])
     gens = [replace(g, warmup=warmup_length(g.Ar, g.Cr, w, most=most)) for g, w in zip(gens, weights, strict=True)]
     sig = np.array([[_expected(fault, gens[ev.generator], plant) for ev in evals] for fault in faults], dtype=int)
     checks, sensitivity = _bank_checks(gens, evals, plant)
@@ -342,8 +340,7 @@ def warmup_length(
         lam = np.linalg.eigvalsh(s[:, None] * sym * s[None, :])
         if int(np.sum(lam > PINV_RTOL * top)) < seen:
             continue
-        inverse = equilibrated_pinv(sym) if equilibrate else np.linalg.pinv(sym, rcond=PINV_RTOL, hermitian=True)
-        left = float(np.trace((total - info) @ inverse))
+        left = float(np.trace((total - info) @ information_pinv(sym, equilibrate=equilibrate)))
         if left <= WARMUP_RESIDUE:
             return n
     return most

@@ -41,7 +41,7 @@ from fdisyn.runtime.errors import ArgumentError, ExistenceError
 from fdisyn.runtime.gainfile import GainFile
 from fdisyn.runtime.schema import LIMITS, MAX_MAGNITUDE
 from fdisyn.runtime.names import shown
-from fdisyn.runtime.warmup import MAX_WARMUP
+from fdisyn.runtime.warmup import longest_warmup
 from fdisyn.synthesis.beard_fdf.eigenstructure import optimise_eigenstructure, residual_covariance_trace
 from fdisyn.synthesis.beard_fdf.payload import NSTATE_MARGIN, BeardFilter, beard_gain_file
 from fdisyn.synthesis.beard_fdf.reference import beard_reference_run
@@ -329,9 +329,8 @@ def design_beard_fdf(
     # the warm-up: the filter's initial error estimated by least squares over its first samples (a plant running at
     # switch-on is at no equilibrium), within what the size limits leave to its constants
     n_x, p_y = ad.shape[0], c.shape[0]
-    spare = LIMITS["warmup_coefficients"] - n_x * n_x
     room = LIMITS["nstate"] - NSTATE_MARGIN - int(window) * p_y - 2 * n_x >= 0
-    warmup = warmup_length(g, c, None, most=min(MAX_WARMUP, max(0, spare) // (n_x * p_y)), equilibrate=True) if room else 0
+    warmup = warmup_length(g, c, None, most=longest_warmup([(n_x, p_y)]), equilibrate=True) if room else 0
     info["warmup_samples"] = warmup
 
     # the explicit level and the magnitude threshold
