@@ -55,13 +55,13 @@ def test_the_information_statistics_are_exported_without_thresholds(ship) -> Non
     assert gf.extensions["nafdf"]["settings"]["isolable_jump"] == [0.29, 0.1]
 
 
-def test_the_reported_sine_is_detected_not_isolable_without_flicker(ship) -> None:
-    """u = 1 + 0.8 sin(2πk/50), a → a0/2 at 701, 3000 samples. Before the information law (range of θ̂
-    over 50 samples ≤ 0.03 / 0.01) the NF never converged before t = 2343: the alarm was on 70 % of the
-    samples after the fault in 11 episodes, nothing isolated, and the nominal statistics were then learned
-    on the faulty plant. Now: one alarm episode, steady from the detection to the end of the run,
-    isolated −1 throughout, and the diagnosis says why — the NF's σ(b̂) ≈ 0.017 after the fault
-    (σ(â) ≈ 0.06 before it) exceeds isolable_jump/√W1 (0.014 and 0.041)."""
+def test_the_reported_sine_isolates_the_jump(ship) -> None:
+    """u = 1 + 0.8 sin(2πk/50), a → a0/2 at 701, 3000 samples. With convergence judged on the information
+    the classifier needs before the fault (σ(â) ≈ 0.06 > 0.041), the NF never converged, the alarm held to
+    the end of the run and nothing was isolated, although after the fault the NF's estimates sat on the
+    truth. Now the settled NF's estimate decides which parameter moved (module docstring of
+    :mod:`fdisyn.synthesis.nafdf.design`, "Isolation from the NF's estimate"): ``a`` is isolated within
+    150 samples of the fault, the EKF is re-parameterised on the new ``a`` and the alarm ends."""
     dsg, gf, diagnose = ship
     T, k = 3000, np.arange(3000)
     u = (1.0 + 0.8 * np.sin(2 * np.pi * k / 50))[:, None]
@@ -70,13 +70,11 @@ def test_the_reported_sine_is_detected_not_isolable_without_flicker(ship) -> Non
     _, y = simulate_nonlinear(sp.plant(), x0=[0.0], u=u, theta=theta, rng=np.random.default_rng(1))
     out = diagnose(u, y)
     d = nafdf_diagnosis(gf.step.statistic_names, gf.faults, out["alarm"], out["isolated"], out["J"], sp.FAULT_TIME)
-    assert d["verdict"] == NOT_ISOLABLE and d["alarm_episodes"] == 1
-    assert d["detection_delay"] <= 50
-    assert np.all(out["alarm"][sp.FAULT_TIME + d["detection_delay"] :] == 1)  # steady: no flicker
-    assert np.all(out["isolated"] == -1)
-    assert info_ratio(dsg, d["info"], 0) < 1 and info_ratio(dsg, d["info"], 1) < 1
-    names = list(gf.step.statistic_names)
-    assert not np.any(out["J"][:, names.index("nf_converged")]), "the NF never has the information to converge"
+    assert d["verdict"] == "isolated a" and d["isolation_delay"] <= 150
+    assert np.all(out["isolated"][: sp.FAULT_TIME] == -1)
+    assert info_ratio(dsg, d["info"], 0) < 1  # what the former rule asked for before the fault was missing
+    last = dsg.unpack_state(out["state"])
+    assert last["ekf_reparameterisations"] >= 1 and abs(last["ekf_theta"][0] - 0.5 * sp.NOMINAL["a"]) < 0.05
 
 
 @pytest.mark.parametrize(
@@ -85,9 +83,8 @@ def test_the_reported_sine_is_detected_not_isolable_without_flicker(ship) -> Non
 )
 def test_each_family_with_enough_excitation_isolates_the_right_parameter(ship, kind, offset, amplitude) -> None:
     """Two runs of each fault per family at an amplitude whose information is enough before the fault
-    (σ(â) ≤ 0.041, σ(b̂) ≤ 0.014; the report's table maps the others): the jumping parameter is
-    isolated by a classifier armed on a converged NF, within 600 samples of the fault (the square wave
-    and the sum of sines take ~130 for a, the ramps 420–520 for b: the NF re-converges more slowly)."""
+    (σ(â) ≤ 0.041, σ(b̂) ≤ 0.014): the jumping parameter is isolated within 600 samples of the fault
+    (measured 106–136 samples: the NF's estimate decides 2·N2 samples after its reset at the alarm)."""
     dsg, gf, diagnose = ship
     study = sp.excitation_study(diagnose, gf.step.statistic_names, cells=[(kind, offset, amplitude)], faults=FAULTS, seeds=(1, 2))
     for rec in study:
@@ -97,19 +94,19 @@ def test_each_family_with_enough_excitation_isolates_the_right_parameter(ship, k
             assert info_ratio(dsg, run["info"], 0) >= 1
 
 
-@pytest.mark.parametrize("kind, offset, amplitude", [("constant", 5.0, 0.0), ("sines", 1.0, 0.1), ("slow_ramps", 5.0, 4.0)])
-def test_too_little_excitation_is_detected_not_isolable_without_flicker(ship, kind, offset, amplitude) -> None:
-    """A constant input, a tiny sum of sines and slow ramps (200 samples each: the data stay near the
-    equilibrium x² = (b/−a)·u and carry b/a only): every fault is detected, the diagnosis is not
-    isolable with the information before the fault below its bound, nothing is ever isolated, and
-    each fault makes exactly one alarm episode."""
-    dsg, gf, diagnose = ship
-    study = sp.excitation_study(diagnose, gf.step.statistic_names, cells=[(kind, offset, amplitude)], faults=FAULTS, seeds=(1, 2))
-    for rec in study:
+def test_every_family_and_amplitude_names_the_right_parameter_or_none(ship) -> None:
+    """The report's excitation study (every family at every amplitude, both jumps, three runs): no run ever
+    names the wrong parameter; every family with a varying input isolates every jump, and the constant
+    input (the data carry b/a only, apart from the transient after the jump) isolates or says not
+    isolable. Measured: 123 of 126 runs isolated (before: 52, the rest detected but not isolated or not
+    isolable), the constant input's a → a0/2 not isolable in 3 of 3 runs."""
+    _, gf, diagnose = ship
+    for rec in sp.excitation_study(diagnose, gf.step.statistic_names):
         for run in rec["runs"]:
-            assert run["verdict"] == NOT_ISOLABLE, (rec["fault"], run)
-            assert run["alarm_episodes"] == 1 and run["isolation_delay"] is None
-            assert info_ratio(dsg, run["info"], 0) < 1
+            verdict, right = run["verdict"], f"isolated {rec['jumping'][0]}"
+            assert verdict in (right, NOT_ISOLABLE) if rec["kind"] == "constant" else verdict == right, (rec, run)
+            if verdict.startswith("isolated"):  # slow ramps: the NF may sit on the ridge of b/a until a turn
+                assert run["isolation_delay"] <= (1200 if rec["kind"] == "slow_ramps" else 600), (rec, run)
 
 
 def test_a_false_alarm_under_too_little_excitation_is_dismissed(ship) -> None:
@@ -130,3 +127,71 @@ def test_a_false_alarm_under_too_little_excitation_is_dismissed(ship) -> None:
     last = dsg.unpack_state(out["state"])
     assert last["episodes_dismissed"] == 1 and last["ekf_reparameterisations"] == 0
     assert np.all(out["isolated"] == -1) and last["insufficient_excitation"] == 0
+
+
+def _lambda_path(s, n: int) -> np.ndarray:
+    """The NF's forgetting factor over its first ``n`` updates, λ(t) = λ0 λ(t−1) + (1 − λ0) λ∞ from λ(0)."""
+    lam, out = s.forgetting_initial, np.empty(n)
+    for k in range(n):
+        lam = s.forgetting_rate * lam + (1.0 - s.forgetting_rate) * s.forgetting_final
+        out[k] = lam
+    return out
+
+
+def _cramer_rao(u: np.ndarray, x0: float, theta: np.ndarray, s, r: float) -> np.ndarray:
+    """Independent covariance of (a, b) from the NF's window: the ship's output ``y = x(x0, a, b) + v``
+    (Q = 0, ``v ~ N(0, r)``), sensitivities by central differences of the simulated trajectory, the
+    exponentially weighted least squares of the NF's forgetting, ``x0`` unknown: the sandwich
+    ``I⁻¹ M I⁻¹`` with ``I = Σ w_k J_kᵀ J_k / r`` and ``M = Σ w_k² J_kᵀ J_k / r`` (its inverse is the
+    Cramér–Rao bound of a weighted estimator)."""
+
+    def path(p: np.ndarray) -> np.ndarray:
+        x = np.empty(len(u))
+        x[0] = p[0]
+        for k in range(len(u) - 1):
+            x[k + 1] = 0.1 * p[1] * x[k] ** 2 + x[k] + 0.1 * p[2] * u[k]
+        return x
+
+    p0 = np.array([x0, *theta])
+    J = np.empty((len(u), 3))
+    for j in range(3):
+        h = 1e-6 * max(1.0, abs(p0[j]))
+        dp = np.zeros(3)
+        dp[j] = h
+        J[:, j] = (path(p0 + dp) - path(p0 - dp)) / (2 * h)
+    lam = _lambda_path(s, len(u))
+    w = np.ones(len(u))
+    for k in range(len(u) - 2, -1, -1):
+        w[k] = w[k + 1] * lam[k + 1]
+    info = (J * w[:, None]).T @ J / r
+    mid = (J * (w**2)[:, None]).T @ J / r
+    inv = np.linalg.inv(info)
+    return (inv @ mid @ inv)[1:, 1:]
+
+
+@pytest.mark.parametrize("kind, offset, amplitude", [("square", 5.0, 4.0), ("sines", 5.0, 2.0), ("sines", 1.0, 0.8), ("prbs", 5.0, 2.0), ("square", 1.0, 0.8)])
+def test_the_nf_information_is_the_cramer_rao_bound_of_its_window(ship, kind, offset, amplitude) -> None:
+    """The information the diagnosis judges by (``info_<θ> = 1/σ²``, from the NF's ``a R⁻¹``) against the
+    Cramér–Rao bound of the same window computed independently (:func:`_cramer_rao`: the simulated
+    trajectory's sensitivities, the NF's forgetting, the initial state a nuisance), at the end of runs
+    with each jump, the NF at least 600 updates old. Agreement within [0.6, 1.6]: the NF evaluates its
+    sensitivities along its estimate's path and reports the stationary law ``P_θ/(1 + λ)``; measured
+    0.77–1.33 on these cells, seeds 1–2."""
+    dsg, _, _ = ship
+    lay, s = dsg.layout, dsg.settings
+    r = float(np.asarray(sp.plant().R).reshape(-1)[0])
+    for par in ("a", "b"):
+        for seed in (1, 2):
+            batch = sp._simulate(sp.fault_scenario("x", {par: 0.5}, signal={"kind": kind, "offset": offset, "amplitude": amplitude}), (seed,))
+            res = dsg.run(u=batch.U[0], y=batch.Y[0])
+            last = lay.unpack(res["state"][-1])
+            age = int(last["nf_age"])
+            assert age >= 600, (par, seed, age)
+            t0 = len(res["state"]) - age
+            theta = np.array([sp.NOMINAL["a"], sp.NOMINAL["b"]])
+            theta[0 if par == "a" else 1] *= 0.5
+            x = np.asarray(batch.extra["x"][0]).reshape(-1)
+            cov = _cramer_rao(batch.U[0][t0 - 1 :, 0], float(x[t0 - 1]), theta, s, r)
+            ratio = np.asarray(last["nf_info"]).reshape(-1) * np.diag(cov)
+            assert np.all((ratio >= 0.6) & (ratio <= 1.6)), (par, seed, ratio)
+

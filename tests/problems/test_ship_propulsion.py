@@ -53,23 +53,36 @@ def test_paper_scenario_is_reproduced(design) -> None:
     assert m["wssr_alarm_fraction_after"] < 0.01
 
 
-@pytest.mark.parametrize(
-    "scale, expect",
-    [({"b": 0.5}, "b"), ({"a": 1.5}, "a"), ({"b": 1.5}, "b"), ({"a": 0.5, "b": 0.7}, "a")],
-)
+@pytest.mark.parametrize("scale, expect", [({"b": 0.5}, "b"), ({"a": 1.5}, "a"), ({"b": 1.5}, "b")])
 def test_other_faults_are_isolated(design, scale, expect) -> None:
-    """Faults in b, in a the other way, and in both: the right parameter is isolated (for both, the
-    lower index, and both classes are latched), with the size within 0.05 (a) / 0.02 (b) —
-    ~4 Monte Carlo standard deviations of the size error."""
+    """Faults in b and in a the other way: the right parameter is isolated, with the size (the NF's
+    change at the decision) within 4 of the NF's own standard deviations there (``info_<θ>``, which
+    the excitation tests hold to the Cramér–Rao bound); the other parameter is never classified."""
     run = sp.PROBLEM.run(sp.fault_scenario("fault", scale, length=2500), [21])
-    m = sp.run_metrics(design, run)
+    out = design.run(u=run.U[0], y=run.Y[0])
+    m = sp.run_metrics(design, run, out)
     assert m["detection_delay"] is not None and m["detection_delay"] <= 60
     assert m["isolated"] == expect
+    jn = list(design.J_names)
     for name, size in run.scenario.params["fault_size"].items():
+        sd = 1.0 / np.sqrt(out["J"][m["isolation_time"], jn.index(f"info_{name}")])
         assert m["fault_class"][name] >= 1
-        assert abs(m["fault_size"][name] - size) <= (0.05 if name == "a" else 0.02)
+        assert abs(m["fault_size"][name] - size) <= 4 * sd, (name, m["fault_size"][name], size, sd)
     for name in set(design.fault_names) - set(run.scenario.fault.split("+")):
         assert m["fault_class"][name] == 0
+
+
+def test_a_jump_of_both_parameters_holds_the_alarm_and_names_neither(design) -> None:
+    """a → a0/2 and b → 0.7 b0: no single parameter's jump explains the NF's estimate, so nothing is named
+    (``isolated`` names one parameter), the EKF keeps its model and the alarm holds from the detection
+    to the end of the run; the diagnosis is not "insufficient excitation" (the data carry the information)."""
+    run = sp.PROBLEM.run(sp.fault_scenario("fault", {"a": 0.5, "b": 0.7}, length=2500), [21])
+    out = design.run(u=run.U[0], y=run.Y[0])
+    m = sp.run_metrics(design, run, out)
+    assert m["detection_delay"] is not None and m["detection_delay"] <= 60
+    assert m["isolated"] is None and m["ekf_reparameterisations"] == []
+    assert np.all(out["alarm"][sp.FAULT_TIME + m["detection_delay"] :] == 1)
+    assert out["J"][-1, list(design.J_names).index("insufficient_excitation")] == 0
 
 
 def test_fault_free_run_isolates_nothing(design) -> None:

@@ -255,6 +255,44 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
     settled = ca.logic_and(ca.logic_or(settled_old, settled_now), nf_ok)
     conv = ca.logic_and(ca.logic_or(conv_old, ca.logic_and(settled_now, informative)), nf_ok)  # both tests now
 
+    # which parameter moved, from the data (module docstring, "Isolation from the NF's estimate"): the
+    # change δ = θ̂ − θ_e against Σ = Cov θ̂ + Cov θ_e; for each single-parameter hypothesis its GLR
+    # g_i = (Σ⁻¹δ)_i² / (Σ⁻¹)_ii and the misfit q − g_i of the others, q = δᵀ Σ⁻¹ δ
+    cov_nf = _sym(gain * _ldl_solve(lr, dr, ca.SX.eye(l)) / (1.0 + lam_m))
+    # θ_e: the nominal (exact) until the first re-parameterisation, then an earlier NF estimate, whose
+    # covariance is taken as the current one (the state keeps no copy: a gain file's layout stands)
+    sigma = cov_nf * _select(old["ekf_reparameterisations"] > 0, 2.0, 1.0)
+    lsg, dsg_ = _ldl(sigma)
+    s_inv = _inverse_diagonal(lsg, dsg_)
+    moved_limit = float(scipy.stats.chi2.isf(s.convergence_level, 1))
+    rest_limit = float(scipy.stats.chi2.isf(s.convergence_level, l - 1)) if l > 1 else math.inf  # l = 1: nothing else
+
+    def hypotheses(theta: ca.SX) -> tuple[ca.SX, list[ca.SX], list[ca.SX]]:
+        dlt = theta - the
+        zz = _ldl_solve(lsg, dsg_, dlt)
+        qq = ca.dot(dlt, zz)
+        ok = ca.logic_and(_positive(dsg_), _all_finite(qq))
+        gs = [zz[i] * zz[i] / s_inv[i] for i in range(l)]
+        return qq, gs, [ca.logic_and(ok, ca.logic_and(g > moved_limit, qq - g <= rest_limit)) for g in gs]
+
+    # the same hypothesis must explain the estimate now and N2 samples ago, when the NF had itself seen N2
+    # samples: a jump inside the NF's window (an episode opened by a false alarm, the fault arriving late in
+    # it) biases the newest estimate only, and the first estimates after a reset travel from θ̂(0)
+    delta = th_new - the
+    q_all, glr, now = hypotheses(th_new)
+    _, _, before = hypotheses(win[:, N2 - 1])
+    sig_ok = ca.logic_and(_positive(dsg_), _all_finite(q_all))
+    aged = old["nf_age"] >= 2 * N2
+    accepted = [ca.logic_and(aged, ca.logic_and(a, b)) for a, b in zip(now, before, strict=True)]
+    n_accepted = sum((_select(a, 1.0, 0.0) for a in accepted), ca.SX(0.0))
+    n_plausible = sum((_select(a, 1.0, 0.0) for a in now), ca.SX(0.0))
+    unique = ca.logic_and(n_accepted == 1, n_plausible == 1)  # no other hypothesis explains the estimate
+    changed = ca.logic_and(sig_ok, q_all > float(scipy.stats.chi2.isf(s.convergence_level, l)))
+    # resolved: one parameter explains the change, or the NF has converged (the data carry the classifier's
+    # information) and θ has not changed; a change no single parameter explains holds the episode open
+    resolved = ca.logic_or(unique, ca.logic_and(informative, ca.logic_not(changed)))
+    several = ca.logic_and(ca.logic_and(informative, changed), n_plausible == 0)
+
     # dismissal (a false alarm): inside the episode the EKF's own model explains every window of N2
     # samples, Σ γᵀ V0⁻¹ γ ≤ χ²_{1−α}(N2 p), N2 times in a row — the data demand no new model
     episode = old["episode_open"]
@@ -262,7 +300,10 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
     fit_run = persistence_count(fits, old["ekf_fit_run"])
     dismiss = fit_run >= N2
     # EKF re-parameterisation: the NF has converged inside an open episode whose alarm stands (block 4)
-    reparam = ca.logic_and(ca.logic_and(conv, ca.logic_not(fits)), ca.logic_and(episode, nf_ok))
+    reparam = ca.logic_and(ca.logic_and(ca.logic_and(settled, resolved), ca.logic_not(fits)), ca.logic_and(episode, nf_ok))
+    iso_data = ca.SX(-1.0)
+    for i in reversed(range(l)):
+        iso_data = _select(ca.logic_and(reparam, accepted[i]), float(i), iso_data)
     # isolation follows detection: the classifier may decide for a limited time after the episode closes
     diag_left = _select(reparam, float(_diagnosis_samples(s)), old["diagnosis_left"])
 
@@ -288,6 +329,9 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
         latch = ca.logic_and(old["fault_class"][i] == 0, c1 >= s.T1)
         cls_i = _select(latch, _select(c2 >= s.T1, 2.0, 1.0), old["fault_class"][i])
         size_i = _select(latch, th_new[i] - mu0[i], old["fault_size"][i])  # eq. (2.8)
+        named = ca.logic_and(old["isolated"] < 0, iso_data == i)  # isolated from the data: class and size now
+        cls_i = _select(named, _select(glr[i] > s.W2, 2.0, 1.0), cls_i)
+        size_i = _select(named, delta[i], size_i)
         d_stat.append(di)
         c1_new.append(c1)
         c2_new.append(c2)
@@ -297,7 +341,7 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
     iso_cand = ca.SX(-1.0)
     for i in reversed(range(l)):
         iso_cand = _select(latch_now[i], float(i), iso_cand)
-    isolated = _select(old["isolated"] >= 0, old["isolated"], iso_cand)
+    isolated = _select(old["isolated"] >= 0, old["isolated"], _select(iso_data >= 0, iso_data, iso_cand))
 
     # nominal statistics (2.6), Welford: on a converged NF, outside an episode, until N1 samples
     learn = ca.logic_and(ca.logic_and(conv, ca.logic_not(old["episode_open"])), ca.logic_not(nominal_ready))
@@ -315,11 +359,12 @@ def _build_step(plant: NonlinearPlant, s: NafdfSettings, thresholds: np.ndarray,
         any_latch = ca.logic_or(any_latch, latch)
     # detected, not isolable (insufficient excitation): inside an episode the NF has settled without the
     # information to converge, or it converged without a nominal reference (2.6) to classify against
-    starved = ca.logic_and(ca.logic_and(episode, settled), ca.logic_not(ca.logic_or(conv, dismiss)))
+    starved = ca.logic_and(ca.logic_and(episode, settled), ca.logic_not(ca.logic_or(ca.logic_or(resolved, several), dismiss)))
+    unnamed = ca.logic_and(ca.logic_not(unique), ca.logic_not(nominal_ready))
     insufficient = _select(
         ca.logic_or(ca.logic_or(alarm_reset, any_latch), dismiss),
         0.0,
-        _select(starved, 1.0, _select(reparam, ca.logic_not(nominal_ready), old["insufficient_excitation"])),
+        _select(starved, 1.0, _select(reparam, unnamed, old["insufficient_excitation"])),
     )
     detector_clear = ca.logic_or(reparam, ca.logic_not(ekf_ok))
 
