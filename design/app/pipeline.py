@@ -26,6 +26,7 @@ from fdisyn.evaluation.campaign import problem_source
 from fdisyn.evaluation.built import Built, build
 from fdisyn.evaluation.evaluate import Evaluation, evaluate
 from fdisyn.evaluation.progress import tracked
+from fdisyn.evaluation.metrics import ISOLATION_MARGIN
 from fdisyn.simulation.problem import Problem, scaled_scenario
 from fdisyn.runtime.errors import ArgumentError, CertificateError
 from fdisyn.runtime.gainfile import GainFile
@@ -190,8 +191,14 @@ def export_trace(problem: Problem, samples: int = 10_000, **options: Any) -> tup
     return U, Y
 
 
-SWEEP_FACTORS = (0.25, 0.5, 2.0)
-"""Fault sizes of the report's sweep, as multiples of each faulty scenario's (1 is the scenario itself)."""
+SWEEP_DETECTION_GRID = (0.25, 0.5, 1.0, 2.0)
+"""The sizes on which the sweep seeks the smallest size detected in 95 % of the runs (multiples of each faulty
+scenario's; 1 is the scenario itself)."""
+
+SWEEP_FACTORS = tuple(sorted({*SWEEP_DETECTION_GRID, *(ISOLATION_MARGIN * f for f in SWEEP_DETECTION_GRID)} - {1.0}))
+"""Fault sizes of the report's sweep: the detection grid and each of its sizes times the isolation margin
+(:func:`~fdisyn.evaluation.metrics.isolation_at_size`), 0.25–3 × each faulty scenario's (1, the scenario itself,
+is the page's own Monte Carlo)."""
 
 SWEEP_RUNS = 20
 """Runs per scaled scenario of the sweep (at most the page's runs)."""
@@ -205,6 +212,7 @@ class FaultSizeSweep:
     factors: tuple[float, ...]
     scenarios: Mapping[str, Mapping[float, str]]
     evaluation: Evaluation
+    detection_grid: tuple[float, ...] = SWEEP_DETECTION_GRID
 
 
 def fault_size_sweep(

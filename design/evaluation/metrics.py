@@ -33,6 +33,11 @@ __all__ = [
     "summarise_runs",
     "extra_values",
     "MetricsAccumulator",
+    "DETECTION_GOAL",
+    "ISOLATION_GOAL",
+    "ISOLATION_MARGIN",
+    "IsolationAtSize",
+    "isolation_at_size",
 ]
 
 HISTOGRAM_EDGES = np.linspace(0.0, 3.0, 61)
@@ -866,3 +871,85 @@ class MetricsAccumulator:
             false_isolation_rate=false_iso,
             fault_free_histogram=[c.tolist() for c in self.histogram or []],
         )
+
+
+DETECTION_GOAL = 0.95
+"""The share of runs that must detect for a fault size to count as detected (:func:`isolation_at_size`)."""
+ISOLATION_GOAL = 0.95
+"""The share of runs that must name the true fault from :data:`ISOLATION_MARGIN` × the detected size on."""
+ISOLATION_MARGIN = 1.5
+"""Isolation is asked of every size from this multiple of the smallest size detected in :data:`DETECTION_GOAL`
+of the runs."""
+
+
+@dataclass(frozen=True)
+class IsolationAtSize:
+    """Detection and isolation of one fault class against its size (:func:`isolation_at_size`).
+
+    Attributes
+    ----------
+    detected_from : float or None
+        The smallest size of the detection grid from which every measured size is detected in at least
+        :data:`DETECTION_GOAL` of the runs (``None``: not even the largest).
+    isolated_from : float or None
+        The smallest measured size from which every larger one names the true fault in at least
+        :data:`ISOLATION_GOAL` of the runs (``None``: not even the largest).
+    isolation : float or None
+        The smallest share of runs naming the true fault over the sizes from ``ISOLATION_MARGIN × detected_from``
+        on (``None`` when no size was measured there).
+    another : float or None
+        At the size where ``isolation`` is smallest, the share of runs whose most frequent decision names
+        another fault; the rest named none.
+    at : float or None
+        That size.
+    met : bool
+        ``isolation ≥ ISOLATION_GOAL``.
+    """
+
+    detected_from: float | None
+    isolated_from: float | None
+    isolation: float | None
+    another: float | None
+    at: float | None
+    met: bool
+
+
+def isolation_at_size(points: Mapping[float, ScenarioMetrics], detection_grid: Sequence[float]) -> IsolationAtSize | None:
+    """Whether a fault class is isolated from :data:`ISOLATION_MARGIN` × the size at which it is detected.
+
+    Parameters
+    ----------
+    points : Mapping of float to ScenarioMetrics
+        The Monte Carlo of one faulty scenario at each size (a multiple of the scenario's own).
+    detection_grid : Sequence of float
+        The sizes on which the detected size is sought; each times :data:`ISOLATION_MARGIN` must be among the
+        measured sizes for the check to see its first size.
+
+    Returns
+    -------
+    IsolationAtSize or None
+        ``None`` where the diagnoser does not isolate (no isolation measured).
+    """
+    sizes = sorted(points)
+    if any(points[f].isolation_accuracy is None for f in sizes):
+        return None
+
+    def detects(f: float) -> bool:
+        missed = points[f].missed_detection_rate
+        return missed is not None and 1.0 - missed >= DETECTION_GOAL
+
+    def names(f: float) -> bool:
+        return (points[f].isolation_accuracy or 0.0) >= ISOLATION_GOAL
+
+    grid = [f for f in sorted(detection_grid) if f in points]
+    detected = next((f for f in grid if all(detects(g) for g in sizes if g >= f)), None)
+    isolated = next((f for i, f in enumerate(sizes) if all(names(g) for g in sizes[i:])), None)
+    if detected is None:
+        return IsolationAtSize(None, isolated, None, None, None, False)
+    asked = [f for f in sizes if f >= ISOLATION_MARGIN * detected * (1.0 - 1e-9)]  # the margin's product rounds
+    if not asked:
+        return IsolationAtSize(detected, isolated, None, None, None, False)
+    worst = min(asked, key=lambda f: (points[f].isolation_accuracy or 0.0, f))
+    iso = points[worst].isolation_accuracy or 0.0
+    return IsolationAtSize(detected, isolated, iso, points[worst].false_isolation_rate, worst, iso >= ISOLATION_GOAL)
+

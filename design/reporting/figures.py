@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 from fdisyn.reporting.kit import MIN_FONT_PT, ReportContext, defined, figure_legend, fmt, folded, label, shade, subplots, table, timeline
 from fdisyn.detectors.table import DETECTORS
+from fdisyn.evaluation.metrics import DETECTION_GOAL, ISOLATION_GOAL, ISOLATION_MARGIN, isolation_at_size
 from fdisyn.simulation.problem import Problem
 
 __all__ = ["run_figures", "standard_figures", "POLE_LEGEND"]
@@ -149,8 +150,9 @@ def _law_figures(ctx: ReportContext) -> str:
 
 
 def _sweep_figure(ctx: ReportContext) -> str:
-    """Mean detection delay, missed detections and, where the diagnoser has a Lorden bound, the delay over the
-    bound against the fault's size, per design and faulty scenario."""
+    """Mean detection delay, the share of runs that detect (and that name the true fault) and, where the diagnoser
+    has a Lorden bound, the delay over the bound against the fault's size, per design and faulty scenario; below, the
+    isolation goal's table (:func:`_isolation_goal_table`)."""
     from fdisyn.reporting.budget import RATIO_GOAL
     from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
@@ -165,27 +167,35 @@ def _sweep_figure(ctx: ReportContext) -> str:
 
     factors = {base: sorted({1.0, *by_factor}) for base, by_factor in sweep.scenarios.items()}
     bounded = any(metric(d, b, f).delay_bound_ratio is not None for d in designs for b, fs in factors.items() for f in fs)
-    cols = 3 if bounded else 2
+    isolating = any(metric(d, b, f).isolation_accuracy is not None for d in designs for b, fs in factors.items() for f in fs)
+    cols = 2 + bounded
     fig, axes = subplots(len(designs), cols, figsize=(4.5 * cols, 2.2 * len(designs) + 0.4), squeeze=False)
-    rows = []
+    rows, goals = [], []
     for i, d in enumerate(designs):
         for base, fs in factors.items():
             ms = [metric(d, base, f) for f in fs]
             rows += [[label(problem, d), label(problem, base), f, m.runs, m.missed_detection_rate, m.detection_delay_mean_s,
-                      m.delay_bound_ratio] for f, m in zip(fs, ms, strict=True)]
+                      m.delay_bound_ratio, m.isolation_accuracy] for f, m in zip(fs, ms, strict=True)]
             delays = [np.nan if m.detection_delay_mean_s is None else m.detection_delay_mean_s for m in ms]
             (line,) = axes[i, 0].plot(fs, delays, "o-", lw=1.0, ms=3)
-            axes[i, 1].plot(fs, [m.missed_detection_rate for m in ms], "o-", lw=1.0, ms=3, label=label(problem, base))
+            axes[i, 1].plot(fs, [1.0 - m.missed_detection_rate for m in ms], "o-", lw=1.0, ms=3, label=label(problem, base))
             ratios = [np.nan if m.delay_bound_ratio is None else m.delay_bound_ratio for m in ms]
             if bounded:
                 axes[i, 2].plot(fs, ratios, "o-", lw=1.0, ms=3, color=line.get_color())
+            if isolating:
+                named = [np.nan if m.isolation_accuracy is None else m.isolation_accuracy for m in ms]
+                axes[i, 1].plot(fs, named, "s--", lw=1.0, ms=3, color=line.get_color())
+                goal = isolation_at_size(dict(zip(fs, ms, strict=True)), sweep.detection_grid)
+                if goal is not None:
+                    goals.append((d, base, ms[0].fault, goal))
             # a mean delay over the few runs that detected at all flatters: hollow where more than half missed
             lucky = [j for j, m in enumerate(ms) if m.missed_detection_rate > 0.5]
             for col, ys in ((0, delays), *(((2, ratios),) if bounded else ())):
                 axes[i, col].plot([fs[j] for j in lucky], [ys[j] for j in lucky], "o", ms=5, mfc="white", color=line.get_color())
-        axes[i, 0].set_title(label(problem, d), loc="left", fontsize=MIN_FONT_PT)
+        axes[i, 0].set_title(label(problem, d), loc="left", fontsize=MIN_FONT_PT).set_in_layout(False)  # it spans the row
         axes[i, 0].set_ylabel("mean delay (s)")
-        axes[i, 1].set_ylabel("missed detection")
+        axes[i, 1].set_ylabel("detected" + (" / named" if isolating else "") + " (of runs)")
+        axes[i, 1].axhline(DETECTION_GOAL, color="tab:red", ls=":", lw=1.0)
         axes[i, 1].set_ylim(-0.03, 1.03)
         if bounded:
             axes[i, 2].set_ylabel("delay / Lorden bound")
@@ -195,14 +205,13 @@ def _sweep_figure(ctx: ReportContext) -> str:
             axes[i, 2].yaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))  # 1, 2, 5, 10: a ratio is read, not a decade
             axes[i, 2].yaxis.set_major_formatter(FuncFormatter(lambda x, _: fmt(x)))
             axes[i, 2].yaxis.set_minor_formatter(NullFormatter())
-        ticks = sorted({1.0, *sweep.factors})
+        ticks = sorted({1.0, *sweep.detection_grid})
         for ax in axes[i]:
             ax.set_xscale("log")
             ax.set_xticks(ticks, [fmt(f) for f in ticks])
             ax.minorticks_off()
             ax.grid(alpha=0.3)
-    for ax in axes[-1]:
-        ax.set_xlabel("fault size (× the scenario's)")
+    fig.supxlabel("fault size (× the scenario's)", fontsize=MIN_FONT_PT + 1)
     figure_legend(fig, *axes[0, 1].get_legend_handles_labels())
     return ctx.figure(
         "fault_size_sweep",
@@ -212,10 +221,45 @@ def _sweep_figure(ctx: ReportContext) -> str:
         "their value, a gain fault its deviation from 1."
         + (f" Right: the mean delay over the Lorden bound ln(ARL)/I of the fault at that size (black: the bound; red, dotted: "
            f"the goal {fmt(RATIO_GOAL)}); a detector tuned to one size falls behind the bound at the others." if bounded else "")
-        + " A hollow point: more than half the runs missed the fault, and the delay is the mean over the few that did not.",
-    ) + (
+        + " A hollow point: more than half the runs missed the fault, and the delay is the mean over the few that did not."
+        + f" Middle: the share of runs that detected (solid)"
+        + (f" and whose most frequent decision names the true fault (dashed, squares)" if isolating else "")
+        + f"; red, dotted: {fmt(100 * DETECTION_GOAL)} %.",
+    ) + _isolation_goal_table(problem, goals, sweep.detection_grid) + (
         folded(table(["design", "scenario", "size (×)", "runs", defined("missed detection (of runs)", "missed detection"),
-                      defined("delay mean (s)", "detection delay"), defined("delay / bound", "delay ratio")], rows, left=2))
+                      defined("delay mean (s)", "detection delay"), defined("delay / bound", "delay ratio"),
+                      defined("true fault named (of runs)", "isolation accuracy")], rows, left=2))
+    )
+
+
+def _isolation_goal_table(problem: Problem, goals: list[tuple[str, str, str | None, Any]], grid: tuple[float, ...]) -> str:
+    """Per isolating design and faulty scenario: the size detected in 95 % of the runs, and whether the true fault
+    is named in 95 % of them from 1.5 × that size on (:func:`~fdisyn.evaluation.metrics.isolation_at_size`)."""
+    if not goals:
+        return ""
+    rows = []
+    for d, base, fault, g in goals:
+        if g.detected_from is None:
+            verdict = '<span class="bad">not detected in 95 % at any size</span>'
+        elif g.isolation is None:
+            verdict = f"not measured beyond {fmt(ISOLATION_MARGIN)} × {fmt(g.detected_from)}"
+        else:
+            verdict = "met" if g.met else '<span class="bad">short</span>'
+        rows.append([label(problem, d), label(problem, base), label(problem, fault) if fault else "—",
+                     "—" if g.detected_from is None else f"{fmt(g.detected_from)} ×",
+                     "—" if g.isolation is None else f"{fmt(100 * g.isolation)} % at {fmt(g.at)} ×",
+                     "—" if g.another is None else f"{fmt(100 * g.another)} %",
+                     "—" if g.isolated_from is None else f"{fmt(g.isolated_from)} ×", verdict])
+    met = sum(1 for *_, g in goals if g.met)
+    return (
+        f"<p class=\"small\">Isolation against detection: for each fault class, the smallest size of the grid "
+        f"{', '.join(fmt(f) for f in grid)} × the scenario's from which every larger one is detected in "
+        f"{fmt(100 * DETECTION_GOAL)} % of the runs, and the true fault's share of the runs at every measured size from "
+        f"{fmt(ISOLATION_MARGIN)} × that on (the smallest share shown, with the share naming another fault there; the "
+        f"rest named none). Goal: {fmt(100 * ISOLATION_GOAL)} %; met for {met} of {len(goals)}.</p>"
+        + table(["design", "scenario", "fault", f"detected in {fmt(100 * DETECTION_GOAL)} % from",
+                 f"true fault named from {fmt(ISOLATION_MARGIN)} × that", "another fault named there",
+                 f"named in {fmt(100 * ISOLATION_GOAL)} % from", "goal"], rows, left=3)
     )
 
 
