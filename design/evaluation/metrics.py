@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -320,6 +321,7 @@ def scenario_metrics(
     nonfinite: int = 0,
     budget_s: float | None = None,
     lorden: tuple[float, float] | None = None,
+    operating: OperatingPlan | None = None,
 ) -> ScenarioMetrics:
     """Metrics of one scenario from its stacked runs (the reference :class:`MetricsAccumulator` must equal).
 
@@ -353,6 +355,8 @@ def scenario_metrics(
         The design's false-alarm budget in seconds.
     lorden : tuple of float, optional
         ``(I, bound in samples)`` of the fault.
+    operating : OperatingPlan, optional
+        The operating characteristic's plan (:func:`operating_plan`).
 
     Returns
     -------
@@ -439,7 +443,21 @@ def scenario_metrics(
         delay_bound_ratio=ratio,
         false_isolation_rate=false_iso,
         fault_free_histogram=hist,
+        operating=_operating_reference(operating, active, quiet, np.asarray(J)),
     )
+
+
+def _operating_reference(op: OperatingPlan | None, active: np.ndarray, quiet: np.ndarray, J: np.ndarray) -> dict[str, Any] | None:
+    """The operating characteristic's counts of stacked runs, as :class:`MetricsAccumulator` reports them."""
+    if op is None:
+        return None
+    plan = MetricsPlan(active=active, quiet=quiet, on=None, fault_index=None, thresholds=(), operating=op)
+    values = operating_values(plan, SimpleNamespace(J=J, status=np.zeros(J.shape[:2], np.int8)))
+    assert values is not None
+    episodes, first = values
+    return {"scales": list(OPERATING_SCALES), "episodes": episodes.sum(axis=0).tolist(),
+            "detected_within": np.sum((first >= 0) & (first <= op.within), axis=0).tolist() if active.any() else None,
+            "delay_s": op.delay_s}
 
 
 def fault_free_histogram(J: np.ndarray, thresholds: Sequence[float]) -> list[np.ndarray]:
@@ -545,8 +563,10 @@ def operating_plan(gf: Any, delay_s: float | None) -> OperatingPlan | None:
     """
     from fdisyn.runtime.statistics import STATISTICS
 
+    if delay_s is None or gf.kind != "linear":
+        return None
     evs = tuple(gf.evaluators or ())
-    if delay_s is None or gf.kind != "linear" or gf.decision is None or not evs or len(evs) != gf.step.nj:
+    if gf.decision is None or not evs or len(evs) != gf.step.nj:
         return None
     if any(STATISTICS[e.kind].level is None or not (np.isfinite(e.threshold) and e.threshold > 0) for e in evs):
         return None
