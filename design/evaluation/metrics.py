@@ -593,11 +593,17 @@ def alarm_level(op: OperatingPlan, J: np.ndarray) -> np.ndarray:
     from fdisyn.runtime.statistics import STATISTICS
 
     J = np.asarray(J, dtype=float)
+    R = J.shape[0]
     level = np.full(J.shape[:2], -np.inf)
+    # a level is computed row by row, so the statistics of one kind and release ratio go as one stack of rows
+    groups: dict[tuple[str, float], list[int]] = {}
     for j, e in enumerate(op.evaluators):
-        stat = STATISTICS[e.kind]
+        groups.setdefault((e.kind, float(STATISTICS[e.kind].release(e)) / float(e.threshold)), []).append(j)
+    for (kind, _), js in groups.items():
+        stat = STATISTICS[kind]
         assert stat.level is not None
-        level = np.maximum(level, stat.level(e, J[:, :, j] / float(e.threshold), op.persistence))
+        x = np.concatenate([J[:, :, j] / float(op.evaluators[j].threshold) for j in js], axis=0)
+        level = np.maximum(level, stat.level(op.evaluators[js[0]], x, op.persistence).reshape(len(js), R, -1).max(axis=0))
     return level
 
 
