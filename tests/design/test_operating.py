@@ -134,3 +134,29 @@ def test_a_skipped_sample_or_a_threshold_dependent_statistic_gives_no_curve():
     status[0, 10] = 1
     plan = _plan(50, 25, op, gf.step.nj)
     assert operating_values(plan, SimpleNamespace(J=np.zeros((1, 50, gf.step.nj)), status=status)) is None
+
+
+def test_the_page_pools_the_scenarios_and_states_d(tmp_path):
+    """The curve pools every scenario's fault-free time and the faulty scenarios' runs; the figure states D in
+    operator's units, stars the design's own point and names a design without a curve."""
+    from fdisyn.reporting.figures import _operating_figure, operating_curve
+    from fdisyn.reporting.kit import ReportContext
+    from fdisyn.problems.sampled_data_example import PROBLEM
+
+    S = len(OPERATING_SCALES)
+    episodes = np.maximum(0, 40 - 2 * np.arange(S))  # none from factor 2^(20/16) on
+
+    def metrics(fault, runs, within):
+        op = {"scales": list(OPERATING_SCALES), "episodes": episodes.tolist(), "detected_within": within, "delay_s": 10.0}
+        return SimpleNamespace(runs=runs, fault_free_samples=3600 * runs, Ts=1.0, operating=op)
+
+    per = {"fault_free": metrics(None, 10, None), "bias": metrics("f", 20, list(range(20, 20 - S, -1)))}
+    c = operating_curve(per)
+    assert c is not None and c["exposure_s"] == 3600 * 30 and c["runs"] == 20
+    assert c["mtbfa_s"][ONE] == pytest.approx(3600 * 30 / (2 * episodes[ONE]))
+    assert c["pd"][ONE] == pytest.approx((20 - ONE) / 20) and np.isinf(c["mtbfa_s"][-1])
+    lost = {"bias": SimpleNamespace(operating=None)}
+    variant = SimpleNamespace(label="default", evaluation=SimpleNamespace(metrics={"direct": per, "lmi": lost}))
+    page = _operating_figure(ReportContext(problem=PROBLEM, variants=[variant], directory=tmp_path))
+    assert "D = 10 s" in page and "No curve for" in page and "LMI design" in page.split("No curve for")[1]
+    assert (tmp_path / "operating_characteristic.png").stat().st_size > 0
