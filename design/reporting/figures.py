@@ -409,7 +409,7 @@ def _operating_figure(ctx: ReportContext) -> str:
         elif lost:
             groups.append(", ".join(label(problem, d) for d in lost) + (f" ({v.label})" if several else ""))
     absent = (
-        f" No curve for {'; '.join(groups)}: its decisions are not a function of statistics whose values are the same "
+        f" No curve for {'; '.join(groups)}: their decisions are not a function of statistics whose values are the same "
         "at every threshold (a CUSUM's sums are clamped at twice its threshold; another kind's step decides in its own "
         "state), so one Monte Carlo does not give them at other thresholds; they would need a run per threshold."
         if groups else ""
