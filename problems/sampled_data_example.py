@@ -415,6 +415,9 @@ PROBLEM = Problem(
     reference={"J_direct_detects_at_60s": True, "J_indirect_detects": False},
     monte_carlo_runs=200,
     shift_scenario="paper",
+    # ten samples: longer than the Lorden bound of the smallest fault here (about 7 samples at 1.5), so a design at
+    # its budget can catch every fault within it
+    operating_delay=10.0,
     variants=(
         *(
             {"label": f"{label} at arl0 = 1000 s", "options": {"detector": det, "arl0": 1000.0}}

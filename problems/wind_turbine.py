@@ -799,6 +799,9 @@ PROBLEM = Problem(
     labels=LABELS,
     model=_model,
     shift_scenario="omega_r_m1_one_sigma",
+    # twenty samples: just above the Lorden bound of the smallest fault here (the one-σ offset, about 16 samples at
+    # the designs' budgets), so a design at its budget can catch every fault within it
+    operating_delay=0.2,
     variants=(
         {"label": "paper parameter set", "options": {"parameters": "paper"}, "scenarios": ["fault_free", "paper_F1", "paper_F2"]},
         {"label": "persistence 3", "options": {"persistence": 3}},

@@ -22,7 +22,7 @@ import numpy as np
 from fdisyn.runtime.errors import GainFileError
 from fdisyn.runtime.names import shown
 
-__all__ = ["Statistic", "STATISTICS", "MAX_GLR_WINDOW", "MAX_WSSR_WINDOW", "glr_weights"]
+__all__ = ["Statistic", "STATISTICS", "count_level", "held_level", "MAX_GLR_WINDOW", "MAX_WSSR_WINDOW", "glr_weights"]
 
 MAX_GLR_WINDOW = 1000
 """Largest GLR onset window accepted: the step updates ``window`` sums per hypothesis and sample."""
@@ -72,6 +72,11 @@ class Statistic:
         ``J = q`` and no block.
     counter : Callable
         ``counter(e, J, count, threshold, release, block)``: the alarm counter after a valid sample.
+    level : Callable or None
+        ``level(e, x, persistence)``: the alarm level of traces ``x = J / threshold`` (``runs × samples``): the
+        statistic's persistence flag at the threshold ``s · threshold`` is raised exactly where the level is above
+        ``s`` (``s > 0``), the same ``J``, from a zero counter, valid samples only. ``None``: ``J`` itself depends on
+        the threshold (a CUSUM's sums are clamped at twice it), so a trace at one threshold does not give another's.
     """
 
     kind: str
@@ -89,6 +94,7 @@ class Statistic:
     prepare: Callable[[Any], Any]
     update: Callable[[Any, np.ndarray, float | None, np.ndarray, Any], tuple[float, np.ndarray]] | None
     counter: Callable[[Any, float, float, float, float, np.ndarray | None], float]
+    level: Callable[[Any, np.ndarray, int], np.ndarray] | None = None
 
 
 def _one(label: str, remedy: str = "") -> Callable[[Any, str], str]:
@@ -177,6 +183,64 @@ def _wssr_update(e: Any, r: np.ndarray, q: float | None, old: np.ndarray, prepar
     return float(np.add.accumulate(window)[-1]), window  # in order, newest first
 
 
+def count_level(e: Any, x: np.ndarray, persistence: int) -> np.ndarray:
+    """The alarm level of :func:`_count_above` with ``persistence``: the smallest ``x`` of the last ``persistence``
+    samples (``−inf`` before there are as many), since ``persistence`` consecutive ``x > s`` raise the flag at ``s``.
+
+    Parameters
+    ----------
+    e : Evaluator
+        The evaluator (unread: the rule is the same for every one).
+    x : numpy.ndarray
+        ``J / threshold``, ``runs × samples``.
+    persistence : int
+        The decision's persistence.
+
+    Returns
+    -------
+    numpy.ndarray
+        The level, the shape of ``x``.
+    """
+    x = np.asarray(x, dtype=float)
+    out = x.copy()
+    for k in range(1, int(persistence)):
+        out[:, k:] = np.minimum(out[:, k:], x[:, :-k])
+        out[:, :k] = -np.inf
+    return out
+
+
+def held_level(e: Any, x: np.ndarray, persistence: int) -> np.ndarray:
+    """The alarm level of :func:`_glr_counter`: raised by ``x > s``, held while ``x > ρ s`` (``ρ`` the release over
+    the threshold), so ``L(k) = max(x(k), min(L(k − 1), x(k)/ρ))`` from ``L(−1) = −inf`` (``ρ = 0``: held while
+    ``x > 0``). Its counter is 0 or 1, so a persistence above 1 never raises it (``−inf``).
+
+    Parameters
+    ----------
+    e : Evaluator
+        The evaluator (its release level over its threshold is ``ρ``).
+    x : numpy.ndarray
+        ``J / threshold``, ``runs × samples``.
+    persistence : int
+        The decision's persistence.
+
+    Returns
+    -------
+    numpy.ndarray
+        The level, the shape of ``x``.
+    """
+    x = np.asarray(x, dtype=float)
+    out = np.full(x.shape, -np.inf)
+    if int(persistence) > 1:
+        return out
+    rho = float(STATISTICS[e.kind].release(e)) / float(e.threshold)
+    held = np.divide(x, rho) if rho > 0 else np.where(x > 0, np.inf, -np.inf)
+    last = np.full(x.shape[0], -np.inf)
+    for k in range(x.shape[1]):
+        last = np.maximum(x[:, k], np.minimum(last, held[:, k]))
+        out[:, k] = last
+    return out
+
+
 def _cusum_update(e: Any, r: np.ndarray, q: float | None, old: np.ndarray, prepared: Any) -> tuple[float, np.ndarray]:
     assert e.directions is not None and e.drift is not None
     z = e.directions @ r
@@ -232,6 +296,7 @@ STATISTICS: dict[str, Statistic] = {
         prepare=_none,
         update=None,
         counter=_count_above,
+        level=count_level,
     ),
     "wssr": Statistic(
         kind="wssr",
@@ -249,6 +314,7 @@ STATISTICS: dict[str, Statistic] = {
         prepare=_none,
         update=_wssr_update,
         counter=_count_above,
+        level=count_level,
     ),
     "cusum": Statistic(
         kind="cusum",
@@ -283,6 +349,7 @@ STATISTICS: dict[str, Statistic] = {
         prepare=_glr_prepare,
         update=_glr_update,
         counter=_glr_counter,
+        level=held_level,
     ),
 }
 """Every statistic kind a linear gain file holds, in the order the format lists them."""

@@ -39,7 +39,7 @@ from typing import Any
 
 import numpy as np
 from fdisyn.evaluation.built import Built, load_built
-from fdisyn.evaluation.metrics import MetricsPlan, RunSummaries, extra_values, summarise_runs
+from fdisyn.evaluation.metrics import MetricsPlan, RunSummaries, extra_values, operating_values, summarise_runs
 from fdisyn.evaluation.runs import ChunkRuns, DesignRuns
 from fdisyn.simulation.problem import Batch, Problem, Scenario
 from fdisyn.runtime.errors import ArgumentError, FdisynError, MonteCarloError
@@ -47,6 +47,8 @@ from fdisyn.runtime.names import shown
 
 __all__ = [
     "run_seed",
+    "OPERATING_DELAY_SHARE",
+    "operating_delay",
     "simulate_and_diagnose",
     "Campaign",
     "CampaignSpec",
@@ -72,6 +74,31 @@ this bounds the memory of a campaign whatever its number of runs (about 8 bytes 
 
 CHUNK_RUNS = 25
 """Runs in one chunk at most (short runs): enough chunks per scenario to spread over the workers."""
+
+
+OPERATING_DELAY_SHARE = 0.1
+"""Without :attr:`Problem.operating_delay`, the operating characteristic's delay is this share of the shortest fault."""
+
+
+def operating_delay(problem: Problem) -> float | None:
+    """The delay ``D`` (s) of ``problem``'s operating characteristic: its :attr:`Problem.operating_delay`, else
+    :data:`OPERATING_DELAY_SHARE` of the shortest time a fault of its scenarios is active (``None``: no fault).
+
+    Parameters
+    ----------
+    problem : Problem
+        The problem.
+
+    Returns
+    -------
+    float or None
+        ``D`` in seconds.
+    """
+    if problem.operating_delay is not None:
+        return float(problem.operating_delay)
+    spans = [(sc.end if sc.end is not None else sc.duration) - float(sc.onset or 0.0)
+             for sc in problem.scenarios.values() if sc.fault is not None]
+    return OPERATING_DELAY_SHARE * min(spans) if spans else None
 
 
 def run_seed(seed0: int, scenario_index: int, run: int) -> int:
@@ -195,23 +222,31 @@ class Campaign:
             return fused.run(task.seeds, keep_batch=task.keep_batch)
         return simulate_and_diagnose(self.problem, self.built, sc, task.seeds, keep_batch=task.keep_batch, **self.options)
 
+    def plan(self, sc: Scenario, name: str, t: np.ndarray) -> MetricsPlan:
+        """Design ``name``'s :class:`~fdisyn.evaluation.metrics.MetricsPlan` in ``sc`` at times ``t``, with its extra
+        figures and the problem's :func:`operating_delay`."""
+        return MetricsPlan.of(sc, self.built[name].gain_file, t, self.extra.get(name), operating_delay(self.problem))
+
     def run(self, task: ChunkTask) -> ChunkSummary:
         """The chunk's per-run summaries: on the compiled path accumulated in its C loop, no sample kept but those
-        the extra figures read (their designs' arrays) and the batch when asked for; else from the chunk's arrays."""
+        the extra figures and the operating characteristic read (their designs' arrays) and the batch when asked
+        for; else from the chunk's arrays."""
         sc = self.problem.scenario(task.scenario)
         fused = self.fused(sc)
         if fused is not None:
             t = np.arange(fused.spec.samples) * fused.spec.Ts
-            plans = {name: MetricsPlan.of(sc, b.gain_file, t, self.extra.get(name)) for name, b in self.built.items()}
-            with_extra = [name for name, plan in plans.items() if plan.extra is not None]
-            chunk, out = fused.summarise(task.seeds, plans, keep_batch=task.keep_batch, arrays=with_extra)
-            for name in with_extra:
-                out[name] = replace(out[name], extra=extra_values(plans[name], chunk.designs[name], sc, self.built[name].gain_file))
+            plans = {name: self.plan(sc, name, t) for name in self.built}
+            kept = [name for name, plan in plans.items() if plan.extra is not None or plan.operating is not None]
+            chunk, out = fused.summarise(task.seeds, plans, keep_batch=task.keep_batch, arrays=kept)
+            for name in kept:
+                runs = chunk.designs[name]
+                out[name] = replace(out[name], extra=extra_values(plans[name], runs, sc, self.built[name].gain_file),
+                                    operating=operating_values(plans[name], runs))
         else:
             chunk = self.chunk(sc, task)
             out = {}
             for name, b in self.built.items():
-                plan = MetricsPlan.of(sc, b.gain_file, chunk.t, self.extra.get(name))
+                plan = self.plan(sc, name, chunk.t)
                 out[name] = summarise_runs(plan, chunk.designs[name], sc, b.gain_file)
         return ChunkSummary(task=task, t=chunk.t, summaries=out, batch=None if chunk.batch is None else first_run(chunk.batch))
 

@@ -171,7 +171,7 @@ def evaluate(
                             examples[d][sname] = b.diagnoser.run(res.batch.U[0], res.batch.Y[0])
                     for d, summary in res.summaries.items():
                         if d not in acc:
-                            acc[d] = MetricsAccumulator(MetricsPlan.of(sc, built[d].gain_file, res.t, campaign.extra.get(d)), len(res.t))
+                            acc[d] = MetricsAccumulator(campaign.plan(sc, d, res.t), len(res.t))
                         acc[d].add(summary)
                     done[sname] += len(res.task.seeds)
                     shown.update(len(res.task.seeds))

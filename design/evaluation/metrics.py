@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -38,6 +39,11 @@ __all__ = [
     "ISOLATION_MARGIN",
     "IsolationAtSize",
     "isolation_at_size",
+    "OPERATING_SCALES",
+    "OperatingPlan",
+    "operating_plan",
+    "alarm_level",
+    "operating_values",
 ]
 
 HISTOGRAM_EDGES = np.linspace(0.0, 3.0, 61)
@@ -104,6 +110,13 @@ DEFINITIONS: dict[str, str] = {
         "the measured mean detection delay over the Lorden bound, both counted as the faulty samples seen at the alarm "
         "(an alarm on the fault's first sample has seen one); the goal is ≤ 1.2 at the designed size, ≤ 1.5 over "
         "whitened shifts from 0.25σ to 4σ."
+    ),
+    "operating characteristic": (
+        "per design, the probability of detection within a stated delay D (runs of the faulty scenarios whose first "
+        "alarm came at most D after the onset) against the mean time between false alarms (all scenarios' fault-free "
+        "time over the false-alarm episodes), with every threshold scaled by one factor from 0.5 to 2. Computed from "
+        "the Monte Carlo's own statistics: each statistic's alarm rule, persistence and hold applied to its J at each "
+        "scale, which gives the step's decisions exactly (checked against them at scale 1)."
     ),
     "non-finite samples": "samples whose inputs or outputs held NaN or ±inf; the diagnoser skips them and counts them.",
     "fault-free histogram": (
@@ -239,6 +252,10 @@ class ScenarioMetrics:
         the first edge, each bin, at or above the last); empty for a statistic without a finite positive threshold.
     extra : Mapping of str to object
         Figures beyond detection (``Problem.extra_metrics``, else the diagnoser kind's).
+    operating : Mapping of str to object or None
+        The operating characteristic's counts (:class:`OperatingPlan`): ``scales``, the false-alarm ``episodes``
+        and the runs ``detected_within`` the delay ``delay_s`` at each threshold scale; ``None`` where the step's
+        decisions are not a function of its statistics the Monte Carlo knows (another kind, a CUSUM).
     """
 
     scenario: str
@@ -272,6 +289,7 @@ class ScenarioMetrics:
     false_isolation_rate: float | None = None
     fault_free_histogram: list[list[int]] = field(default_factory=list)
     extra: Mapping[str, Any] = field(default_factory=dict)
+    operating: Mapping[str, Any] | None = None
 
     @property
     def alarm_held_fraction(self) -> float | None:
@@ -308,6 +326,7 @@ def scenario_metrics(
     nonfinite: int = 0,
     budget_s: float | None = None,
     lorden: tuple[float, float] | None = None,
+    operating: OperatingPlan | None = None,
 ) -> ScenarioMetrics:
     """Metrics of one scenario from its stacked runs (the reference :class:`MetricsAccumulator` must equal).
 
@@ -341,6 +360,8 @@ def scenario_metrics(
         The design's false-alarm budget in seconds.
     lorden : tuple of float, optional
         ``(I, bound in samples)`` of the fault.
+    operating : OperatingPlan, optional
+        The operating characteristic's plan (:func:`operating_plan`).
 
     Returns
     -------
@@ -427,7 +448,21 @@ def scenario_metrics(
         delay_bound_ratio=ratio,
         false_isolation_rate=false_iso,
         fault_free_histogram=hist,
+        operating=_operating_reference(operating, active, quiet, np.asarray(J)),
     )
+
+
+def _operating_reference(op: OperatingPlan | None, active: np.ndarray, quiet: np.ndarray, J: np.ndarray) -> dict[str, Any] | None:
+    """The operating characteristic's counts of stacked runs, as :class:`MetricsAccumulator` reports them."""
+    if op is None:
+        return None
+    plan = MetricsPlan(active=active, quiet=quiet, on=None, fault_index=None, thresholds=(), operating=op)
+    values = operating_values(plan, SimpleNamespace(J=J, status=np.zeros(J.shape[:2], np.int8)))
+    assert values is not None
+    episodes, first = values
+    return {"scales": list(OPERATING_SCALES), "episodes": episodes.sum(axis=0).tolist(),
+            "detected_within": np.sum((first >= 0) & (first <= op.within), axis=0).tolist() if active.any() else None,
+            "delay_s": op.delay_s}
 
 
 def fault_free_histogram(J: np.ndarray, thresholds: Sequence[float]) -> list[np.ndarray]:
@@ -486,6 +521,140 @@ def poisson_time_interval(count: int, exposure: float, *, level: float = 0.95) -
 # --------------------------------------------------------------------------- streaming: per-run summaries, merged
 
 
+OPERATING_SCALES: tuple[float, ...] = tuple(float(2.0 ** (k / 16)) for k in range(-16, 17))
+"""The threshold scales of the operating characteristic: every threshold times 0.5 … 2, ``2^(1/16)`` apart, 1 (the
+design itself) exactly in the middle."""
+
+
+@dataclass(frozen=True, eq=False)
+class OperatingPlan:
+    """What the operating characteristic of a linear diagnoser is taken over (:func:`operating_plan`).
+
+    Attributes
+    ----------
+    evaluators : tuple
+        The gain file's evaluators (kind, threshold, release), one per statistic.
+    persistence : int
+        The decision's persistence.
+    within : int
+        The stated delay ``D`` in samples: a run is detected within ``D`` when its first alarm is at most ``within``
+        samples after the onset.
+    delay_s : float
+        ``D`` in seconds.
+    """
+
+    evaluators: tuple[Any, ...]
+    persistence: int
+    within: int
+    delay_s: float
+
+
+def operating_plan(gf: Any, delay_s: float | None) -> OperatingPlan | None:
+    """The operating characteristic's plan of ``gf``, or ``None`` when its decisions are not a function of its
+    statistics ``J`` at every threshold scale (:attr:`fdisyn.runtime.statistics.Statistic.level`): a kind other than
+    ``linear``, a statistic whose ``J`` depends on its threshold (a CUSUM's clamp), or no delay stated.
+
+    Parameters
+    ----------
+    gf : GainFile
+        The diagnoser.
+    delay_s : float or None
+        The stated delay ``D`` in seconds.
+
+    Returns
+    -------
+    OperatingPlan or None
+        The plan.
+    """
+    from fdisyn.runtime.statistics import STATISTICS
+
+    if delay_s is None or gf.kind != "linear":
+        return None
+    evs = tuple(gf.evaluators or ())
+    if gf.decision is None or not evs or len(evs) != gf.step.nj:
+        return None
+    if any(STATISTICS[e.kind].level is None or not (np.isfinite(e.threshold) and e.threshold > 0) for e in evs):
+        return None
+    within = int(np.floor(float(delay_s) / float(gf.Ts) + 1e-9))
+    return OperatingPlan(evaluators=evs, persistence=int(gf.decision.persistence), within=within, delay_s=float(delay_s))
+
+
+def alarm_level(op: OperatingPlan, J: np.ndarray) -> np.ndarray:
+    """The diagnoser's alarm level, ``runs × samples``: its alarm with every threshold scaled by ``s`` is raised
+    exactly where the level is above ``s`` (the largest of its statistics' levels, an alarm being any flag).
+
+    Parameters
+    ----------
+    op : OperatingPlan
+        The plan.
+    J : numpy.ndarray
+        The statistics, ``runs × samples × nj``.
+
+    Returns
+    -------
+    numpy.ndarray
+        The level.
+    """
+    from fdisyn.runtime.statistics import STATISTICS
+
+    J = np.asarray(J, dtype=float)
+    R = J.shape[0]
+    level = np.full(J.shape[:2], -np.inf)
+    # a level is computed row by row, so the statistics of one kind and release ratio go as one stack of rows
+    groups: dict[tuple[str, float], list[int]] = {}
+    for j, e in enumerate(op.evaluators):
+        groups.setdefault((e.kind, float(STATISTICS[e.kind].release(e)) / float(e.threshold)), []).append(j)
+    for (kind, _), js in groups.items():
+        stat = STATISTICS[kind]
+        assert stat.level is not None
+        x = np.concatenate([J[:, :, j] / float(op.evaluators[j].threshold) for j in js], axis=0)
+        level = np.maximum(level, stat.level(op.evaluators[js[0]], x, op.persistence).reshape(len(js), R, -1).max(axis=0))
+    return level
+
+
+def operating_values(plan: MetricsPlan, runs: Any) -> tuple[np.ndarray, np.ndarray] | None:
+    """Per run and threshold scale (:data:`OPERATING_SCALES`): the false-alarm episodes among the fault-free samples
+    and the first alarm's position among the fault's samples (−1: none), from the statistics ``J`` alone.
+
+    Parameters
+    ----------
+    plan : MetricsPlan
+        Its ``operating`` (``None``: no values).
+    runs : DesignRuns
+        The chunk's ``J`` and ``status``.
+
+    Returns
+    -------
+    tuple of numpy.ndarray or None
+        ``(episodes, first)``, each ``runs × len(OPERATING_SCALES)``; ``None`` without a plan, or when a sample of the
+        chunk was skipped as non-finite (the counters then hold, which ``J`` does not show).
+    """
+    op = plan.operating
+    if op is None or np.any(np.asarray(runs.status) != 0):
+        return None
+    A = alarm_level(op, runs.J)
+    R, n = A.shape
+    scales = np.asarray(OPERATING_SCALES)
+    S = len(scales)
+    prev = np.concatenate([np.full((R, 1), -np.inf), A[:, :-1]], axis=1)
+    # a quiet sample starts an episode at s when A(k−1) ≤ s < A(k): the scales in [A(k−1), A(k))
+    lo, hi = prev[:, plan.quiet], A[:, plan.quiet]
+    up = hi > lo
+    rows = np.broadcast_to(np.arange(R)[:, None], lo.shape)[up] * (S + 1)
+    i_lo = np.searchsorted(scales, lo[up], side="left")
+    i_hi = np.searchsorted(scales, hi[up], side="left")
+    steps = np.bincount(rows + i_lo, minlength=R * (S + 1)) - np.bincount(rows + i_hi, minlength=R * (S + 1))
+    episodes = np.cumsum(steps.reshape(R, S + 1), axis=1)[:, :S].astype(np.int64)
+    first = np.full((R, S), -1, dtype=np.int64)
+    idx = np.flatnonzero(plan.active)
+    if idx.size:
+        top = np.maximum.accumulate(A[:, idx], axis=1)
+        for i in range(R):
+            k = np.searchsorted(top[i], scales, side="right")  # the first fault sample whose running top is above s
+            first[i] = np.where(k < idx.size, k, -1)
+    return episodes, first
+
+
 @dataclass(frozen=True, eq=False)
 class MetricsPlan:
     """What the per-run summaries of one design in one scenario are taken over (same for every run).
@@ -510,6 +679,8 @@ class MetricsPlan:
         One threshold per statistic.
     extra : object
         The extra figures' per-run part and reduction (``None``: none).
+    operating : OperatingPlan or None
+        The operating characteristic's plan (``None``: none).
     """
 
     active: np.ndarray
@@ -518,9 +689,10 @@ class MetricsPlan:
     fault_index: int | None
     thresholds: tuple[float, ...]
     extra: Any = None
+    operating: OperatingPlan | None = None
 
     @classmethod
-    def of(cls, scenario: Any, gf: Any, t: np.ndarray, extra: Any = None) -> MetricsPlan:
+    def of(cls, scenario: Any, gf: Any, t: np.ndarray, extra: Any = None, delay_s: float | None = None) -> MetricsPlan:
         """The plan of ``gf``'s diagnoser in ``scenario`` at times ``t``.
 
         Parameters
@@ -533,6 +705,8 @@ class MetricsPlan:
             The sample times.
         extra : object, optional
             The extra figures' per-run part and reduction.
+        delay_s : float, optional
+            The operating characteristic's stated delay ``D`` (:func:`operating_plan`; ``None``: none).
 
         Returns
         -------
@@ -551,7 +725,8 @@ class MetricsPlan:
             window = lorden_window(gf) or np.iinfo(np.int64).max
             on = active & (np.cumsum(active) <= window)
         fidx = gf.faults.index(scenario.fault) if scenario.fault in gf.faults else None
-        return cls(active=active, quiet=quiet, on=on, fault_index=fidx, thresholds=tuple(float(h) for h in gf.thresholds), extra=extra)
+        return cls(active=active, quiet=quiet, on=on, fault_index=fidx, thresholds=tuple(float(h) for h in gf.thresholds), extra=extra,
+                   operating=operating_plan(gf, delay_s))
 
 
 @dataclass(frozen=True, eq=False)
@@ -595,6 +770,8 @@ class RunSummaries:
         The chunk's fault-free histogram.
     extra : list or None
         Each run's value of the extra figures.
+    operating : tuple of numpy.ndarray or None
+        Each run's false-alarm episodes and first alarm at each threshold scale (:func:`operating_values`).
     """
 
     quiet_alarms: np.ndarray
@@ -611,6 +788,7 @@ class RunSummaries:
     nonfinite: np.ndarray
     histogram: list[np.ndarray]
     extra: list[Any] | None = None
+    operating: tuple[np.ndarray, np.ndarray] | None = None
 
     @property
     def runs(self) -> int:
@@ -680,6 +858,7 @@ def summarise_runs(plan: MetricsPlan, runs: Any, scenario: Any = None, gf: Any =
         nonfinite=np.sum(np.asarray(runs.status) == 1, axis=1).astype(np.int64),
         histogram=fault_free_histogram(J[:, quiet, :].reshape(-1, J.shape[2]), plan.thresholds),
         extra=extra_values(plan, runs, scenario, gf),
+        operating=operating_values(plan, runs),
     )
 
 
@@ -740,6 +919,11 @@ class MetricsAccumulator:
         self.nonfinite = 0
         self.histogram: list[np.ndarray] | None = None
         self.extra: list[Any] = []
+        self.operating: list[np.ndarray] | None = None
+        """The false-alarm episodes and the runs detected within the stated delay, per threshold scale (``None``: no
+        operating characteristic, or a chunk without its values)."""
+        if plan.operating is not None:
+            self.operating = [np.zeros(len(OPERATING_SCALES), dtype=np.int64), np.zeros(len(OPERATING_SCALES), dtype=np.int64)]
 
     def add(self, s: RunSummaries) -> None:
         """Merge the next chunk's summaries (the chunks in run order).
@@ -780,6 +964,19 @@ class MetricsAccumulator:
         self.histogram = list(s.histogram) if self.histogram is None else [a + b for a, b in zip(self.histogram, s.histogram, strict=True)]
         if s.extra is not None:
             self.extra += s.extra
+        if self.operating is not None:
+            if s.operating is None:
+                self.operating = None
+            else:
+                episodes, first = s.operating
+                one = OPERATING_SCALES.index(1.0)  # the design itself: its decisions as the step made them
+                if not (np.array_equal(episodes[:, one], s.episodes) and np.array_equal(first[:, one], s.first_alarm)):
+                    from fdisyn.runtime.errors import InternalError
+
+                    raise InternalError("the operating characteristic's decisions at the design's own thresholds differ from the step's")
+                assert p.operating is not None
+                self.operating[0] += episodes.sum(axis=0)
+                self.operating[1] += np.sum((first >= 0) & (first <= p.operating.within), axis=0)
 
     def result(
         self, *, scenario: str, fault: str | None, P_f: Sequence[float], Ts: float, budget_s: float | None = None,
@@ -870,6 +1067,10 @@ class MetricsAccumulator:
             delay_bound_ratio=ratio,
             false_isolation_rate=false_iso,
             fault_free_histogram=[c.tolist() for c in self.histogram or []],
+            operating=None if self.operating is None or p.operating is None else {
+                "scales": list(OPERATING_SCALES), "episodes": self.operating[0].tolist(),
+                "detected_within": self.operating[1].tolist() if n_active else None, "delay_s": p.operating.delay_s,
+            },
         )
 
 

@@ -14,7 +14,7 @@ from fdisyn.detectors.table import DETECTORS
 from fdisyn.evaluation.metrics import DETECTION_GOAL, ISOLATION_GOAL, ISOLATION_MARGIN, isolation_at_size
 from fdisyn.simulation.problem import Problem
 
-__all__ = ["run_figures", "standard_figures", "POLE_LEGEND"]
+__all__ = ["run_figures", "standard_figures", "POLE_LEGEND", "OPERATING_TICKS", "operating_curve"]
 
 
 def run_figures(ctx: ReportContext) -> list[tuple[str, str]]:
@@ -330,6 +330,156 @@ def _shift_figure(ctx: ReportContext) -> str:
     )
 
 
+OPERATING_COLUMNS = 3
+"""Panels per row of the operating characteristic (one panel per report variant)."""
+
+OPERATING_TICKS = (1.0, 10.0, 60.0, 600.0, 3600.0, 36000.0, 86400.0, 7 * 86400.0, 30 * 86400.0, 365.25 * 86400.0)
+"""Where the operating characteristic's time axis is labelled (1 s, 10 s, 1 min, 10 min, 1 h, 10 h, 1 day, 7 days,
+30 days, 1 year)."""
+
+
+def operating_curve(metrics: Mapping[str, Any]) -> dict[str, Any] | None:
+    """A design's operating characteristic pooled over the scenarios of one Monte Carlo
+    (:attr:`~fdisyn.evaluation.metrics.ScenarioMetrics.operating`).
+
+    Parameters
+    ----------
+    metrics : Mapping of str to ScenarioMetrics
+        The design's metrics, by scenario.
+
+    Returns
+    -------
+    dict or None
+        ``scales``; ``mtbfa_s`` (fault-free time over the episodes at each scale, ``inf`` where none was seen);
+        ``exposure_s`` (that time); ``pd`` (runs of the faulty scenarios detected within ``delay_s``, over them);
+        ``runs`` (those runs); ``delay_s``. ``None`` when a scenario has no counts or none is faulty.
+    """
+    ms = list(metrics.values())
+    if not ms or any(m.operating is None for m in ms):
+        return None
+    faulty = [m for m in ms if m.operating["detected_within"] is not None]
+    runs = sum(m.runs for m in faulty)
+    exposure = sum(m.fault_free_samples * m.Ts for m in ms)
+    if not runs or not exposure > 0:
+        return None
+    episodes = np.sum([m.operating["episodes"] for m in ms], axis=0)
+    within = np.sum([m.operating["detected_within"] for m in faulty], axis=0)
+    with np.errstate(divide="ignore"):
+        mtbfa = np.where(episodes > 0, exposure / np.maximum(episodes, 1), np.inf)
+    return {"scales": list(ms[0].operating["scales"]), "mtbfa_s": mtbfa, "exposure_s": exposure, "pd": within / runs,
+            "runs": runs, "delay_s": float(ms[0].operating["delay_s"])}
+
+
+def _operating_figure(ctx: ReportContext) -> str:
+    """Each design's probability of detection within the stated delay against its mean time between false alarms,
+    every threshold scaled by one factor (:func:`operating_curve`), its own thresholds marked: one panel per report
+    variant with curves."""
+    from fdisyn.reporting.kit import duration
+
+    problem = ctx.problem
+    panels: list[tuple[Any, list[tuple[Any, str, Any]]]] = []
+    missing: list[tuple[Any, str, Any]] = []
+    for v in ctx.variants:
+        got: list[tuple[Any, str, Any]] = []
+        for d, per in v.evaluation.metrics.items():
+            c = operating_curve(per)
+            (got if c is not None else missing).append((v, d, c))
+        if got:
+            panels.append((v, got))
+    if not panels:
+        return ""
+    several = len(ctx.variants) > 1
+    ncols = min(OPERATING_COLUMNS, len(panels))
+    nrows = -(-len(panels) // ncols)
+    fig, axes = subplots(nrows, ncols, figsize=(4.4 * ncols + 3.0, 3.0 * nrows + 0.9), squeeze=False, sharex=True, sharey=True)
+    colors: dict[str, Any] = {}
+    handles: dict[str, Any] = {}
+    rows = []
+    first = panels[0][1][0][2]
+    for ax, (v, got) in zip(axes.flat, panels):
+        drawn: list[tuple[np.ndarray, np.ndarray]] = []
+        for _, d, c in got:
+            name = label(problem, d)
+            one = c["scales"].index(1.0)
+            seen = np.isfinite(c["mtbfa_s"])
+            x, pd = c["mtbfa_s"], c["pd"]
+            kw = {} if name not in colors else {"color": colors[name]}
+            # a curve equal to one drawn before in the panel is dashed over it, so both show
+            twin = any(np.array_equal(pd, q) and np.array_equal(x, y) for q, y in drawn)
+            drawn.append((pd, x))
+            (line,) = ax.plot(x[seen], pd[seen], "--" if twin else "-", lw=1.2, **kw)
+            colors[name] = line.get_color()
+            handles.setdefault(name, line)
+            if not seen.all():  # the first scale without a false alarm: its time is beyond the time watched
+                k = int(np.argmin(seen))
+                if k > 0:
+                    ax.plot([x[k - 1], c["exposure_s"]], [pd[k - 1], pd[k]], ":", lw=1.0, color=colors[name])
+                ax.plot([c["exposure_s"]], [pd[k]], "o", ms=4, mfc="white", color=colors[name])
+            ax.plot([c["exposure_s"] if not seen[one] else x[one]], [pd[one]], "*", ms=12, color=colors[name], mec="k", mew=0.6)
+            mt = x[one]
+            rows.append([name, *([v.label] if several else []), c["runs"], pd[one],
+                         duration(mt) if np.isfinite(mt) else f"none in {duration(c['exposure_s'])}", float(pd[0]), float(pd[-1])])
+        exposure = max(c["exposure_s"] for _, _, c in got)
+        ax.axvline(exposure, color="0.5", ls="-.", lw=0.9)
+        ax.set_xscale("log")
+        ax.set_ylim(-0.03, 1.03)
+        ax.grid(alpha=0.3)
+        if several:
+            ax.set_title("main designs" if v.label == "default" else str(v.label), loc="left", fontsize=MIN_FONT_PT)
+    for ax in axes.flat[len(panels):]:
+        ax.set_visible(False)
+    lo, hi = axes[0, 0].get_xlim()
+    ticks = [t for t in OPERATING_TICKS if lo <= t <= hi]
+    if len(ticks) > 4:  # at most four labels a panel, far enough apart that they never meet: 1 s, 1 min, 1 h, …
+        kept = [ticks[0]]
+        for t in ticks[1:]:
+            if t >= 30.0 * kept[-1]:
+                kept.append(t)
+        ticks = kept
+    axes[0, 0].set_xticks(ticks, [duration(t) for t in ticks])
+    axes[0, 0].minorticks_off()
+    for ax in axes.flat[len(panels) - ncols : len(panels)]:
+        ax.xaxis.set_tick_params(labelbottom=True)
+    fig.set_layout_engine("constrained")
+    fig.supxlabel("mean time between false alarms (log scale)", fontsize=MIN_FONT_PT + 1)
+    fig.supylabel(f"P(detected within {duration(first['delay_s'])} of the onset)", fontsize=MIN_FONT_PT + 1)
+    # above the panels: the designs' names are long, and a legend beside them would squeeze the panels
+    fig.legend(list(handles.values()), list(handles), loc="outside upper center", fontsize=MIN_FONT_PT, ncol=1, frameon=False)
+    groups = []
+    for v in ctx.variants:
+        lost = [d for w, d, _ in missing if w is v]
+        if lost and len(lost) == len(v.evaluation.metrics):
+            groups.append(f"the {'main designs' if v.label == 'default' else str(v.label)} variant" if several else "any design")
+        elif lost:
+            groups.append(", ".join(label(problem, d) for d in lost) + (f" ({v.label})" if several else ""))
+    absent = (
+        f" No curve for {'; '.join(groups)}: their decisions are not a function of statistics whose values are the same "
+        "at every threshold (a CUSUM's sums are clamped at twice its threshold; another kind's step decides in its own "
+        "state), so one Monte Carlo does not give them at other thresholds; they would need a run per threshold."
+        if groups else ""
+    )
+    return ctx.figure(
+        "operating_characteristic",
+        fig,
+        f"Operating characteristic: the probability that a fault is detected within D = {duration(first['delay_s'])} of "
+        "its onset (the runs of every faulty scenario of the Monte Carlo, pooled) against the mean time between false "
+        "alarms (every scenario's fault-free time over its false-alarm episodes; log scale), as every threshold of a "
+        f"design is scaled by one factor from {fmt(first['scales'][0])} to {fmt(first['scales'][-1])} "
+        f"({len(first['scales'])} factors). Star: the design's own thresholds. Grey, dash-dotted: the fault-free time "
+        "watched; a hollow point on it: the smallest factor without a false alarm, whose time is only known to be longer "
+        "(dotted to it). A dashed curve lies on an earlier design's equal one. Exact, from the Monte Carlo's own runs, not a second simulation: each statistic's alarm rule (a "
+        "persistence count of J above its threshold, or a GLR's alarm held until J falls below half of it) applied to "
+        "the statistic's J at every factor gives the step's decisions at those thresholds, J being the same at every "
+        "threshold; at the design's own thresholds they are checked equal to the step's own alarms."
+        + absent,
+    ) + folded(
+        table(["design", *(["variant"] if several else []), "faulty runs", "P(detected within D), own thresholds",
+               defined("mean time between false alarms, own thresholds", "mean time between false alarms"),
+               f"P(detected within D), thresholds × {fmt(first['scales'][0])}", f"… × {fmt(first['scales'][-1])}"],
+              rows, left=2 if several else 1)
+    )
+
+
 def _discrete_model(problem: Problem, variant: Any, gf: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, np.ndarray]] | None:
     """``(A, E, C, fault directions)`` of the design model in discrete time: each fault of the gain file that is a
     component fault (a column of ``Fx``, into the state) or a single sensor (into the output)."""
@@ -480,6 +630,7 @@ def standard_figures(ctx: ReportContext) -> list[tuple[str, str]]:
         ("Fault-free statistics against their law", _law_figures(ctx)),
         ("Detection against fault size", _sweep_figure(ctx)),
         ("Delay against the whitened shift", _shift_figure(ctx)),
+        ("Operating characteristic", _operating_figure(ctx)),
         ("Residual frequency responses", _frequency_figures(ctx)),
         ("Generator poles", _pole_figure(ctx)),
     ]

@@ -227,6 +227,9 @@ class Problem:
         A scenario whose fault is a persistent step (a bias): each report variant with sequential statistics
         runs it again at the fault sizes that shift the whitened residual by 0.25σ … 4σ, for their delay
         against the Lorden bound (``None``: no such sweep).
+    operating_delay : float or None
+        The delay ``D`` (s) of the report's operating characteristic, the probability of detection within ``D``
+        against the mean time between false alarms (``None``: a tenth of the shortest faulty scenario's fault).
     """
 
     name: str
@@ -249,6 +252,7 @@ class Problem:
     model: Callable[..., Any] | None = None
     scaled: Callable[[Scenario, float], Scenario | None] | None = None
     shift_scenario: str | None = None
+    operating_delay: float | None = None
 
     def design(self, name: str | None = None, **options: Any) -> GainFile:
         """Make one of the problem's designs.

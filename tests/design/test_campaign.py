@@ -15,10 +15,10 @@ import numpy as np
 import pytest
 from fdisyn.app.cli import main
 from fdisyn.evaluation.built import build
-from fdisyn.evaluation.campaign import Campaign, ChunkPlan, ChunkTask, run_seed, run_tasks
+from fdisyn.evaluation.campaign import Campaign, ChunkPlan, ChunkTask, operating_delay, run_seed, run_tasks
 from fdisyn.evaluation.evaluate import evaluate
 from fdisyn.evaluation.runs import DesignRuns
-from fdisyn.evaluation.metrics import MetricsAccumulator, MetricsPlan, scenario_metrics, summarise_runs
+from fdisyn.evaluation.metrics import OPERATING_SCALES, MetricsAccumulator, MetricsPlan, operating_plan, scenario_metrics, summarise_runs
 from fdisyn.evaluation.progress import quiet
 from fdisyn.simulation.problem import Problem, get_problem
 from fdisyn.runtime.errors import MonteCarloError
@@ -208,7 +208,9 @@ def test_a_real_campaign_equals_the_reference_on_its_stacked_runs(sde_built, com
             active=active, alarm=runs.alarm, isolated=runs.isolated, J=runs.J, thresholds=list(gf.thresholds),
             P_f=[e.P_f for e in gf.evaluators], Ts=gf.Ts, recovery=recovery_samples(gf),
             nonfinite=int(np.sum(runs.status == 1)), budget_s=false_alarm_budget(gf), lorden=lorden,
+            operating=operating_plan(gf, operating_delay(SDE)),
         )
+        assert want.operating is not None and want.operating["episodes"][OPERATING_SCALES.index(1.0)] == want.false_alarm_episodes
         assert ev.metrics[d][name].to_dict() == want.to_dict(), name
         assert sum(want.fault_free_histogram[0]) == want.fault_free_samples
         assert chunk.batch is not None

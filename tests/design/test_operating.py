@@ -1,0 +1,162 @@
+"""The operating characteristic (detection within a delay against the mean time between false alarms, every
+threshold scaled by one factor) against truths: the step rerun at the scaled thresholds, the χ² law's tail, and its
+own consistency (detection never grows with the threshold, the design's own point is the step's)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+import scipy.stats
+from fdisyn.evaluation.metrics import (
+    OPERATING_SCALES,
+    MetricsAccumulator,
+    MetricsPlan,
+    OperatingPlan,
+    binomial_interval,
+    operating_values,
+    summarise_runs,
+)
+from fdisyn.runtime.errors import InternalError
+from fdisyn.runtime.reference import LinearReference
+from fdisyn.synthesis.registry import design
+
+from tests.helpers import random_plant
+
+ONE = OPERATING_SCALES.index(1.0)
+
+
+def _plan(n: int, onset: int | None, op: OperatingPlan | None, nj: int = 1) -> MetricsPlan:
+    active = np.zeros(n, dtype=bool)
+    if onset is not None:
+        active[onset:] = True
+    return MetricsPlan(active=active, quiet=~active, on=None, fault_index=None, thresholds=(1.0,) * nj, operating=op)
+
+
+def _truth(alarm: np.ndarray, plan: MetricsPlan) -> tuple[np.ndarray, np.ndarray]:
+    """Episodes among the quiet samples and the first alarm among the active ones, per run, from alarms."""
+    rising = alarm & ~np.concatenate([np.zeros((alarm.shape[0], 1), bool), alarm[:, :-1]], axis=1)
+    hit = alarm[:, plan.active]
+    first = np.where(hit.any(axis=1), np.argmax(hit, axis=1), -1) if hit.shape[1] else np.full(alarm.shape[0], -1)
+    return rising[:, plan.quiet].sum(axis=1), first
+
+
+@pytest.mark.parametrize("detector, options", [("glr", {"window": 6, "arl0": 20.0}), ("chi2", {"persistence": 3, "P_f": 0.02})])
+def test_the_curve_is_the_step_rerun_at_the_scaled_thresholds(detector, options):
+    """From one run's J at the design's thresholds, the decisions at every scaled threshold equal those of the NumPy
+    reference step whose gain file has those thresholds (a GLR's hold down to half its threshold, a χ² persistence
+    count of three)."""
+    plant = random_plant(3)
+    gf = design(plant, "kalman_uio", detector=detector, **options)
+    rng = np.random.default_rng(7)
+    R, n, onset = 3, 400, 250
+    U = rng.standard_normal((R, n, plant.m))
+    Y = rng.standard_normal((R, n, plant.p)) * 2.0
+    Y[:, onset:, 0] += 1.5  # a bias on the first sensor from the onset
+    runs = [LinearReference(gf).run(U[i], Y[i]) for i in range(R)]
+    J = np.stack([r.J for r in runs])
+    base = SimpleNamespace(J=J, status=np.zeros((R, n), np.int8))
+    plan = _plan(n, onset, OperatingPlan(tuple(gf.evaluators), int(gf.decision.persistence), within=20, delay_s=2.0), gf.step.nj)
+    episodes, first = operating_values(plan, base)
+    checked = 0
+    for k in range(0, len(OPERATING_SCALES), 4):
+        s = OPERATING_SCALES[k]
+        scaled = replace(gf, evaluators=tuple(replace(e, threshold=s * e.threshold) for e in gf.evaluators))
+        alarm = np.stack([LinearReference(scaled).run(U[i], Y[i]).alarm for i in range(R)]).astype(bool)
+        ep, fi = _truth(alarm, plan)
+        assert episodes[:, k].tolist() == ep.tolist(), s
+        assert first[:, k].tolist() == fi.tolist(), s
+        checked += int(ep.sum()) + int((fi >= 0).sum())
+    assert checked > 0  # the comparison saw alarms
+
+
+def test_the_false_alarms_of_an_iid_chi2_statistic_follow_its_tail():
+    """J i.i.d. χ²(k): an episode at factor s starts where J > s h follows J ≤ s h, probability q(1 − q) with
+    q = P(χ²_k > s h) (q at the first sample); the count lies in the binomial interval (the upcrossings are
+    negatively correlated, so it is narrower than that)."""
+    k, h = 3, float(scipy.stats.chi2.isf(1e-3, 3))
+    rng = np.random.default_rng(11)
+    R, n = 40, 5000
+    J = rng.chisquare(k, size=(R, n, 1))
+    op = OperatingPlan((SimpleNamespace(kind="chi2", threshold=h),), 1, within=0, delay_s=0.0)
+    plan = _plan(n, None, op)
+    episodes, first = operating_values(plan, SimpleNamespace(J=J, status=np.zeros((R, n), np.int8)))
+    assert (first == -1).all()
+    for j, s in enumerate(OPERATING_SCALES):
+        q = float(scipy.stats.chi2.sf(s * h, k))
+        lo, hi = binomial_interval(R * (n - 1), q * (1 - q), alpha=1e-6)
+        assert lo - R <= int(episodes[:, j].sum()) <= hi + R, (s, q)
+    assert episodes[:, 0].sum() > 1000 and episodes[:, -1].sum() < 5  # a factor 0.5 alarms often, a factor 2 almost never
+
+
+def test_detection_never_grows_with_the_threshold_and_the_designs_point_is_the_steps():
+    """Detected within D falls (weakly) as every threshold grows; at factor 1 the counts are the step's own, and
+    the accumulator refuses a chunk whose factor 1 disagrees with the step."""
+    plant = random_plant(5)
+    gf = design(plant, "kalman_uio", detector="glr", window=8, arl0=50.0)
+    rng = np.random.default_rng(2)
+    R, n, onset = 6, 300, 150
+    U = rng.standard_normal((R, n, plant.m))
+    Y = rng.standard_normal((R, n, plant.p))
+    Y[:, onset:, :] += 0.8
+    outs = [LinearReference(gf).run(U[i], Y[i]) for i in range(R)]
+    runs = SimpleNamespace(J=np.stack([o.J for o in outs]), r=np.stack([o.r for o in outs]), alarm=np.stack([o.alarm for o in outs]),
+                           isolated=np.stack([o.isolated for o in outs]), status=np.stack([o.status for o in outs]))
+    op = OperatingPlan(tuple(gf.evaluators), 1, within=10, delay_s=10 * gf.Ts)
+    plan = _plan(n, onset, op, gf.step.nj)
+    summary = summarise_runs(plan, runs)
+    acc = MetricsAccumulator(plan, n)
+    acc.add(summary)
+    m = acc.result(scenario="bias", fault="f", P_f=[e.P_f for e in gf.evaluators], Ts=gf.Ts)
+    within = np.asarray(m.operating["detected_within"])
+    assert (np.diff(within) <= 0).all() and within[0] > within[-1]
+    assert m.operating["episodes"][ONE] == m.false_alarm_episodes
+    first = summary.first_alarm
+    assert within[ONE] == int(np.sum((first >= 0) & (first <= 10)))
+    bad = replace(summary, first_alarm=np.where(summary.first_alarm >= 0, summary.first_alarm + 1, 0))
+    with pytest.raises(InternalError, match="differ from the step's"):
+        MetricsAccumulator(plan, n).add(bad)
+
+
+def test_a_skipped_sample_or_a_threshold_dependent_statistic_gives_no_curve():
+    """A chunk with a non-finite sample has no values (the counters hold there, J does not show it), and a CUSUM
+    design has no plan (its sums are clamped at twice its threshold)."""
+    from fdisyn.evaluation.metrics import operating_plan
+
+    plant = random_plant(3)
+    assert operating_plan(design(plant, "kalman_uio", detector="cusum", arl0=20.0), 1.0) is None
+    gf = design(plant, "kalman_uio", detector="glr", window=6, arl0=20.0)
+    op = operating_plan(gf, 1.0)
+    assert op is not None and op.within == round(1.0 / gf.Ts)
+    status = np.zeros((1, 50), np.int8)
+    status[0, 10] = 1
+    plan = _plan(50, 25, op, gf.step.nj)
+    assert operating_values(plan, SimpleNamespace(J=np.zeros((1, 50, gf.step.nj)), status=status)) is None
+
+
+def test_the_page_pools_the_scenarios_and_states_d(tmp_path):
+    """The curve pools every scenario's fault-free time and the faulty scenarios' runs; the figure states D in
+    operator's units, stars the design's own point and names a design without a curve."""
+    from fdisyn.reporting.figures import _operating_figure, operating_curve
+    from fdisyn.reporting.kit import ReportContext
+    from fdisyn.problems.sampled_data_example import PROBLEM
+
+    S = len(OPERATING_SCALES)
+    episodes = np.maximum(0, 40 - 2 * np.arange(S))  # none from factor 2^(20/16) on
+
+    def metrics(fault, runs, within):
+        op = {"scales": list(OPERATING_SCALES), "episodes": episodes.tolist(), "detected_within": within, "delay_s": 10.0}
+        return SimpleNamespace(runs=runs, fault_free_samples=3600 * runs, Ts=1.0, operating=op)
+
+    per = {"fault_free": metrics(None, 10, None), "bias": metrics("f", 20, list(range(20, 20 - S, -1)))}
+    c = operating_curve(per)
+    assert c is not None and c["exposure_s"] == 3600 * 30 and c["runs"] == 20
+    assert c["mtbfa_s"][ONE] == pytest.approx(3600 * 30 / (2 * episodes[ONE]))
+    assert c["pd"][ONE] == pytest.approx((20 - ONE) / 20) and np.isinf(c["mtbfa_s"][-1])
+    lost = {"bias": SimpleNamespace(operating=None)}
+    variant = SimpleNamespace(label="default", evaluation=SimpleNamespace(metrics={"direct": per, "lmi": lost}))
+    page = _operating_figure(ReportContext(problem=PROBLEM, variants=[variant], directory=tmp_path))
+    assert "D = 10 s" in page and "No curve for" in page and "LMI design" in page.split("No curve for")[1]
+    assert (tmp_path / "operating_characteristic.png").stat().st_size > 0
