@@ -698,9 +698,9 @@ def _claims(ctx: ReportContext) -> list[Claim]:
                     f"isolated at t = {fmt(tf + delay)} (median)",
                     "differs",
                     "fdisyn isolates and hands the NF's estimate to the EKF as soon as the NF has settled (its drift and "
-                    "innovation tests) and one parameter alone explains its change of estimate against its own covariance, "
-                    "about 70 samples after the alarm with the square-wave input; the paper gives neither its input nor what "
-                    "it waited for until t = 1000.",
+                    "innovation tests) and one parameter alone explains its change of estimate against its own covariance, now "
+                    "and 50 samples earlier: about 100 samples after the alarm with the square-wave input; the paper gives "
+                    "neither its input nor what it waited for until t = 1000.",
                 )
             )
         err = mm.extra.get("size error a: mean")
