@@ -72,6 +72,7 @@ __all__ = [
     "Generator",
     "Evaluator",
     "Decision",
+    "Isolation",
     "StepSpec",
     "GainFile",
     "read_gain_file",
@@ -338,6 +339,62 @@ class Decision:
     kind: str
     signatures: np.ndarray
     persistence: int = 1
+    isolation: Isolation | None = None
+    """The hypothesis test that names the fault from the residuals (:class:`Isolation`); ``None`` (a file written
+    before it existed): the fault whose signature equals the flag pattern."""
+
+
+@dataclass(frozen=True, eq=False)
+class Isolation:
+    """Isolation by a generalised likelihood ratio test across the fault classes, with a held decision.
+
+    The step keeps the evidence ``z ← λ z + B r``: ``r`` the stacked residual of the generators whose statistics
+    ran, ``B`` (``basis``) a basis of the union of the fault classes' residual spans, orthonormal in the metric of
+    the residuals' noise, so that without a fault ``z`` is Gaussian with unit covariance once stationary (exactly,
+    from the residuals' autocovariances on the design's noise model). Fault class ``f`` is the hypothesis that
+    ``E[z]`` lies in its span, whose orthonormal basis is ``A_f`` (``ranks[f]`` rows of ``directions``); its
+    evidence is ``g_f = |A_f z|²`` (the GLR of a shift of unknown size in that span) and its misfit
+    ``e_f = |z|² − g_f``, χ² with ``len(z) − ranks[f]`` degrees of freedom when ``f`` is the fault (Basseville &
+    Nikiforov, *Detection of Abrupt Changes*, 1993, section 4.2.8; Nyberg, Linköping Studies in Science and
+    Technology, Dissertation 591, 1999: the diagnosis is the hypotheses the data do not reject). Class ``f`` is
+    *plausible* when ``e_f ≤ reject[f]`` and *supported* when also ``g_f ≥ accept[f]`` (the ``1 − level``
+    quantiles of those χ² laws). While the alarm is raised, the named class is the supported one that every other
+    plausible class contains (``nested[f][k] = 1``: class ``k`` corrupts every sensor and component ``f`` does),
+    once the alarm has been raised for ``settle`` samples (the time the classes' transients take to enter their
+    spans), or before any is named the class whose signature equals the flag pattern. It is held: it changes
+    only when the named class is no longer plausible and the test names another, and it is cleared (−1) when the
+    alarm falls. So "not isolated" while alarmed means that classes that do not contain one another are all
+    still plausible: the data cannot tell them apart yet.
+
+    Attributes
+    ----------
+    level : float
+        The test's size: the probability that the true class is rejected at one sample.
+    forgetting : float
+        ``λ`` in ``[0, 1)``: the evidence's memory is about ``1/(1 − λ)`` samples.
+    basis : numpy.ndarray
+        ``B``, ``k × nr`` (``k ≤ nr``): the evidence's coordinates.
+    directions : numpy.ndarray
+        ``Σ ranks × k``: the rows of ``A_f``, class after class, orthonormal within a class.
+    ranks : numpy.ndarray
+        Per class, the dimension of its hypothesis (0: the residuals do not see it; it is never named by the test).
+    accept, reject : numpy.ndarray
+        Per class, the evidence needed and the misfit allowed.
+    nested : numpy.ndarray
+        0/1, ``nf × nf``: ``nested[f][k] = 1`` when class ``k`` contains class ``f`` (zero diagonal).
+    settle : int
+        Alarmed samples before the test may name a class (at least 1).
+    """
+
+    level: float
+    forgetting: float
+    basis: np.ndarray
+    directions: np.ndarray
+    ranks: np.ndarray
+    accept: np.ndarray
+    reject: np.ndarray
+    nested: np.ndarray
+    settle: int = 1
 
 
 @dataclass(frozen=True, eq=False)
@@ -514,6 +571,19 @@ class GainFile:
                 "signatures": np.asarray(self.decision.signatures, dtype=int).tolist(),
                 "persistence": int(self.decision.persistence),
             }
+            iso = self.decision.isolation
+            if iso is not None:  # absent: a file of the flag-pattern decision reads and hashes as before
+                doc["decision"]["isolation"] = {
+                    "level": float(iso.level),
+                    "forgetting": float(iso.forgetting),
+                    "basis": to_jsonable(iso.basis),
+                    "directions": to_jsonable(np.asarray(iso.directions, dtype=float).reshape(-1, np.asarray(iso.basis).shape[0])),
+                    "ranks": np.asarray(iso.ranks, dtype=int).tolist(),
+                    "accept": to_jsonable(iso.accept),
+                    "reject": to_jsonable(iso.reject),
+                    "nested": np.asarray(iso.nested, dtype=int).tolist(),
+                    "settle": int(iso.settle),
+                }
         doc["certificate"] = to_jsonable(dict(self.certificate))
         doc["provenance"] = to_jsonable(dict(self.provenance))
         doc["extensions"] = to_jsonable(dict(self.extensions))
@@ -730,8 +800,26 @@ def gain_file_from_dict(doc: object, *, source: str = "gain file") -> GainFile:
             )
         kwargs["evaluators"] = tuple(evs)
         dd = _Reader(r.obj("decision"), f"{source}: decision")
+        isolation = None
+        if "isolation" in dd.doc:
+            ir = _Reader(dd.obj("isolation"), f"{source}: decision.isolation")
+            ranks = ir.integers("ranks")
+            basis = ir.matrix("basis")
+            isolation = Isolation(
+                level=ir.number("level"),
+                forgetting=ir.number("forgetting"),
+                basis=basis,
+                # no class of rank > 0 leaves no rows: the matrix is read with its width
+                directions=ir.matrix("directions") if sum(ranks) else np.zeros((0, basis.shape[0])),
+                ranks=np.asarray(ranks, dtype=int),
+                accept=ir.vector("accept"),
+                reject=ir.vector("reject"),
+                nested=ir.matrix("nested"),
+                settle=ir.integer("settle", minimum=1),
+            )
         kwargs["decision"] = Decision(
-            kind=dd.string("kind"), signatures=dd.matrix("signatures"), persistence=dd.integer("persistence", minimum=1)
+            kind=dd.string("kind"), signatures=dd.matrix("signatures"), persistence=dd.integer("persistence", minimum=1),
+            isolation=isolation,
         )
     try:
         return GainFile(

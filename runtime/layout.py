@@ -95,7 +95,7 @@ class StateLayout:
         return out
 
 
-def linear_state_layout(generators: Sequence[Any], evaluators: Sequence[Any]) -> StateLayout:
+def linear_state_layout(generators: Sequence[Any], evaluators: Sequence[Any], decision: Any = None) -> StateLayout:
     """Where each part of a linear diagnoser's state vector lives.
 
     ``xi<g>``: generator ``g``'s state; ``counters``: one persistence counter
@@ -114,7 +114,10 @@ def linear_state_layout(generators: Sequence[Any], evaluators: Sequence[Any]) ->
     threshold until the sum returns to 0), for each GLR statistic its onset sums ``d_i(n)``
     (hypothesis-major, ``n = 1 … M``). A sequential statistic's persistence
     counter holds its raised alarm (1) or 0. ``acc<g>``: for each generator with a
-    warm-up, its accumulated ``Σ Φ_kᵀ W r_k`` (:mod:`fdisyn.runtime.warmup`).
+    warm-up, its accumulated ``Σ Φ_kᵀ W r_k`` (:mod:`fdisyn.runtime.warmup`). With a ``decision`` that isolates
+    by the hypothesis test (:class:`~fdisyn.runtime.gainfile.Isolation`): ``evidence``, the exponentially
+    weighted sum of the stacked residual in the test's coordinates, ``named``, the class the decision holds plus one (0: none, so a zero initial state names nothing), and ``age``,
+    the samples the alarm has been raised, counted up to the test's ``settle``.
     """
     blocks = [(f"xi{g}", gen.n_state, 1) for g, gen in enumerate(generators)]
     blocks += [("counters", len(evaluators), 1), ("ready", len(generators), 1), ("nonfinite", 1, 1)]
@@ -126,5 +129,9 @@ def linear_state_layout(generators: Sequence[Any], evaluators: Sequence[Any]) ->
             if rows is not None:
                 blocks.append((f"{prefix}{j}", rows, 1))
     blocks += [(f"acc{g}", gen.n_state, 1) for g, gen in enumerate(generators) if getattr(gen, "warmup", 0)]
-    return StateLayout(tuple(blocks), scalars=frozenset({"nonfinite"}))
+    scalars = {"nonfinite"}
+    if decision is not None and getattr(decision, "isolation", None) is not None:
+        blocks += [("evidence", int(np.asarray(decision.isolation.basis).shape[0]), 1), ("named", 1, 1), ("age", 1, 1)]
+        scalars |= {"named", "age"}
+    return StateLayout(tuple(blocks), scalars=frozenset(scalars))
 

@@ -27,8 +27,12 @@ consecutive samples with ``J_j > threshold_j`` (reset by a sample below); its
 flag is set when the counter reaches ``persistence``. A sequential statistic's
 counter is instead its held alarm: 1 from ``J_j > threshold_j`` until ``J_j``
 falls to its release level (a CUSUM: until every sum that crossed the
-threshold has returned to 0). ``alarm`` is any flag;
-``isolated`` the fault whose signature equals the flag pattern, else −1.
+threshold has returned to 0). ``alarm`` is any flag. ``isolated``: with the decision's hypothesis test
+(:class:`~fdisyn.runtime.gainfile.Isolation`), the evidence ``z ← λ z + B r``
+sums the residuals of the generators whose statistics ran (0 for the others;
+a sum that overflows starts again at 0) in the test's coordinates, and the named class, held in the
+state, follows :func:`isolation_test` and :func:`held_class`; without it, the
+fault whose signature equals the flag pattern, else −1.
 ``status`` is 1 when any input or output of the sample was non-finite or a
 generator skipped it on overflow; the state keeps a running count of such
 samples.
@@ -49,12 +53,15 @@ from dataclasses import dataclass
 
 import numpy as np
 from fdisyn.runtime.errors import ArgumentError, ShapeError
-from fdisyn.runtime.gainfile import GainFile, release_level
+from fdisyn.runtime.gainfile import GainFile, Isolation, release_level
 from fdisyn.runtime.layout import linear_state_layout
 from fdisyn.runtime.statistics import STATISTICS, glr_weights
 from fdisyn.runtime.warmup import generator_warmup
 
-__all__ = ["StepOutput", "RunResult", "LinearReference", "ChangeEstimate", "glr_estimates", "sample_vector", "sample_block", "step_state"]
+__all__ = [
+    "StepOutput", "RunResult", "LinearReference", "ChangeEstimate", "glr_estimates", "IsolationEvidence", "isolation_test",
+    "isolation_evidence", "held_class", "sample_vector", "sample_block", "step_state",
+]
 
 
 def _real_array(a: object, name: str, expected: str) -> np.ndarray:
@@ -169,7 +176,7 @@ def glr_estimates(gf: GainFile, state: np.ndarray) -> list[ChangeEstimate]:
     """The most likely hypothesis, onset and size of every GLR statistic of ``gf`` from a step ``state``
     (the state after a sample: the C ``<prefix>_state`` array or :attr:`Monitor.state`). The step's outputs
     are unchanged by this; it reads the onset sums ``d_i(n)`` the state holds."""
-    lay = linear_state_layout(gf.generators, gf.evaluators)
+    lay = linear_state_layout(gf.generators, gf.evaluators, gf.decision)
     st = step_state(np.asarray(state, dtype=np.float64).copy(), gf.step.nstate)
     out = []
     for j, ev in enumerate(gf.evaluators):
@@ -193,6 +200,105 @@ def glr_estimates(gf: GainFile, state: np.ndarray) -> list[ChangeEstimate]:
     return out
 
 
+@dataclass(frozen=True)
+class IsolationEvidence:
+    """What the isolation test says of each fault class at one sample (:func:`isolation_test`)."""
+
+    evidence: np.ndarray
+    """``g_f``: the GLR of a shift in the class's span (χ² with ``ranks[f]`` degrees of freedom when the class's
+    fault is absent)."""
+    misfit: np.ndarray
+    """``e_f``: what the class's span leaves unexplained (χ² with ``rank V − ranks[f]`` degrees of freedom when the
+    class's fault is present)."""
+    plausible: np.ndarray
+    """The data do not reject the class (``e_f ≤ reject[f]``)."""
+    supported: np.ndarray
+    """Plausible, and its evidence passes ``accept[f]``."""
+    candidate: int
+    """The supported class every other plausible class contains, −1 when there is none."""
+
+
+def isolation_test(iso: Isolation, s: np.ndarray) -> IsolationEvidence:
+    """The hypothesis test of :class:`~fdisyn.runtime.gainfile.Isolation` on the evidence ``s``.
+
+    Parameters
+    ----------
+    iso : Isolation
+        The decision's test.
+    s : numpy.ndarray
+        The evidence ``z`` (the state's ``evidence`` block, ``len(basis)`` entries).
+
+    Returns
+    -------
+    IsolationEvidence
+        Each class's evidence, misfit and verdicts, and the candidate the rule names.
+    """
+    s = np.asarray(s, dtype=float)
+    q = float(s @ s)
+    proj = np.asarray(iso.directions) @ s if np.asarray(iso.directions).size else np.zeros(0)
+    ranks = np.asarray(iso.ranks, dtype=int)
+    ends = np.cumsum(ranks)
+    g = np.array([float(np.sum(proj[e - k : e] ** 2)) for e, k in zip(ends, ranks, strict=True)])
+    misfit = q - g
+    plausible = misfit <= np.asarray(iso.reject)
+    supported = plausible & (g >= np.asarray(iso.accept))
+    nested = np.asarray(iso.nested, dtype=int)
+    candidate = -1
+    for f in range(len(ranks)):
+        others = [k for k in range(len(ranks)) if k != f and plausible[k] and not nested[f][k]]
+        if supported[f] and not others:
+            candidate = f
+            break
+    return IsolationEvidence(evidence=g, misfit=misfit, plausible=plausible, supported=supported, candidate=candidate)
+
+
+def held_class(named: int, alarm: bool, test: IsolationEvidence, settled: bool = True, pattern: int = -1) -> int:
+    """The class the decision names after a sample, from the one it held before.
+
+    While the alarm is raised, when no class is named the test's candidate is (once the alarm has been raised
+    for the test's ``settle`` samples: ``settled``), else the class whose signature equals the flag pattern
+    (``pattern``, −1: none); a named class is replaced only when the test no longer finds it plausible and names
+    another; when the alarm falls nothing is named.
+
+    Parameters
+    ----------
+    named : int
+        The class named before the sample (−1: none).
+    alarm : bool
+        The sample's alarm.
+    test : IsolationEvidence
+        The sample's :func:`isolation_test`.
+    settled : bool
+        The alarm has been raised for at least ``settle`` samples.
+    pattern : int
+        The class whose signature equals the flag pattern, −1 when none does.
+
+    Returns
+    -------
+    int
+        The class named now, −1 for none.
+    """
+    if not alarm:
+        return -1
+    candidate = test.candidate if settled else -1
+    if named < 0:
+        return candidate if candidate >= 0 else pattern
+    if candidate >= 0 and not test.plausible[named]:
+        return candidate
+    return named
+
+
+def isolation_evidence(gf: GainFile, state: np.ndarray) -> IsolationEvidence | None:
+    """The isolation test on the evidence a step ``state`` holds (the state after a sample: the C
+    ``<prefix>_state`` array or :attr:`Monitor.state`); ``None`` for a decision without the test. It says
+    which classes the data still leave plausible when nothing is named."""
+    if gf.kind != "linear" or gf.decision is None or gf.decision.isolation is None:
+        return None
+    lay = linear_state_layout(gf.generators, gf.evaluators, gf.decision)
+    st = step_state(np.asarray(state, dtype=np.float64).copy(), gf.step.nstate)
+    return isolation_test(gf.decision.isolation, st[lay["evidence"]])
+
+
 class LinearReference:
     """The reference implementation of a ``kind = "linear"`` gain file."""
 
@@ -200,7 +306,7 @@ class LinearReference:
         if gf.kind != "linear":
             raise ArgumentError(f"the NumPy reference implements linear diagnosers; this gain file is of kind {gf.kind!r}")
         self.gf = gf
-        self.layout = linear_state_layout(gf.generators, gf.evaluators)
+        self.layout = linear_state_layout(gf.generators, gf.evaluators, gf.decision)
         self.thresholds = gf.thresholds
         assert gf.decision is not None
         self.signatures = np.asarray(gf.decision.signatures, dtype=int)
@@ -238,6 +344,7 @@ class LinearReference:
         counters = state[lay["counters"]]
         flags = np.zeros(gf.step.nj, dtype=int)
         overflow = False
+        r_live = np.zeros(gf.step.nr)  # the residuals of the generators whose statistics ran: the evidence's input
         for g, gen in enumerate(gf.generators):
             n_warm = gen.warmup
             if not (all_u and fin_y[self.outputs_used[g]].all()):
@@ -281,6 +388,7 @@ class LinearReference:
             r[self.r_slices[g]] = rg
             if not live:  # the warm-up: the statistics are held
                 continue
+            r_live[self.r_slices[g]] = rg
             for j, window in windows.items():
                 state[lay[f"{self.statistics[j].block}{j}"]] = window
             for j, value in jg.items():
@@ -294,14 +402,25 @@ class LinearReference:
         bad = overflow or not (all_u and fin_y.all())
         if bad:
             state[lay["nonfinite"]] += 1.0
+        alarm = bool(flags.any())
+        iso = gf.decision.isolation  # type: ignore[union-attr]
         match = np.flatnonzero((self.signatures == flags[None, :]).all(axis=1))
-        return StepOutput(
-            r=r,
-            J=jv,
-            alarm=int(flags.any()),
-            isolated=int(match[0]) if match.size else -1,
-            status=int(bad),
-        )
+        pattern = int(match[0]) if match.size else -1
+        if iso is None:
+            isolated = pattern
+        else:
+            with np.errstate(over="ignore", invalid="ignore"):
+                evidence = iso.forgetting * state[lay["evidence"]] + np.asarray(iso.basis) @ r_live
+            if not np.isfinite(evidence).all():  # an overflow: the evidence starts again
+                evidence = np.zeros_like(evidence)
+            state[lay["evidence"]] = evidence
+            with np.errstate(over="ignore", invalid="ignore"):
+                test = isolation_test(iso, evidence)
+            age = min(float(state[lay["age"]][0]) + 1.0, float(iso.settle)) if alarm else 0.0
+            state[lay["age"]] = age
+            isolated = held_class(int(state[lay["named"]][0]) - 1, alarm, test, age >= iso.settle, pattern)
+            state[lay["named"]] = isolated + 1
+        return StepOutput(r=r, J=jv, alarm=int(alarm), isolated=isolated, status=int(bad))
 
     def run(self, U: np.ndarray, Y: np.ndarray, state: np.ndarray | None = None) -> RunResult:
         """Run over a trace: ``U`` is ``N × nu``, ``Y`` is ``N × ny``; ``state`` (copied) defaults to the initial one."""

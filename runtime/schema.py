@@ -50,6 +50,7 @@ LIMITS: Mapping[str, int] = {
     "unknown_inputs": 256,
     "coefficients": 10_000,
     "warmup_coefficients": 50_000,
+    "isolation_coefficients": 50_000,
     "persistence": 10**9,
 }
 """Size limits of a gain file, checked by the reader before anything costly.

@@ -289,6 +289,15 @@ def check_limits(gf: _GainFile) -> None:
             f"the generators' warm-ups hold {warm} constants; at most {LIMITS['warmup_coefficients']} are supported (each "
             "is a multiply-add of the generated C): expected shorter warm-ups (generators[*].warmup)"
         )
+    iso = None if gf.decision is None else gf.decision.isolation
+    if iso is not None:
+        held = int(np.asarray(iso.basis).size + np.asarray(iso.directions).size)
+        if held > LIMITS["isolation_coefficients"]:
+            _fail(
+                f"decision.isolation holds {held} coefficients (basis and directions); at most "
+                f"{LIMITS['isolation_coefficients']} are supported (each is a multiply-add of the generated C): expected "
+                "fewer residuals or fault classes, or a design without the isolation test"
+            )
     coeffs = step_coefficients(gf.generators, gf.evaluators)
     if coeffs > LIMITS["coefficients"]:
         _fail(
@@ -503,8 +512,10 @@ def _validate_linear(gf: _GainFile) -> None:
             _fail(f"decision.signatures: fault {gf.faults[f]!r} has an all-zero signature (it would be undetectable)")
         if rows.count(row) > 1:
             _fail(f"decision.signatures: fault {gf.faults[f]!r} shares its signature {list(row)} with another fault")
+    if d.isolation is not None:
+        _validate_isolation(d.isolation, len(gf.faults), nr)
     st = gf.step
-    lay = linear_state_layout(gf.generators, gf.evaluators)
+    lay = linear_state_layout(gf.generators, gf.evaluators, gf.decision)
     if st.nr != nr or st.nj != len(gf.evaluators) or st.nstate != lay.size:
         _fail(
             f"step sizes nr={st.nr}, nj={st.nj}, nstate={st.nstate} do not match the generators "
@@ -516,6 +527,36 @@ def _validate_linear(gf: _GainFile) -> None:
         _fail(f"step.init_state of a linear diagnoser must be all zeros; entries {np.flatnonzero(st.init_state).tolist()[:8]} are not")
 
 
+
+
+def _validate_isolation(iso: Any, nf: int, nr: int) -> None:
+    """The isolation test's fields: sizes, a probability, a forgetting factor, positive levels and a nesting
+    relation with a zero diagonal."""
+    w = "decision.isolation"
+    if not 0.0 < iso.level < 0.5:
+        _fail(f"{w}.level must be a probability in (0, 0.5), found {iso.level}")
+    if not 0.0 <= iso.forgetting < 1.0:
+        _fail(f"{w}.forgetting must be in [0, 1), found {iso.forgetting}")
+    basis = np.asarray(iso.basis)
+    if basis.ndim != 2 or basis.shape[1] != nr or not 1 <= basis.shape[0] <= nr:
+        _fail(f"{w}.basis: expected shape (k, {nr}) with 1 ≤ k ≤ {nr} (the residuals), found {basis.shape}")
+    k = basis.shape[0]
+    ranks = np.asarray(iso.ranks)
+    if ranks.shape != (nf,) or np.any(ranks < 0) or np.any(ranks > k):
+        _fail(f"{w}.ranks must hold {nf} integers in 0..{k} (one per fault), found {ranks.tolist()}")
+    _shape(np.asarray(iso.directions), f"{w}.directions", (int(ranks.sum()), k))
+    for key in ("accept", "reject"):
+        v = np.asarray(getattr(iso, key))
+        if v.shape != (nf,) or not np.all(v > 0):
+            _fail(f"{w}.{key} must hold {nf} positive numbers (one per fault), found {v.tolist()}")
+    if not 1 <= int(iso.settle) <= 10**6:
+        _fail(f"{w}.settle must be a whole number of samples in 1..1000000, found {iso.settle}")
+    _shape(iso.nested, f"{w}.nested", (nf, nf))
+    nested = np.asarray(iso.nested)
+    if not np.all((nested == 0) | (nested == 1)) or np.any(np.diag(nested) != 0):
+        _fail(f"{w}.nested must hold only 0 and 1 with a zero diagonal")
+    check_magnitudes(iso.basis, f"{w}.basis")
+    check_magnitudes(iso.directions, f"{w}.directions")
 
 
 def _check_holds(value: object, bound: object, relation: object) -> bool:

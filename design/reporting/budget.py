@@ -139,9 +139,10 @@ def budget_table(problem: Problem, pairs: Sequence[tuple[Any, str]], scen: Seque
         "Statistics 42(6), 1971): no detector with that budget is faster on average for a persistent change. The ratio is "
         f"shown where the bound is at least one sample; the goal is ≤ {fmt(RATIO_GOAL)}. \"No mean shift\": detected more than twice "
         "as fast as the bound allows, so the fault is not the persistent mean change the bound is for (a gain fault on a "
-        "varying signal, whose residual effect averages out). Isolation is the bank's alarm pattern (the "
-        "signature table) over the statistics' held alarms; false isolation: runs whose most frequent decision names "
-        "another fault.</p>"
+        "varying signal, whose residual effect averages out). Isolation is the bank's hypothesis test across the fault "
+        "classes (a GLR on the residuals' exponentially weighted sum, each class kept or rejected at the design's "
+        "false-isolation level, the name held while the alarm is raised); false isolation: runs whose most frequent "
+        "decision names another fault.</p>"
         + table(header, rows, left=3 if by_variant else 2)
     )
 

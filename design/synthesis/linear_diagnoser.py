@@ -50,6 +50,7 @@ from fdisyn.synthesis.registry import (
     is_real,
     register,
 )
+from fdisyn.synthesis.isolation import FALSE_ISOLATION, isolation_design
 from fdisyn.synthesis.residual import (
     WHITE_RTOL,
     dc_gain_y,
@@ -63,6 +64,8 @@ from fdisyn.synthesis.residual import (
 
 __all__ = [
     'BANK_OPTIONS',
+    'FALSE_ISOLATION_OPTION',
+    'ISOLATION_MEMORY',
     'FaultClass',
     'GeneratorDesign',
     'bank_diagnoser',
@@ -132,6 +135,8 @@ def linear_diagnoser(
     options: Mapping[str, object] | None = None,
     where: str = "",
     shifts: Sequence[float] | None = None,
+    false_isolation: float = FALSE_ISOLATION,
+    isolation_memory: int | None = None,
 ) -> GainFile:
     """Build and check the gain file of a bank of linear residual generators.
 
@@ -148,7 +153,9 @@ def linear_diagnoser(
     statistic gets an equal share (:func:`~fdisyn.detectors.sequential.split_budget`),
     ``Ts / (n · arl0)`` per sample for χ² and WSSR. ``faults`` name the fault
     classes to isolate; their signatures must be nonzero and distinct. ``where`` prefixes the refusal of a
-    budget out of range (:func:`check_budget`: ``PATH [design].arl0``; empty: ``option arl0``).
+    budget out of range (:func:`check_budget`: ``PATH [design].arl0``; empty: ``option arl0``). The fault is
+    named by the isolation test of :mod:`fdisyn.synthesis.isolation` at the level ``false_isolation``, its
+    evidence's memory ``isolation_memory`` samples (``None``: chosen).
     """
     if not plant.is_discrete:
         raise ArgumentError("linear_diagnoser needs the discrete plant the generators were designed on")
@@ -196,9 +203,15 @@ def linear_diagnoser(
     if sequential_info:
         checks += sequential_info.pop("checks")
         info["sequential"] = sequential_info
+    isolation, iso_info = isolation_design(
+        plant, gens, faults, fault_sizes(plant, faults, min_fault, noiseless=1.0), level=false_isolation, memory=isolation_memory,
+        windows=[int(e.window) for e in evals],
+    )
+    info["isolation"] = iso_info
     bank_cert = Certificate.of(f"{problem}/{design} bank", checks, info).require()
     nr = sum(g.n_residual for g in gens)
-    lay = linear_state_layout(gens, evals)
+    decision = Decision(kind="signature_table", signatures=sig, persistence=int(persistence), isolation=isolation)
+    lay = linear_state_layout(gens, evals, decision)
     step = StepSpec(
         nu=plant.m,
         ny=plant.p,
@@ -222,7 +235,7 @@ def linear_diagnoser(
         plant=plant.matrices(),
         generators=tuple(gens),
         evaluators=tuple(evals),
-        decision=Decision(kind="signature_table", signatures=sig, persistence=int(persistence)),
+        decision=decision,
         certificate={
             "passed": True,
             "generators": [c.to_dict() for c in certificates],
@@ -260,11 +273,14 @@ def _part_size(whole: tuple[np.ndarray, np.ndarray], f: FaultClass, part: FaultC
     return sens, comp
 
 
-def fault_sizes(plant: LinearPlant, faults: Sequence[FaultClass], min_fault: Mapping[str, float] | None) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+def fault_sizes(
+    plant: LinearPlant, faults: Sequence[FaultClass], min_fault: Mapping[str, float] | None, *, noiseless: float | None = None
+) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """The designed minimum fault of each class: ``(sensor biases, component faults)`` on the plant's outputs and
     ``Fx`` columns. ``min_fault[name]`` is its size in the fault's own units (every sensor or component of the
     class biased by it); by default one standard deviation of each sensor's noise (``sqrt R_ii``) and 1 for a
-    component fault."""
+    component fault. A sensor without noise has no default and is refused, unless ``noiseless`` gives one (the
+    isolation test needs directions only)."""
     given = dict(min_fault or {})
     unknown = sorted(set(given) - {f.name for f in faults})
     if unknown:
@@ -276,7 +292,7 @@ def fault_sizes(plant: LinearPlant, faults: Sequence[FaultClass], min_fault: Map
         comp = np.zeros(plant.Fx.shape[1])
         for name in f.sensors:
             j = plant.outputs.index(name)
-            sens[j] = float(given.get(f.name, sd[j]))
+            sens[j] = float(given.get(f.name, sd[j] if sd[j] > 0 or noiseless is None else noiseless))
             if sens[j] <= 0:
                 raise ArgumentError(
                     f"fault {f.name!r}: sensor {name!r} has no noise (R = 0), so no default minimum fault; give min_fault.{f.name}"
@@ -646,7 +662,24 @@ LINEAR_WINDOW = replace(
     accepts=lambda v: is_count(v) and v <= MAX_WSSR_WINDOW,
     doc=f"{option_texts()['window']}; default {option_texts()['window_default']}",
 )
-BANK_OPTIONS: tuple[Option, ...] = (P_F, ARL0, PERSISTENCE, DETECTOR, EVALUATOR, LINEAR_WINDOW, MIN_FAULT, SHIFTS, BANK, FAULTS)
+FALSE_ISOLATION_OPTION = Option(
+    "false_isolation",
+    FALSE_ISOLATION,
+    "the isolation test's level: the probability that the true fault class is rejected at one sample (the fault is "
+    "named from the residuals by a GLR across the classes' hypotheses, held until the evidence rejects it)",
+    "a probability in (0, 0.5)",
+    lambda v: is_real(v) and 0.0 < v < 0.5,
+)
+ISOLATION_MEMORY = Option(
+    "isolation_memory",
+    None,
+    "the isolation evidence's memory in samples (its exponential forgetting 1 − 1/memory; default: ten times the "
+    "slowest generator's time constant and four statistics' windows, within 50…2000)",
+    "a whole number of samples in 2..1000000",
+    lambda v: is_count(v) and 2 <= v <= 10**6,
+)
+BANK_OPTIONS: tuple[Option, ...] = (P_F, ARL0, PERSISTENCE, DETECTOR, EVALUATOR, LINEAR_WINDOW, MIN_FAULT, SHIFTS, BANK, FAULTS,
+                                    FALSE_ISOLATION_OPTION, ISOLATION_MEMORY)
 """The options of every linear method: the bank and its evaluation (χ²: Hu et al. 2013, Acta Automatica Sinica 39(8),
 eq. (20); WSSR: Long & Wang, Aeroengine 43(5), 2017, section 2)."""
 
@@ -675,6 +708,8 @@ def bank_diagnoser(
     faults: Sequence[FaultClass] | None,
     Ts: float | None = None,
     sampled_data: bool = False,
+    false_isolation: float = FALSE_ISOLATION,
+    isolation_memory: int | None = None,
     **options: Any,
 ) -> GainFile:
     """One generator per group of ``bank`` (``generator`` designs each), evaluators (``evaluator``, ``window``), signatures.
@@ -734,6 +769,8 @@ def bank_diagnoser(
         options=record,
         where=where,
         shifts=shifts,
+        false_isolation=false_isolation,
+        isolation_memory=isolation_memory,
     )
     if chosen is None:
         return gf

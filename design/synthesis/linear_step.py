@@ -9,7 +9,7 @@ import numpy as np
 from fdisyn.detectors.symbolic import all_finite, all_of, constant, finite
 from fdisyn.detectors.table import DETECTORS
 from fdisyn.runtime.gainfile import GainFile
-from fdisyn.runtime.layout import linear_state_layout
+from fdisyn.runtime.layout import StateLayout, linear_state_layout
 from fdisyn.runtime.warmup import generator_warmup
 from fdisyn.synthesis.kinds import STEP_INPUTS, STEP_OUTPUTS
 
@@ -19,7 +19,7 @@ __all__ = ["linear_step_function"]
 def linear_step_function(gf: GainFile) -> ca.Function:
     """Symbolic step of a ``kind = "linear"`` gain file (semantics of the reference)."""
     st = gf.step
-    lay = linear_state_layout(gf.generators, gf.evaluators)
+    lay = linear_state_layout(gf.generators, gf.evaluators, gf.decision)
     state = ca.SX.sym("state", st.nstate)
     u = ca.SX.sym("u", st.nu)
     y = ca.SX.sym("y", st.ny)
@@ -32,6 +32,7 @@ def linear_step_function(gf: GainFile) -> ca.Function:
     assert gf.decision is not None
     persistence = float(gf.decision.persistence)
     r_parts, j_parts, flags = [], [ca.SX(0)] * len(gf.evaluators), [ca.SX(0)] * len(gf.evaluators)
+    live_parts = []  # the residuals of the generators whose statistics ran: the isolation evidence's input
     overflow = ca.SX(0)
     for g, gen in enumerate(gf.generators):
         inputs_ok = ca.logic_and(all_u, all_of(ca.vertcat(*[fin_y[j] for j in gen.outputs_used])))
@@ -82,6 +83,7 @@ def linear_step_function(gf: GainFile) -> ca.Function:
             nxt[acc_sl.start : acc_sl.stop] = ca.if_else(ca.logic_and(ok, 1 - live), emptied, state[acc_sl.start : acc_sl.stop])
         running = ok if warm is None else ca.logic_and(ok, live)
         r_parts.append(ca.if_else(ok, r_g, 0))
+        live_parts.append(ca.if_else(running, r_g, 0))
         for j, window in windows.items():
             ws = lay[f"{DETECTORS[gf.evaluators[j].kind].statistic.block}{j}"]
             nxt[ws.start : ws.stop] = ca.if_else(running, window, state[ws.start : ws.stop])
@@ -99,12 +101,16 @@ def linear_step_function(gf: GainFile) -> ca.Function:
     alarm = ca.SX(0)
     for fl in flags:
         alarm = ca.logic_or(alarm, fl)
-    isolated = ca.SX(-1)
+    pattern = ca.SX(-1)  # the class whose signature equals the flag pattern (rows are distinct: at most one)
     for f, row in enumerate(np.asarray(gf.decision.signatures, dtype=int)):
         match = ca.SX(1)
         for j, s in enumerate(row):
             match = match * (flags[j] if s else 1 - flags[j])
-        isolated = isolated + (f + 1) * match
+        pattern = pattern + (f + 1) * match
+    if gf.decision.isolation is None:
+        isolated = pattern
+    else:
+        isolated = _held_class(gf, lay, state, nxt, ca.vertcat(*live_parts), alarm, pattern)
     return ca.Function(
         "step",
         [state, u, y],
@@ -112,3 +118,47 @@ def linear_step_function(gf: GainFile) -> ca.Function:
         list(STEP_INPUTS),
         list(STEP_OUTPUTS),
     )
+
+
+def _held_class(gf: GainFile, lay: StateLayout, state: ca.SX, nxt: ca.SX, r_live: ca.SX, alarm: ca.SX, pattern: ca.SX) -> ca.SX:
+    """The decision's hypothesis test and held class (:func:`fdisyn.runtime.reference.isolation_test`,
+    :func:`~fdisyn.runtime.reference.held_class`), writing the evidence and the named class into ``nxt``."""
+    assert gf.decision is not None and gf.decision.isolation is not None
+    iso = gf.decision.isolation
+    ev = lay["evidence"]
+    s = float(iso.forgetting) * state[ev.start : ev.stop] + ca.mtimes(constant(np.asarray(iso.basis, dtype=float)), r_live)
+    s = ca.if_else(all_finite(s), s, ca.SX.zeros(s.shape[0]))  # an overflow: the evidence starts again
+    nxt[ev.start : ev.stop] = s
+    q = ca.sumsqr(s)
+    directions = np.asarray(iso.directions, dtype=float)
+    proj = ca.mtimes(constant(directions), s) if directions.size else ca.SX.zeros(0)
+    ranks = [int(k) for k in np.asarray(iso.ranks)]
+    nested = np.asarray(iso.nested, dtype=int)
+    plausible, supported, row = [], [], 0
+    for f, k in enumerate(ranks):
+        g = ca.sumsqr(proj[row : row + k]) if k else ca.SX(0)
+        row += k
+        ok = q - g <= float(iso.reject[f])
+        plausible.append(ok)
+        supported.append(ca.logic_and(ok, g >= float(iso.accept[f])))
+    candidate = ca.SX(-1)
+    for f in reversed(range(len(ranks))):  # the first class that qualifies
+        qualifies = supported[f]
+        for k in range(len(ranks)):
+            if k != f and not nested[f][k]:
+                qualifies = ca.logic_and(qualifies, 1 - plausible[k])
+        candidate = ca.if_else(qualifies, f, candidate)
+    nm = lay["named"].start
+    named = state[nm] - 1
+    named_plausible = ca.SX(0)
+    for f in range(len(ranks)):
+        named_plausible = named_plausible + ca.if_else(named == f, plausible[f], 0)
+    ag = lay["age"].start
+    age = ca.if_else(alarm, ca.fmin(state[ag] + 1, float(iso.settle)), 0)
+    nxt[ag] = age
+    candidate = ca.if_else(age >= float(iso.settle), candidate, -1)
+    first = ca.if_else(candidate >= 0, candidate, pattern)  # nothing named yet: the test's candidate, else the pattern
+    replaced = ca.if_else(ca.logic_and(candidate >= 0, 1 - named_plausible), candidate, named)
+    held = ca.if_else(alarm, ca.if_else(named < 0, first, replaced), -1)
+    nxt[nm] = held + 1
+    return held

@@ -38,6 +38,7 @@ __all__ = [
     "fault_step_response",
     "fault_steady_state",
     "long_run_covariance",
+    "evidence_covariance",
     "WHITE_RTOL",
 ]
 
@@ -279,6 +280,34 @@ def long_run_covariance(gen: Generator, plant: LinearPlant) -> np.ndarray:
     h = c @ np.linalg.solve(np.eye(a.shape[0]) - a, k) + dn
     s = h @ w @ h.T
     return 0.5 * (s + s.T)
+
+
+def evidence_covariance(gens: Sequence[Generator], plant: LinearPlant, forgetting: float) -> np.ndarray:
+    """The stationary covariance of ``s = Σ_{k≥0} λ^k r(t − k)``, ``r`` the generators' stacked residuals.
+
+    The generators are driven by the same plant noise, so their residuals are correlated: the stacked residual
+    is the output of the block-diagonal stack of their stationary models (:func:`_stationary_model`), and
+    ``Var s = Σ_{k,l} λ^{k+l} R(k − l) = (R(0) + X + Xᵀ)/(1 − λ²)`` exactly, with
+    ``X = Σ_{τ≥1} λ^τ R(τ) = C ((I − λA)⁻¹ − I) P Cᵀ + λ C (I − λA)⁻¹ K W Dnᵀ`` (``P`` the stationary state
+    covariance; ``R(τ)`` as in :func:`fdisyn.detectors.window.residual_autocovariance`). ``λ → 1`` tends to
+    the long-run covariance times ``1/(1 − λ²)``.
+    """
+    lam = float(forgetting)
+    if not 0.0 <= lam < 1.0:
+        raise ShapeError(f"forgetting = {lam}: expected a number in [0, 1)")
+    models = [_stationary_model(g, plant) for g in gens]
+    a = scipy.linalg.block_diag(*[m[0] for m in models])
+    k = np.vstack([m[1] for m in models])
+    c = scipy.linalg.block_diag(*[m[2] for m in models])
+    dn = np.vstack([m[3] for m in models])
+    w = models[0][4]
+    n = a.shape[0]
+    p_state = dlyap(a, k @ w @ k.T) if n else np.zeros((0, 0))
+    r0 = c @ p_state @ c.T + dn @ w @ dn.T
+    inv = np.linalg.inv(np.eye(n) - lam * a) if n else np.zeros((0, 0))
+    x = c @ (inv - np.eye(n)) @ p_state @ c.T + lam * c @ inv @ k @ w @ dn.T
+    v = (r0 + x + x.T) / (1.0 - lam * lam)
+    return 0.5 * (v + v.T)
 
 
 def fault_steady_state(gen: Generator, plant: LinearPlant, sensors: np.ndarray, components: np.ndarray) -> np.ndarray | None:

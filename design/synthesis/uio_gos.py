@@ -66,6 +66,7 @@ from fdisyn.synthesis.linear_diagnoser import (
     default_fault_classes,
     linear_diagnoser,
 )
+from fdisyn.synthesis.isolation import FALSE_ISOLATION
 from fdisyn.synthesis.registry import P_F, Option, at
 from fdisyn.synthesis.residual import internal_form
 from fdisyn.synthesis.uio import kalman_uio
@@ -425,6 +426,8 @@ def gos_diagnoser(
     options: Mapping[str, object] | None = None,
     where: str = "",
     shifts: Sequence[float] | None = None,
+    false_isolation: float = FALSE_ISOLATION,
+    isolation_memory: int | None = None,
 ) -> GainFile:
     """The gain file of the generalised observer scheme: :func:`gos_bank` with the linear diagnoser's statistics.
 
@@ -452,6 +455,8 @@ def gos_diagnoser(
         options=options,
         where=where,
         shifts=shifts,
+        false_isolation=false_isolation,
+        isolation_memory=isolation_memory,
     )
 
 
@@ -624,6 +629,8 @@ def gos_design(
     shifts: Sequence[float] | None = None,
     faults: Sequence[FaultClass] | None = None,
     Ts: float | None = None,
+    false_isolation: float = FALSE_ISOLATION,
+    isolation_memory: int | None = None,
     groups: Any = "auto",
     virtual_outputs: Any = "auto",
     sensors: Sequence[int] | None = None,
@@ -730,12 +737,16 @@ def gos_design(
         options={**(record or {}), "chosen": info},
         where=where,
         shifts=shifts,
+        false_isolation=false_isolation,
+        isolation_memory=isolation_memory,
     )
     return GosDesign(gain_file=gf, groups=grouping, virtual=virt, estimate=est, plant=discrete)
 
 
 def _register() -> None:
-    from fdisyn.synthesis.linear_diagnoser import EVALUATOR, FAULTS, LINEAR_WINDOW, MIN_FAULT, SHIFTS, TS
+    from fdisyn.synthesis.linear_diagnoser import (
+        EVALUATOR, FALSE_ISOLATION_OPTION, FAULTS, ISOLATION_MEMORY, LINEAR_WINDOW, MIN_FAULT, SHIFTS, TS,
+    )
     from fdisyn.synthesis.registry import ARL0, DETECTOR, P_F, PERSISTENCE, Method, is_count, is_real, register
 
     options = (
@@ -748,6 +759,8 @@ def _register() -> None:
         MIN_FAULT,
         SHIFTS,
         FAULTS,
+        FALSE_ISOLATION_OPTION,
+        ISOLATION_MEMORY,
         TS,
         Option(
             "groups",

@@ -168,6 +168,7 @@ def test_a_library_built_for_another_gain_file_is_refused(wt_built, tmp_path):
     doc["step"]["nr"], doc["step"]["nj"] = 6, 3
     doc["step"]["statistic_names"] = doc["step"]["statistic_names"][:3]
     doc["step"]["residual_names"] = doc["step"]["residual_names"][:6]
+    doc["decision"].pop("isolation")  # the flag-pattern decision of a file written without the isolation test
     doc["step"]["nstate"] = 3 * 3 + 3 + 3 + 1 + 3 * 3  # states, counters, ready counts, count, warm-up sums
     doc["step"]["init_state"] = [0.0] * 25
     from fdisyn.runtime.gainfile import gain_file_from_dict

@@ -123,7 +123,7 @@ def _run(gf: GainFile, Y: np.ndarray, update: ca.Function, block: str | None) ->
 
 
 def _symbols(gf: GainFile, block: str | None) -> tuple[ca.SX, ca.SX, ca.SX]:
-    size = linear_state_layout(gf.generators, gf.evaluators)[block].stop - linear_state_layout(gf.generators, gf.evaluators)[block].start if block else 0
+    size = linear_state_layout(gf.generators, gf.evaluators, gf.decision)[block].stop - linear_state_layout(gf.generators, gf.evaluators, gf.decision)[block].start if block else 0
     return ca.SX.sym("r", P), ca.SX.sym("block", size), ca.SX.sym("counter")
 
 
@@ -284,7 +284,7 @@ def test_every_statistic_kind_of_a_gain_file_has_its_symbolic_update_and_the_lin
     for kind, stat in ((k, d.statistic) for k, d in DETECTORS.items()):
         assert stat.sequential == (kind in SEQUENTIAL_KINDS)
         gf = _diagnoser(_evaluator(kind, np.random.default_rng(0), 1 if kind in ("chi2", "cusum") else 2))
-        blocks = {name for name, _, _ in linear_state_layout(gf.generators, gf.evaluators).entries}
+        blocks = {name for name, _, _ in linear_state_layout(gf.generators, gf.evaluators, gf.decision).entries}
         assert (stat.block is None) == ({"window0", "sequential0"}.isdisjoint(blocks))
         assert stat.block is None or f"{stat.block}0" in blocks
     source = inspect.getsource(linear_step)

@@ -32,7 +32,7 @@ RUNS, T = 5, 60
 def without_warmup(gf):  # noqa: ANN001, ANN201 - a gain file
     """The same diagnoser started at the equilibrium of its first sample (as before warm-ups)."""
     gens = tuple(replace(g, warmup=0) for g in gf.generators)
-    lay = linear_state_layout(gens, gf.evaluators)
+    lay = linear_state_layout(gens, gf.evaluators, gf.decision)
     return replace(gf, generators=gens, step=replace(gf.step, nstate=lay.size, init_state=np.zeros(lay.size)))
 
 

@@ -157,7 +157,7 @@ def test_the_window_sums_the_last_valid_samples_and_skips_status_1_samples():
     np.testing.assert_array_equal(ref.J[:, 0], expected)
     np.testing.assert_array_equal(ref.status, [0, 0, 1, 0, 1, 0, 0, 1, 0])
     np.testing.assert_array_equal(ref.alarm, [0, 0, 0, 0, 0, 1, 1, 0, 0])  # 29 and 25 > 20
-    lay = linear_state_layout(gf.generators, gf.evaluators)
+    lay = linear_state_layout(gf.generators, gf.evaluators, gf.decision)
     np.testing.assert_array_equal(ref.state[lay["window0"]], [0.0, 0.0, 16.0])  # newest first: k = 8, 6, 5
     # the CasADi step, sample by sample, agrees exactly
     fn = step_function(gf)

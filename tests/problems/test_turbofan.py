@@ -201,7 +201,7 @@ def test_the_glr_of_the_grouped_bank_exceeds_the_step_limits(grouped) -> None:  
     # without the GLR the step is the WSSR bank's less its windows (the whitened generators of a minimum-variance UIO
     # are its own generators)
     wssr_windows = sum(e.window for e in gf.evaluators)
-    assert fp.nstate - fp.hypotheses * fp.window == linear_state_layout(gf.generators, gf.evaluators).size - wssr_windows
+    assert fp.nstate - fp.hypotheses * fp.window == linear_state_layout(gf.generators, gf.evaluators, gf.decision).size - wssr_windows
     assert fp.coefficients - fp.per_onset_coefficients * fp.window == step_coefficients(gf.generators, gf.evaluators)
     # the measured record is of the longest window before the generators' warm-up sums joined the state
     warm = sum(g.n_state for g in gf.generators if g.warmup)

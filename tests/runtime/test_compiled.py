@@ -164,7 +164,8 @@ def _message(fn) -> str:  # noqa: ANN001 - a callable that must raise
     return str(err.value)
 
 
-N_STATE = 33  # the wind-turbine bank: 4 generators of 3 states, 4 counters, 4 ready counts, 1 count, 4 warm-up sums of 3
+N_STATE = 38  # the wind-turbine bank: 4 generators of 3 states, 4 counters, 4 ready counts, 1 count, 4 warm-up sums of 3,
+# the isolation test's evidence (3 coordinates), the named class and the alarm's age
 
 
 def _state(kind: str) -> object:
@@ -218,7 +219,7 @@ def test_a_bad_state_never_reaches_c(wt_built, monkeypatch, kind):
         state.setflags(write=False)  # type: ignore[union-attr]
     msgs = [_message(lambda impl=impl: impl.step(state, U_OK, Y_OK)) for impl in (cd, LinearReference(wt_built.gain_file))]
     assert msgs[0] == msgs[1]
-    assert msgs[0].startswith("state must be a writeable, contiguous float64 array of shape (33,) (the step updates it in place); found ")
+    assert msgs[0].startswith("state must be a writeable, contiguous float64 array of shape (38,) (the step updates it in place); found ")
 
 
 @pytest.mark.parametrize(
@@ -231,7 +232,7 @@ def test_a_bad_state_never_reaches_c(wt_built, monkeypatch, kind):
         ("U complex", r"^U holds complex numbers"),
         ("Y transposed", r"^Y has shape \(4, 50\); expected \(N, 4\)"),
         ("Y flat", r"^Y has shape \(200,\); expected \(N, 4\)"),
-        ("state short", r"^state has shape \(32,\); expected \(33,\)$"),
+        ("state short", r"^state has shape \(37,\); expected \(38,\)$"),
         ("state complex", r"^state holds complex numbers"),
     ],
 )

@@ -93,7 +93,7 @@ def test_missing_file_is_named(tmp_path):
         (lambda d: d["evaluators"][0].__setitem__("generator", 9), "generator 9 is not a generator index"),
         (lambda d: d["decision"]["signatures"][1].__setitem__(0, 2), "only 0 and 1"),
         (lambda d: d["decision"].__setitem__("signatures", [d["decision"]["signatures"][0]] * 8), "shares its signature"),
-        (lambda d: d["step"].__setitem__("nstate", 5), r"init_state has 33 entries; nstate is 5"),
+        (lambda d: d["step"].__setitem__("nstate", 5), r"init_state has 38 entries; nstate is 5"),
         (lambda d: d.__setitem__("Ts", -0.01), "positive sample time"),
     ],
 )
