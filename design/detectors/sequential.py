@@ -63,6 +63,7 @@ __all__ = [
     "glr_arl",
     "glr_threshold",
     "lorden_delay",
+    "onset_lorden_delay",
     "split_budget",
     "cusum_evaluator",
     "scaled_signatures",
@@ -375,6 +376,59 @@ def glr_threshold(arl0: float, window: int) -> float:
 def lorden_delay(arl0: float, information: float) -> float:
     """``ln(ARL₀) / I`` samples: Lorden's (1971) asymptotic lower bound on the worst-case mean delay."""
     return math.log(_positive(arl0, "arl0")) / _positive(information, "information")
+
+
+def onset_lorden_delay(arl0: float, information: Any, tail: float) -> float:
+    """The smallest ``n`` with ``Σ_{ℓ<n} I_ℓ ≥ ln(ARL₀)``: Lorden's bound for a change whose information per sample
+    builds up after the onset.
+
+    The non-i.i.d. form of Lorden's bound (Lai, IEEE Transactions on Information Theory 44(7), 1998): the mean
+    delay is bounded below by the time the cumulative Kullback–Leibler information of the post-change samples takes
+    to reach ``ln(ARL₀)``. Between whole samples ``n`` is interpolated linearly (the cumulative information is taken
+    to grow evenly over a sample), so for a constant ``I_ℓ = I`` it is :func:`lorden_delay`, ``ln(ARL₀)/I``.
+
+    Parameters
+    ----------
+    arl0 : float
+        The false-alarm budget in samples (> 1 for a positive bound).
+    information : array_like
+        ``I_ℓ`` (nats) for the lags ``ℓ = 0, …, L−1`` after the onset: each ``≥ 0``, or an unbiased estimate of it
+        (a measured shift's information less its noise's, which may fall below 0); the bound is the first ``n`` at
+        which their cumulative sum reaches ``ln(ARL₀)``.
+    tail : float
+        The information per sample from lag ``L`` on (≥ 0; the change's steady state).
+
+    Returns
+    -------
+    float
+        The bound in samples; ``inf`` when the information never reaches ``ln(ARL₀)``.
+
+    Raises
+    ------
+    ArgumentError
+        ``arl0`` is not positive and finite, an information is not finite, or ``tail`` is negative.
+
+    Examples
+    --------
+    >>> round(onset_lorden_delay(math.e ** 4, [1.0, 1.0], 1.0), 12)  # a step: ln(ARL)/I
+    4.0
+    >>> onset_lorden_delay(math.e ** 4, [0.0, 2.0, 2.0], 2.0)  # nothing on the onset sample, then 2 nats each
+    3.0
+    """
+    level = math.log(_positive(arl0, "arl0"))
+    info = np.asarray(information, dtype=float).reshape(-1)
+    if not np.all(np.isfinite(info)) or not (math.isfinite(float(tail)) and float(tail) >= 0.0):
+        raise ArgumentError("the information per sample must be finite at every lag, and finite and ≥ 0 in the tail")
+    if level <= 0.0:
+        return 0.0
+    total = np.cumsum(info)
+    reached = np.flatnonzero(total >= level)
+    m = int(reached[0]) if reached.size else info.size  # the first lag whose cumulative information reaches it
+    if m < info.size:  # info[m] > 0: the sum was below the level a lag before
+        before = float(total[m - 1]) if m else 0.0
+        return m + (level - before) / float(info[m])
+    measured = float(total[-1]) if info.size else 0.0
+    return float(info.size + (level - measured) / float(tail)) if tail > 0.0 else math.inf
 
 
 def split_budget(arl0_samples: float, parts: int) -> float:

@@ -132,7 +132,8 @@ class _Plan(ctypes.Structure):
     """``struct campaign_plan`` of ``campaign.c.in``: one design's summaries to accumulate in the C loop."""
 
     _fields_ = [(name, ctypes.c_void_p) for name in ("quiet", "active", "on", "thresholds", "edges", "binned")] + [
-        ("nedges", ctypes.c_long), ("fault", ctypes.c_long)] + [(name, ctypes.c_void_p) for name in ("counts", "sums", "histogram")]
+        ("nedges", ctypes.c_long), ("fault", ctypes.c_long)] + [(name, ctypes.c_void_p) for name in ("counts", "sums", "histogram")] + [
+        ("nlag", ctypes.c_long)]
 
 
 SUMMARY_COUNTS = ("quiet_alarms", "episodes", "first_alarm", "alarmed_fault", "first_isolation", "mode_isolation",
@@ -394,13 +395,14 @@ class CompiledCampaign:
                     "on": None if plan.on is None else np.ascontiguousarray(plan.on, dtype=np.uint8),
                     "thresholds": h, "edges": edges, "binned": binned,
                     "counts": np.zeros((runs, len(SUMMARY_COUNTS) + nj), np.int64),
-                    "sums": np.zeros((runs, 2 * nr + nr * nr)),
+                    "sums": np.zeros((runs, 2 * nr + nr * nr + plan.lags * nr)),
                     "histogram": np.zeros((nj, len(HISTOGRAM_EDGES) + 1), np.int64),
                 }
                 held.append(bufs)
                 for name, a in bufs.items():
                     setattr(c_plans[i], name, None if a is None or a.size == 0 else a.ctypes.data)
                 c_plans[i].nedges = len(HISTOGRAM_EDGES)
+                c_plans[i].nlag = int(plan.lags)
                 c_plans[i].fault = -1 if plan.fault_index is None else int(plan.fault_index)
         if runs and n:
             rc = self._run(
@@ -430,7 +432,8 @@ class CompiledCampaign:
                 exceed=counts[:, len(SUMMARY_COUNTS):].copy(),
                 r_on=sums[:, :nr].copy(),
                 r_off=sums[:, nr : 2 * nr].copy(),
-                rr_off=sums[:, 2 * nr :].reshape(runs, nr, nr).copy(),
+                rr_off=sums[:, 2 * nr : 2 * nr + nr * nr].reshape(runs, nr, nr).copy(),
+                r_lag=sums[:, 2 * nr + nr * nr :].reshape(runs, plans[d].lags, nr).copy(),
                 histogram=[bufs["histogram"][j].copy() if bufs["binned"][j] else np.zeros(0, dtype=np.int64) for j in range(nj)],
             )
         return chunk, summaries

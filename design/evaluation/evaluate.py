@@ -34,7 +34,7 @@ from fdisyn.runtime.compiled import file_sha256
 from fdisyn.runtime.errors import ArgumentError
 from fdisyn.runtime.gainfile import GainFile
 from fdisyn.runtime.reference import RunResult
-from fdisyn.synthesis.kinds import false_alarm_budget, lorden_bound
+from fdisyn.synthesis.kinds import false_alarm_budget, lorden_bound, onset_lorden_bound
 
 __all__ = ["Evaluation", "evaluate", "HUGE_CAMPAIGN"]
 
@@ -80,6 +80,22 @@ def _lorden(gf: GainFile, sums: list[Any] | None) -> tuple[float, float] | None:
     mean_off = off / n_off
     cov = (off2 - n_off * np.outer(mean_off, mean_off)) / (n_off - 1)
     return lorden_bound(gf, on / n_on - mean_off, cov)
+
+
+def _onset(gf: GainFile, sums: list[Any] | None, lag_sums: np.ndarray, runs: int) -> float | None:
+    """The fault's onset-aware Lorden bound (:func:`fdisyn.synthesis.kinds.onset_lorden_bound`): the mean residual
+    shift at each lag after the onset, the residual's per-lag sum over the runs over their number minus the
+    fault-free mean, then the whole-time shift; the covariance as :func:`_lorden`'s, and over the runs the per-lag
+    means' noise, whose information is taken off each lag's."""
+    if sums is None or lag_sums.size == 0 or runs < 1:
+        return None
+    on, off, n_on, n_off, off2 = sums
+    if n_on == 0 or n_off < 2:
+        return None
+    mean_off = off / n_off
+    cov = (off2 - n_off * np.outer(mean_off, mean_off)) / (n_off - 1)
+    # each lag's mean is over the runs: its error's covariance is the residual's over their number
+    return onset_lorden_bound(gf, lag_sums / runs - mean_off[None, :], on / n_on - mean_off, cov, lag_noise=cov / runs)
 
 
 def evaluate(
@@ -179,7 +195,8 @@ def evaluate(
                 gf = b.gain_file
                 a = acc.pop(d)
                 m = a.result(scenario=sname, fault=sc.fault, P_f=[e.P_f for e in gf.evaluators], Ts=gf.Ts,
-                             budget_s=false_alarm_budget(gf), lorden=_lorden(gf, a.sums))
+                             budget_s=false_alarm_budget(gf), lorden=_lorden(gf, a.sums),
+                             onset_bound=_onset(gf, a.sums, a.lag_sums, a.runs))
                 hook = campaign.extra.get(d)
                 if hook is not None:
                     m = replace(m, extra=dict(hook.reduce(sc, gf, a.extra)))

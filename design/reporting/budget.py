@@ -80,11 +80,17 @@ RANGE_RATIO_GOAL = 1.5
 :data:`RATIO_GOAL` at every other."""
 
 
+def _ratio_bound(m: Any) -> float | None:
+    """The bound the delay ratio is over, in samples: the onset-aware bound, else the step's Lorden bound."""
+    return m.lorden_bound_samples if getattr(m, "onset_bound_samples", None) is None else m.onset_bound_samples
+
+
 def _meets_goal(m: Any) -> bool | None:
     """Whether the mean delay is within :data:`RATIO_GOAL` times the Lorden bound; None where the ratio says nothing:
     the bound under one sample (a fault so large that any detector needs the onset sample), or a delay under half
     the bound (faster than the bound allows: the fault is no persistent mean shift)."""
-    if m.delay_bound_ratio is None or m.lorden_bound_samples is None or m.lorden_bound_samples < 1.0 or m.delay_bound_ratio < 0.5:
+    bound = _ratio_bound(m)
+    if m.delay_bound_ratio is None or bound is None or bound < 1.0 or m.delay_bound_ratio < 0.5:
         return None
     return bool(m.delay_bound_ratio <= RATIO_GOAL)
 
@@ -94,7 +100,8 @@ def _ratio(m: Any) -> str:
     under half the bound, "—" where the bound is under one sample."""
     ok = _meets_goal(m)
     if ok is None:
-        shown = m.delay_bound_ratio is not None and m.lorden_bound_samples is not None and m.lorden_bound_samples >= 1.0
+        bound = _ratio_bound(m)
+        shown = m.delay_bound_ratio is not None and bound is not None and bound >= 1.0
         return "no mean shift" if shown else "—"
     return f'<span class="{"ok" if ok else "bad"}">{fmt(m.delay_bound_ratio, 3)}</span>'
 
@@ -137,6 +144,8 @@ def budget_table(problem: Problem, pairs: Sequence[tuple[Any, str]], scen: Seque
         "statistics of ln of each one's share of the budget (in samples) over the Kullback–Leibler information per sample the "
         "fault brought to its generator's residual (measured mean shift, long-run covariance; Lorden, Annals of Mathematical "
         "Statistics 42(6), 1971): no detector with that budget is faster on average for a persistent change. The ratio is "
+        "over the onset-aware bound, the time the cumulative information of the fault's measured shift lag by lag after the "
+        "onset takes to reach ln(ARL) (Lai, IEEE Transactions on Information Theory 44(7), 1998; the Lorden bound for a step), "
         f"shown where the bound is at least one sample; the goal is ≤ {fmt(RATIO_GOAL)}. \"No mean shift\": detected more than twice "
         "as fast as the bound allows, so the fault is not the persistent mean change the bound is for (a gain fault on a "
         "varying signal, whose residual effect averages out). Isolation is the bank's hypothesis test across the fault "

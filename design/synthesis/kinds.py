@@ -53,6 +53,7 @@ __all__ = [
     "false_alarm_budget",
     "lorden_bound",
     "lorden_window",
+    "onset_lorden_bound",
     "reference_run",
 ]
 
@@ -129,6 +130,11 @@ class DiagnoserKind:
         ``(GainFile, μ, Σ) -> (I, ln(ARL)/I) or None``: the information per sample of a fault that shifts the
         residual's mean by ``μ`` (``Σ``: the residual's covariance without the fault) and the Lorden bound on
         its delay (samples).
+    lorden_information : callable or None
+        ``(GainFile, M, Σ) -> [(ARL_j, I_j), …]``: per statistic ``j``, its false-alarm budget in samples and the
+        information per sample ``I_j`` (an array, one per row of ``M``) of each mean shift in the rows of ``M``
+        (``m × nr``) — the measure :attr:`lorden_bound` takes, per statistic; the onset-aware bound
+        (:func:`onset_lorden_bound`) sums it lag by lag. None: the kind has no onset-aware bound.
     lorden_window : callable or None
         ``GainFile -> int``: samples after a fault's onset over which its mean shift is measured (None: while
         it is active) — for a diagnoser that adapts its model to the fault, the samples before it can.
@@ -164,6 +170,7 @@ class DiagnoserKind:
     false_alarm_budget: Callable[[GainFile], float | None] | None = None
     lorden_bound: Callable[[GainFile, np.ndarray, np.ndarray], tuple[float, float] | None] | None = None
     lorden_window: Callable[[GainFile], int] | None = None
+    lorden_information: Callable[[GainFile, np.ndarray, np.ndarray], list[tuple[float, np.ndarray]]] | None = None
     budget_text: str | None = None
     detectors_text: str | None = None
     account_view: Callable[[GainFile], Any] | None = None
@@ -308,6 +315,74 @@ def lorden_bound(gf: GainFile, shift: np.ndarray, covariance: np.ndarray) -> tup
     """``(I, bound)`` of a residual mean shift for the gain file's kind (:attr:`DiagnoserKind.lorden_bound`; None: none)."""
     bound = get_kind(gf.kind).lorden_bound
     return None if bound is None else bound(gf, shift, covariance)
+
+
+def onset_lorden_bound(
+    gf: GainFile, lag_shifts: np.ndarray, shift: np.ndarray, covariance: np.ndarray, lag_noise: np.ndarray | None = None
+) -> float | None:
+    """The onset-aware Lorden bound of a fault whose mean residual shift builds up after its onset, in samples.
+
+    With ``I_j(ℓ)`` the information per sample the shift ``ℓ`` samples after the onset brings to statistic ``j``
+    (the kind's :attr:`DiagnoserKind.lorden_information`, the measure of its :attr:`DiagnoserKind.lorden_bound`),
+    the bound is the smallest over the statistics of the smallest ``n`` with ``Σ_{ℓ<n} I_j(ℓ) ≥ ln(ARL_j)``
+    (:func:`fdisyn.detectors.sequential.onset_lorden_delay`; Lai, IEEE Transactions on Information Theory 44(7),
+    1998), the rows of ``lag_shifts`` giving the lags they cover and ``shift`` every later one. For a step (every
+    row equal to ``shift``) it is the kind's ``ln(ARL_j)/I_j``.
+
+    Parameters
+    ----------
+    gf : GainFile
+        A gain file of a registered kind.
+    lag_shifts : numpy.ndarray
+        ``L × nr``: the mean residual shift at lags ``0, …, L−1`` after the onset.
+    shift : numpy.ndarray
+        ``nr``: the mean shift from lag ``L`` on.
+    covariance : numpy.ndarray
+        ``nr × nr``: the residual's covariance without the fault.
+    lag_noise : numpy.ndarray, optional
+        ``nr × nr``: the covariance of each row's estimation error (a Monte Carlo's: the residual's covariance over
+        its runs). The information of a measured shift is biased up by its noise's, ``½ tr(W · lag_noise)`` for a
+        measure ``½ μᵀ W μ``, which over many lags of a small shift outweighs the shift's own; it is subtracted
+        (computed by the kind's measure on the noise's principal axes), each lag's information then an unbiased
+        estimate. None: the rows are exact.
+
+    Returns
+    -------
+    float or None
+        The bound in samples; None when the kind has no per-lag information or no statistic sees the fault.
+
+    Raises
+    ------
+    ArgumentError
+        ``lag_shifts`` and ``shift`` disagree on the residual's size, or hold a non-finite value.
+    """
+    from fdisyn.detectors.sequential import onset_lorden_delay
+
+    information = get_kind(gf.kind).lorden_information
+    if information is None:
+        return None
+    lags = np.asarray(lag_shifts, dtype=float)
+    tail = np.asarray(shift, dtype=float).reshape(-1)
+    if lags.ndim != 2 or lags.shape[1] != tail.size:
+        raise ArgumentError(f"the per-lag shifts are {lags.shape}, not L × {tail.size} (one row per lag, one column per residual)")
+    if not (np.all(np.isfinite(lags)) and np.all(np.isfinite(tail))):
+        return None
+    rows = [lags, tail[None, :]]
+    axes = np.zeros((0, tail.size))
+    if lag_noise is not None:
+        lam, vec = np.linalg.eigh(0.5 * (np.asarray(lag_noise, dtype=float) + np.asarray(lag_noise, dtype=float).T))
+        keep = lam > 0
+        axes = (vec[:, keep] * np.sqrt(lam[keep])).T  # Σ_k a_k a_kᵀ = lag_noise: Σ_k I(a_k) is the noise's information
+        rows.append(axes)
+    best = np.inf
+    for arl, info in information(gf, np.vstack(rows), np.asarray(covariance, dtype=float)):
+        info = np.asarray(info, dtype=float)
+        if not np.all(np.isfinite(info)):
+            continue
+        n = lags.shape[0]
+        per_lag = info[:n] - float(np.sum(info[n + 1 :]))
+        best = min(best, onset_lorden_delay(arl, per_lag, max(float(info[n]), 0.0)))
+    return float(best) if np.isfinite(best) else None
 
 
 def lorden_window(gf: GainFile) -> int | None:

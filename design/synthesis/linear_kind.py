@@ -57,6 +57,25 @@ def lorden_bound(gf: GainFile, shift: np.ndarray, covariance: np.ndarray | None 
     return (best_i, bound) if math.isfinite(bound) else None
 
 
+def lorden_information(gf: GainFile, shifts: np.ndarray, covariance: np.ndarray | None = None) -> list[tuple[float, np.ndarray]]:
+    """Per statistic ``j``, ``(ARL_j, I_j)``: its share ``1/P_f,j`` of the budget and, for each row ``μ`` of
+    ``shifts`` (mean shifts of the bank's stacked residual, ``m × nr``), the information per sample
+    ``½ μ_gᵀ (Σ_τ R_g(τ))⁺ μ_g`` its generator ``g`` sees — :func:`lorden_bound`'s measure, row by row
+    (``covariance`` is not used: the long-run covariance is the design's)."""
+    M = np.atleast_2d(np.asarray(shifts, dtype=float))
+    offsets = np.cumsum([0] + [g.n_residual for g in gf.generators])
+    plant = design_plant(gf)
+    weights: dict[int, np.ndarray] = {}
+    out = []
+    for ev in gf.evaluators:
+        g = ev.generator
+        if g not in weights:
+            weights[g] = np.linalg.pinv(long_run_covariance(gf.generators[g], plant), rcond=1e-9, hermitian=True)
+        mu = M[:, offsets[g] : offsets[g + 1]]
+        out.append((1.0 / float(ev.P_f), 0.5 * np.einsum("li,ij,lj->l", mu, weights[g], mu)))
+    return out
+
+
 def budget_seconds(gf: GainFile) -> float:
     """A linear diagnoser's false-alarm budget: its ``arl0``, or ``Ts / Σ_j P_f,j`` for a design by ``P_f``."""
     bank = gf.certificate.get("bank", {})
@@ -151,6 +170,7 @@ LINEAR = register_kind(
         recovery_samples=linear_recovery_samples,
         false_alarm_budget=budget_seconds,
         lorden_bound=lorden_bound,
+        lorden_information=lorden_information,
         account_view=linear_account_view,
         reference=linear_reference_run,
         warmups=lambda gf: tuple(int(g.warmup) for g in gf.generators),

@@ -18,11 +18,11 @@ from fdisyn.evaluation.built import build
 from fdisyn.evaluation.campaign import Campaign, ChunkPlan, ChunkTask, operating_delay, run_seed, run_tasks
 from fdisyn.evaluation.evaluate import evaluate
 from fdisyn.evaluation.runs import DesignRuns
-from fdisyn.evaluation.metrics import OPERATING_SCALES, MetricsAccumulator, MetricsPlan, operating_plan, scenario_metrics, summarise_runs
+from fdisyn.evaluation.metrics import ONSET_LAGS, OPERATING_SCALES, MetricsAccumulator, MetricsPlan, operating_plan, scenario_metrics, summarise_runs
 from fdisyn.evaluation.progress import quiet
 from fdisyn.simulation.problem import Problem, get_problem
 from fdisyn.runtime.errors import MonteCarloError
-from fdisyn.synthesis.kinds import false_alarm_budget, lorden_bound, lorden_window, recovery_samples
+from fdisyn.synthesis.kinds import false_alarm_budget, lorden_bound, lorden_window, onset_lorden_bound, recovery_samples
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -131,6 +131,27 @@ def _reference_lorden(gf, on: np.ndarray, r: np.ndarray):  # noqa: ANN001, ANN20
     return lorden_bound(gf, s_on / n_on - mean_off, (off2 - n_off * np.outer(mean_off, mean_off)) / (n_off - 1))
 
 
+def _reference_onset(gf, on: np.ndarray, active: np.ndarray, r: np.ndarray):  # noqa: ANN001, ANN202 - gain file, float
+    """The onset-aware bound from every run kept: the residual at each of the first lags after the onset summed run
+    by run, over the runs, minus the fault-free mean."""
+    nr = r.shape[2]
+    lags = min(ONSET_LAGS, int(on.sum()))
+    idx = np.flatnonzero(active)[:lags]
+    s_on, s_off, n_on, n_off, off2, lag = np.zeros(nr), np.zeros(nr), 0, 0, np.zeros((nr, nr)), np.zeros((lags, nr))
+    for ri in r:
+        s_on += np.sum(ri[on], axis=0)
+        s_off += np.sum(ri[~on], axis=0)
+        n_on += int(on.sum())
+        n_off += int((~on).sum())
+        off2 += ri[~on].T @ ri[~on]
+        lag += ri[idx]
+    if n_on == 0 or n_off < 2 or lags == 0:
+        return None
+    mean_off = s_off / n_off
+    cov = (off2 - n_off * np.outer(mean_off, mean_off)) / (n_off - 1)
+    return onset_lorden_bound(gf, lag / len(r) - mean_off, s_on / n_on - mean_off, cov, lag_noise=cov / len(r))
+
+
 def _merged(plan: MetricsPlan, runs: DesignRuns, cuts: list[int], sc=None, gf=None, **result) -> tuple:  # noqa: ANN001, ANN003
     acc = MetricsAccumulator(plan, runs.alarm.shape[1])
     for a, b in zip([0, *cuts], [*cuts, len(runs.alarm)], strict=True):
@@ -172,9 +193,13 @@ def test_merged_summaries_equal_the_reference_on_the_stacked_runs(case: tuple) -
     if active.any():
         last = int(np.flatnonzero(active)[-1])
         quiet_[last + 1 : last + 1 + recovery] = False
-    plan = MetricsPlan(active=active, quiet=quiet_, on=active, fault_index=fidx, thresholds=thresholds)
+    plan = MetricsPlan(active=active, quiet=quiet_, on=active, fault_index=fidx, thresholds=thresholds, lags=min(3, int(active.sum())))
     P_f = [0.01] * len(thresholds)
-    _, got = _merged(plan, runs, cuts, scenario="s", fault="f", P_f=P_f, Ts=0.1, budget_s=5.0, lorden=(0.5, 2.0))
+    acc, got = _merged(plan, runs, cuts, scenario="s", fault="f", P_f=P_f, Ts=0.1, budget_s=5.0, lorden=(0.5, 2.0))
+    lag = np.zeros((plan.lags, runs.r.shape[2]))
+    for ri in runs.r:  # the per-lag sums, run by run in run order
+        lag += ri[np.flatnonzero(active)[: plan.lags]]
+    np.testing.assert_array_equal(acc.lag_sums if plan.lags else lag, lag)
     want = scenario_metrics(
         scenario="s", fault="f", fault_index=fidx, active=active, alarm=runs.alarm, isolated=runs.isolated, J=runs.J,
         thresholds=thresholds, P_f=P_f, Ts=0.1, recovery=recovery, nonfinite=int(np.sum(runs.status == 1)), budget_s=5.0,
@@ -186,8 +211,8 @@ def test_merged_summaries_equal_the_reference_on_the_stacked_runs(case: tuple) -
 @pytest.mark.parametrize("compiled", [True, False], ids=["compiled", "python"])
 def test_a_real_campaign_equals_the_reference_on_its_stacked_runs(sde_built, compiled: bool) -> None:
     """sampled_data_example, every scenario, on the compiled and on the Python path: the streamed metrics (chunks
-    of 3) equal the reference metrics of the same runs simulated and diagnosed at once, Lorden bound included, to
-    the last bit."""
+    of 3) equal the reference metrics of the same runs simulated and diagnosed at once, Lorden bound and onset-aware
+    bound included, to the last bit."""
     d, gf = SDE.default_design, sde_built.gain_file
     if compiled:
         ev = evaluate(SDE, {d: sde_built}, runs=RUNS, chunk=3, workers=1, progress=False)
@@ -199,16 +224,18 @@ def test_a_real_campaign_equals_the_reference_on_its_stacked_runs(sde_built, com
         chunk = campaign.chunk(sc, ChunkTask(name, s, 0, tuple(run_seed(0, s, i) for i in range(RUNS)), keep_batch=True))
         runs = chunk.designs[d]
         active = sc.active(chunk.t)
-        lorden = None
+        lorden = onset = None
         if sc.fault is not None:
             on = active & (np.cumsum(active) <= (lorden_window(gf) or np.iinfo(np.int64).max))
             lorden = _reference_lorden(gf, on, runs.r)
+            onset = _reference_onset(gf, on, active, runs.r)
+            assert onset is not None
         want = scenario_metrics(
             scenario=name, fault=sc.fault, fault_index=gf.faults.index(sc.fault) if sc.fault in gf.faults else None,
             active=active, alarm=runs.alarm, isolated=runs.isolated, J=runs.J, thresholds=list(gf.thresholds),
             P_f=[e.P_f for e in gf.evaluators], Ts=gf.Ts, recovery=recovery_samples(gf),
             nonfinite=int(np.sum(runs.status == 1)), budget_s=false_alarm_budget(gf), lorden=lorden,
-            operating=operating_plan(gf, operating_delay(SDE)),
+            operating=operating_plan(gf, operating_delay(SDE)), onset_bound=onset,
         )
         assert want.operating is not None and want.operating["episodes"][OPERATING_SCALES.index(1.0)] == want.false_alarm_episodes
         assert ev.metrics[d][name].to_dict() == want.to_dict(), name

@@ -128,7 +128,8 @@ def test_the_shift_sweep_sets_the_whitened_shift(tmp_path):
     """The delay-against-shift sweep scales the paper's fault so that its whitened shift is 0.25σ … 4σ: the
     information per sample the Monte Carlo then measures is ``σ²/2`` (a bias scaled by ``k`` shifts the residual by
     ``k`` times: the information by ``k²``), within the estimate's error; the fault acts long enough for the smallest
-    shift, and the delay over the bound counts the faulty samples seen (an alarm on the first is one)."""
+    shift, and the delay over the bound counts the faulty samples seen (an alarm on the first is one), over the
+    onset-aware bound (the step's ratio kept beside it)."""
     from fdisyn.app.pipeline import SHIFT_SPAN, shift_sweep
     from fdisyn.evaluation.evaluate import evaluate
 
@@ -141,4 +142,10 @@ def test_the_shift_sweep_sets_the_whitened_shift(tmp_path):
         # 10 runs of ≥ 800 faulty samples: the mean shift's relative error is ≲ 1/(0.25 √8000) ≈ 4.5 % at 0.25σ
         assert m.fault_information == pytest.approx(s * s / 2, rel=0.2), s
         assert m.samples_per_run * m.Ts - PROBLEM.scenario("paper").onset >= SHIFT_SPAN * m.lorden_bound_samples * m.Ts * 0.8
-        assert m.delay_bound_ratio == pytest.approx((m.detection_delay_mean_samples + 1) / m.lorden_bound_samples)
+        assert m.stationary_bound_ratio == pytest.approx((m.detection_delay_mean_samples + 1) / m.lorden_bound_samples)
+        assert m.onset_bound_samples is not None
+        assert m.delay_bound_ratio == pytest.approx((m.detection_delay_mean_samples + 1) / m.onset_bound_samples)
+    # the fault reaches the residual a sample after its onset: where the step's bound is under two samples, the
+    # onset-aware one is about a sample longer
+    big = sweep.metrics["direct"][4.0]
+    assert big.lorden_bound_samples < 2.0 and big.onset_bound_samples > big.lorden_bound_samples + 0.5

@@ -8,7 +8,13 @@ from typing import Any
 from fdisyn.runtime.gainfile import GainFile
 from fdisyn.synthesis.kinds import DiagnoserKind, register_kind
 from fdisyn.synthesis.nafdf.design import nafdf_extra_metrics
-from fdisyn.synthesis.nafdf.payload import nafdf_budget_seconds, nafdf_from_gain_file, nafdf_lorden_bound, nafdf_lorden_window
+from fdisyn.synthesis.nafdf.payload import (
+    nafdf_budget_seconds,
+    nafdf_from_gain_file,
+    nafdf_lorden_bound,
+    nafdf_lorden_information,
+    nafdf_lorden_window,
+)
 
 __all__ = ["NAFDF_KIND", "NAFDF_BUDGET_TEXT", "NAFDF_DETECTORS_TEXT", "NAFDF_ACCOUNT_NOTE"]
 
@@ -56,6 +62,7 @@ NAFDF_KIND = register_kind(
         extra_metrics=nafdf_extra_metrics,
         false_alarm_budget=nafdf_budget_seconds,
         lorden_bound=nafdf_lorden_bound,
+        lorden_information=nafdf_lorden_information,
         lorden_window=nafdf_lorden_window,
         budget_text=NAFDF_BUDGET_TEXT,
         detectors_text=NAFDF_DETECTORS_TEXT,

@@ -488,6 +488,20 @@ def nafdf_lorden_window(gf: GainFile) -> int:
     return int(_stored_settings(gf)["classifier_window"])
 
 
+def nafdf_lorden_information(gf: GainFile, shifts: np.ndarray, covariance: np.ndarray) -> list[tuple[float, np.ndarray]]:
+    """``[(ARL, I)]``: the detector's budget ``1/P_f`` samples and, for each row ``μ`` of ``shifts`` (``m × nr``),
+    :func:`nafdf_lorden_bound`'s information ``½ μᵀ Σ⁺ μ`` of the innovation's shift (the first ``p`` residuals);
+    an overflowed (non-finite) information is returned as it is."""
+    p = len(gf.outputs)
+    mu = np.atleast_2d(np.asarray(shifts, dtype=float))[:, :p]
+    cov = np.asarray(covariance, dtype=float)[:p, :p]
+    if not np.all(np.isfinite(cov)):
+        return []
+    with np.errstate(over="ignore", invalid="ignore"):
+        info = 0.5 * np.einsum("li,ij,lj->l", mu, np.linalg.pinv(cov, rcond=1e-9, hermitian=True), mu)
+    return [(1.0 / float(_stored_settings(gf)["false_alarm_probability"]), info)]
+
+
 def nafdf_lorden_bound(gf: GainFile, shift: np.ndarray, covariance: np.ndarray) -> tuple[float, float] | None:
     """``(I, ln(ARL)/I)`` of a mean shift ``μ`` of the EKF innovation ``γ`` (the first ``p`` residuals):
     ``I = ½ μᵀ Σ⁺ μ`` with ``Σ`` the innovation's covariance measured without the fault (an exact filter's
