@@ -318,13 +318,13 @@ def release_level(e: Evaluator) -> float:
 
 @dataclass(frozen=True, eq=False)
 class Decision:
-    """Signature-table isolation over the statistics' alarm flags.
+    """The decision: the statistics' alarm flags, their signature table and the isolation test.
 
     ``signatures[f][j] = 1`` when fault ``f`` is expected to raise statistic
     ``j``. A statistic's flag is set after ``persistence`` consecutive samples
     with ``J > threshold`` (1: the current sample decides, the default). The
-    isolated fault is the one whose signature equals the flag pattern exactly,
-    −1 when none does.
+    isolated fault is named by the ``isolation`` test; without one, it is the
+    fault whose signature equals the flag pattern exactly, −1 when none does.
 
     Attributes
     ----------
@@ -334,14 +334,15 @@ class Decision:
         0/1, one row per fault and one column per statistic; rows distinct and nonzero.
     persistence : int
         Consecutive exceedances before a statistic's flag is set (1 with a sequential statistic).
+    isolation : Isolation or None
+        The hypothesis test that names the fault from the residuals (:class:`Isolation`); ``None`` (a file written
+        before it existed): the fault whose signature equals the flag pattern.
     """
 
     kind: str
     signatures: np.ndarray
     persistence: int = 1
     isolation: Isolation | None = None
-    """The hypothesis test that names the fault from the residuals (:class:`Isolation`); ``None`` (a file written
-    before it existed): the fault whose signature equals the flag pattern."""
 
 
 @dataclass(frozen=True, eq=False)
