@@ -42,6 +42,11 @@ SPAN_RTOL = 1e-9
 the largest designed steady shift's (the ``(1 − λ)``-scaled steady shifts and the transients' sums are compared on
 one scale: a transient below it changes no decision)."""
 
+PRECISION_RTOL = 1e-8
+"""Directions of the evidence's covariance below this fraction of its largest eigenvalue are left out of its
+pseudo-inverse: a residual combination with (nearly) no noise would weigh any model error as overwhelming evidence,
+and its weight would follow the round-off of the design (a different BLAS kernel) instead of the plant."""
+
 MEMORY_MIN, MEMORY_MAX = 50, 2000
 """The evidence's memory ``1/(1 − λ)`` is chosen in this range (samples)."""
 
@@ -153,7 +158,7 @@ def isolation_design(
         return None, info
     v = evidence_covariance(gens, plant, lam)
     ev, vec = np.linalg.eigh(v)
-    keep = ev > 1e-10 * max(float(ev[-1]), 1e-300)
+    keep = ev > PRECISION_RTOL * max(float(ev[-1]), 1e-300)
     precision = (vec[:, keep] / ev[keep]) @ vec[:, keep].T
     precision = 0.5 * (precision + precision.T)
     rank = int(np.sum(keep))
@@ -192,11 +197,9 @@ def isolation_design(
             ranks.append(0)
             continue
         # the class's span in the evidence's coordinates, where the noise is white: its orthonormal basis
-        zm = basis @ m
-        u, sv, _ = np.linalg.svd(zm, full_matrices=False)
-        ok = sv * sv > SPAN_RTOL * scale
-        rows.append(u[:, ok].T)
-        ranks.append(int(np.sum(ok)))
+        q = _gram_schmidt(basis @ m, np.eye(rank), SPAN_RTOL * scale)
+        rows.append(q.T)
+        ranks.append(q.shape[1])
     directions = np.vstack(rows) if rows and sum(ranks) else np.zeros((0, rank))
     chi2 = _chi2_isf()
     accept = np.array([chi2(level, max(k, 1)) for k in ranks])
@@ -244,13 +247,28 @@ def _settle(iso: Isolation, plant: LinearPlant, gens: Sequence[Generator], fault
     return int(min(memory, max(1, last + 2)))
 
 
+def _gram_schmidt(m: np.ndarray, metric: np.ndarray, floor: float) -> np.ndarray:
+    """Columns spanning ``range(m)``, orthonormal in ``metric`` (``xᵀ metric y``), by Gram–Schmidt in the columns'
+    order with a second pass (Giraud et al., Numerische Mathematik 101, 2005): a column whose remainder's squared
+    length is at most ``floor`` is left out. The result is unique for a given ``m`` (no eigenvector's arbitrary sign
+    or rotation), so a design gives the same gain file under every BLAS kernel."""
+    kept: list[np.ndarray] = []
+    for c in m.T:
+        v = np.asarray(c, dtype=float).copy()
+        for _ in range(2):
+            for b in kept:
+                v = v - float(b @ metric @ v) * b
+        norm2 = float(v @ metric @ v)
+        if norm2 > floor:
+            kept.append(v / np.sqrt(norm2))
+    return np.column_stack(kept) if kept else np.zeros((m.shape[0], 0))
+
+
 def _orthonormal(m: np.ndarray, precision: np.ndarray, scale: float) -> np.ndarray:
     """Rows ``B`` spanning ``precision · range(m)`` with ``B V Bᵀ = I`` (``V = precision⁺``): the evidence ``B s`` has
     unit covariance. Directions whose squared length in the metric is below ``SPAN_RTOL · scale`` are left out."""
-    gram = m.T @ precision @ m
-    eg, ug = np.linalg.eigh(0.5 * (gram + gram.T))
-    ok = eg > SPAN_RTOL * scale
-    return (ug[:, ok] / np.sqrt(eg[ok])).T @ m.T @ precision
+    b = _gram_schmidt(m, precision, SPAN_RTOL * scale)
+    return (precision @ b).T
 
 
 def _chi2_isf() -> Any:
