@@ -31,7 +31,9 @@ threshold has returned to 0). ``alarm`` is any flag. ``isolated``: with the deci
 (:class:`~fdisyn.runtime.gainfile.Isolation`), the evidence ``z ← λ z + B r``
 sums the residuals of the generators whose statistics ran (0 for the others;
 a sum that overflows starts again at 0) in the test's coordinates, and the named class, held in the
-state, follows :func:`isolation_test` and :func:`held_class`; without it, the
+state, follows :func:`isolation_test` and :func:`held_class` (a sample on
+which no statistic ran leaves the test's state as it was and names nothing);
+without it, the
 fault whose signature equals the flag pattern, else −1.
 ``status`` is 1 when any input or output of the sample was non-finite or a
 generator skipped it on overflow; the state keeps a running count of such
@@ -345,6 +347,7 @@ class LinearReference:
         flags = np.zeros(gf.step.nj, dtype=int)
         overflow = False
         r_live = np.zeros(gf.step.nr)  # the residuals of the generators whose statistics ran: the evidence's input
+        ran = False
         for g, gen in enumerate(gf.generators):
             n_warm = gen.warmup
             if not (all_u and fin_y[self.outputs_used[g]].all()):
@@ -389,6 +392,7 @@ class LinearReference:
             if not live:  # the warm-up: the statistics are held
                 continue
             r_live[self.r_slices[g]] = rg
+            ran = True
             for j, window in windows.items():
                 state[lay[f"{self.statistics[j].block}{j}"]] = window
             for j, value in jg.items():
@@ -408,6 +412,8 @@ class LinearReference:
         pattern = int(match[0]) if match.size else -1
         if iso is None:
             isolated = pattern
+        elif not ran:  # no statistic ran (a non-finite or warm-up sample): the test keeps its state, no alarm, no name
+            isolated = -1
         else:
             with np.errstate(over="ignore", invalid="ignore"):
                 evidence = iso.forgetting * state[lay["evidence"]] + np.asarray(iso.basis) @ r_live

@@ -141,8 +141,8 @@ def _relative(a: np.ndarray, b: np.ndarray, scale: np.ndarray) -> float:
 
 def _state_scale(gf: GainFile, state: np.ndarray, r: np.ndarray) -> np.ndarray:
     """The rounding-error scale of the final state: its magnitude, and for the isolation test's evidence
-    ``z ← λ z + B r`` the forgotten sum of the magnitudes it adds, ``Σ λ^{n−k} |B| |r_k|`` (the evidence may be a
-    small difference of large terms)."""
+    ``z ← λ z + B r`` the forgotten sum of the scales it adds, ``Σ λ^{n−k} |B| s_r(k)`` with ``r`` the residuals'
+    rounding scale ``s_r`` of :func:`_rounding_scale` (the evidence may be a small difference of large terms)."""
     scale = np.abs(np.asarray(state, dtype=float))
     iso = None if gf.decision is None else gf.decision.isolation
     if iso is None:
@@ -179,7 +179,7 @@ def check_export(b: Built, U: np.ndarray, Y: np.ndarray) -> ExportCheck:
         table[name] = {
             "r": _relative(c_res.r, ref.r, s_r),
             "J": _relative(c_res.J, ref.J, s_j),
-            "state": _relative(c_res.state, ref.state, _state_scale(gf, ref.state, cas.r)),
+            "state": _relative(c_res.state, ref.state, _state_scale(gf, ref.state, s_r)),
             "decisions_equal": bool(
                 np.array_equal(c_res.alarm, ref.alarm)
                 and np.array_equal(c_res.isolated, ref.isolated)

@@ -33,6 +33,7 @@ def linear_step_function(gf: GainFile) -> ca.Function:
     persistence = float(gf.decision.persistence)
     r_parts, j_parts, flags = [], [ca.SX(0)] * len(gf.evaluators), [ca.SX(0)] * len(gf.evaluators)
     live_parts = []  # the residuals of the generators whose statistics ran: the isolation evidence's input
+    ran: ca.SX = ca.SX(0)  # some generator's statistics ran
     overflow = ca.SX(0)
     for g, gen in enumerate(gf.generators):
         inputs_ok = ca.logic_and(all_u, all_of(ca.vertcat(*[fin_y[j] for j in gen.outputs_used])))
@@ -84,6 +85,7 @@ def linear_step_function(gf: GainFile) -> ca.Function:
         running = ok if warm is None else ca.logic_and(ok, live)
         r_parts.append(ca.if_else(ok, r_g, 0))
         live_parts.append(ca.if_else(running, r_g, 0))
+        ran = ca.logic_or(ran, running)
         for j, window in windows.items():
             ws = lay[f"{DETECTORS[gf.evaluators[j].kind].statistic.block}{j}"]
             nxt[ws.start : ws.stop] = ca.if_else(running, window, state[ws.start : ws.stop])
@@ -110,7 +112,7 @@ def linear_step_function(gf: GainFile) -> ca.Function:
     if gf.decision.isolation is None:
         isolated = pattern
     else:
-        isolated = _held_class(gf, lay, state, nxt, ca.vertcat(*live_parts), alarm, pattern)
+        isolated = _held_class(gf, lay, state, nxt, ca.vertcat(*live_parts), alarm, pattern, ran)
     return ca.Function(
         "step",
         [state, u, y],
@@ -120,15 +122,18 @@ def linear_step_function(gf: GainFile) -> ca.Function:
     )
 
 
-def _held_class(gf: GainFile, lay: StateLayout, state: ca.SX, nxt: ca.SX, r_live: ca.SX, alarm: ca.SX, pattern: ca.SX) -> ca.SX:
+def _held_class(
+    gf: GainFile, lay: StateLayout, state: ca.SX, nxt: ca.SX, r_live: ca.SX, alarm: ca.SX, pattern: ca.SX, ran: ca.SX
+) -> ca.SX:
     """The decision's hypothesis test and held class (:func:`fdisyn.runtime.reference.isolation_test`,
-    :func:`~fdisyn.runtime.reference.held_class`), writing the evidence and the named class into ``nxt``."""
+    :func:`~fdisyn.runtime.reference.held_class`), writing the evidence and the named class into ``nxt``; a sample
+    on which no statistic ran (``ran`` 0) leaves them as they were and names nothing."""
     assert gf.decision is not None and gf.decision.isolation is not None
     iso = gf.decision.isolation
     ev = lay["evidence"]
     s = float(iso.forgetting) * state[ev.start : ev.stop] + ca.mtimes(constant(np.asarray(iso.basis, dtype=float)), r_live)
     s = ca.if_else(all_finite(s), s, ca.SX.zeros(s.shape[0]))  # an overflow: the evidence starts again
-    nxt[ev.start : ev.stop] = s
+    nxt[ev.start : ev.stop] = ca.if_else(ran, s, state[ev.start : ev.stop])
     q = ca.sumsqr(s)
     directions = np.asarray(iso.directions, dtype=float)
     proj = ca.mtimes(constant(directions), s) if directions.size else ca.SX.zeros(0)
@@ -155,10 +160,10 @@ def _held_class(gf: GainFile, lay: StateLayout, state: ca.SX, nxt: ca.SX, r_live
         named_plausible = named_plausible + ca.if_else(named == f, plausible[f], 0)
     ag = lay["age"].start
     age = ca.if_else(alarm, ca.fmin(state[ag] + 1, float(iso.settle)), 0)
-    nxt[ag] = age
+    nxt[ag] = ca.if_else(ran, age, state[ag])
     candidate = ca.if_else(age >= float(iso.settle), candidate, -1)
     first = ca.if_else(candidate >= 0, candidate, pattern)  # nothing named yet: the test's candidate, else the pattern
     replaced = ca.if_else(ca.logic_and(candidate >= 0, 1 - named_plausible), candidate, named)
     held = ca.if_else(alarm, ca.if_else(named < 0, first, replaced), -1)
-    nxt[nm] = held + 1
-    return held
+    nxt[nm] = ca.if_else(ran, held + 1, state[nm])
+    return ca.if_else(ran, held, -1)
