@@ -69,9 +69,9 @@ class Evaluation:
         }
 
 
-def _lorden(gf: GainFile, sums: list[Any] | None) -> tuple[float, float] | None:
-    """The fault's Lorden bound from the mean residual shift it brought over the runs and the residual's covariance
-    without it (:func:`fdisyn.synthesis.kinds.lorden_bound` of the gain file's kind)."""
+def _fault_free_law(sums: list[Any] | None) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """From the campaign's residual sums: the mean shift over the fault's whole active time, the fault-free mean and
+    the fault-free covariance; ``None`` without sums, faulty samples or two fault-free ones."""
     if sums is None:
         return None
     on, off, n_on, n_off, off2 = sums
@@ -79,7 +79,17 @@ def _lorden(gf: GainFile, sums: list[Any] | None) -> tuple[float, float] | None:
         return None
     mean_off = off / n_off
     cov = (off2 - n_off * np.outer(mean_off, mean_off)) / (n_off - 1)
-    return lorden_bound(gf, on / n_on - mean_off, cov)
+    return on / n_on - mean_off, mean_off, cov
+
+
+def _lorden(gf: GainFile, sums: list[Any] | None) -> tuple[float, float] | None:
+    """The fault's Lorden bound from the mean residual shift it brought over the runs and the residual's covariance
+    without it (:func:`fdisyn.synthesis.kinds.lorden_bound` of the gain file's kind)."""
+    law = _fault_free_law(sums)
+    if law is None:
+        return None
+    shift, _, cov = law
+    return lorden_bound(gf, shift, cov)
 
 
 def _onset(gf: GainFile, sums: list[Any] | None, lag_sums: np.ndarray, runs: int) -> float | None:
@@ -87,15 +97,12 @@ def _onset(gf: GainFile, sums: list[Any] | None, lag_sums: np.ndarray, runs: int
     shift at each lag after the onset, the residual's per-lag sum over the runs over their number minus the
     fault-free mean, then the whole-time shift; the covariance as :func:`_lorden`'s, and over the runs the per-lag
     means' noise, whose information is taken off each lag's."""
-    if sums is None or lag_sums.size == 0 or runs < 1:
+    law = _fault_free_law(sums)
+    if law is None or lag_sums.size == 0 or runs < 1:
         return None
-    on, off, n_on, n_off, off2 = sums
-    if n_on == 0 or n_off < 2:
-        return None
-    mean_off = off / n_off
-    cov = (off2 - n_off * np.outer(mean_off, mean_off)) / (n_off - 1)
+    shift, mean_off, cov = law
     # each lag's mean is over the runs: its error's covariance is the residual's over their number
-    return onset_lorden_bound(gf, lag_sums / runs - mean_off[None, :], on / n_on - mean_off, cov, lag_noise=cov / runs)
+    return onset_lorden_bound(gf, lag_sums / runs - mean_off[None, :], shift, cov, lag_noise=cov / runs)
 
 
 def evaluate(
