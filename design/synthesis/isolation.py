@@ -25,12 +25,11 @@ from typing import Any
 import numpy as np
 from fdisyn.models.linear import LinearPlant
 from fdisyn.numerics.linalg import spectral_radius
-from fdisyn.runtime.errors import ArgumentError
 from fdisyn.runtime.gainfile import Generator, Isolation
 from fdisyn.runtime.schema import LIMITS, MAX_MAGNITUDE
 from fdisyn.synthesis.residual import evidence_covariance, fault_steady_state, fault_step_response, internal_form
 
-__all__ = ["FALSE_ISOLATION", "isolation_memory", "isolation_design", "check_false_isolation", "check_isolation_memory"]
+__all__ = ["FALSE_ISOLATION", "isolation_memory", "isolation_design"]
 
 FALSE_ISOLATION = 1e-3
 """The default level of the isolation test: the probability that the true class is rejected at one sample. A
@@ -49,24 +48,6 @@ and its weight would follow the round-off of the design (a different BLAS kernel
 
 MEMORY_MIN, MEMORY_MAX = 50, 2000
 """The evidence's memory ``1/(1 − λ)`` is chosen in this range (samples)."""
-
-
-def check_false_isolation(value: object, where: str) -> float:
-    """``value`` as the isolation test's level, or :class:`ArgumentError` naming ``where``."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (0.0 < float(value) < 0.5):
-        raise ArgumentError(f"{where} = {value!r}: expected a probability in (0, 0.5) (the chance of rejecting the true "
-                            f"class at one sample; default {FALSE_ISOLATION:g})")
-    return float(value)
-
-
-def check_isolation_memory(value: object, where: str) -> int | None:
-    """``value`` as the evidence's memory in samples (``None``: chosen), or :class:`ArgumentError` naming ``where``."""
-    if value is None:
-        return None
-    if isinstance(value, bool) or not isinstance(value, int) or not 2 <= value <= 10**6:
-        raise ArgumentError(f"{where} = {value!r}: expected a whole number of samples in 2..1000000 (the isolation "
-                            "evidence's memory), or leave it out to have it chosen")
-    return int(value)
 
 
 def isolation_memory(gens: Sequence[Generator], windows: Sequence[int]) -> int:
