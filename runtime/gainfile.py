@@ -363,8 +363,8 @@ class Isolation:
     plausible class contains (``nested[f][k] = 1``: class ``k`` corrupts every sensor and component ``f`` does),
     once the alarm has been raised for ``settle`` samples (the time the classes' transients take to enter their
     spans), or before any is named the class whose signature equals the flag pattern. It is held: it changes
-    only when the named class is no longer plausible and the test names another, and it is cleared (−1) when the
-    alarm falls. So "not isolated" while alarmed means that classes that do not contain one another are all
+    only when the test names another class (one the named class contains, when the named one is still plausible:
+    the name narrows to what the evidence singles out), and it is cleared (−1) when the alarm falls. So "not isolated" while alarmed means that classes that do not contain one another are all
     still plausible: the data cannot tell them apart yet.
 
     Attributes

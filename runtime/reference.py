@@ -259,8 +259,11 @@ def held_class(named: int, alarm: bool, test: IsolationEvidence, settled: bool =
 
     While the alarm is raised, when no class is named the test's candidate is (once the alarm has been raised
     for the test's ``settle`` samples: ``settled``), else the class whose signature equals the flag pattern
-    (``pattern``, −1: none); a named class is replaced only when the test no longer finds it plausible and names
-    another; when the alarm falls nothing is named.
+    (``pattern``, −1: none); a named class is replaced only when the test names another: either the named class is
+    no longer plausible, or the test's candidate is a class the named one contains (every plausible class contains
+    the candidate), so a name the flag pattern or an early sample gave to a class of several members narrows to the
+    member the evidence singles out. While the test names nothing the name is held; when the alarm falls nothing
+    is named.
 
     Parameters
     ----------
@@ -283,11 +286,9 @@ def held_class(named: int, alarm: bool, test: IsolationEvidence, settled: bool =
     if not alarm:
         return -1
     candidate = test.candidate if settled else -1
-    if named < 0:
-        return candidate if candidate >= 0 else pattern
-    if candidate >= 0 and not test.plausible[named]:
+    if candidate >= 0:
         return candidate
-    return named
+    return named if named >= 0 else pattern
 
 
 def isolation_evidence(gf: GainFile, state: np.ndarray) -> IsolationEvidence | None:

@@ -36,10 +36,20 @@ FALSE_ISOLATION = 1e-3
 wrong class is named only when the true one is rejected and every other is too but one, so this bounds the chance
 of a wrong name at a sample where one is given; the Monte Carlo measures the false isolations over whole runs."""
 
-SPAN_RTOL = 1e-9
+SPAN_RTOL = 1e-6
 """A direction of a class's span counts when its squared length in the precision's metric exceeds this fraction of
-the largest designed steady shift's (the ``(1 − λ)``-scaled steady shifts and the transients' sums are compared on
-one scale: a transient below it changes no decision)."""
+its member's own larger one, the designed steady shift's or its transient's sum's (the ``(1 − λ)``-scaled steady
+shift and the transient's sum compared on one scale). Per member, since the test is about directions, not sizes: a member the residuals see weakly (a
+sensor in other units, a component fault of unit size) keeps its span beside a strongly seen one. A
+direction below it adds at most this fraction of a fault's noncentrality to its class's misfit (a fault a thousand
+times the designed minimum held for a memory), and one above it is resolved to within the design's round-off
+divided by ``√SPAN_RTOL``."""
+
+CANONICAL_RTOL = 1e-3
+"""A coordinate axis's projection onto a class's span, once the axes before it are taken out, joins the span's
+canonical basis when its squared length exceeds this (at most the reciprocal of the evidence's dimension, so the
+pass always finds the span's rank; an axis at this length is resolved to within round-off divided by
+``√CANONICAL_RTOL``)."""
 
 PRECISION_RTOL = 1e-8
 """Directions of the evidence's covariance below this fraction of its largest eigenvalue are left out of its
@@ -146,9 +156,10 @@ def isolation_design(
     # each member's steady response at the class's designed size, scaled to the evidence's mean after one memory
     responses: list[np.ndarray] = []
     spans: list[np.ndarray] = []
+    class_floors: list[np.ndarray] = []
     for f in faults:
         sens, comp = sizes[f.name]
-        cols, shifts = [], []
+        cols, shifts, floors = [], [], []
         for kind, name in _members(f):
             s1, c1 = np.zeros_like(sens), np.zeros_like(comp)
             if kind == "sensor":
@@ -160,25 +171,28 @@ def isolation_design(
             steady, transient = _stacked_response(gens, plant, s1, c1)
             shifts.append(steady / (1.0 - lam))  # the evidence's mean once settled, at the designed size
             cols += [steady / (1.0 - lam), transient]
+            # the member's own scale: its larger column's (none: a member the residuals do not see)
+            seen = max(float(c @ precision @ c) for c in cols[-2:])
+            floors += [SPAN_RTOL * seen if seen > 0.0 else np.inf] * 2
         responses.append(np.column_stack(shifts) if shifts else np.zeros((nr, 0)))
         spans.append(np.column_stack(cols) if cols else np.zeros((nr, 0)))
-    scale = max((float(m[:, i] @ precision @ m[:, i]) for m in responses for i in range(m.shape[1])), default=0.0)
-    if scale <= 0.0:
+        class_floors.append(np.array(floors))
+    if not any(np.isfinite(f).any() for f in class_floors):
         info["skipped"] = "the residuals see no fault class at steady state"
         return None, info
     # the evidence's coordinates: an orthonormal basis, in the precision's metric, of the union of the classes' spans
     # (what lies outside it tells no class from another); a direction the evidence does not see (a transient that
     # sums to nothing, a member the residuals do not see) is left out
-    union = np.column_stack([m for m in spans if m.size])
-    basis = _orthonormal(union, precision, scale)
+    union = np.column_stack([m for m in spans if m.size]) if any(m.size for m in spans) else np.zeros((nr, 0))
+    basis = (precision @ _gram_schmidt(union, precision, np.concatenate(class_floors))).T
     rank = basis.shape[0]
     rows, ranks = [], []
-    for m in spans:
-        if not m.size:
+    for m, fl in zip(spans, class_floors, strict=True):
+        # the class's span in the evidence's coordinates, where the noise is white: its canonical orthonormal basis
+        q = _canonical(_gram_schmidt(basis @ m, np.eye(rank), fl)) if m.size else np.zeros((rank, 0))
+        if not q.shape[1]:
             ranks.append(0)
             continue
-        # the class's span in the evidence's coordinates, where the noise is white: its orthonormal basis
-        q = _gram_schmidt(basis @ m, np.eye(rank), SPAN_RTOL * scale)
         rows.append(q.T)
         ranks.append(q.shape[1])
     directions = np.vstack(rows) if rows and sum(ranks) else np.zeros((0, rank))
@@ -228,13 +242,14 @@ def _settle(iso: Isolation, plant: LinearPlant, gens: Sequence[Generator], fault
     return int(min(memory, max(1, last + 2)))
 
 
-def _gram_schmidt(m: np.ndarray, metric: np.ndarray, floor: float) -> np.ndarray:
+def _gram_schmidt(m: np.ndarray, metric: np.ndarray, floors: np.ndarray) -> np.ndarray:
     """Columns spanning ``range(m)``, orthonormal in ``metric`` (``xᵀ metric y``), by Gram–Schmidt in the columns'
-    order with a second pass (Giraud et al., Numerische Mathematik 101, 2005): a column whose remainder's squared
-    length is at most ``floor`` is left out. The result is unique for a given ``m`` (no eigenvector's arbitrary sign
-    or rotation), so a design gives the same gain file under every BLAS kernel."""
+    order with a second pass (Giraud et al., Numerische Mathematik 101, 2005): column ``i`` whose remainder's squared
+    length is at most ``floors[i]`` is left out. The result is unique for a given ``m`` (no eigenvector's arbitrary
+    sign or rotation). The transposed rows times ``metric`` are the evidence's coordinates ``B`` (``B V Bᵀ = I``
+    with ``V = metric⁺``: the evidence ``B s`` has unit covariance)."""
     kept: list[np.ndarray] = []
-    for c in m.T:
+    for c, floor in zip(m.T, np.broadcast_to(floors, (m.shape[1],)), strict=True):
         v = np.asarray(c, dtype=float).copy()
         for _ in range(2):
             for b in kept:
@@ -245,11 +260,18 @@ def _gram_schmidt(m: np.ndarray, metric: np.ndarray, floor: float) -> np.ndarray
     return np.column_stack(kept) if kept else np.zeros((m.shape[0], 0))
 
 
-def _orthonormal(m: np.ndarray, precision: np.ndarray, scale: float) -> np.ndarray:
-    """Rows ``B`` spanning ``precision · range(m)`` with ``B V Bᵀ = I`` (``V = precision⁺``): the evidence ``B s`` has
-    unit covariance. Directions whose squared length in the metric is below ``SPAN_RTOL · scale`` are left out."""
-    b = _gram_schmidt(m, precision, SPAN_RTOL * scale)
-    return (precision @ b).T
+def _canonical(q: np.ndarray) -> np.ndarray:
+    """The orthonormal basis of ``range(q)`` (``q`` orthonormal) that depends on the subspace alone: Gram–Schmidt of
+    its projections of the coordinate axes, in their order (:data:`CANONICAL_RTOL`). The class's spanning vectors
+    (a steady shift, a transient's sum) turn within the span with the design's round-off far more than the span
+    does; the test reads only the span, and so does the gain file this way."""
+    k, r = q.shape
+    if r == 0 or r == k:
+        return np.eye(k)[:, :r] if r == k else q
+    proj = q @ q.T
+    out = _gram_schmidt(proj, np.eye(k), np.full(k, min(CANONICAL_RTOL, 0.5 / k)))
+    assert out.shape[1] == r, "the axes' projections span the class's span (their squared lengths sum to its rank)"
+    return out
 
 
 def _chi2_isf() -> Any:

@@ -155,15 +155,11 @@ def _held_class(
         candidate = ca.if_else(qualifies, f, candidate)
     nm = lay["named"].start
     named = state[nm] - 1
-    named_plausible = ca.SX(0)
-    for f in range(len(ranks)):
-        named_plausible = named_plausible + ca.if_else(named == f, plausible[f], 0)
     ag = lay["age"].start
     age = ca.if_else(alarm, ca.fmin(state[ag] + 1, float(iso.settle)), 0)
     nxt[ag] = ca.if_else(ran, age, state[ag])
     candidate = ca.if_else(age >= float(iso.settle), candidate, -1)
-    first = ca.if_else(candidate >= 0, candidate, pattern)  # nothing named yet: the test's candidate, else the pattern
-    replaced = ca.if_else(ca.logic_and(candidate >= 0, 1 - named_plausible), candidate, named)
-    held = ca.if_else(alarm, ca.if_else(named < 0, first, replaced), -1)
+    # the test's candidate when it names one (a plausible named class contains it); else the held name, else the pattern
+    held = ca.if_else(alarm, ca.if_else(candidate >= 0, candidate, ca.if_else(named < 0, pattern, named)), -1)
     nxt[nm] = ca.if_else(ran, held + 1, state[nm])
     return ca.if_else(ran, held, -1)

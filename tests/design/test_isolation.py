@@ -150,7 +150,11 @@ def test_the_held_class_changes_only_on_evidence() -> None:
         return IsolationEvidence(evidence=np.zeros(3), misfit=np.zeros(3), plausible=p, supported=p, candidate=candidate)
 
     assert held_class(-1, True, ev([True, False, False], 0)) == 0
-    assert held_class(0, True, ev([True, True, False], 1)) == 0  # still plausible: held
+    assert held_class(0, True, ev([True, True, False], -1)) == 0  # still plausible, nothing singled out: held
+    # still plausible, but the test singles out a class it contains (class 0 holds class 1's members): narrowed
+    assert held_class(0, True, ev([True, True, False], 1)) == 1
+    assert held_class(-1, True, ev([True, True, False], -1), pattern=2) == 2  # nothing from the test: the pattern
+    assert held_class(2, True, ev([True, True, False], 0), settled=False) == 2  # not settled: the test is not heard
     assert held_class(0, True, ev([False, False, False], -1)) == 0  # rejected, but nothing else named: held
     assert held_class(0, True, ev([False, True, False], 1)) == 1  # rejected and another named: changed
     assert held_class(1, False, ev([False, True, False], 1)) == -1  # the alarm fell: cleared
