@@ -22,7 +22,7 @@ import numpy as np
 from fdisyn.runtime.errors import GainFileError
 from fdisyn.runtime.names import shown
 
-__all__ = ["Statistic", "STATISTICS", "count_level", "held_level", "MAX_GLR_WINDOW", "MAX_WSSR_WINDOW", "glr_weights"]
+__all__ = ["Statistic", "STATISTICS", "count_level", "cusum_flags", "held_level", "MAX_GLR_WINDOW", "MAX_WSSR_WINDOW", "glr_weights"]
 
 MAX_GLR_WINDOW = 1000
 """Largest GLR onset window accepted: the step updates ``window`` sums per hypothesis and sample."""
@@ -77,6 +77,10 @@ class Statistic:
         statistic's persistence flag at the threshold ``s · threshold`` is raised exactly where the level is above
         ``s`` (``s > 0``), the same ``J``, from a zero counter, valid samples only. ``None``: ``J`` itself depends on
         the threshold (a CUSUM's sums are clamped at twice it), so a trace at one threshold does not give another's.
+    flags_at : Callable or None
+        ``flags_at(e, r, scales)``: for a statistic without a ``level``, its flag at every threshold scale, run again
+        from the generator's residuals ``r`` (``runs × samples × n_residual``, the samples on which it ran) —
+        ``runs × len(scales) × samples``.
     """
 
     kind: str
@@ -95,6 +99,7 @@ class Statistic:
     update: Callable[[Any, np.ndarray, float | None, np.ndarray, Any], tuple[float, np.ndarray]] | None
     counter: Callable[[Any, float, float, float, float, np.ndarray | None], float]
     level: Callable[[Any, np.ndarray, int], np.ndarray] | None = None
+    flags_at: Callable[[Any, np.ndarray, np.ndarray], np.ndarray] | None = None
 
 
 def _one(label: str, remedy: str = "") -> Callable[[Any, str], str]:
@@ -251,6 +256,43 @@ def _cusum_update(e: Any, r: np.ndarray, q: float | None, old: np.ndarray, prepa
     return float(np.max(sums)), np.concatenate([sums, latch])
 
 
+def cusum_flags(e: Any, r: np.ndarray, scales: np.ndarray) -> np.ndarray:
+    """A CUSUM evaluator's flag at every threshold scale: :func:`_cusum_update`'s sums and latches run again from
+    the residuals, its threshold and clamp (twice the threshold) scaled by each ``s``. The flag is not monotone in
+    ``s`` (a higher clamp lets a sum climb higher and so stay latched longer), so each scale is run.
+
+    Parameters
+    ----------
+    e : Evaluator
+        The evaluator (``directions``, ``drift``, ``threshold``).
+    r : numpy.ndarray
+        Its generator's residuals on the samples on which the statistic ran, ``runs × samples × n_residual``.
+    scales : numpy.ndarray
+        The threshold scales ``s > 0``.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``runs × len(scales) × samples`` bool: the flag (any latched sum) after each sample.
+    """
+    assert e.directions is not None and e.drift is not None
+    r = np.asarray(r, dtype=float)
+    z = r @ np.asarray(e.directions, dtype=float).T
+    zz = np.concatenate([z, -z], axis=2)  # added, then the drift taken off, in the update's order
+    drift = np.concatenate([e.drift, e.drift])[None, None, :]
+    R, n, m2 = zz.shape
+    s = np.asarray(scales, dtype=float)[None, :, None]
+    high, cap = float(e.threshold) * s, 2.0 * float(e.threshold) * s
+    sums = np.zeros((R, s.shape[1], m2))
+    latch = np.zeros(sums.shape, dtype=bool)
+    out = np.zeros((R, s.shape[1], n), dtype=bool)
+    for k in range(n):
+        sums = np.minimum(np.maximum(sums + zz[:, None, k, :] - drift, 0.0), cap)
+        latch = (sums > high) | (latch & (sums > 0.0))
+        out[:, :, k] = latch.any(axis=2)
+    return out
+
+
 def _cusum_counter(e: Any, J: float, count: float, threshold: float, release: float, block: np.ndarray | None) -> float:
     """Any latched sum."""
     assert block is not None
@@ -332,6 +374,7 @@ STATISTICS: dict[str, Statistic] = {
         prepare=_none,
         update=_cusum_update,
         counter=_cusum_counter,
+        flags_at=cusum_flags,
     ),
     "glr": Statistic(
         kind="glr",

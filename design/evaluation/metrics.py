@@ -346,6 +346,7 @@ def scenario_metrics(
     lorden: tuple[float, float] | None = None,
     operating: OperatingPlan | None = None,
     onset_bound: float | None = None,
+    r: np.ndarray | None = None,
 ) -> ScenarioMetrics:
     """Metrics of one scenario from its stacked runs (the reference :class:`MetricsAccumulator` must equal).
 
@@ -384,6 +385,9 @@ def scenario_metrics(
     onset_bound : float, optional
         The onset-aware bound in samples (:func:`fdisyn.synthesis.kinds.onset_lorden_bound`); the delay ratio is
         taken over it when given, over ``lorden``'s bound otherwise.
+    r : numpy.ndarray, optional
+        The residuals, ``R × N × nr`` (a CUSUM's operating characteristic is run again from them; without them it
+        is left out).
 
     Returns
     -------
@@ -473,16 +477,17 @@ def scenario_metrics(
         stationary_bound_ratio=stationary,
         false_isolation_rate=false_iso,
         fault_free_histogram=hist,
-        operating=_operating_reference(operating, active, quiet, np.asarray(J)),
+        operating=_operating_reference(operating, active, quiet, np.asarray(J), None if r is None else np.asarray(r)),
     )
 
 
-def _operating_reference(op: OperatingPlan | None, active: np.ndarray, quiet: np.ndarray, J: np.ndarray) -> dict[str, Any] | None:
+def _operating_reference(op: OperatingPlan | None, active: np.ndarray, quiet: np.ndarray, J: np.ndarray,
+                         r: np.ndarray | None) -> dict[str, Any] | None:
     """The operating characteristic's counts of stacked runs, as :class:`MetricsAccumulator` reports them."""
-    if op is None:
+    if op is None or (op.residuals and r is None):
         return None
     plan = MetricsPlan(active=active, quiet=quiet, on=None, fault_index=None, thresholds=(), operating=op)
-    values = operating_values(plan, SimpleNamespace(J=J, status=np.zeros(J.shape[:2], np.int8)))
+    values = operating_values(plan, SimpleNamespace(J=J, r=r, status=np.zeros(J.shape[:2], np.int8)))
     assert values is not None
     episodes, first = values
     return {"scales": list(OPERATING_SCALES), "episodes": episodes.sum(axis=0).tolist(),
@@ -553,12 +558,13 @@ design itself) exactly in the middle."""
 
 @dataclass(frozen=True, eq=False)
 class OperatingPlan:
-    """What the operating characteristic of a linear diagnoser is taken over (:func:`operating_plan`).
+    """What the operating characteristic of a linear diagnoser or a Beard filter is taken over (:func:`operating_plan`).
 
     Attributes
     ----------
     evaluators : tuple
-        The gain file's evaluators (kind, threshold, release), one per statistic.
+        The gain file's evaluators (kind, threshold, release), one per statistic (a Beard filter's
+        :class:`WindowedThreshold`).
     persistence : int
         The decision's persistence.
     within : int
@@ -566,18 +572,35 @@ class OperatingPlan:
         samples after the onset.
     delay_s : float
         ``D`` in seconds.
+    residuals : tuple
+        Per statistic, ``(start, stop, warmup)``: its generator's residuals in the stacked ``r`` and the samples
+        before it runs (read by a statistic whose flags are run again from the residuals,
+        :attr:`fdisyn.runtime.statistics.Statistic.flags_at`; empty when every statistic has a level).
     """
 
     evaluators: tuple[Any, ...]
     persistence: int
     within: int
     delay_s: float
+    residuals: tuple[tuple[int, int, int], ...] = ()
+
+
+@dataclass(frozen=True)
+class WindowedThreshold:
+    """A Beard filter's decision as the operating characteristic reads it: its first statistic (the window's RMS
+    residual) against ``threshold``, raised after ``persistence`` consecutive samples above it — the rule of a
+    per-sample statistic of ``kind`` (:func:`fdisyn.runtime.statistics.count_level`)."""
+
+    kind: str
+    threshold: float
 
 
 def operating_plan(gf: Any, delay_s: float | None) -> OperatingPlan | None:
-    """The operating characteristic's plan of ``gf``, or ``None`` when its decisions are not a function of its
-    statistics ``J`` at every threshold scale (:attr:`fdisyn.runtime.statistics.Statistic.level`): a kind other than
-    ``linear``, a statistic whose ``J`` depends on its threshold (a CUSUM's clamp), or no delay stated.
+    """The operating characteristic's plan of ``gf``, or ``None`` for a kind other than ``linear`` and ``beard_fdf``
+    (a Beard filter's window statistic against its threshold, :class:`WindowedThreshold`) or no delay stated.
+    Its decisions at every threshold scale follow from the statistics ``J``
+    (:attr:`fdisyn.runtime.statistics.Statistic.level`) or, for a statistic whose ``J`` depends on its threshold
+    (a CUSUM's clamp), from the residuals it runs on (:attr:`~fdisyn.runtime.statistics.Statistic.flags_at`).
 
     Parameters
     ----------
@@ -593,20 +616,37 @@ def operating_plan(gf: Any, delay_s: float | None) -> OperatingPlan | None:
     """
     from fdisyn.runtime.statistics import STATISTICS
 
-    if delay_s is None or gf.kind != "linear":
+    if delay_s is None:
+        return None
+    within = int(np.floor(float(delay_s) / float(gf.Ts) + 1e-9))
+    if gf.kind == "beard_fdf":
+        from fdisyn.synthesis.beard_fdf.payload import beard_from_gain_file
+
+        # the window's RMS residual J[0] against h, counted over the persistence: a per-sample statistic's rule
+        flt = beard_from_gain_file(gf)
+        rule = WindowedThreshold(kind="chi2", threshold=float(flt.h))
+        return OperatingPlan(evaluators=(rule,), persistence=int(flt.persistence), within=within, delay_s=float(delay_s))
+    if gf.kind != "linear":
         return None
     evs = tuple(gf.evaluators or ())
     if gf.decision is None or not evs or len(evs) != gf.step.nj:
         return None
-    if any(STATISTICS[e.kind].level is None or not (np.isfinite(e.threshold) and e.threshold > 0) for e in evs):
+    if any(not (np.isfinite(e.threshold) and e.threshold > 0) for e in evs):
         return None
-    within = int(np.floor(float(delay_s) / float(gf.Ts) + 1e-9))
-    return OperatingPlan(evaluators=evs, persistence=int(gf.decision.persistence), within=within, delay_s=float(delay_s))
+    if any(STATISTICS[e.kind].level is None and STATISTICS[e.kind].flags_at is None for e in evs):
+        return None
+    residuals: tuple[tuple[int, int, int], ...] = ()
+    if any(STATISTICS[e.kind].level is None for e in evs):
+        starts = np.cumsum([0] + [g.n_residual for g in gf.generators])
+        residuals = tuple((int(starts[e.generator]), int(starts[e.generator + 1]), int(gf.generators[e.generator].warmup)) for e in evs)
+    return OperatingPlan(evaluators=evs, persistence=int(gf.decision.persistence), within=within, delay_s=float(delay_s),
+                         residuals=residuals)
 
 
 def alarm_level(op: OperatingPlan, J: np.ndarray) -> np.ndarray:
     """The diagnoser's alarm level, ``runs × samples``: its alarm with every threshold scaled by ``s`` is raised
-    exactly where the level is above ``s`` (the largest of its statistics' levels, an alarm being any flag).
+    exactly where the level is above ``s`` (the largest of its statistics' levels, an alarm being any flag); the
+    statistics without a level (:attr:`fdisyn.runtime.statistics.Statistic.flags_at`) are left out.
 
     Parameters
     ----------
@@ -628,6 +668,8 @@ def alarm_level(op: OperatingPlan, J: np.ndarray) -> np.ndarray:
     # a level is computed row by row, so the statistics of one kind and release ratio go as one stack of rows
     groups: dict[tuple[str, float], list[int]] = {}
     for j, e in enumerate(op.evaluators):
+        if STATISTICS[e.kind].level is None:
+            continue
         groups.setdefault((e.kind, float(STATISTICS[e.kind].release(e)) / float(e.threshold)), []).append(j)
     for (kind, _), js in groups.items():
         stat = STATISTICS[kind]
@@ -657,6 +699,8 @@ def operating_values(plan: MetricsPlan, runs: Any) -> tuple[np.ndarray, np.ndarr
     op = plan.operating
     if op is None or np.any(np.asarray(runs.status) != 0):
         return None
+    if op.residuals:
+        return _operating_rerun(plan, op, runs)
     A = alarm_level(op, runs.J)
     R, n = A.shape
     scales = np.asarray(OPERATING_SCALES)
@@ -677,6 +721,28 @@ def operating_values(plan: MetricsPlan, runs: Any) -> tuple[np.ndarray, np.ndarr
         for i in range(R):
             k = np.searchsorted(top[i], scales, side="right")  # the first fault sample whose running top is above s
             first[i] = np.where(k < idx.size, k, -1)
+    return episodes, first
+
+
+def _operating_rerun(plan: MetricsPlan, op: OperatingPlan, runs: Any) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`operating_values` of a diagnoser with a statistic whose decisions are run again from its residuals at
+    each scale (:attr:`fdisyn.runtime.statistics.Statistic.flags_at`); the others' flags from their levels."""
+    from fdisyn.runtime.statistics import STATISTICS
+
+    scales = np.asarray(OPERATING_SCALES)
+    J = np.asarray(runs.J, dtype=float)
+    R, n = J.shape[:2]
+    alarm = alarm_level(op, J)[:, None, :] > scales[None, :, None]
+    r = np.asarray(runs.r, dtype=float)
+    for e, (start, stop, warm) in zip(op.evaluators, op.residuals, strict=True):
+        stat = STATISTICS[e.kind]
+        # a flag counts one and is raised at the persistence: above 1, a sequential statistic's never is
+        if stat.level is None and stat.flags_at is not None and op.persistence <= 1 and warm < n:
+            alarm[:, :, warm:] |= stat.flags_at(e, r[:, warm:, start:stop], scales)
+    rising = alarm & ~np.concatenate([np.zeros((R, len(scales), 1), dtype=bool), alarm[:, :, :-1]], axis=2)
+    episodes = rising[:, :, plan.quiet].sum(axis=2).astype(np.int64)
+    hit = alarm[:, :, np.flatnonzero(plan.active)]
+    first = np.where(hit.any(axis=2), np.argmax(hit, axis=2), -1).astype(np.int64) if hit.shape[2] else np.full((R, len(scales)), -1, np.int64)
     return episodes, first
 
 

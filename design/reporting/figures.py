@@ -462,9 +462,10 @@ def _operating_figure(ctx: ReportContext) -> str:
         elif lost:
             groups.append(", ".join(label(problem, d) for d in lost) + (f" ({v.label})" if several else ""))
     absent = (
-        f" No curve for {'; '.join(groups)}: their decisions are not a function of statistics whose values are the same "
-        "at every threshold (a CUSUM's sums are clamped at twice its threshold; another kind's step decides in its own "
-        "state), so one Monte Carlo does not give them at other thresholds; they would need a run per threshold."
+        f" No curve for {'; '.join(groups)}: one Monte Carlo does not give their decisions at other thresholds (the "
+        "NAFDF restarts its learning and nominal filter after an alarm, so every later state depends on the threshold; "
+        "a run with a skipped non-finite sample holds counters its statistics do not show); they would need the whole "
+        "filter run again per threshold."
         if groups else ""
     )
     return ctx.figure(

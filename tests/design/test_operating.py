@@ -72,6 +72,74 @@ def test_the_curve_is_the_step_rerun_at_the_scaled_thresholds(detector, options)
     assert checked > 0  # the comparison saw alarms
 
 
+@pytest.mark.parametrize("shifts", [None, (0.5, 1.0, 2.0, 4.0)], ids=["one_shift", "multiscale"])
+def test_the_cusum_curve_is_the_step_rerun_at_the_scaled_thresholds(shifts):
+    """A CUSUM's sums are clamped at twice its threshold, so its ``J`` at one threshold does not give another's: its
+    flags are run again from the residuals at each scale. Those decisions equal the NumPy reference step's whose gain
+    file has the scaled thresholds, at every scale, in the warm-up and after it."""
+    from fdisyn.evaluation.metrics import operating_plan
+
+    plant = random_plant(3)
+    gf = design(plant, "kalman_uio", detector="cusum", arl0=20.0, **({} if shifts is None else {"shifts": shifts}))
+    op = operating_plan(gf, 20 * gf.Ts)
+    assert op is not None and op.residuals and op.within == 20
+    assert max(g.warmup for g in gf.generators) > 0  # the rerun skips each generator's warm-up as the step does
+    rng = np.random.default_rng(5)
+    R, n, onset = 3, 400, 250
+    U = rng.standard_normal((R, n, plant.m))
+    Y = rng.standard_normal((R, n, plant.p)) * 1.5
+    Y[:, onset:, 0] += 1.0
+    runs = [LinearReference(gf).run(U[i], Y[i]) for i in range(R)]
+    base = SimpleNamespace(J=np.stack([o.J for o in runs]), r=np.stack([o.r for o in runs]), status=np.zeros((R, n), np.int8))
+    plan = _plan(n, onset, op, gf.step.nj)
+    episodes, first = operating_values(plan, base)
+    ep1, fi1 = _truth(np.stack([o.alarm for o in runs]).astype(bool), plan)
+    assert episodes[:, ONE].tolist() == ep1.tolist() and first[:, ONE].tolist() == fi1.tolist()
+    checked = 0
+    for k in range(0, len(OPERATING_SCALES), 4):
+        s = OPERATING_SCALES[k]
+        scaled = replace(gf, evaluators=tuple(replace(e, threshold=s * e.threshold) for e in gf.evaluators))
+        alarm = np.stack([LinearReference(scaled).run(U[i], Y[i]).alarm for i in range(R)]).astype(bool)
+        ep, fi = _truth(alarm, plan)
+        assert episodes[:, k].tolist() == ep.tolist(), s
+        assert first[:, k].tolist() == fi.tolist(), s
+        checked += int(ep.sum()) + int((fi >= 0).sum())
+    assert checked > 0  # the comparison saw alarms (episodes need not fall with the scale: a lower threshold latches longer)
+
+
+def test_the_beard_curve_is_the_filter_rerun_at_the_scaled_threshold():
+    """A Beard filter's decision is its window's RMS residual against ``h`` over the persistence: its curve from
+    ``J`` equals the NumPy reference filter's decisions with ``h`` scaled, at every scale."""
+    from fdisyn.evaluation.metrics import operating_plan
+    from fdisyn.synthesis.beard_fdf.reference import beard_reference_run
+
+    from tests.design.test_beard_fdf_step import four_state, gain_file, simulate
+
+    flt, F = four_state(window=5, h=0.3, explicit_level=0.05, persistence=3, Y_th=[0.2, 0.2])
+    op = operating_plan(gain_file(flt), 20 * 0.01)
+    assert op is not None and op.persistence == 3 and op.within == 20
+    rng = np.random.default_rng(4)
+    R, n, onset = 3, 300, 200
+    traces = []
+    for _ in range(R):
+        mu = np.zeros((n, 2))
+        mu[onset:, 0] = 0.2
+        traces.append(simulate(flt, F, 0.3 * rng.standard_normal((n, 1)), mu, np.zeros(4), noise=0.25, rng=rng))
+    runs = [beard_reference_run(flt, U, Y) for U, Y in traces]
+    base = SimpleNamespace(J=np.stack([o.J for o in runs]), status=np.zeros((R, n), np.int8))
+    plan = _plan(n, onset, op, 1)
+    episodes, first = operating_values(plan, base)
+    checked = 0
+    for k in range(0, len(OPERATING_SCALES), 4):
+        s = OPERATING_SCALES[k]
+        alarm = np.stack([beard_reference_run(replace(flt, h=s * flt.h), U, Y).alarm for U, Y in traces]).astype(bool)
+        ep, fi = _truth(alarm, plan)
+        assert episodes[:, k].tolist() == ep.tolist(), s
+        assert first[:, k].tolist() == fi.tolist(), s
+        checked += int(ep.sum()) + int((fi >= 0).sum())
+    assert checked > 0 and episodes[:, 0].sum() > 0  # alarms seen, false ones among them at half the threshold
+
+
 def test_the_false_alarms_of_an_iid_chi2_statistic_follow_its_tail():
     """J i.i.d. χ²(k): an episode at factor s starts where J > s h follows J ≤ s h, probability q(1 − q) with
     q = P(χ²_k > s h) (q at the first sample); the count lies in the binomial interval (the upcrossings are
@@ -120,13 +188,11 @@ def test_detection_never_grows_with_the_threshold_and_the_designs_point_is_the_s
         MetricsAccumulator(plan, n).add(bad)
 
 
-def test_a_skipped_sample_or_a_threshold_dependent_statistic_gives_no_curve():
-    """A chunk with a non-finite sample has no values (the counters hold there, J does not show it), and a CUSUM
-    design has no plan (its sums are clamped at twice its threshold)."""
+def test_a_skipped_sample_gives_no_curve():
+    """A chunk with a non-finite sample has no values (the counters hold there, J does not show it)."""
     from fdisyn.evaluation.metrics import operating_plan
 
     plant = random_plant(3)
-    assert operating_plan(design(plant, "kalman_uio", detector="cusum", arl0=20.0), 1.0) is None
     gf = design(plant, "kalman_uio", detector="glr", window=6, arl0=20.0)
     op = operating_plan(gf, 1.0)
     assert op is not None and op.within == round(1.0 / gf.Ts)
