@@ -624,7 +624,10 @@ def operating_plan(gf: Any, delay_s: float | None) -> OperatingPlan | None:
 
         # the window's RMS residual J[0] against h, counted over the persistence: a per-sample statistic's rule
         flt = beard_from_gain_file(gf)
-        rule = WindowedThreshold(kind="chi2", threshold=float(flt.h))
+        from fdisyn.runtime.statistics import count_level
+
+        per_sample = next(k for k, st in STATISTICS.items() if st.level is count_level and not st.window_read)
+        rule = WindowedThreshold(kind=per_sample, threshold=float(flt.h))
         return OperatingPlan(evaluators=(rule,), persistence=int(flt.persistence), within=within, delay_s=float(delay_s))
     if gf.kind != "linear":
         return None
