@@ -478,9 +478,11 @@ def _operating_figure(ctx: ReportContext) -> str:
         f"({len(first['scales'])} factors). Star: the design's own thresholds. Grey, dash-dotted: the fault-free time "
         "watched; a hollow point on it: the smallest factor without a false alarm, whose time is only known to be longer "
         "(dotted to it). A dashed curve lies on an earlier design's equal one. Exact, from the Monte Carlo's own runs, not a second simulation: each statistic's alarm rule (a "
-        "persistence count of J above its threshold, or a GLR's alarm held until J falls below half of it) applied to "
-        "the statistic's J at every factor gives the step's decisions at those thresholds, J being the same at every "
-        "threshold; at the design's own thresholds they are checked equal to the step's own alarms."
+        "persistence count of J above its threshold, a Beard filter's window RMS residual included, or a GLR's alarm held "
+        "until J falls below half of it) applied to the statistic's J at every factor gives the step's decisions at "
+        "those thresholds, J being the same at every threshold; a CUSUM, whose sums are clamped at twice its threshold, "
+        "is run again from the runs' residuals at every factor; at the design's own thresholds they are checked equal "
+        "to the step's own alarms."
         + absent,
     ) + folded(
         table(["design", *(["variant"] if several else []), "faulty runs", "P(detected within D), own thresholds",
