@@ -43,6 +43,23 @@ def _truth(alarm: np.ndarray, plan: MetricsPlan) -> tuple[np.ndarray, np.ndarray
     return rising[:, plan.quiet].sum(axis=1), first
 
 
+def _scaled(gf, s: float):  # noqa: ANN001, ANN202 - a gain file
+    return replace(gf, evaluators=tuple(replace(e, threshold=s * e.threshold) for e in gf.evaluators))
+
+
+def _rerun_agrees(episodes: np.ndarray, first: np.ndarray, plan: MetricsPlan, rerun) -> int:  # noqa: ANN001 - a callable
+    """Every fourth scale's curve values equal those of the step ``rerun(s)`` (its alarms, runs × samples) at the
+    scaled thresholds; the alarms the comparison saw."""
+    checked = 0
+    for k in range(0, len(OPERATING_SCALES), 4):
+        s = OPERATING_SCALES[k]
+        ep, fi = _truth(np.asarray(rerun(s)).astype(bool), plan)
+        assert episodes[:, k].tolist() == ep.tolist(), s
+        assert first[:, k].tolist() == fi.tolist(), s
+        checked += int(ep.sum()) + int((fi >= 0).sum())
+    return checked
+
+
 @pytest.mark.parametrize("detector, options", [("glr", {"window": 6, "arl0": 20.0}), ("chi2", {"persistence": 3, "P_f": 0.02})])
 def test_the_curve_is_the_step_rerun_at_the_scaled_thresholds(detector, options):
     """From one run's J at the design's thresholds, the decisions at every scaled threshold equal those of the NumPy
@@ -60,15 +77,7 @@ def test_the_curve_is_the_step_rerun_at_the_scaled_thresholds(detector, options)
     base = SimpleNamespace(J=J, status=np.zeros((R, n), np.int8))
     plan = _plan(n, onset, OperatingPlan(tuple(gf.evaluators), int(gf.decision.persistence), within=20, delay_s=2.0), gf.step.nj)
     episodes, first = operating_values(plan, base)
-    checked = 0
-    for k in range(0, len(OPERATING_SCALES), 4):
-        s = OPERATING_SCALES[k]
-        scaled = replace(gf, evaluators=tuple(replace(e, threshold=s * e.threshold) for e in gf.evaluators))
-        alarm = np.stack([LinearReference(scaled).run(U[i], Y[i]).alarm for i in range(R)]).astype(bool)
-        ep, fi = _truth(alarm, plan)
-        assert episodes[:, k].tolist() == ep.tolist(), s
-        assert first[:, k].tolist() == fi.tolist(), s
-        checked += int(ep.sum()) + int((fi >= 0).sum())
+    checked = _rerun_agrees(episodes, first, plan, lambda s: np.stack([LinearReference(_scaled(gf, s)).run(U[i], Y[i]).alarm for i in range(R)]))
     assert checked > 0  # the comparison saw alarms
 
 
@@ -95,15 +104,7 @@ def test_the_cusum_curve_is_the_step_rerun_at_the_scaled_thresholds(shifts):
     episodes, first = operating_values(plan, base)
     ep1, fi1 = _truth(np.stack([o.alarm for o in runs]).astype(bool), plan)
     assert episodes[:, ONE].tolist() == ep1.tolist() and first[:, ONE].tolist() == fi1.tolist()
-    checked = 0
-    for k in range(0, len(OPERATING_SCALES), 4):
-        s = OPERATING_SCALES[k]
-        scaled = replace(gf, evaluators=tuple(replace(e, threshold=s * e.threshold) for e in gf.evaluators))
-        alarm = np.stack([LinearReference(scaled).run(U[i], Y[i]).alarm for i in range(R)]).astype(bool)
-        ep, fi = _truth(alarm, plan)
-        assert episodes[:, k].tolist() == ep.tolist(), s
-        assert first[:, k].tolist() == fi.tolist(), s
-        checked += int(ep.sum()) + int((fi >= 0).sum())
+    checked = _rerun_agrees(episodes, first, plan, lambda s: np.stack([LinearReference(_scaled(gf, s)).run(U[i], Y[i]).alarm for i in range(R)]))
     assert checked > 0  # the comparison saw alarms (episodes need not fall with the scale: a lower threshold latches longer)
 
 
@@ -129,14 +130,7 @@ def test_the_beard_curve_is_the_filter_rerun_at_the_scaled_threshold():
     base = SimpleNamespace(J=np.stack([o.J for o in runs]), status=np.zeros((R, n), np.int8))
     plan = _plan(n, onset, op, 1)
     episodes, first = operating_values(plan, base)
-    checked = 0
-    for k in range(0, len(OPERATING_SCALES), 4):
-        s = OPERATING_SCALES[k]
-        alarm = np.stack([beard_reference_run(replace(flt, h=s * flt.h), U, Y).alarm for U, Y in traces]).astype(bool)
-        ep, fi = _truth(alarm, plan)
-        assert episodes[:, k].tolist() == ep.tolist(), s
-        assert first[:, k].tolist() == fi.tolist(), s
-        checked += int(ep.sum()) + int((fi >= 0).sum())
+    checked = _rerun_agrees(episodes, first, plan, lambda s: np.stack([beard_reference_run(replace(flt, h=s * flt.h), U, Y).alarm for U, Y in traces]))
     assert checked > 0 and episodes[:, 0].sum() > 0  # alarms seen, false ones among them at half the threshold
 
 
