@@ -39,11 +39,11 @@ of a wrong name at a sample where one is given; the Monte Carlo measures the fal
 SPAN_RTOL = 1e-6
 """A direction of a class's span counts when its squared length in the precision's metric exceeds this fraction of
 its member's own larger one, the designed steady shift's or its transient's sum's (the ``(1 − λ)``-scaled steady
-shift and the transient's sum compared on one scale). Per member, since the test is about directions, not sizes: a member the residuals see weakly (a
-sensor in other units, a component fault of unit size) keeps its span beside a strongly seen one. A
-direction below it adds at most this fraction of a fault's noncentrality to its class's misfit (a fault a thousand
-times the designed minimum held for a memory), and one above it is resolved to within the design's round-off
-divided by ``√SPAN_RTOL``."""
+shift and the transient's sum compared on one scale). Per member, since the test is about directions, not sizes: a
+member the residuals see weakly (a sensor in other units, a component fault of unit size) keeps its span beside a
+strongly seen one. A direction below it adds at most this fraction of a fault's noncentrality to its class's misfit
+(it matters only for a fault a thousand times the designed minimum held for a memory), and one above it is resolved
+to within the design's round-off divided by ``√SPAN_RTOL``."""
 
 CANONICAL_RTOL = 1e-3
 """A coordinate axis's projection onto a class's span, once the axes before it are taken out, joins the span's
@@ -183,7 +183,7 @@ def isolation_design(
     # the evidence's coordinates: an orthonormal basis, in the precision's metric, of the union of the classes' spans
     # (what lies outside it tells no class from another); a direction the evidence does not see (a transient that
     # sums to nothing, a member the residuals do not see) is left out
-    union = np.column_stack([m for m in spans if m.size]) if any(m.size for m in spans) else np.zeros((nr, 0))
+    union = np.column_stack([m for m in spans if m.size])  # one member at least is seen (checked above)
     basis = (precision @ _gram_schmidt(union, precision, np.concatenate(class_floors))).T
     rank = basis.shape[0]
     rows, ranks = [], []
@@ -266,8 +266,10 @@ def _canonical(q: np.ndarray) -> np.ndarray:
     (a steady shift, a transient's sum) turn within the span with the design's round-off far more than the span
     does; the test reads only the span, and so does the gain file this way."""
     k, r = q.shape
-    if r == 0 or r == k:
-        return np.eye(k)[:, :r] if r == k else q
+    if r == k:
+        return np.eye(k)
+    if r == 0:
+        return q
     proj = q @ q.T
     out = _gram_schmidt(proj, np.eye(k), np.full(k, min(CANONICAL_RTOL, 0.5 / k)))
     assert out.shape[1] == r, "the axes' projections span the class's span (their squared lengths sum to its rank)"
