@@ -261,9 +261,9 @@ def _fault_classes() -> list[FaultClass]:
 
 FAULTS = _fault_classes()
 """The four sensors, and every pair of one rotor- and one generator-speed sensor
-(each has its own alarm pattern over the bank; the benchmark's double gain
-fault is one of them). Two sensors of the same speed look alike (all four
-observers alarm) and are detected but not isolated."""
+(each moves the bank's residuals in its own directions; the benchmark's
+double gain fault is one of them). Two sensors of the same speed look alike
+and are detected but not isolated."""
 
 DEFAULT_POLES = (0.5, 0.6, 0.7)
 """Observer poles of the plain UIO: real, 36–69 rad/s, faster than the 28 rad/s
@@ -752,10 +752,13 @@ NOTES = (
     "correlation time, around 2.5 MN·m at 1.6 rad/s; the generator torque follows the optimal-torque law K ω_g,m1², "
     "saturated at twice its equilibrium value, so a fault on omega_g_m1 also acts on the controller.",
     "The benchmark's faults keep their size and 100 s duration but start at t = 100 s (the benchmark uses 1500 s and 1000 s).",
-    "Fault classes: the four sensors and the four pairs of one rotor- and one generator-speed sensor (each has its own alarm "
-    "pattern over the bank). Two sensors of the same speed raise all four observers: detected, not isolated.",
-    "Generators start at the equilibrium of their first valid sample, so monitoring a turbine already running produces no "
-    "start-up transient; a sample with a non-finite value is skipped by every generator that reads it and counted.",
+    "Fault classes: the four sensors and the four pairs of one rotor- and one generator-speed sensor (each moves the bank's "
+    "residuals in its own directions). The fault is named by the isolation test across the classes (the generalised "
+    "likelihood ratio of each class's residual shift, Basseville & Nikiforov 1993), the alarm pattern where the test names "
+    "none. Two sensors of the same speed move the residuals alike: detected, not isolated.",
+    "Generators start at the equilibrium of their first valid sample and, over their warm-up, estimate and remove their "
+    "initial error with the statistics held, so monitoring a turbine already running raises no start-up alarm; a sample "
+    "with a non-finite value is skipped by every generator that reads it and counted.",
     "The plain UIO (the paper's comparison) places the observer poles at 0.5, 0.6, 0.7 (36–69 rad/s, faster than the "
     "28 rad/s torsional mode). Its residual is two-dimensional, but one direction has a variance ~3e-7 times the other "
     "(the range of C H: an exact function of the previous residual, not new noise); the χ² evaluator leaves such directions "
@@ -783,8 +786,8 @@ PROBLEM = Problem(
     summary=(
         "Four unknown-input observers, one per pair of rotor- and generator-speed sensors, decouple the "
         "turbulent aerodynamic torque exactly; their minimum-variance gains are designed as an NLP and "
-        "verified against the Riccati solution; χ² statistics and the bank's alarm pattern isolate the "
-        "faulty sensor (Hu, Sun, Jiang, He & Zhang, Acta Automatica Sinica 39(8), 2013)."
+        "verified against the Riccati solution; χ² statistics detect, and a test of each fault class's residual "
+        "shift names the faulty sensor (Hu, Sun, Jiang, He & Zhang, Acta Automatica Sinica 39(8), 2013)."
     ),
     designs=_designs(),
     default_design="kalman_uio",

@@ -23,7 +23,7 @@ from fdisyn.app import WORKDIR
 from fdisyn.codegen.step import step_function
 from fdisyn.detectors.table import DETECTORS
 from fdisyn.evaluation.campaign import problem_source
-from fdisyn.evaluation.built import Built, build
+from fdisyn.evaluation.built import Built, build, threshold_copies
 from fdisyn.evaluation.evaluate import Evaluation, evaluate
 from fdisyn.evaluation.progress import tracked
 from fdisyn.evaluation.metrics import ISOLATION_MARGIN
@@ -433,7 +433,9 @@ def reproduce_problem(
             (workdir / problem.name / tag / d).mkdir(parents=True, exist_ok=True)
             (workdir / problem.name / tag / d / "export_check.json").write_text(json.dumps(chk.to_dict(), indent=1) + "\n", encoding="utf-8")
         where = {"workers": workers, "client": client, "source": source}
-        ev = evaluate(problem, built, runs=n_runs, scenarios=scen, **where, **opts)
+        # a diagnoser whose decisions at other thresholds its own runs do not give: copies with scaled thresholds
+        copies = threshold_copies(built, workdir / problem.name / tag / "threshold_copies")
+        ev = evaluate(problem, built, runs=n_runs, scenarios=scen, copies=copies, **where, **opts)
         sweep = None
         if label == "default":
             sweep = fault_size_sweep(problem, built, runs=min(n_runs, SWEEP_RUNS), scenarios=scen, **where, **opts)

@@ -69,6 +69,7 @@ __all__ = [
     "compiler",
     "shared_library_flags",
     "step_stack_bytes",
+    "local_cores",
 ]
 
 C_TEMPLATES = Path(fdisyn.runtime.__file__).parent / "c"
@@ -346,6 +347,14 @@ def _run(argv: list[str], what: str) -> None:
     _finish(_start(argv, what), argv, what)
 
 
+def local_cores() -> int:
+    """The cores this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not Linux
+        return os.cpu_count() or 1
+
+
 def _start(argv: list[str], what: str) -> subprocess.Popen[str]:
     """Start one compiler command (:func:`_run`) without waiting for it."""
     try:
@@ -354,8 +363,9 @@ def _start(argv: list[str], what: str) -> subprocess.Popen[str]:
         raise BuildError(f"cannot run the C compiler {argv[0]!r} to build {what}: {exc.strerror or exc}") from exc
 
 
-def _finish(proc: subprocess.Popen[str], argv: list[str], what: str) -> None:
-    """Wait for a compiler command :func:`_start` started; log and judge it as :func:`_run` does."""
+def _finish(proc: subprocess.Popen[str], argv: list[str], what: str, log: Path | None = None) -> None:
+    """Wait for a compiler command :func:`_start` started; log and judge it as :func:`_run` does (the log in
+    ``log``, default ``build.log`` beside the first source)."""
     try:
         stdout, stderr = proc.communicate()
     except BaseException:  # interrupted: no compiler is left running
@@ -363,7 +373,7 @@ def _finish(proc: subprocess.Popen[str], argv: list[str], what: str) -> None:
         proc.wait()
         raise
     sources = [Path(a) for a in argv[1:] if a.endswith(".c")]
-    log = (sources[0].parent if sources else Path(what).parent) / "build.log"
+    log = log if log is not None else (sources[0].parent if sources else Path(what).parent) / "build.log"
     record = f"$ {shlex.join(argv)}\n{stdout}{stderr}exit status {proc.returncode}\n"
     try:
         fresh_path(log).write_text(record, encoding="utf-8")

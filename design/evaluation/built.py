@@ -7,6 +7,7 @@ process loads them again from their folders (:func:`load_built`).
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -14,9 +15,10 @@ from typing import Any
 from fdisyn.codegen.library import CodegenResult, codegen
 from fdisyn.runtime.compiled import CompiledDiagnoser, library_path
 from fdisyn.runtime.gainfile import GainFile, read_gain_file, write_gain_file
+from fdisyn.runtime.names import DIAGNOSER_NAME_MAX
 from fdisyn.simulation.problem import Problem
 
-__all__ = ["Built", "build", "load_built"]
+__all__ = ["Built", "build", "load_built", "threshold_copies"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -45,3 +47,45 @@ def load_built(directory: str | Path) -> Built:
     lib = library_path(d, gf)
     art = CodegenResult(directory=d, c_dir=d / "c", header=d / "c" / f"{gf.name}.h", library=lib, replay=d / "replay")
     return Built(gain_file=gf, directory=d, artifacts=art, diagnoser=CompiledDiagnoser(lib, gf))
+
+
+def threshold_copies(built: Mapping[str, Built], directory: str | Path, scales: Sequence[float] | None = None) -> dict[str, dict[float, Built]]:
+    """Each design's copies with its thresholds scaled, built beside it, for the designs whose operating
+    characteristic does not follow from one run's statistics and whose kind makes such copies
+    (:attr:`fdisyn.synthesis.kinds.DiagnoserKind.threshold_scaled`; a NAFDF restarts its learning after an alarm).
+
+    Parameters
+    ----------
+    built : Mapping of str to Built
+        The designs.
+    directory : str or Path
+        Where the copies are built: ``DIR/<design>/<k>`` for the ``k``-th scale.
+    scales : sequence of float, optional
+        The scales (default :data:`~fdisyn.evaluation.metrics.COPY_SCALES`); 1, the design itself, is not copied.
+
+    Returns
+    -------
+    dict
+        ``{design: {scale: Built}}`` for the designs copied (the others left out).
+    """
+    from fdisyn.evaluation.metrics import COPY_SCALES, operating_plan
+    from fdisyn.synthesis.kinds import get_kind
+
+    out: dict[str, dict[float, Built]] = {}
+    for name, b in built.items():
+        gf = b.gain_file
+        scaled = get_kind(gf.kind).threshold_scaled
+        if scaled is None or operating_plan(gf, float(gf.Ts)) is not None:
+            continue
+        copies = {}
+        for k, s in enumerate(COPY_SCALES if scales is None else scales):
+            if float(s) == 1.0:
+                continue
+            d = Path(directory) / name / str(k)
+            suffix = f"_x{k}"  # the copy's C prefix: the design's, cut to leave room (DIAGNOSER_NAME_MAX)
+            copy = scaled(gf, float(s), gf.name[: DIAGNOSER_NAME_MAX - len(suffix)].rstrip("_") + suffix)
+            write_gain_file(copy, d / "gains.json")
+            art = codegen(d)
+            copies[float(s)] = Built(gain_file=copy, directory=d, artifacts=art, diagnoser=CompiledDiagnoser(art.library, copy))
+        out[name] = copies
+    return out

@@ -38,6 +38,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from fdisyn.codegen.library import local_cores
 from fdisyn.evaluation.built import Built, load_built
 from fdisyn.evaluation.metrics import MetricsPlan, RunSummaries, extra_values, operating_values, summarise_runs
 from fdisyn.evaluation.runs import ChunkRuns, DesignRuns
@@ -132,14 +133,6 @@ def chunk_runs(samples_per_run: int) -> int:
     return max(1, min(CHUNK_RUNS, CHUNK_SAMPLES // max(samples_per_run, 1)))
 
 
-def local_cores() -> int:
-    """The cores this process may run on."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # pragma: no cover - not Linux
-        return os.cpu_count() or 1
-
-
 # --------------------------------------------------------------------------- one chunk
 
 
@@ -202,6 +195,10 @@ class Campaign:
     compiled: bool = True
     """Simulate and diagnose in one generated C call where the problem has a sample model
     (:func:`fdisyn.evaluation.compiled_campaign.compiled_campaign`); ``False``: the Python simulator."""
+    copies: tuple[str, ...] = ()
+    """The designs of ``built`` that are copies of another with scaled thresholds (:attr:`CampaignSpec.copies`):
+    in the fused library they call their own step once per run instead of a vector form, whose C would cost more
+    to compile than they take to run."""
     _fused: dict[str, Any] = field(default_factory=dict, repr=False)
 
     def fused(self, sc: Scenario) -> Any:
@@ -212,7 +209,7 @@ class Campaign:
         if sc.name not in self._fused:
             from fdisyn.evaluation.compiled_campaign import compiled_campaign  # CasADi and the C compiler: only here
 
-            self._fused[sc.name] = compiled_campaign(self.problem, self.built, sc, **self.options)
+            self._fused[sc.name] = compiled_campaign(self.problem, self.built, sc, scalar=self.copies, **self.options)
         return self._fused[sc.name]
 
     def chunk(self, sc: Scenario, task: ChunkTask) -> ChunkRuns:
@@ -315,9 +312,12 @@ class CampaignSpec:
     """The scenarios run, as the parent has them (a problem's scenarios may be replaced, e.g. scaled faults)."""
     compiled: bool = True
     """:attr:`Campaign.compiled`."""
+    copies: tuple[str, ...] = ()
+    """The designs of ``built`` that are copies of another with scaled thresholds: run for their alarms only (no
+    extra figures)."""
 
     def key(self) -> bytes:
-        return pickle.dumps((self.source, self.options, self.built, self.scenarios, self.compiled))
+        return pickle.dumps((self.source, self.options, self.built, self.scenarios, self.compiled, self.copies))
 
 
 _CAMPAIGNS: dict[bytes, Campaign] = {}
@@ -355,7 +355,9 @@ def _campaign(spec: CampaignSpec) -> Campaign:
         if spec.scenarios:
             problem = replace(problem, scenarios={sc.name: sc for sc in spec.scenarios})
         built = {name: load_built(d) for name, d, _ in spec.built}
-        _CAMPAIGNS[key] = Campaign(problem, built, dict(spec.options), extra_hooks(problem, built), compiled=spec.compiled)
+        own = {name: b for name, b in built.items() if name not in spec.copies}
+        _CAMPAIGNS[key] = Campaign(problem, built, dict(spec.options), extra_hooks(problem, own), compiled=spec.compiled,
+                                   copies=spec.copies)
     return _CAMPAIGNS[key]
 
 

@@ -28,7 +28,7 @@ import math
 import os
 import sys
 import tempfile
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -47,6 +47,7 @@ from fdisyn.codegen.library import (
     compiler,
     fill_template,
     fresh_path,
+    local_cores,
     shared_library_flags,
 )
 from fdisyn.evaluation.built import Built
@@ -193,16 +194,17 @@ def _design_code(prefixes: Sequence[str]) -> dict[str, str]:
             "DESIGN_STEPS": "\n".join(step), "DESIGN_ENDS": "\n".join(end)}
 
 
-def _lane_code(model: SampleModel, built: Mapping[str, Built]) -> tuple[str, list[str]]:
+def _lane_code(model: SampleModel, built: Mapping[str, Built], scalar_designs: Collection[str] = ()) -> tuple[str, list[str]]:
     """The lane functions of the campaign (:mod:`fdisyn.codegen.lanes`): the simulation's and every design's step,
-    as vectors where the function has a lane form, else CasADi's scalar C per lane; and the names of the latter."""
+    as vectors where the function has a lane form and the design is not in ``scalar_designs``, else CasADi's scalar
+    C per lane; and the names of the latter."""
     sim, faulty, _ = _sim_functions(model)
-    functions = [("campaign_lane_sim", "fdisyn_sim", sim), ("campaign_lane_sim_faulty", "fdisyn_sim_faulty", faulty)]
-    functions += [(f"campaign_lane_step{i}", f"{b.gain_file.name}_casadi_step", casadi_step(b.gain_file))
-                  for i, b in enumerate(built.values())]
+    functions = [("campaign_lane_sim", "fdisyn_sim", sim, True), ("campaign_lane_sim_faulty", "fdisyn_sim_faulty", faulty, True)]
+    functions += [(f"campaign_lane_step{i}", f"{b.gain_file.name}_casadi_step", casadi_step(b.gain_file), d not in scalar_designs)
+                  for i, (d, b) in enumerate(built.items())]
     code, scalar = [], []
-    for name, symbol, fn in functions:
-        text = lane_function(fn, name)
+    for name, symbol, fn, vector in functions:
+        text = lane_function(fn, name) if vector else None
         if text is None:
             scalar.append(symbol)
             text = scalar_lanes(fn, name, symbol)
@@ -446,8 +448,9 @@ def _key(texts: Sequence[bytes]) -> str:
     return h.hexdigest()
 
 
-def build_library(model: SampleModel, built: Mapping[str, Built], directory: Path) -> tuple[Path, str]:
-    """Generate and compile (unless already built) the fused library of ``model`` and ``built``; its path and key."""
+def build_library(model: SampleModel, built: Mapping[str, Built], directory: Path, scalar: Collection[str] = ()) -> tuple[Path, str]:
+    """Generate and compile (unless already built) the fused library of ``model`` and ``built``; its path and key.
+    The designs in ``scalar`` call their CasADi step once per run (:func:`_lane_code`)."""
     prefixes = []
     for name, b in built.items():
         gf = b.gain_file
@@ -468,7 +471,8 @@ def build_library(model: SampleModel, built: Mapping[str, Built], directory: Pat
         c_dir = Path(b.artifacts.c_dir)
         design_files += [c_dir / f"{b.gain_file.name}{s}" for s in (".c", ".h", "_casadi.c", "_casadi.h")]
     key = _key([sim_c, TEMPLATE.read_bytes(), Path(lanes.__file__).read_bytes(), " ".join([*compiler(), *CFLAGS, *LIBRARY_FLAGS]).encode()]
-               + [gain_file_sha256(b.gain_file).encode() for b in built.values()] + [p.read_bytes() for p in design_files])
+               + [gain_file_sha256(b.gain_file).encode() for b in built.values()] + [p.read_bytes() for p in design_files]
+               + [repr([d in scalar for d in built]).encode()])
     out = directory / key[:16]
     lib = out / LIBRARY
     out.mkdir(exist_ok=True)
@@ -478,11 +482,11 @@ def build_library(model: SampleModel, built: Mapping[str, Built], directory: Pat
         try:
             _check_before_loading(lib, key)
         except BuildError:
-            _compile(model, built, prefixes, out, key)
+            _compile(model, built, prefixes, out, key, scalar)
     return lib, key
 
 
-def _compile(model: SampleModel, built: Mapping[str, Built], prefixes: Sequence[str], out: Path, key: str) -> None:
+def _compile(model: SampleModel, built: Mapping[str, Built], prefixes: Sequence[str], out: Path, key: str, scalar: Collection[str]) -> None:
     lib = out / LIBRARY
     c_dir = out / "c"
     c_dir.mkdir(parents=True, exist_ok=True)
@@ -499,18 +503,49 @@ def _compile(model: SampleModel, built: Mapping[str, Built], prefixes: Sequence[
         "KEY": c_string_literal(key),
         **_design_code(prefixes),
         "LANE_PRELUDE": LANE_PRELUDE,
-        "LANE_CODE": _lane_code(model, built)[0],
+        "LANE_CODE": _lane_code(model, built, scalar)[0],
     }
     source = fresh_path(c_dir / "fdisyn_campaign.c")
     source.write_text(fill_template(TEMPLATE.read_text(encoding="utf-8"), subs, TEMPLATE.name), encoding="utf-8")
     includes = sorted({f"-I{Path(b.artifacts.c_dir).absolute()}" for b in built.values()})
-    wrappers = [str(Path(b.artifacts.c_dir).absolute() / f"{b.gain_file.name}.c") for b in built.values()]
+    wrappers = [Path(b.artifacts.c_dir).absolute() / f"{b.gain_file.name}.c" for b in built.values()]
+    # one object per source, compiled side by side on this process's cores, then linked: the same translation units
+    # as one compiler command would make, so the same code
+    objects = out / "obj"
+    objects.mkdir(exist_ok=True)
+    compile_flags = [f for f in LIBRARY_FLAGS if f not in LINK_ONLY_FLAGS]
+    jobs = []
+    for i, src in enumerate([source.absolute(), *wrappers]):
+        obj = fresh_path(objects / f"{i}.o")
+        argv = [*compiler(), *CFLAGS, *compile_flags, f"-I{c_dir.absolute()}", *includes, "-c", str(src), "-o", str(obj.absolute())]
+        jobs.append((argv, obj, objects / f"{i}.log"))
+    running: list[tuple[Any, list[str], Path]] = []
+    try:
+        for argv, obj, log in jobs:
+            if len(running) >= local_cores():
+                _wait(running.pop(0), str(lib))
+            running.append((_start(argv, str(lib)), argv, log))
+        while running:
+            _wait(running.pop(0), str(lib))
+    finally:
+        for proc, _, _ in running:  # a compile failed or was interrupted: none is left running
+            proc.kill()
+            proc.wait()
     tmp = fresh_path(out / f"{LIBRARY}.part")
-    argv = [*compiler(), *CFLAGS, *LIBRARY_FLAGS, f"-I{c_dir.absolute()}", *includes, str(source.absolute()), *wrappers,
-            "-o", str(tmp.absolute()), "-lm"]
-    _finish(_start(argv, str(lib)), argv, str(lib))
+    argv = [*compiler(), *LIBRARY_FLAGS, *(str(obj.absolute()) for _, obj, _ in jobs), "-o", str(tmp.absolute()), "-lm"]
+    _finish(_start(argv, str(lib)), argv, str(lib), log=c_dir / "build.log")
     os.replace(tmp, fresh_path(lib))
     write_manifest(lib, key)
+
+
+LINK_ONLY_FLAGS = ("-shared", "-dynamiclib")
+"""The flags of :data:`LIBRARY_FLAGS` that only the link reads (a compiler may warn of them beside ``-c``)."""
+
+
+def _wait(job: tuple[Any, list[str], Path], what: str) -> None:
+    """Wait for one object's compile (:func:`~fdisyn.codegen.library._finish`), its output in its own log."""
+    proc, argv, log = job
+    _finish(proc, argv, what, log=log)
 
 
 _LIBRARIES: dict[tuple[Any, ...], tuple[Any, SampleModel, Path, str]] = {}
@@ -519,7 +554,8 @@ model's function is kept with them, so its ``id`` in the key is never reused by 
 
 
 def compiled_campaign(
-    problem: Problem, built: Mapping[str, Built], scenario: str | Scenario, *, directory: str | Path | None = None, **options: Any
+    problem: Problem, built: Mapping[str, Built], scenario: str | Scenario, *, directory: str | Path | None = None,
+    scalar: Collection[str] = (), **options: Any,
 ) -> CompiledCampaign | None:
     """The fused simulation and diagnosis of ``scenario`` for ``built``'s designs, or ``None`` when ``problem``
     has no sample model (its runs stay on the Python path).
@@ -527,7 +563,8 @@ def compiled_campaign(
     ``options`` are the problem's options (as for ``problem.run``); the
     library goes in ``directory`` (default: ``campaign/`` beside the first
     design's folder) under its content hash, and is reused when already built.
-    With no design (``built`` empty) it only simulates (``directory`` needed).
+    With no design (``built`` empty) it only simulates (``directory`` needed). The designs in ``scalar`` call
+    their CasADi step once per run rather than through a vector form (:func:`_lane_code`).
     """
     if problem.sample_model is None:
         return None
@@ -538,10 +575,10 @@ def compiled_campaign(
     where = Path(directory) if directory is not None else Path(next(iter(built.values())).directory).parent / "campaign"
     # one sample model and one library serve every scenario: generated, hashed and checked once per process
     memo = (id(problem.sample_model), repr(sorted(checked.items())), str(where.absolute()),
-            tuple((d, gain_file_sha256(b.gain_file), str(Path(b.directory).absolute())) for d, b in built.items()))
+            tuple((d, gain_file_sha256(b.gain_file), str(Path(b.directory).absolute()), d in scalar) for d, b in built.items()))
     if memo not in _LIBRARIES:
         model = problem.sample_model(**checked)
-        _LIBRARIES[memo] = (problem.sample_model, model, *build_library(model, built, where))
+        _LIBRARIES[memo] = (problem.sample_model, model, *build_library(model, built, where, scalar))
     _, model, lib, key = _LIBRARIES[memo]
     parameters = np.ascontiguousarray(model.parameters(sc), dtype=float).reshape(-1)
     if parameters.size != model.step.size1_in(3):

@@ -24,10 +24,11 @@ from fdisyn.evaluation.campaign import (
     extra_hooks,
     load_source,
     local_cores,
+    operating_delay,
     problem_source,
     run_tasks,
 )
-from fdisyn.evaluation.metrics import MetricsAccumulator, MetricsPlan, ScenarioMetrics
+from fdisyn.evaluation.metrics import MetricsAccumulator, MetricsPlan, ScenarioMetrics, within_samples
 from fdisyn.evaluation.progress import bar, note
 from fdisyn.simulation.problem import Batch, Problem
 from fdisyn.runtime.compiled import file_sha256
@@ -105,6 +106,17 @@ def _onset(gf: GainFile, sums: list[Any] | None, lag_sums: np.ndarray, runs: int
     return onset_lorden_bound(gf, lag_sums / runs - mean_off[None, :], shift, cov, lag_noise=cov / runs)
 
 
+def _copies_operating(own: MetricsAccumulator, copies: Mapping[float, MetricsAccumulator], delay_s: float, Ts: float) -> dict[str, Any]:
+    """A design's operating characteristic from its own runs (scale 1) and its copies' with scaled thresholds
+    (:attr:`~fdisyn.evaluation.metrics.ScenarioMetrics.operating`'s fields)."""
+    runs = {1.0: own, **copies}
+    scales = sorted(runs)
+    within = within_samples(delay_s, Ts)
+    active = bool(own.plan.active.any())
+    return {"scales": scales, "episodes": [int(runs[s].episodes) for s in scales],
+            "detected_within": [runs[s].detected_within(within) for s in scales] if active else None, "delay_s": float(delay_s)}
+
+
 def evaluate(
     problem: Problem,
     built: Mapping[str, Built],
@@ -118,6 +130,7 @@ def evaluate(
     source: str | Path | None = None,
     progress: bool = True,
     compiled: bool = True,
+    copies: Mapping[str, Mapping[float, Built]] | None = None,
     **options: Any,
 ) -> Evaluation:
     """Monte Carlo of every scenario through every built diagnoser's C step.
@@ -129,6 +142,9 @@ def evaluate(
     here. The metrics are the same, to the last bit, however the runs are spread. ``progress``: a bar per
     scenario (:mod:`fdisyn.evaluation.progress`). ``compiled``: simulate and diagnose each chunk in one generated C
     call where the problem has a sample model (``False``: its Python simulator, NumPy's random numbers).
+    ``copies``: per design, its copies with scaled thresholds (:func:`~fdisyn.evaluation.built.threshold_copies`),
+    run beside it on the same runs; its metrics' ``operating`` is then their false-alarm episodes and runs detected
+    within the problem's :func:`~fdisyn.evaluation.campaign.operating_delay`, scale by scale, its own at 1.
 
     The chunks are planned lazily (:class:`~fdisyn.evaluation.campaign.ChunkPlan`): each chunk's seeds are drawn
     when it is submitted, so memory does not grow with ``runs`` and the first chunk starts at once; a campaign of
@@ -150,6 +166,12 @@ def evaluate(
     for sname in names:
         problem.scenario(sname)
     checked = problem.check_options(options)
+    copies = {d: dict(c) for d, c in (copies or {}).items() if c}
+    unknown = sorted(set(copies) - set(built))
+    if unknown:
+        raise ArgumentError(f"copies of design(s) {unknown} that are not among the designs {sorted(built)}")
+    copy_keys = {d: {s: f"{d}@{s!r}" for s in c} for d, c in copies.items()}
+    runs_built = {**built, **{copy_keys[d][s]: b for d, c in copies.items() for s, b in c.items()}}
     src = problem_source(problem) if source is None else str(Path(source).absolute() if Path(source).is_file() else source)
     if src is not None and source is not None and load_source(src).name != problem.name:
         raise ArgumentError(f"source {src!r} is problem {load_source(src).name!r}, not {problem.name!r}")
@@ -158,16 +180,19 @@ def evaluate(
         spec = CampaignSpec(
             source=src,
             options=tuple(sorted(options.items())),
-            built=tuple((d, str(b.directory.absolute()), file_sha256(b.directory / "gains.json")) for d, b in built.items()),
+            built=tuple((d, str(b.directory.absolute()), file_sha256(b.directory / "gains.json")) for d, b in runs_built.items()),
             scenarios=tuple(problem.scenario(n) for n in names),
             compiled=compiled,
+            copies=tuple(k for keys in copy_keys.values() for k in keys.values()),
         )
     elif workers is not None and workers > 1 or client is not None:
         raise ArgumentError(
             f"problem {problem.name!r} is not built in: give source= (its plant file) to run it on workers, or workers=1"
         )
-    campaign = Campaign(problem, built, options, extra_hooks(problem, built), compiled=compiled)
+    copy_names = tuple(k for keys in copy_keys.values() for k in keys.values())
+    campaign = Campaign(problem, runs_built, options, extra_hooks(problem, built), compiled=compiled, copies=copy_names)
     ts = min((b.gain_file.Ts for b in built.values()), default=1.0)
+    delay_s = operating_delay(problem)
     samples = {sname: int(problem.scenario(sname).duration / ts) + 1 for sname in names}
     tasks = ChunkPlan(seed0, runs, tuple((sname, order.index(sname), chunk or chunk_runs(samples[sname])) for sname in names))
     steps = runs * sum(samples.values())
@@ -207,7 +232,11 @@ def evaluate(
                 hook = campaign.extra.get(d)
                 if hook is not None:
                     m = replace(m, extra=dict(hook.reduce(sc, gf, a.extra)))
+                if d in copies and delay_s is not None:
+                    m = replace(m, operating=_copies_operating(a, {s: acc.pop(k) for s, k in copy_keys[d].items()}, delay_s, gf.Ts))
                 metrics[d][sname] = m
+            for k in [k for k in acc if k not in built]:  # the copies of a design without a stated delay
+                acc.pop(k)
         leftover = next(results, None)  # the generator ends: the pool is kept for the next campaign
         assert leftover is None, "every chunk was merged"
     finally:

@@ -42,6 +42,8 @@ __all__ = [
     "OPERATING_SCALES",
     "OperatingPlan",
     "operating_plan",
+    "COPY_SCALES",
+    "within_samples",
     "alarm_level",
     "operating_values",
 ]
@@ -556,6 +558,31 @@ OPERATING_SCALES: tuple[float, ...] = tuple(float(2.0 ** (k / 16)) for k in rang
 design itself) exactly in the middle."""
 
 
+COPY_SCALES: tuple[float, ...] = OPERATING_SCALES[::4]
+"""The threshold scales of an operating characteristic measured on copies of the diagnoser, one per scale but 1
+(:attr:`fdisyn.synthesis.kinds.DiagnoserKind.threshold_scaled`): every fourth of :data:`OPERATING_SCALES`, 0.5 …
+2, ``2^(1/4)`` apart — each copy runs the whole diagnoser again."""
+
+
+def within_samples(delay_s: float, Ts: float) -> int:
+    """The stated delay ``D`` in whole samples: a run is detected within ``D`` when its first alarm is at most
+    this many samples after the fault's onset.
+
+    Parameters
+    ----------
+    delay_s : float
+        ``D`` in seconds.
+    Ts : float
+        The sample time in seconds.
+
+    Returns
+    -------
+    int
+        ``⌊D/Ts⌋`` (a ratio within 1e-9 below a whole number counts as it).
+    """
+    return int(np.floor(float(delay_s) / float(Ts) + 1e-9))
+
+
 @dataclass(frozen=True, eq=False)
 class OperatingPlan:
     """What the operating characteristic of a linear diagnoser or a Beard filter is taken over (:func:`operating_plan`).
@@ -618,7 +645,7 @@ def operating_plan(gf: Any, delay_s: float | None) -> OperatingPlan | None:
 
     if delay_s is None:
         return None
-    within = int(np.floor(float(delay_s) / float(gf.Ts) + 1e-9))
+    within = within_samples(delay_s, gf.Ts)
     if gf.kind == "beard_fdf":
         from fdisyn.synthesis.beard_fdf.payload import beard_from_gain_file
 
@@ -1092,6 +1119,21 @@ class MetricsAccumulator:
                 assert p.operating is not None
                 self.operating[0] += episodes.sum(axis=0)
                 self.operating[1] += np.sum((first >= 0) & (first <= p.operating.within), axis=0)
+
+    def detected_within(self, within: int) -> int:
+        """The runs whose first alarm came at most ``within`` samples after the fault's onset.
+
+        Parameters
+        ----------
+        within : int
+            Samples after the onset (:func:`within_samples`).
+
+        Returns
+        -------
+        int
+            The runs.
+        """
+        return int(self.delays[: max(int(within), -1) + 1].sum())
 
     def result(
         self, *, scenario: str, fault: str | None, P_f: Sequence[float], Ts: float, budget_s: float | None = None,

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 from fdisyn.reporting.kit import MIN_FONT_PT, ReportContext, defined, figure_legend, fmt, folded, label, shade, subplots, table, timeline
 from fdisyn.detectors.table import DETECTORS
-from fdisyn.evaluation.metrics import DETECTION_GOAL, ISOLATION_GOAL, ISOLATION_MARGIN, isolation_at_size
+from fdisyn.evaluation.metrics import DETECTION_GOAL, ISOLATION_GOAL, ISOLATION_MARGIN, OPERATING_SCALES, isolation_at_size
 from fdisyn.simulation.problem import Problem
 
 __all__ = ["run_figures", "standard_figures", "POLE_LEGEND", "OPERATING_TICKS", "operating_curve"]
@@ -396,7 +396,9 @@ def _operating_figure(ctx: ReportContext) -> str:
         if got:
             panels.append((v, got))
     if not panels:
-        return ""
+        why = (" (a fault-free Monte Carlo, no stated delay, or a run with a skipped non-finite sample, whose held "
+               "counters the statistics do not show)")
+        return f'<p class="small">No operating characteristic: no design has one{why}.</p>' if missing else ""
     several = len(ctx.variants) > 1
     ncols = min(OPERATING_COLUMNS, len(panels))
     nrows = -(-len(panels) // ncols)
@@ -462,27 +464,44 @@ def _operating_figure(ctx: ReportContext) -> str:
         elif lost:
             groups.append(", ".join(label(problem, d) for d in lost) + (f" ({v.label})" if several else ""))
     absent = (
-        f" No curve for {'; '.join(groups)}: one Monte Carlo does not give their decisions at other thresholds (the "
-        "NAFDF restarts its learning and nominal filter after an alarm, so every later state depends on the threshold; "
-        "a run with a skipped non-finite sample holds counters its statistics do not show); they would need the whole "
-        "filter run again per threshold."
+        f" No curve for {'; '.join(groups)}: its Monte Carlo does not give its decisions at other thresholds (a run "
+        "with a skipped non-finite sample holds counters its statistics do not show, or no delay is stated)."
         if groups else ""
     )
+    counts = sorted({len(c["scales"]) for _, got in panels for _, _, c in got}, reverse=True)
+    rerun = any(len(c["scales"]) != len(OPERATING_SCALES) for _, got in panels for _, _, c in got)
+    from_statistics = any(len(c["scales"]) == len(OPERATING_SCALES) for _, got in panels for _, _, c in got)
+    how = []
+    if from_statistics:
+        how.append(
+            "Exact, from the Monte Carlo's own runs, not a second simulation: each statistic's alarm rule (a "
+            "persistence count of J above its threshold, a Beard filter's window RMS residual included, or a GLR's alarm held "
+            "until J falls below half of it) applied to the statistic's J at every factor gives the step's decisions at "
+            "those thresholds, J being the same at every threshold; a CUSUM, whose sums are clamped at twice its threshold, "
+            "is run again from the runs' residuals at every factor; at the design's own thresholds they are checked equal "
+            "to the step's own alarms."
+        )
+    if rerun:
+        how.append(
+            "A NAFDF restarts its learning and its nominal filter after every alarm, so each later decision depends on "
+            "the threshold and one run does not give the others: its curve is measured on copies of the diagnoser whose "
+            "fast-detection thresholds (the WSSR's table, the CUSUM's or the GLR's) are scaled, each copy's generated C "
+            "run on the same simulated runs as the design (common random numbers), its other tests (dismissal, "
+            "convergence, classifier) unchanged; the star is the design's own runs. Its alarm holds until the "
+            "episode is dismissed or the filter re-parameterised, so at a low factor false alarms merge into longer "
+            "episodes: fewer are counted and the curve can turn back."
+        )
+    factors = f"{counts[0]} factors" + (f"; {counts[-1]} for a diagnoser run again per factor" if len(counts) > 1 else "")
     return ctx.figure(
         "operating_characteristic",
         fig,
         f"Operating characteristic: the probability that a fault is detected within D = {duration(first['delay_s'])} of "
         "its onset (the runs of every faulty scenario of the Monte Carlo, pooled) against the mean time between false "
-        "alarms (every scenario's fault-free time over its false-alarm episodes; log scale), as every threshold of a "
-        f"design is scaled by one factor from {fmt(first['scales'][0])} to {fmt(first['scales'][-1])} "
-        f"({len(first['scales'])} factors). Star: the design's own thresholds. Grey, dash-dotted: the fault-free time "
+        "alarms (every scenario's fault-free time over its false-alarm episodes; log scale), as the alarm thresholds of a "
+        f"design are scaled by one factor from {fmt(first['scales'][0])} to {fmt(first['scales'][-1])} "
+        f"({factors}). Star: the design's own thresholds. Grey, dash-dotted: the fault-free time "
         "watched; a hollow point on it: the smallest factor without a false alarm, whose time is only known to be longer "
-        "(dotted to it). A dashed curve lies on an earlier design's equal one. Exact, from the Monte Carlo's own runs, not a second simulation: each statistic's alarm rule (a "
-        "persistence count of J above its threshold, a Beard filter's window RMS residual included, or a GLR's alarm held "
-        "until J falls below half of it) applied to the statistic's J at every factor gives the step's decisions at "
-        "those thresholds, J being the same at every threshold; a CUSUM, whose sums are clamped at twice its threshold, "
-        "is run again from the runs' residuals at every factor; at the design's own thresholds they are checked equal "
-        "to the step's own alarms."
+        "(dotted to it). A dashed curve lies on an earlier design's equal one. " + " ".join(how)
         + absent,
     ) + folded(
         table(["design", *(["variant"] if several else []), "faulty runs", "P(detected within D), own thresholds",

@@ -156,6 +156,12 @@ class DiagnoserKind:
         ``Y``: ``T × ny``) from the gain file's initial state, written from the specification without CasADi, against
         which its CasADi step and generated C are checked (:func:`reference_run`); None: the kind has none, and its C
         is checked against its CasADi step only.
+    threshold_scaled : callable or None
+        ``(GainFile, scale, name) -> GainFile``: a copy named ``name`` whose alarm thresholds are ``scale`` times
+        the diagnoser's, for a kind whose decisions at other thresholds do not follow from one run's statistics (an
+        alarm that restarts the diagnoser's learning): its operating characteristic is measured on such copies run
+        beside it (:func:`fdisyn.evaluation.built.threshold_copies`). None: the kind has none (a linear diagnoser's
+        is read from its own statistics).
     """
 
     name: str
@@ -178,6 +184,7 @@ class DiagnoserKind:
     account_note: str | None = None
     reference: Callable[[GainFile, np.ndarray, np.ndarray], RunResult] | None = None
     warmups: Callable[[GainFile], tuple[int, ...]] | None = None
+    threshold_scaled: Callable[[GainFile, float, str], GainFile] | None = None
 
 
 _KINDS: dict[str, DiagnoserKind] = {}

@@ -220,3 +220,128 @@ def test_the_page_pools_the_scenarios_and_states_d(tmp_path):
     page = _operating_figure(ReportContext(problem=PROBLEM, variants=[variant], directory=tmp_path))
     assert "D = 10 s" in page and "No curve for" in page and "LMI design" in page.split("No curve for")[1]
     assert (tmp_path / "operating_characteristic.png").stat().st_size > 0
+
+
+# --------------------------------------------------------------------------- copies with scaled thresholds (NAFDF)
+
+
+@pytest.fixture(scope="module")
+def ship_copies(tmp_path_factory: pytest.TempPathFactory):
+    """The ship's NAFDF built with copies at thresholds × 0.5 and × 2 (a NAFDF's decisions at other thresholds do
+    not follow from one run: its alarm restarts its learning)."""
+    from fdisyn.evaluation.built import build, threshold_copies
+    from fdisyn.simulation.problem import get_problem
+
+    problem = get_problem("ship_propulsion")
+    short = {n: replace(problem.scenario(n), duration=1500.0) for n in ("fault_free", "paper_a_half")}
+    problem = replace(problem, scenarios=short)
+    root = tmp_path_factory.mktemp("ship_copies")
+    built = {"nafdf": build(problem, "nafdf", root / "nafdf")}
+    return problem, built, threshold_copies(built, root / "copies", scales=(0.5, 1.0, 2.0))
+
+
+def test_copies_scale_only_the_fast_detection_thresholds(ship_copies) -> None:
+    """A copy's detector thresholds are the design's times its scale, to the bit; everything else in its settings is
+    the design's; its gain file reads back (the table checked against the scaled rule), its budget is not claimed,
+    and the design's own gain file does not mention the scale."""
+    from fdisyn.runtime.gainfile import read_gain_file
+    from fdisyn.synthesis.kinds import false_alarm_budget
+
+    _, built, copies = ship_copies
+    gf = built["nafdf"].gain_file
+    own = gf.extensions["nafdf"]
+    assert "threshold_scale" not in own["settings"]
+    assert set(copies["nafdf"]) == {0.5, 2.0}  # 1 is the design itself
+    for s, b in copies["nafdf"].items():
+        pay = read_gain_file(b.directory / "gains.json").extensions["nafdf"]
+        assert pay["detector_thresholds"] == [s * v for v in own["detector_thresholds"]]
+        assert pay["settings"].pop("threshold_scale") == s
+        assert pay["settings"] == own["settings"]
+        assert b.gain_file.name != gf.name and b.gain_file.faults == gf.faults
+        assert false_alarm_budget(b.gain_file) is None
+    assert false_alarm_budget(gf) is not None
+
+
+def test_a_copy_at_scale_one_is_the_design(ship_copies, tmp_path) -> None:
+    """Copying changes nothing but the thresholds: at scale 1 the copy's C gives the design's outputs bit for bit."""
+    from fdisyn.codegen.library import codegen
+    from fdisyn.runtime.compiled import CompiledDiagnoser
+    from fdisyn.runtime.gainfile import write_gain_file
+    from fdisyn.synthesis.nafdf.payload import nafdf_scaled
+
+    problem, built, _ = ship_copies
+    gf = built["nafdf"].gain_file
+    same = nafdf_scaled(gf, 1.0, "ship_same")
+    write_gain_file(same, tmp_path / "gains.json")
+    copy = CompiledDiagnoser(codegen(tmp_path).library, same)
+    batch = problem.run("paper_a_half", [3])
+    a, b = built["nafdf"].diagnoser.run(batch.U[0], batch.Y[0]), copy.run(batch.U[0], batch.Y[0])
+    assert np.array_equal(a.J, b.J) and np.array_equal(a.alarm, b.alarm) and np.array_equal(a.isolated, b.isolated)
+    assert a.alarm.any()  # the comparison saw the fault's alarm
+
+
+@pytest.mark.parametrize("scale", [0.0, -1.0, float("nan"), float("inf"), 1e4, "2"])
+def test_a_scale_out_of_range_is_refused(ship_copies, scale) -> None:
+    from fdisyn.runtime.errors import FdisynError
+    from fdisyn.synthesis.nafdf.payload import nafdf_scaled
+
+    _, built, _ = ship_copies
+    with pytest.raises(FdisynError, match="threshold_scale must be a number in"):
+        nafdf_scaled(built["nafdf"].gain_file, scale, "ship_bad")  # type: ignore[arg-type]
+
+
+def test_a_tampered_scale_is_refused(ship_copies) -> None:
+    """A gain file whose stored scale does not give its stored table is refused where it is read."""
+    import copy as copying
+
+    from fdisyn.runtime.errors import GainFileError
+    from fdisyn.synthesis.nafdf.payload import nafdf_from_gain_file
+
+    _, _, copies = ship_copies
+    gf = copies["nafdf"][2.0].gain_file
+    ext = copying.deepcopy(gf.extensions)
+    ext["nafdf"]["settings"]["threshold_scale"] = 1.5
+    with pytest.raises(GainFileError, match="threshold scale 1.5"):
+        nafdf_from_gain_file(replace(gf, extensions=ext))
+
+
+def test_operating_characteristic_from_copies_is_the_copies_alarms(ship_copies, tmp_path) -> None:
+    """The fused Monte Carlo's operating characteristic of a design with copies equals, scale by scale, the false-alarm
+    episodes and the runs first alarmed within D counted from each copy's own alarms on the same runs (the copy's own
+    library run alone, per run, on the campaign's simulation; the fused library calls each copy's scalar step)."""
+    from fdisyn.evaluation.campaign import operating_delay
+    from fdisyn.evaluation.compiled_campaign import compiled_campaign
+    from fdisyn.evaluation.evaluate import evaluate
+    from fdisyn.evaluation.metrics import within_samples
+
+    problem, built, copies = ship_copies
+    runs = 3
+    ev = evaluate(problem, built, runs=runs, workers=1, progress=False, copies=copies)
+    by_scale = {1.0: built["nafdf"], **copies["nafdf"]}
+    delay = operating_delay(problem)
+    seen = 0
+    for sname, m in ev.metrics["nafdf"].items():
+        op = m.operating
+        assert op is not None and op["scales"] == sorted(by_scale) and op["delay_s"] == delay
+        sc = problem.scenario(sname)
+        # the compiled campaign's own simulation of the runs (its generator, not NumPy's)
+        batch = compiled_campaign(problem, {}, sc, directory=tmp_path).run(_seeds(sname, runs, problem), keep_batch=True).batch
+        plan = MetricsPlan.of(sc, built["nafdf"].gain_file, batch.t, None, delay)
+        for k, s in enumerate(op["scales"]):
+            alarm = np.stack([by_scale[s].diagnoser.run(batch.U[i], batch.Y[i]).alarm for i in range(runs)]).astype(bool)
+            episodes, first = _truth(alarm, plan)
+            assert op["episodes"][k] == int(episodes.sum()), (sname, s)
+            if sc.fault is None:
+                assert op["detected_within"] is None
+            else:
+                onset = np.flatnonzero(plan.active)
+                late = onset[np.maximum(first, 0)] - onset[0]
+                assert op["detected_within"][k] == int(np.sum((first >= 0) & (late <= within_samples(delay, batch.t[1] - batch.t[0])))), (sname, s)
+            seen += int(episodes.sum()) + int((first >= 0).sum())
+    assert seen > 0  # the comparison saw alarms
+
+
+def _seeds(scenario: str, runs: int, problem) -> list[int]:  # noqa: ANN001 - a Problem
+    from fdisyn.evaluation.campaign import run_seed
+
+    return [run_seed(0, list(problem.scenarios).index(scenario), i) for i in range(runs)]

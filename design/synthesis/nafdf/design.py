@@ -487,16 +487,19 @@ def detector_thresholds(plant: NonlinearPlant, settings: NafdfSettings) -> np.nd
     (:func:`~fdisyn.detectors.sequential.cusum_threshold`, Page's integral equation); the ``p`` scalar GLRs
     over ``M = window`` onsets likewise, ``h = glr_threshold(p·ARL, M)`` (Siegmund & Venkatraman 1995). The
     normalised innovations of an exact filter are independent across components and samples, so the union's
-    rate is the sum of its members' (their alarms coincide with negligible probability).
+    rate is the sum of its members' (their alarms coincide with negligible probability). Each threshold is then
+    multiplied by ``threshold_scale`` (1 unless the diagnoser is a point of an operating characteristic).
     """
     s = settings
     if s.detector == "cusum":
-        return np.array([cusum_threshold(2 * plant.p / s.false_alarm_probability, 0.5 * s.min_shift**2)])
-    if s.detector == "glr":
-        return np.array([glr_threshold(plant.p / s.false_alarm_probability, s.window)])
-    return wssr_threshold_table(
-        window=s.window, n_outputs=plant.p, rule=s.threshold_rule, false_alarm_probability=s.false_alarm_probability, beta0=s.beta0
-    )
+        table = np.array([cusum_threshold(2 * plant.p / s.false_alarm_probability, 0.5 * s.min_shift**2)])
+    elif s.detector == "glr":
+        table = np.array([glr_threshold(plant.p / s.false_alarm_probability, s.window)])
+    else:
+        table = wssr_threshold_table(
+            window=s.window, n_outputs=plant.p, rule=s.threshold_rule, false_alarm_probability=s.false_alarm_probability, beta0=s.beta0
+        )
+    return table if s.threshold_scale == 1.0 else table * s.threshold_scale
 
 
 def _names_r_J(plant: NonlinearPlant, detector: str = "wssr") -> tuple[tuple[str, ...], tuple[str, ...]]:

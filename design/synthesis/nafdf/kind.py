@@ -14,6 +14,7 @@ from fdisyn.synthesis.nafdf.payload import (
     nafdf_lorden_bound,
     nafdf_lorden_information,
     nafdf_lorden_window,
+    nafdf_scaled,
 )
 
 __all__ = ["NAFDF_KIND", "NAFDF_BUDGET_TEXT", "NAFDF_DETECTORS_TEXT", "NAFDF_ACCOUNT_NOTE"]
@@ -67,6 +68,7 @@ NAFDF_KIND = register_kind(
         budget_text=NAFDF_BUDGET_TEXT,
         detectors_text=NAFDF_DETECTORS_TEXT,
         account_note=NAFDF_ACCOUNT_NOTE,
+        threshold_scaled=nafdf_scaled,
     )
 )
 """The ``nafdf`` kind, produced by the method ``nafdf`` (:mod:`fdisyn.synthesis.nafdf.method`)."""

@@ -26,7 +26,7 @@ from fdisyn.synthesis.linear_diagnoser import provenance
 from fdisyn.synthesis.nafdf.design import NafdfDesign, _design, _init_state, _names_r_J, detector_thresholds
 from fdisyn.synthesis.nafdf.settings import _IDENT, _MAX_NAME, DEFAULT_MIN_SHIFT, MAX_DIMENSION, NafdfSettings, _layout, _settings
 
-__all__ = ['PAYLOAD_FORMAT', 'PAYLOAD_VERSION', 'nafdf_budget_seconds', 'nafdf_from_gain_file', 'nafdf_lorden_bound', 'nafdf_lorden_window', 'nafdf_from_payload', 'nafdf_gain_file', 'nafdf_payload', 'step_from_payload']
+__all__ = ['PAYLOAD_FORMAT', 'PAYLOAD_VERSION', 'nafdf_budget_seconds', 'nafdf_from_gain_file', 'nafdf_lorden_bound', 'nafdf_lorden_window', 'nafdf_from_payload', 'nafdf_gain_file', 'nafdf_payload', 'nafdf_scaled', 'step_from_payload']
 
 PAYLOAD_FORMAT = "fdisyn.nafdf"
 PAYLOAD_VERSION = 4
@@ -116,6 +116,8 @@ _PLANT_FIELDS = frozenset(
 _SETTINGS_FIELDS = tuple(NafdfSettings.__dataclass_fields__)
 _DETECTOR_SETTINGS = frozenset({"detector", "min_shift", "arl0"})
 """Settings of version 4 (a version 3 file has the WSSR and none of them)."""
+_OPTIONAL_SETTINGS = frozenset({"threshold_scale"})
+"""Settings a version 4 file holds only when they differ from their default (:meth:`NafdfSettings.to_dict`)."""
 # The WSSR table is recomputed on reading and compared at this relative tolerance: SciPy's χ² quantile is
 # accurate to ~1e-14, so another SciPy version passes while any edit of the stored numbers is refused.
 _TABLE_RTOL = 1e-9
@@ -275,7 +277,9 @@ def _read_payload(payload: object, where: str, *, gain_file: bool) -> _Payload:
     n, m, l = plant.n, plant.m, plant.l  # noqa: E741 — the paper's letter for dim θ
 
     sf = _Fields(
-        top.doc["settings"], f"{where}.settings", required=tuple(k for k in _SETTINGS_FIELDS if not (v3 and k in _DETECTOR_SETTINGS))
+        top.doc["settings"], f"{where}.settings",
+        required=tuple(k for k in _SETTINGS_FIELDS if not (v3 and k in _DETECTOR_SETTINGS) and k not in _OPTIONAL_SETTINGS),
+        optional=frozenset() if v3 else _OPTIONAL_SETTINGS,
     )
     raw: dict[str, Any] = {
         "x0": sf.numbers("x0", n),
@@ -307,6 +311,8 @@ def _read_payload(payload: object, where: str, *, gain_file: bool) -> _Payload:
         if raw["detector"] != "cusum" and raw["min_shift"] == DEFAULT_MIN_SHIFT:
             raw["min_shift"] = None
         raw["arl0"] = sf.number("arl0", allow_none=True)
+        if "threshold_scale" in sf.doc:
+            raw["threshold_scale"] = sf.number("threshold_scale")
     settings: NafdfSettings = _wrap(f"{where}.settings", _settings, plant, **raw)
     if settings.arl0 is not None and not math.isclose(raw["false_alarm_probability"], settings.false_alarm_probability, rel_tol=_TABLE_RTOL):
         raise GainFileError(
@@ -320,7 +326,8 @@ def _read_payload(payload: object, where: str, *, gain_file: bool) -> _Payload:
         k = int(np.argmax(np.abs(table - truth) > _TABLE_RTOL * np.abs(truth)))
         raise GainFileError(
             f"{where}.{table_key}[{k}] is {float(table[k])!r}; the settings (detector {settings.detector!r}, rule "
-            f"{settings.threshold_rule!r}, P_f {settings.false_alarm_probability!r}, window {settings.window}) give {float(truth[k])!r}"
+            f"{settings.threshold_rule!r}, P_f {settings.false_alarm_probability!r}, window {settings.window}, threshold scale "
+            f"{settings.threshold_scale!r}) give {float(truth[k])!r}"
         )
     layout = _layout(n, l, settings.window, settings.classifier_window, settings.detector, plant.p)
     if top.doc["state_layout"] != [[nm, r, c] for nm, r, c in layout.entries]:
@@ -464,6 +471,39 @@ def nafdf_gain_file(
 
 
 
+def nafdf_scaled(gf: GainFile, scale: float, name: str) -> GainFile:
+    """A copy of the NAFDF of ``gf`` named ``name`` whose fast-detection thresholds are ``scale`` times its own
+    (:attr:`~fdisyn.synthesis.nafdf.settings.NafdfSettings.threshold_scale`, multiplying the scale it has): the
+    rest of the filter, its classifier and its dismissal unchanged. Rebuilt and certified as any design.
+
+    Parameters
+    ----------
+    gf : GainFile
+        A ``kind = "nafdf"`` gain file.
+    scale : float
+        The factor, in :data:`~fdisyn.synthesis.nafdf.settings.THRESHOLD_SCALE_RANGE` once multiplied.
+    name : str
+        The copy's diagnoser name (an identifier of at most 64 characters).
+
+    Returns
+    -------
+    GainFile
+        The copy; its provenance records the scale among the design's options.
+    """
+    from dataclasses import replace
+
+    from fdisyn.synthesis.nafdf.settings import _threshold_scale
+
+    design = nafdf_from_gain_file(gf)
+    if not _IDENT.fullmatch(name) or len(name) > _MAX_NAME:
+        raise FdisynError(f"a scaled copy's name must be an identifier of at most {_MAX_NAME} characters; got {shown(name)}")
+    settings = replace(design.settings, threshold_scale=_threshold_scale(_threshold_scale(scale) * design.settings.threshold_scale))
+    copy = _design(design.plant, settings, name=name)
+    options = dict(gf.provenance.get("options") or {}) if isinstance(gf.provenance, Mapping) else {}
+    options["threshold_scale"] = settings.threshold_scale
+    return nafdf_gain_file(copy, problem=gf.problem, design_name=gf.design, name=name, options=options)
+
+
 def _stored_settings(gf: GainFile) -> Mapping[str, Any]:
     payload = gf.extensions.get("nafdf")
     settings = payload.get("settings") if isinstance(payload, Mapping) else None
@@ -472,11 +512,14 @@ def _stored_settings(gf: GainFile) -> Mapping[str, Any]:
     return settings
 
 
-def nafdf_budget_seconds(gf: GainFile) -> float:
+def nafdf_budget_seconds(gf: GainFile) -> float | None:
     """The NAFDF's designed mean time between false alarms (s): its ``arl0``, or for a design by ``P_f``
     ``Ts·(1/P_f + 2 N2)`` — the detector's run length ``1/P_f`` (a bound for the WSSR, whose exceedances come in
-    clusters) plus the ``2 N2`` samples of the false alarm's episode."""
+    clusters) plus the ``2 N2`` samples of the false alarm's episode. ``None`` for a copy with scaled thresholds
+    (:func:`nafdf_scaled`): its time between false alarms is measured, not designed."""
     s = _stored_settings(gf)
+    if s.get("threshold_scale", 1.0) != 1.0:  # the budget set the unscaled thresholds: this copy's time is measured
+        return None
     if s.get("arl0") is not None:
         return float(s["arl0"])
     return float(gf.Ts) * (1.0 / float(s["false_alarm_probability"]) + 2.0 * float(s["classifier_window"]))

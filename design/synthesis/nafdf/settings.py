@@ -18,7 +18,7 @@ from fdisyn.runtime.layout import StateLayout
 from fdisyn.runtime.names import shown
 from fdisyn.runtime.values import real_number
 
-__all__ = ['DEFAULT_MIN_SHIFT', 'MIN_SHIFT_RANGE', 'largest_min_shift', 'MAX_CLASSIFIER_WINDOW', 'MAX_COUNT', 'MAX_DIMENSION', 'MAX_STATE', 'MAX_STEP_INSTRUCTIONS', 'MAX_STEP_WORK', 'MAX_WINDOW', 'NafdfSettings']
+__all__ = ['DEFAULT_MIN_SHIFT', 'MIN_SHIFT_RANGE', 'largest_min_shift', 'MAX_CLASSIFIER_WINDOW', 'MAX_COUNT', 'MAX_DIMENSION', 'MAX_STATE', 'MAX_STEP_INSTRUCTIONS', 'MAX_STEP_WORK', 'MAX_WINDOW', 'NafdfSettings', 'THRESHOLD_SCALE_RANGE']
 
 # Resource limits (module docstring).
 MAX_DIMENSION = 30
@@ -111,10 +111,16 @@ class NafdfSettings:
     u0: np.ndarray = field(default_factory=lambda: np.zeros(0))
     """Nominal input: with ``x0`` and ``θ0`` the point where the model must be finite and where the
     certificate compares the AD Jacobians with central differences (not used by the step)."""
+    threshold_scale: float = 1.0
+    """Every threshold of the fast detection times this factor (the thresholds the budget gives at 1): a point of
+    the operating characteristic, measured on such a copy of the diagnoser. Stored in a gain file only when it is
+    not 1."""
 
     def to_dict(self) -> dict[str, object]:
         out: dict[str, object] = {}
         for k, v in self.__dict__.items():
+            if k == "threshold_scale" and v == 1.0:
+                continue
             if isinstance(v, np.ndarray):
                 out[k] = [None if not math.isfinite(z) else float(z) for z in v.reshape(-1)] if v.ndim == 1 else v.tolist()
             else:
@@ -360,6 +366,7 @@ def _settings(plant: NonlinearPlant, **kw: Any) -> NafdfSettings:
         min_shift=min_shift,
         arl0=arl0,
         u0=frozen_array(np.zeros(m) if kw["u0"] is None else _finite_vec(kw["u0"], "u0", m)),
+        threshold_scale=_threshold_scale(kw.get("threshold_scale", 1.0)),
     )
     for key, value in settings.to_dict().items():  # the gain file holds no number beyond MAX_MAGNITUDE
         big = [z for z in np.ravel(np.asarray(value, dtype=object)) if isinstance(z, float) and math.isfinite(z) and abs(z) > MAX_MAGNITUDE]
@@ -415,6 +422,20 @@ def _check_shift(min_shift: float, given: object, rate: float, statistics: int, 
         raise ArgumentError(f"{head}; no min_shift ≥ {MIN_SHIFT_RANGE[0]:g} works at so high a false-alarm rate: give {remedy}")
     step = 10.0 ** (math.floor(math.log10(most)) - 3)  # the bound shown rounded down to 4 digits: it works as written
     raise ArgumentError(f"{head}; expected min_shift < {math.floor(most / step) * step:.4g} for this budget")
+
+
+THRESHOLD_SCALE_RANGE = (1e-3, 1e3)
+"""The factors the fast detection's thresholds may be scaled by (:attr:`NafdfSettings.threshold_scale`): three
+decades either way, far beyond any operating characteristic's, and no threshold leaves a double's range."""
+
+
+def _threshold_scale(value: object) -> float:
+    """A threshold scale checked: a finite number in :data:`THRESHOLD_SCALE_RANGE`."""
+    v = real_number(value)
+    lo, hi = THRESHOLD_SCALE_RANGE
+    if v is None or not (math.isfinite(v) and lo <= v <= hi):
+        raise ArgumentError(f"threshold_scale must be a number in [{lo:g}, {hi:g}] (1: the budget's thresholds); got {shown(value)}")
+    return float(v)
 
 
 def _budget_rate(arl0: float, ts: float, n2: int, shares: int = 1) -> float:
