@@ -119,7 +119,9 @@ def _residual_directions(gf: Any, plant: LinearPlant) -> float:
         for _ in range(60):
             e = g @ e + plant.Fx[:, j] * rng.standard_normal()
             out = flt.C @ e
-            worst = max(worst, float(np.linalg.norm(out - axis @ (axis.T @ out)) / max(np.linalg.norm(out), 1e-300)))
+            if np.linalg.norm(out) <= 1e-12 * np.linalg.norm(flt.C, 2) * np.linalg.norm(e):
+                continue  # round-off of C e = 0 (a plane's fault direction in ker C, its first sample): no direction
+            worst = max(worst, float(np.linalg.norm(out - axis @ (axis.T @ out)) / np.linalg.norm(out)))
     return worst
 
 

@@ -150,8 +150,10 @@ def test_sampled_angles_stay_inside_the_bound(seed, plane, close, fraction):
     ang = sampled_angles(a, None, lg, c, spaces, bound, sigma, draws=30, seed=seed)
     assert np.all(ang <= bound.Y + 1e-12)
     lines = [j for j, s in enumerate(st_.spaces) if s.dim == 1]
-    if lines:  # and not vacuous: on a line the worst cases come close to the bound (planes in ker C can be loose)
-        assert max(float(np.max(ang[:, j] / bound.Y[j])) for j in lines) > 0.15
+    if lines:  # and not vacuous: on a line the first-order worst direction, among the draws, reaches the first-order
+        # bound up to second-order terms (measured ≥ 0.93 of it over 400 seeded plants at κ = 0.2); the guaranteed
+        # bound, above it, can be several times looser (seed 9968: the reached angle is 0.11 of it)
+        assert max(float(np.max(ang[:, j] / bound.first_order[j])) for j in lines) > 0.5
 
 
 def _kappa_level(g, c, spaces, level=0.2):

@@ -42,7 +42,7 @@ from fdisyn.runtime.gainfile import GainFile
 from fdisyn.runtime.schema import LIMITS, MAX_MAGNITUDE
 from fdisyn.runtime.names import shown
 from fdisyn.runtime.warmup import longest_warmup
-from fdisyn.synthesis.beard_fdf.eigenstructure import optimise_eigenstructure, residual_covariance_trace
+from fdisyn.synthesis.beard_fdf.eigenstructure import RADIUS_TOL, optimise_eigenstructure, residual_covariance_trace
 from fdisyn.synthesis.beard_fdf.payload import NSTATE_MARGIN, BeardFilter, beard_gain_file
 from fdisyn.synthesis.beard_fdf.reference import beard_reference_run
 from fdisyn.synthesis.linear_diagnoser import warmup_length
@@ -54,7 +54,7 @@ _INVARIANCE_TOL = 1e-9
 _DRAW_ENTRIES = 2**24
 """Most numbers the drawn model errors may hold at once (``draws × n²``, 128 MiB)."""
 _DECAY_MIN = 1e-6
-"""Smallest ``decay_rate·Ts``: the certificate checks the spectral radius against ``e^(−decay_rate·Ts) + 1e-7``,
+"""Smallest ``decay_rate·Ts``: the certificate checks the spectral radius against ``e^(−decay_rate·Ts) + RADIUS_TOL``,
 and the gain file needs it below 1."""
 _DIRECTION_TOL = 1e-8
 
@@ -371,7 +371,7 @@ def design_beard_fdf(
     checks.append(Check("eigenvalues of A − L C as assigned (max distance)", err, 1e-6,
                         "<=", "pole assignment is accurate well below this for the separated eigenvalues used"))
     rad = float(np.max(np.abs(eig_g))) if eig_g.size else 0.0
-    checks.append(Check("spectral radius of A − L C (over its invariant blocks)", rad, radius + 1e-7 if radius is not None else 1.0 - 1e-9, "<=",
+    checks.append(Check("spectral radius of A − L C (over its invariant blocks)", rad, radius + RADIUS_TOL if radius is not None else 1.0 - 1e-9, "<=",
                         "the decay-rate bound" if radius is not None else "a stable filter"))
     direction = _simulated_directions(g, c, groups, axes)
     checks.append(Check("residual direction under each fault, by simulation (max angle to C T, rad)", direction, _DIRECTION_TOL,
