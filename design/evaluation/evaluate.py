@@ -9,6 +9,7 @@ are chunked, spread and merged by :mod:`fdisyn.evaluation.campaign`.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -170,6 +171,11 @@ def evaluate(
     unknown = sorted(set(copies) - set(built))
     if unknown:
         raise ArgumentError(f"copies of design(s) {unknown} that are not among the designs {sorted(built)}")
+    bad = sorted({repr(s) for c in copies.values() for s in c
+                  if isinstance(s, bool) or not isinstance(s, (int, float)) or not (math.isfinite(s) and s > 0) or s == 1})
+    if bad:
+        raise ArgumentError(f"copies are keyed by their threshold scale, a positive finite number other than 1 (the design "
+                            f"itself); got {', '.join(bad)}")
     copy_keys = {d: {s: f"{d}@{s!r}" for s in c} for d, c in copies.items()}
     runs_built = {**built, **{copy_keys[d][s]: b for d, c in copies.items() for s, b in c.items()}}
     src = problem_source(problem) if source is None else str(Path(source).absolute() if Path(source).is_file() else source)

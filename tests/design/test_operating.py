@@ -345,3 +345,22 @@ def _seeds(scenario: str, runs: int, problem) -> list[int]:  # noqa: ANN001 - a 
     from fdisyn.evaluation.campaign import run_seed
 
     return [run_seed(0, list(problem.scenarios).index(scenario), i) for i in range(runs)]
+
+
+@pytest.mark.parametrize("scale", [1.0, 0.0, -2.0, float("nan"), True, "2"])
+def test_copies_keyed_by_anything_but_a_scale_other_than_one_are_refused(ship_copies, scale) -> None:
+    from fdisyn.evaluation.evaluate import evaluate
+    from fdisyn.runtime.errors import ArgumentError
+
+    problem, built, copies = ship_copies
+    with pytest.raises(ArgumentError, match="keyed by their threshold scale"):
+        evaluate(problem, built, runs=1, workers=1, progress=False, copies={"nafdf": {scale: copies["nafdf"][2.0]}})
+
+
+def test_copies_of_an_unknown_design_are_refused(ship_copies) -> None:
+    from fdisyn.evaluation.evaluate import evaluate
+    from fdisyn.runtime.errors import ArgumentError
+
+    problem, built, copies = ship_copies
+    with pytest.raises(ArgumentError, match="not among the designs"):
+        evaluate(problem, built, runs=1, workers=1, progress=False, copies={"other": copies["nafdf"]})
