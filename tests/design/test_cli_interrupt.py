@@ -35,6 +35,11 @@ def test_ctrl_c_ends_every_command_with_status_130_and_one_line(command: str, mo
     assert captured.err == f"fdisyn {command}: interrupted\n" and captured.out == ""
 
 
+def _default_sigint() -> None:
+    """In the child before it runs the command: SIGINT back at its default disposition."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _descendants(root: int) -> dict[int, int]:
     """``{pid: parent pid}`` of every living process under ``root`` (from /proc; zombies are not living)."""
     parents = {}
@@ -105,7 +110,10 @@ def test_ctrl_c_during_a_monte_carlo_on_workers_is_one_line_and_leaves_no_proces
     spec.write_text((EXAMPLES / "dc_motor.toml").read_text(encoding="utf-8"), encoding="utf-8")
     argv = [sys.executable, "-m", "fdisyn.app.cli", "--quiet", "evaluate", str(spec), "--runs", "1000000", "--workers", "2",
             "--scheduler", scheduler, "--out", str(tmp_path / "m.json"), "--workdir", str(tmp_path / "wd")]
-    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True, cwd=tmp_path)
+    # Ctrl-C at its default, as in a terminal's foreground command: a suite started as a background job of a
+    # non-interactive shell inherits SIGINT ignored, and Python then keeps ignoring it
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True, cwd=tmp_path,
+                            preexec_fn=_default_sigint)
     seen: dict[int, int] = {}
 
     def working(tree: dict[int, int]) -> bool:
