@@ -54,6 +54,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -69,6 +70,8 @@ from fdisyn.runtime.validate import check_certificate, check_magnitudes, validat
 from fdisyn.runtime.values import real_number
 
 __all__ = [
+    "CLOCK_KEYS",
+    "without_clock",
     "Generator",
     "Evaluator",
     "Decision",
@@ -626,6 +629,35 @@ def write_gain_file(gf: GainFile, path: str | Path) -> Path:
         raise GainFileError(f"gain file {gf.name!r} holds a non-finite number: {exc}") from exc
     p.write_text(text + "\n", encoding="utf-8")
     return p
+
+
+CLOCK_KEYS = re.compile(r"created_utc|(^|_)(solve_)?time(_|$)|seconds")
+"""Keys of a gain file's provenance and certificate information that hold a date or a duration."""
+
+
+def _without_clock(x: Any) -> Any:
+    if isinstance(x, Mapping):
+        return {k: _without_clock(v) for k, v in x.items() if not CLOCK_KEYS.search(str(k))}
+    if isinstance(x, list):
+        return [_without_clock(v) for v in x]
+    return x
+
+
+def without_clock(gf: GainFile) -> GainFile:
+    """``gf`` without its creation date or solver durations (:data:`CLOCK_KEYS`): what two designs of the same
+    diagnoser share, and what a report publishes (the committed files stay the same from one run to the next).
+
+    Parameters
+    ----------
+    gf : GainFile
+        The diagnoser.
+
+    Returns
+    -------
+    GainFile
+        The same diagnoser, its ``provenance`` and ``certificate`` without those keys.
+    """
+    return replace(gf, provenance=_without_clock(dict(gf.provenance)), certificate=_without_clock(dict(gf.certificate)))
 
 
 def gain_file_sha256(gf: GainFile) -> str:

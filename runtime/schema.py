@@ -17,6 +17,7 @@ __all__ = [
     "EVALUATOR_KINDS",
     "SEQUENTIAL_KINDS",
     "LIMITS",
+    "SCALAR_STEP_LIMITS",
     "ACCOUNT_FORMAT",
     "ACCOUNT_EFFECTS",
     "MAX_MAGNITUDE",
@@ -43,38 +44,53 @@ LIMITS: Mapping[str, int] = {
     "file_bytes": 64 * 1024 * 1024,
     # linear kind
     "generators": 64,
-    "generator_states": 256,
-    "nstate": 2048,
-    "residuals": 256,
-    "plant_states": 512,
+    "generator_states": 1024,
+    "nstate": 32_768,
+    "residuals": 1024,
+    "plant_states": 2048,
     "unknown_inputs": 256,
-    "coefficients": 10_000,
-    "warmup_coefficients": 50_000,
-    "isolation_coefficients": 50_000,
+    "coefficients": 1_000_000,
+    "warmup_coefficients": 5_000_000,
+    "isolation_coefficients": 1_000_000,
     "persistence": 10**9,
 }
 """Size limits of a gain file, checked by the reader before anything costly.
 
-``coefficients`` — the nonzero entries of every generator's ``Ar Bu By Cr
-Du Dy Xu Xy`` and every evaluator's ``W`` — is the one that matters: the
-generated C holds one multiply-add per coefficient in straight-line code, and
-gcc -O2's memory grows by ~45 kB per coefficient (measured on a 2-core machine
-shared with other jobs: 4 974 coefficients took 11 s and 0.20 GB, 9 774 took
-14–16 s and 0.44 GB; a dense 400-state generator, ~170 000 coefficients,
-would take minutes and gigabytes). ``warmup_coefficients`` — the warm-ups'
-gains and corrections (:func:`fdisyn.runtime.warmup.warmup_coefficients`),
-dense — are counted apart, against a limit that lets the turbofan's grouped
-bank (33 216 of them beside 8 915 coefficients) be generated: its C took 68 s
-and 2.4 GB of gcc, straight-line code for constants a loop over a table
-would hold. ``nstate`` ≤ 2048 keeps the step's copy
-of the state on the stack at 16 KiB; ``generator_states`` ≤ 256 bounds the
-stability check (an eigenvalue problem per generator); the signal, fault,
-generator and residual counts (``step_outputs``: residual and statistic names of any kind) bound the
-name tables and the replay program's stack arrays; ``file_bytes`` bounds what
-the reader parses at all. ``persistence`` ≤ 10⁹ consecutive exceedances: the
-step counts them in a double, and beyond 2⁵³ a count no longer grows, so a
-larger one could never alarm (10⁹, like the NAFDF's sample counters, is 11
-days of samples at 1 kHz). Other kinds add their own limits to their payload."""
+A linear diagnoser's step is written as loops over constant tables once it is
+large (:func:`fdisyn.synthesis.linear_step.linear_step_function`): its C then
+grows with the step's operations, its coefficients are ``static const`` data,
+and gcc's time with both. Measured on 2 cores: a bank of ten 100-state
+generators on 20 sensors (166 480 coefficients, 2 059 state entries) gives
+82 KB of code beside 12 MB of tables and compiles in 5 s; the turbofan's GLR
+(86 615 coefficients, 11 533 state entries) in 7 s with its design. The
+limits are those of what the step must hold and the machine must run:
+``coefficients`` — the nonzero entries of every generator's ``Ar Bu By Cr Du
+Dy Xu Xy`` and every evaluator's ``W`` — ≤ 10⁶ (8 MB of tables, ~10⁶
+multiply-adds per sample); ``warmup_coefficients`` — the warm-ups' gains and
+corrections (:func:`fdisyn.runtime.warmup.warmup_coefficients`), dense, read
+one sample's worth at a time — ≤ 5·10⁶ (40 MB); ``nstate`` ≤ 32 768 keeps the
+step's copy of the state on the stack at 256 KiB (the whole frame is bounded
+by :data:`fdisyn.codegen.library.STACK_LIMIT_BYTES`); ``generator_states`` ≤
+1 024 bounds the stability check (an eigenvalue problem per generator); the
+signal, fault, generator and residual counts (``step_outputs``: residual and
+statistic names of any kind) bound the name tables and the replay program's
+stack arrays; ``file_bytes`` bounds what the reader parses at all.
+``persistence`` ≤ 10⁹ consecutive exceedances: the step counts them in a
+double, and beyond 2⁵³ a count no longer grows, so a larger one could never
+alarm (10⁹, like the NAFDF's sample counters, is 11 days of samples at 1 kHz).
+Other kinds add their own limits to their payload; a kind whose step is
+straight-line code keeps :data:`SCALAR_STEP_LIMITS`."""
+
+SCALAR_STEP_LIMITS: Mapping[str, int] = {
+    "nstate": 2048,
+    "plant_states": 512,
+    "coefficients": 10_000,
+    "warmup_coefficients": 50_000,
+}
+"""Size limits of a diagnoser whose step is one multiply-add per coefficient in straight-line code (the Beard
+filter's): gcc -O2's memory grows by ~45 kB per coefficient (measured on a 2-core machine shared with other
+jobs: 4 974 coefficients took 11 s and 0.20 GB, 9 774 took 14–16 s and 0.44 GB), and the state's copy on the
+stack stays at 16 KiB."""
 
 ACCOUNT_FORMAT = 1
 """Format of a gain file's optional ``account`` block (what the design can see; see :func:`~fdisyn.runtime.validate.validate_account`)."""

@@ -81,14 +81,17 @@ def information_pinv(info: np.ndarray, *, equilibrate: bool) -> np.ndarray:
     return equilibrated_pinv(info) if equilibrate else np.linalg.pinv(info, rcond=PINV_RTOL, hermitian=True)
 
 
-def longest_warmup(shapes: list[tuple[int, int]]) -> int:
+def longest_warmup(shapes: list[tuple[int, int]], budget: int | None = None) -> int:
     """The longest warm-up, common to generators of ``(n_state, n_residual)`` ``shapes``, whose constants stay
-    within ``LIMITS["warmup_coefficients"]`` (:func:`warmup_coefficients`) and :data:`MAX_WARMUP`.
+    within ``budget`` (:func:`warmup_coefficients`) and :data:`MAX_WARMUP`.
 
     Parameters
     ----------
     shapes : list of tuple of int
         Each generator's state and residual sizes.
+    budget : int, optional
+        The constants allowed (default ``LIMITS["warmup_coefficients"]``; a kind of straight-line step passes
+        its own).
 
     Returns
     -------
@@ -97,10 +100,10 @@ def longest_warmup(shapes: list[tuple[int, int]]) -> int:
 
     Examples
     --------
-    >>> longest_warmup([(12, 7)] * 16)  # the turbofan's grouped bank: (50 000 − 16·144) // (16·84)
+    >>> longest_warmup([(12, 7)] * 16, 50_000)  # the turbofan's grouped bank: (50 000 − 16·144) // (16·84)
     35
     """
-    spare = LIMITS["warmup_coefficients"] - sum(n * n for n, _ in shapes)
+    spare = (LIMITS["warmup_coefficients"] if budget is None else int(budget)) - sum(n * n for n, _ in shapes)
     return min(MAX_WARMUP, max(0, spare) // max(1, sum(n * r for n, r in shapes)))
 
 

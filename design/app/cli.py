@@ -381,9 +381,11 @@ def _cmd_reproduce(a: argparse.Namespace) -> None:
                     prob, runs=a.runs, reports=Path(a.reports), workdir=Path(a.workdir), variants=a.variants, source=spec, **where
                 )
             print(f"wrote {out}")
+    from fdisyn.app.pipeline import phase_table
     from fdisyn.reporting.page import summary_table
 
     print(summary_table(Path(a.reports), [p.name for p in problems]))
+    print("time per problem and phase (s):\n" + phase_table([p.name for p in problems]))
 
 
 def _cmd_bench(a: argparse.Namespace) -> None:

@@ -25,7 +25,7 @@ from fdisyn.detectors.table import DETECTORS
 from fdisyn.evaluation.campaign import problem_source
 from fdisyn.evaluation.built import Built, build, threshold_copies
 from fdisyn.evaluation.evaluate import Evaluation, evaluate
-from fdisyn.evaluation.progress import tracked
+from fdisyn.evaluation.progress import phase, tracked
 from fdisyn.evaluation.metrics import ISOLATION_MARGIN
 from fdisyn.simulation.problem import Problem, scaled_scenario
 from fdisyn.runtime.errors import ArgumentError, CertificateError
@@ -34,7 +34,7 @@ from fdisyn.runtime.layout import linear_state_layout
 from fdisyn.runtime.reference import RunResult
 from fdisyn.synthesis.kinds import reference_run
 
-__all__ = ["EXPORT_TOL", "ExportCheck", "check_export", "FaultSizeSweep", "fault_size_sweep", "VariantResult", "reproduce_problem"]
+__all__ = ["PHASES", "phase_table", "EXPORT_TOL", "ExportCheck", "check_export", "FaultSizeSweep", "fault_size_sweep", "VariantResult", "reproduce_problem"]
 
 EXPORT_TOL = 1e-12
 """Agreement required between the C step and each Python reference over a
@@ -423,10 +423,12 @@ def reproduce_problem(
         tag = variant_tag(label)
         steps = tracked(names, f"{problem.name} {label}: design, verify, export, compile", "design")
         built = {d: build(problem, d, workdir / problem.name / tag / d, **opts) for d in steps}
-        U, Y = export_trace(problem, **opts)
+        with phase(problem.name, "export check"):
+            U, Y = export_trace(problem, **opts)
         exports = {}
         for d, b in built.items():
-            chk = check_export(b, U, Y)
+            with phase(problem.name, "export check"):
+                chk = check_export(b, U, Y)
             if not chk.passed:
                 raise CertificateError(f"{problem.name}/{d}: the generated C disagrees with the Python references: {chk.to_dict()}")
             exports[d] = chk
@@ -434,17 +436,54 @@ def reproduce_problem(
             (workdir / problem.name / tag / d / "export_check.json").write_text(json.dumps(chk.to_dict(), indent=1) + "\n", encoding="utf-8")
         where = {"workers": workers, "client": client, "source": source}
         # a diagnoser whose decisions at other thresholds its own runs do not give: copies with scaled thresholds
-        copies = threshold_copies(built, workdir / problem.name / tag / "threshold_copies")
-        ev = evaluate(problem, built, runs=n_runs, scenarios=scen, copies=copies, **where, **opts)
-        sweep = None
-        if label == "default":
-            sweep = fault_size_sweep(problem, built, runs=min(n_runs, SWEEP_RUNS), scenarios=scen, **where, **opts)
-        shifts = shift_sweep(problem, built, ev, runs=min(n_runs, SHIFT_RUNS), **where, **opts)
+        with phase(problem.name, "generate and compile"):
+            copies = threshold_copies(built, workdir / problem.name / tag / "threshold_copies")
+        with phase(problem.name, "Monte Carlo"):
+            ev = evaluate(problem, built, runs=n_runs, scenarios=scen, copies=copies, **where, **opts)
+            sweep = None
+            if label == "default":
+                sweep = fault_size_sweep(problem, built, runs=min(n_runs, SWEEP_RUNS), scenarios=scen, **where, **opts)
+            shifts = shift_sweep(problem, built, ev, runs=min(n_runs, SHIFT_RUNS), **where, **opts)
         seconds = time.perf_counter() - t0
         results.append(
             VariantResult(label=label, options=ev.options, built=built, exports=exports, evaluation=ev, seconds=seconds, sweep=sweep,
                           shifts=shifts)
         )
-    page = write_report(problem, results, reports / problem.name)
-    write_index(reports)
+    with phase(problem.name, "report"):
+        page = write_report(problem, results, reports / problem.name)
+        write_index(reports)
     return page
+
+
+PHASES = ("design", "generate and compile", "export check", "Monte Carlo", "report")
+"""The phases of the main job, in the order a problem goes through them (:func:`~fdisyn.evaluation.progress.phase`;
+"Monte Carlo" holds the compile of its fused libraries, "generate and compile" the diagnosers' and their threshold
+copies')."""
+
+
+def phase_table(problems: Sequence[str]) -> str:
+    """The main job's time per problem and phase so far in this process, and its largest process, as a Markdown table.
+
+    Parameters
+    ----------
+    problems : sequence of str
+        The problems, in the order they ran.
+
+    Returns
+    -------
+    str
+        The table (seconds), a total row, then the peak resident memory of this process and of its largest finished
+        child (a compiler or a Monte Carlo worker).
+    """
+    from fdisyn.evaluation.progress import peak_memory_bytes, phase_seconds
+
+    sec = phase_seconds()
+    rows = ["| problem | " + " | ".join(PHASES) + " | total |", "|---" * (len(PHASES) + 2) + "|"]
+    totals = [0.0] * len(PHASES)
+    for p in problems:
+        vals = [sec.get((p, ph), 0.0) for ph in PHASES]
+        totals = [a + b for a, b in zip(totals, vals, strict=True)]
+        rows.append(f"| {p} | " + " | ".join(f"{v:.0f}" for v in vals) + f" | {sum(vals):.0f} |")
+    rows.append("| all | " + " | ".join(f"{v:.0f}" for v in totals) + f" | {sum(totals):.0f} |")
+    own, child = peak_memory_bytes()
+    return "\n".join(rows) + f"\n\nlargest process: {own / 2**30:.2f} GiB (this one), {child / 2**30:.2f} GiB (a finished child)\n"

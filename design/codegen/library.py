@@ -90,11 +90,13 @@ def shared_library_flags(platform: str | None = None) -> tuple[str, ...]:
     return ("-fPIC", "-shared")
 
 
-STACK_LIMIT_BYTES = 64 * 1024
+STACK_LIMIT_BYTES = 512 * 1024
 """Largest stack frame ``<prefix>_step`` may need (its work arrays and the copy
-of the state): a thread's stack is 8 MiB on Linux desktops but often tens of
-KiB on embedded targets, so the size is bounded here and written into the
-header as ``<PREFIX>_STACK_BYTES``."""
+of the state): a main thread's stack is 8 MiB on Linux and macOS and 1 MiB on
+Windows, a task's on an embedded target often tens of KiB, so the size is
+bounded here and written into the header as ``<PREFIX>_STACK_BYTES`` (the
+reference problems' steps need 0.3–90 KiB; a bank of ten 100-state generators
+on 20 sensors about 90 KiB)."""
 
 
 @dataclass(frozen=True)
@@ -235,13 +237,23 @@ def fill_template(text: str, subs: Mapping[str, str], template: str) -> str:
 
 
 def step_stack_bytes(fn: ca.Function, nstate: int) -> int:
-    """Bytes of automatic storage ``<prefix>_step`` declares around CasADi's call.
+    """Bytes of automatic storage ``<prefix>_step`` declares around CasADi's call, and CasADi's code inside it.
 
-    CasADi's work vectors (``w``: ``sz_w`` doubles, ``iw``: ``sz_iw``
-    integers, ``arg``/``res``: pointers; each at least one entry) and the
-    next state (``nstate`` doubles), 8 bytes each on a 64-bit target.
+    CasADi's work vectors (``w``: ``sz_w`` doubles, ``iw``: ``sz_iw`` integers, ``arg``/``res``: pointers;
+    each at least one entry) and the next state (``nstate`` doubles), 8 bytes each on a 64-bit target. An SX
+    function's C keeps its work in local scalars, ``sz_w`` of them at most. An MX function's object counts
+    work its generated C does not declare (each vector's own slot), so for it the sizes are read from the C
+    CasADi generates, plus one local scalar per instruction at most.
     """
-    slots = max(fn.sz_w(), 1) + max(fn.sz_iw(), 1) + max(fn.sz_arg(), 1) + max(fn.sz_res(), 1) + nstate + 3
+    sizes = {"w": fn.sz_w(), "iw": fn.sz_iw(), "arg": fn.sz_arg(), "res": fn.sz_res()}
+    locals_ = 0
+    if not fn.is_a("SXFunction"):
+        cg = ca.CodeGenerator("stack.c", {"with_header": False, "with_export": False, "verbose": False})
+        cg.add(fn)
+        found = {k: int(v) for k, v in re.findall(r"if \(sz_(arg|res|iw|w)\) \*sz_\1 = (\d+);", cg.dump())}
+        sizes = {k: max(found.get(k, 0), 0) if set(found) == set(sizes) else v for k, v in sizes.items()}
+        locals_ = fn.n_instructions()
+    slots = sum(max(int(v), 1) for v in sizes.values()) + locals_ + nstate + 3
     return 8 * int(slots)
 
 
@@ -436,6 +448,33 @@ def compile_bench(gf: GainFile, c_dir: str | Path, out: str | Path) -> Path:
     return out
 
 
+BUILD_KEY = "build.key"
+"""The file in ``DIR/c`` that records the compiler command a build used (:func:`codegen` with ``reuse``)."""
+
+
+def _build_key() -> str:
+    return shlex.join([*compiler(), *CFLAGS, *shared_library_flags()]) + "\n"
+
+
+def _unchanged_build(gf: GainFile, d: Path, bytes_sha: str) -> bool:
+    """Whether ``d`` holds a build of ``gf`` (read from ``d/gains.json`` with bytes ``bytes_sha``) that this fdisyn,
+    compiler and flags would make again (:func:`codegen`'s ``reuse``)."""
+    import tempfile
+
+    from fdisyn.runtime.compiled import _check_before_loading
+
+    c_dir, lib = d / "c", library_path(d, gf)
+    try:
+        if (c_dir / BUILD_KEY).read_text(encoding="utf-8") != _build_key() or not (d / "replay").is_file():
+            return False
+        _check_before_loading(lib, gain_file_sha256(gf), gain_file=d / "gains.json", marked=True)
+        with tempfile.TemporaryDirectory(dir=d, prefix=".c-staging-") as staging:
+            generate_sources(gf, staging, gain_file_bytes_sha256=bytes_sha)
+            return all((c_dir / f.name).read_bytes() == f.read_bytes() for f in Path(staging).iterdir())
+    except (OSError, BuildError):
+        return False
+
+
 def _gain_file_bytes(path: Path) -> bytes | None:
     """The bytes of the gain file at ``path``, or None when they cannot be read (:func:`read_gain_file` says why)."""
     try:
@@ -444,12 +483,29 @@ def _gain_file_bytes(path: Path) -> bytes | None:
         return None
 
 
-def codegen(directory: str | Path) -> CodegenResult:
+def codegen(directory: str | Path, *, reuse: bool = False) -> CodegenResult:
     """``fdisyn codegen DIR``: generate and compile everything for ``DIR/gains.json``.
 
     The file's bytes are read before and after it is parsed: the sha256 compiled into ``replay`` and
     recorded in the manifest is that of the bytes the diagnoser was generated from (a file rewritten
     meanwhile is refused).
+
+    Parameters
+    ----------
+    directory : str or Path
+        ``DIR``.
+    reuse : bool
+        Keep what an earlier build of this same ``gains.json`` left when it is still what this build would make:
+        the sources generated now equal ``DIR/c``'s byte for byte, the compiler command is the same
+        (``DIR/c/build.key``) and the library passes the loader's checks (its manifest, the gain file's bytes
+        and content hash, its build mark). As a build system keys its work by its inputs (acados regenerates a
+        solver only when its description changed); the sources are generated anyway, the compile (the costly
+        part) is skipped.
+
+    Returns
+    -------
+    CodegenResult
+        Where everything is.
     """
     d = Path(directory)
     p = d / "gains.json"
@@ -461,8 +517,11 @@ def codegen(directory: str | Path) -> CodegenResult:
     bytes_sha = hashlib.sha256(after).hexdigest()
     c_dir = d / "c"
     try:
+        if reuse and _unchanged_build(gf, d, bytes_sha):
+            return CodegenResult(directory=d, c_dir=c_dir, header=c_dir / f"{gf.name}.h", library=library_path(d, gf), replay=d / "replay")
         header = generate_sources(gf, c_dir, gain_file_bytes_sha256=bytes_sha)
         lib, replay = compile_sources(gf, c_dir, d, gain_file_bytes_sha256=bytes_sha)
+        fresh_path(c_dir / BUILD_KEY).write_text(_build_key(), encoding="utf-8")
     except BuildError:
         raise
     except OSError as exc:  # a path in DIR that cannot be written (DIR/c a file, no permission, a full disk)

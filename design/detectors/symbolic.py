@@ -98,6 +98,8 @@ def all_finite(*exprs: ca.SX) -> ca.SX:
     casadi.SX
         A scalar 0 or 1.
     """
+    if any(isinstance(e, ca.MX) for e in exprs):
+        return all_of(finite(ca.vertcat(*[ca.vec(e) for e in exprs])))
     return all_of(finite(ca.vertcat(*[ca.vec(ca.SX(e)) for e in exprs])))
 
 
@@ -114,6 +116,8 @@ def any_of(flags: ca.SX) -> ca.SX:
     casadi.SX
         A scalar 0 or 1.
     """
+    if isinstance(flags, ca.MX):  # one loop over the entries: the largest 0/1 flag
+        return ca.mmax(flags != 0) if flags.numel() else ca.MX(0)
     out = ca.SX(0)
     for i in range(flags.numel()):
         out = ca.logic_or(out, flags[i])
@@ -133,6 +137,8 @@ def all_of(flags: ca.SX) -> ca.SX:
     casadi.SX
         A scalar 0 or 1.
     """
+    if isinstance(flags, ca.MX):  # one loop over the entries: the smallest 0/1 flag
+        return ca.mmin(flags != 0) if flags.numel() else ca.MX(1)
     out = ca.SX(1)
     for i in range(flags.numel()):
         out = ca.logic_and(out, flags[i])
@@ -169,6 +175,8 @@ def largest(v: ca.SX) -> ca.SX:
     casadi.SX
         A scalar.
     """
+    if isinstance(v, ca.MX):  # a loop from −∞: the same largest entry (NaN entries are passed over by fmax alike)
+        return ca.mmax(v)
     top = v[0]
     for i in range(1, v.numel()):
         top = ca.fmax(top, v[i])
@@ -188,6 +196,8 @@ def window_sum(v: ca.SX) -> ca.SX:
     casadi.SX
         A scalar.
     """
+    if isinstance(v, ca.MX):  # one loop, first entry first (0 + v₀ + v₁ + …: the same sums)
+        return ca.sum1(v)
     total = v[0]
     for i in range(1, v.numel()):
         total = total + v[i]
@@ -210,7 +220,9 @@ def shift_in(q: ca.SX, window: ca.SX) -> ca.SX:
         The new window, ``N`` entries.
     """
     n = window.numel()
-    return ca.vertcat(q, window[: n - 1]) if n > 1 else ca.SX(q)
+    if n <= 1:
+        return q if isinstance(q, ca.MX) else ca.SX(q)
+    return ca.vertcat(q, window[: n - 1])
 
 
 # --------------------------------------------------------------------------- χ²
@@ -366,6 +378,9 @@ def cusum_latch(sums: ca.SX, latches: ca.SX, threshold: float) -> tuple[ca.SX, c
     alarm : casadi.SX
         1 if any sum is latched.
     """
+    if isinstance(sums, ca.MX):  # elementwise, as loops
+        held = ca.if_else(ca.logic_or(sums > threshold, ca.logic_and(latches > 0, sums > 0)), 1, 0)
+        return held, any_of(held)
     latch = ca.vertcat(
         *[ca.if_else(ca.logic_or(sums[i] > threshold, ca.logic_and(latches[i] > 0, sums[i] > 0)), 1, 0) for i in range(sums.numel())]
     )
@@ -393,6 +408,13 @@ def glr_update(z: ca.SX, sums: ca.SX, window: int) -> ca.SX:
     casadi.SX
         The new onset sums, laid out as ``z``.
     """
+    if isinstance(z, ca.MX):  # d(1) = z(1) + 0: each onset's previous sum moved down by a 0/1 table
+        size = z.numel()
+        shift = np.zeros((size, size))
+        for h in range(size // window):
+            for n in range(1, window):
+                shift[h * window + n, h * window + n - 1] = 1.0
+        return ca.mtimes(constant(shift), sums) + z
     parts = []
     for h in range(z.numel() // window):
         base = h * window
@@ -418,6 +440,10 @@ def glr_statistic(sums: ca.SX, weights: np.ndarray) -> ca.SX:
         ``J``.
     """
     w = np.asarray(weights, dtype=float).reshape(-1, order="F")
+    if isinstance(sums, ca.MX):  # the onsets with a weight, as one loop each: (d·d)·w, then the largest
+        keep = [i for i in range(sums.numel()) if w[i] > 0]
+        d = sums[keep]
+        return largest(d * d * ca.DM(w[keep]))
     return largest(ca.vertcat(*[sums[i] * sums[i] * float(w[i]) for i in range(sums.numel()) if w[i] > 0]))
 
 

@@ -14,7 +14,9 @@ from typing import Any
 
 from fdisyn.codegen.library import CodegenResult, codegen
 from fdisyn.runtime.compiled import CompiledDiagnoser, library_path
-from fdisyn.runtime.gainfile import GainFile, read_gain_file, write_gain_file
+from fdisyn.evaluation.progress import phase
+from fdisyn.runtime.errors import GainFileError
+from fdisyn.runtime.gainfile import GainFile, gain_file_sha256, read_gain_file, without_clock, write_gain_file
 from fdisyn.runtime.names import DIAGNOSER_NAME_MAX
 from fdisyn.simulation.problem import Problem
 
@@ -32,12 +34,36 @@ class Built:
 
 
 def build(problem: Problem, design: str, directory: str | Path, **options: Any) -> Built:
-    """Design, write ``DIR/gains.json``, generate and compile the C, load it."""
+    """Design, write ``DIR/gains.json``, generate and compile the C, load it.
+
+    A design equal to the one ``DIR`` already holds but for its date and solver durations
+    (:func:`~fdisyn.runtime.gainfile.without_clock`) keeps that gain file, and its build where this fdisyn and
+    compiler would make the same (:func:`~fdisyn.codegen.library.codegen` with ``reuse``): a second run of the main
+    job compiles only what changed.
+    """
     d = Path(directory)
-    gf = problem.design(design, **options)
-    write_gain_file(gf, d / "gains.json")
-    art = codegen(d)
+    with phase(problem.name, "design"):
+        gf = problem.design(design, **options)
+    old = _same_design(d / "gains.json", gf)
+    with phase(problem.name, "generate and compile"):
+        if old is None:
+            write_gain_file(gf, d / "gains.json")
+        else:
+            gf = old
+        art = codegen(d, reuse=old is not None)
     return Built(gain_file=gf, directory=d, artifacts=art, diagnoser=CompiledDiagnoser(art.library, gf))
+
+
+def _same_design(path: Path, gf: GainFile) -> GainFile | None:
+    """The gain file at ``path`` when it is ``gf`` but for its clock (:func:`~fdisyn.runtime.gainfile.without_clock`),
+    else ``None`` (none there, unreadable, or another design)."""
+    if not path.is_file():
+        return None
+    try:
+        old = read_gain_file(path)
+    except (OSError, GainFileError):
+        return None
+    return old if gain_file_sha256(without_clock(old)) == gain_file_sha256(without_clock(gf)) else None
 
 
 def load_built(directory: str | Path) -> Built:
@@ -84,8 +110,12 @@ def threshold_copies(built: Mapping[str, Built], directory: str | Path, scales: 
             d = Path(directory) / name / str(k)
             suffix = f"_x{k}"  # the copy's C prefix: the design's, cut to leave room (DIAGNOSER_NAME_MAX)
             copy = scaled(gf, float(s), gf.name[: DIAGNOSER_NAME_MAX - len(suffix)].rstrip("_") + suffix)
-            write_gain_file(copy, d / "gains.json")
-            art = codegen(d)
+            old = _same_design(d / "gains.json", copy)
+            if old is None:
+                write_gain_file(copy, d / "gains.json")
+            else:
+                copy = old
+            art = codegen(d, reuse=old is not None)
             copies[float(s)] = Built(gain_file=copy, directory=d, artifacts=art, diagnoser=CompiledDiagnoser(art.library, copy))
         out[name] = copies
     return out

@@ -36,7 +36,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 from fdisyn.codegen import lanes
-from fdisyn.codegen.lanes import LANE_PRELUDE, lane_function, scalar_lanes
+from fdisyn.codegen.lanes import build_widths, lane_function, lane_prelude, scalar_lanes
 from fdisyn.codegen.library import (
     CFLAGS,
     _c_double,
@@ -204,7 +204,7 @@ def _lane_code(model: SampleModel, built: Mapping[str, Built], scalar_designs: C
                   for i, (d, b) in enumerate(built.items())]
     code, scalar = [], []
     for name, symbol, fn, vector in functions:
-        text = lane_function(fn, name) if vector else None
+        text = lane_function(fn, name, build_widths()) if vector else None
         if text is None:
             scalar.append(symbol)
             text = scalar_lanes(fn, name, symbol)
@@ -472,7 +472,7 @@ def build_library(model: SampleModel, built: Mapping[str, Built], directory: Pat
         design_files += [c_dir / f"{b.gain_file.name}{s}" for s in (".c", ".h", "_casadi.c", "_casadi.h")]
     key = _key([sim_c, TEMPLATE.read_bytes(), Path(lanes.__file__).read_bytes(), " ".join([*compiler(), *CFLAGS, *LIBRARY_FLAGS]).encode()]
                + [gain_file_sha256(b.gain_file).encode() for b in built.values()] + [p.read_bytes() for p in design_files]
-               + [repr([d in scalar for d in built]).encode()])
+               + [repr([d in scalar for d in built]).encode(), repr(build_widths()).encode()])
     out = directory / key[:16]
     lib = out / LIBRARY
     out.mkdir(exist_ok=True)
@@ -502,7 +502,7 @@ def _compile(model: SampleModel, built: Mapping[str, Built], prefixes: Sequence[
         "ZIG_F": ", ".join(_c_double(v) for v in zf),
         "KEY": c_string_literal(key),
         **_design_code(prefixes),
-        "LANE_PRELUDE": LANE_PRELUDE,
+        "LANE_PRELUDE": lane_prelude(build_widths()),
         "LANE_CODE": _lane_code(model, built, scalar)[0],
     }
     source = fresh_path(c_dir / "fdisyn_campaign.c")
@@ -575,7 +575,8 @@ def compiled_campaign(
     where = Path(directory) if directory is not None else Path(next(iter(built.values())).directory).parent / "campaign"
     # one sample model and one library serve every scenario: generated, hashed and checked once per process
     memo = (id(problem.sample_model), repr(sorted(checked.items())), str(where.absolute()),
-            tuple((d, gain_file_sha256(b.gain_file), str(Path(b.directory).absolute()), d in scalar) for d, b in built.items()))
+            tuple((d, gain_file_sha256(b.gain_file), str(Path(b.directory).absolute()), d in scalar) for d, b in built.items()),
+            build_widths())
     if memo not in _LIBRARIES:
         model = problem.sample_model(**checked)
         _LIBRARIES[memo] = (problem.sample_model, model, *build_library(model, built, where, scalar))

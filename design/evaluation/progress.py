@@ -14,7 +14,7 @@ from typing import Any, TypeVar
 
 T = TypeVar("T")
 
-__all__ = ["bar", "tracked", "set_quiet", "quiet", "note"]
+__all__ = ["bar", "tracked", "set_quiet", "quiet", "note", "phase", "phase_seconds", "peak_memory_bytes"]
 
 _QUIET = [False]
 
@@ -61,3 +61,65 @@ def tracked(items: Iterable[T], desc: str, unit: str = "it") -> Iterator[T]:
             b.set_postfix_str(str(item))
             yield item
             b.update(1)
+
+
+_PHASES: dict[tuple[str, str], float] = {}
+"""Seconds spent per (problem, phase) in this process, each phase's own time (its nested phases' excluded)."""
+_OPEN: list[list[float]] = []
+"""The phases running: ``[start, nested seconds]``, innermost last."""
+
+
+@contextmanager
+def phase(problem: str, name: str) -> Iterator[None]:
+    """Time one phase of the main job (design, generate and compile, …) of ``problem``; a phase opened inside
+    another is counted for itself only. Read with :func:`phase_seconds`.
+
+    Parameters
+    ----------
+    problem : str
+        The problem's name.
+    name : str
+        The phase.
+    """
+    import time
+
+    entry = [time.perf_counter(), 0.0]
+    _OPEN.append(entry)
+    try:
+        yield
+    finally:
+        _OPEN.remove(entry)
+        elapsed = time.perf_counter() - entry[0]
+        key = (problem, name)
+        _PHASES[key] = _PHASES.get(key, 0.0) + elapsed - entry[1]
+        if _OPEN:
+            _OPEN[-1][1] += elapsed
+
+
+def phase_seconds() -> dict[tuple[str, str], float]:
+    """The seconds of every (problem, phase) timed so far in this process (:func:`phase`).
+
+    Returns
+    -------
+    dict
+        ``(problem, phase) → seconds``.
+    """
+    return dict(_PHASES)
+
+
+def peak_memory_bytes() -> tuple[int, int]:
+    """The largest resident memory of this process and of its finished child processes (compilers, workers) so far,
+    in bytes (``(0, 0)`` where the platform does not say).
+
+    Returns
+    -------
+    tuple of int
+        ``(this process, largest child)``.
+    """
+    try:
+        import resource
+    except ImportError:  # pragma: no cover - Windows
+        return 0, 0
+    unit = 1 if sys.platform == "darwin" else 1024  # ru_maxrss: bytes on macOS, KiB elsewhere
+    return (int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss) * unit,
+            int(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss) * unit)

@@ -20,10 +20,8 @@ import html
 import json
 import math
 import platform
-import re
 import sys
 from collections.abc import Mapping, Sequence
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -37,7 +35,7 @@ from fdisyn.reporting.kit import (
     Claim, ReportContext, defined, false_alarm_time, false_alarms_pooled, fmt, folded, label, slug, table, variant_name,
 )
 from fdisyn.runtime.errors import FileError
-from fdisyn.runtime.gainfile import write_gain_file
+from fdisyn.runtime.gainfile import without_clock, write_gain_file
 from fdisyn.runtime.jsondata import parse_json_data
 from fdisyn.simulation.problem import Problem
 from fdisyn.synthesis.kinds import recovery_samples, warmup_text
@@ -437,24 +435,6 @@ def _metrics_document(problem: Problem, variants: Sequence[Any], claims: Sequenc
     )
 
 
-_CLOCK_KEYS = re.compile(r"created_utc|(^|_)(solve_)?time(_|$)|seconds")
-"""Keys of a gain file's provenance and certificate information that hold a date or a duration."""
-
-
-def _without_clock(x: Any) -> Any:
-    if isinstance(x, Mapping):
-        return {k: _without_clock(v) for k, v in x.items() if not _CLOCK_KEYS.search(str(k))}
-    if isinstance(x, list):
-        return [_without_clock(v) for v in x]
-    return x
-
-
-def _published(gf: Any) -> Any:
-    """The gain file as a report publishes it: without its creation date or solver durations (the committed
-    files stay the same from one run to the next; the build folder keeps the full file)."""
-    return replace(gf, provenance=_without_clock(dict(gf.provenance)), certificate=_without_clock(dict(gf.certificate)))
-
-
 def variant_tag(label: str) -> str:
     """A report variant's label as a file or folder name: its characters other than letters and digits written
     ``_`` (``"persistence 3"`` → ``persistence_3``)."""
@@ -546,7 +526,7 @@ def write_report(problem: Problem, variants: Sequence[Any], directory: Path) -> 
     gains_dir, taken = directory / "gains", set[str]()
     for v in variants:
         for b in v.built.values():
-            write_gain_file(_published(b.gain_file), gains_dir / published_gain_name(b.gain_file.name, v.label, taken))
+            write_gain_file(without_clock(b.gain_file), gains_dir / published_gain_name(b.gain_file.name, v.label, taken))
     (directory / "metrics.json").write_text(json.dumps(_metrics_document(problem, variants, claims), indent=1) + "\n", encoding="utf-8")
     page = directory / "index.html"
     page.write_text("\n".join(parts) + "\n", encoding="utf-8")

@@ -4,6 +4,8 @@ persistence counters and the decision table, with the semantics of the NumPy ref
 
 from __future__ import annotations
 
+from typing import Any
+
 import casadi as ca
 import numpy as np
 from fdisyn.detectors.symbolic import all_finite, all_of, constant, finite
@@ -16,45 +18,169 @@ from fdisyn.synthesis.kinds import STEP_INPUTS, STEP_OUTPUTS
 __all__ = ["linear_step_function"]
 
 
-def linear_step_function(gf: GainFile) -> ca.Function:
-    """Symbolic step of a ``kind = "linear"`` gain file (semantics of the reference)."""
+TABLE_INSTRUCTIONS = 15_000
+"""Largest scalar step (CasADi SX instructions) written as straight-line code; a larger one is written with its
+generators as loops over constant tables (:func:`_table_step`). Measured on 2 cores: the straight-line code
+compiles at ~3 ms of gcc per instruction and 40 bytes of C each (the turbofan's 37 722-instruction bank:
+1.5 MB, 68 s, 2.4 GB of gcc), so 15 000 keeps a compile under a minute; below it the compiled Monte Carlo
+runs the step on vectors (:data:`fdisyn.codegen.lanes.MAX_INSTRUCTIONS`, the same bound), which a
+table step does not have."""
+
+
+def linear_step_function(gf: GainFile, *, tables: bool | None = None) -> ca.Function:
+    """Symbolic step of a ``kind = "linear"`` gain file (semantics of the reference).
+
+    Parameters
+    ----------
+    gf : GainFile
+        A ``linear`` gain file.
+    tables : bool, optional
+        Write the generators' products as loops over constant tables (an MX function calling the scalar
+        decision, :func:`_table_step`) rather than as one multiply-add per coefficient (an SX function).
+        Default: tables when the scalar step has more than :data:`TABLE_INSTRUCTIONS` instructions. Both
+        give the reference's values; each product adds its terms in the same order.
+
+    Returns
+    -------
+    casadi.Function
+        The step (contract of :mod:`fdisyn.synthesis.kinds`).
+    """
+    if tables is None:
+        scalar = _scalar_step(gf) if _scalar_estimate(gf) <= 4 * TABLE_INSTRUCTIONS else None
+        if scalar is not None and scalar.n_instructions() <= TABLE_INSTRUCTIONS:
+            return scalar
+        tables = True
+    return _table_step(gf) if tables else _scalar_step(gf)
+
+
+def _scalar_estimate(gf: GainFile) -> int:
+    """A lower bound on the scalar step's instructions (one per stored coefficient and warm-up constant), which
+    spares building the scalar step of a diagnoser far beyond :data:`TABLE_INSTRUCTIONS`."""
+    from fdisyn.runtime.validate import step_coefficients
+    from fdisyn.runtime.warmup import warmup_coefficients
+
+    warm = sum(warmup_coefficients(int(g.warmup), g.n_state, g.n_residual) for g in gf.generators)
+    return step_coefficients(gf.generators, gf.evaluators) + warm
+
+
+def _scalar_step(gf: GainFile) -> ca.Function:
+    """The step as one SX function: every product one multiply-add per coefficient."""
+    return _step(gf, ca.SX)
+
+
+def _table_step(gf: GainFile) -> ca.Function:
+    """The step as one MX function: every product with a constant matrix a loop over a ``static const`` table
+    (CasADi's ``casadi_mtimes_dense``), a warm-up's gains one table read at the sample's index, every
+    elementwise operation on a vector one loop, so the C grows with the operations of the step and not with
+    its coefficients. Every product adds its terms column by column from the first, as the scalar step's
+    does, and an unused warm-up gain contributes nothing (the scalar step adds exact zeros), so both give the
+    same values (checked on every reference problem's diagnosers)."""
+    return _step(gf, ca.MX)
+
+
+def _product(m: np.ndarray, x: Any) -> Any:
+    """``m x`` for a constant ``m``: its nonzeros unrolled (SX), or a dense table in a loop (MX)."""
+    if isinstance(x, ca.SX):
+        return ca.mtimes(constant(m), x)
+    m = np.asarray(m, dtype=float)
+    return ca.mtimes(ca.DM(m), x) if np.any(m) else ca.MX.zeros(m.shape[0], x.shape[1])
+
+
+def _warm_gain(gains: np.ndarray, ready: Any, r_g: Any, acc: Any) -> Any:
+    """``acc + gains[ready] r`` while ``ready`` is below the warm-up's length, else ``acc``."""
+    n_warm, ns, nr = gains.shape
+    if isinstance(r_g, ca.SX):  # a sum of exact one-hot terms
+        for k in range(n_warm):
+            acc = acc + ca.if_else(ready == k, ca.mtimes(constant(gains[k]), r_g), ca.SX.zeros(ns))
+        return acc
+    # gains[k] column-major, k-major: the sample's gain is one read of ns·nr entries at k·ns·nr
+    table = ca.MX(ca.DM(np.transpose(gains, (0, 2, 1)).reshape(-1)))
+    k = ca.fmin(ca.fmax(ready, 0), n_warm - 1)
+    gain = ca.reshape(table[k * (ns * nr) + ca.DM(np.arange(ns * nr, dtype=float))], ns, nr)
+    return acc + ca.if_else(ready < n_warm, ca.mtimes(gain, r_g), ca.MX.zeros(ns))
+
+
+def _step(gf: GainFile, sym: Any) -> ca.Function:
+    """The step in the symbolic type ``sym`` (``casadi.SX`` or ``casadi.MX``)."""
     st = gf.step
     lay = linear_state_layout(gf.generators, gf.evaluators, gf.decision)
-    state = ca.SX.sym("state", st.nstate)
-    u = ca.SX.sym("u", st.nu)
-    y = ca.SX.sym("y", st.ny)
-    fin_u = finite(u)
-    fin_y = finite(y)
-    us = ca.if_else(fin_u, u, 0)
-    ys = ca.if_else(fin_y, y, 0)
-    all_u = all_of(fin_u)
-    nxt = ca.SX(state)
-    assert gf.decision is not None
-    persistence = float(gf.decision.persistence)
-    r_parts, j_parts, flags = [], [ca.SX(0)] * len(gf.evaluators), [ca.SX(0)] * len(gf.evaluators)
-    live_parts = []  # the residuals of the generators whose statistics ran: the isolation evidence's input
-    ran: ca.SX = ca.SX(0)  # some generator's statistics ran
-    overflow = ca.SX(0)
+    state = sym.sym("state", st.nstate)
+    u = sym.sym("u", st.nu)
+    y = sym.sym("y", st.ny)
+    fin_u, fin_y = finite(u), finite(y)
+    us, ys = ca.if_else(fin_u, u, 0), ca.if_else(fin_y, y, 0)
+    nxt = sym(state)
+    parts = []
     for g, gen in enumerate(gf.generators):
-        inputs_ok = ca.logic_and(all_u, all_of(ca.vertcat(*[fin_y[j] for j in gen.outputs_used])))
-        sl = lay[f"xi{g}"]
         ready = state[lay["ready"].start + g]
-        xi_eq = ca.mtimes(constant(gen.Xu), us) + ca.mtimes(constant(gen.Xy), ys)
+        sl = lay[f"xi{g}"]
+        xi_eq = _product(gen.Xu, us) + _product(gen.Xy, ys)
         xi = ca.if_else(ready == 0, xi_eq, state[sl.start : sl.stop])
-        r_g = ca.mtimes(constant(gen.Cr), xi) + ca.mtimes(constant(gen.Du), us) + ca.mtimes(constant(gen.Dy), ys)
-        xi_next = ca.mtimes(constant(gen.Ar), xi) + ca.mtimes(constant(gen.Bu), us) + ca.mtimes(constant(gen.By), ys)
-        n_warm = gen.warmup
+        r_g = _product(gen.Cr, xi) + _product(gen.Du, us) + _product(gen.Dy, ys)
+        xi_next = _product(gen.Ar, xi) + _product(gen.Bu, us) + _product(gen.By, ys)
         warm = generator_warmup(gf, g)
-        live: ca.SX = ca.SX(1)  # the statistics run (after the warm-up)
         acc_new = None
         if warm is not None:  # the warm-up: accumulate, correct after the last sample, hold the statistics till then
             gains, correction = warm
             acc_sl = lay[f"acc{g}"]
-            acc_new = ca.if_else(ready == 0, ca.SX.zeros(gen.n_state), state[acc_sl.start : acc_sl.stop])
-            for k in range(n_warm):
-                acc_new = acc_new + ca.if_else(ready == k, ca.mtimes(constant(gains[k]), r_g), ca.SX.zeros(gen.n_state))
-            xi_next = xi_next + ca.if_else(ready == n_warm - 1, ca.mtimes(constant(correction), acc_new), ca.SX.zeros(gen.n_state))
-            live = ready >= n_warm
+            acc_new = ca.if_else(ready == 0, sym.zeros(gen.n_state), state[acc_sl.start : acc_sl.stop])
+            acc_new = _warm_gain(gains, ready, r_g, acc_new)
+            xi_next = xi_next + ca.if_else(ready == gen.warmup - 1, _product(correction, acc_new), sym.zeros(gen.n_state))
+        parts.append((r_g, all_finite(xi_next, *([] if acc_new is None else [acc_new])), xi_next, acc_new))
+    (r, j, alarm, bad), oks, lives, naming = _decision(gf, lay, state, fin_u, fin_y, [(r, fin) for r, fin, _, _ in parts], nxt)
+    isolated = _isolated(gf, lay, state, nxt, alarm, *naming)
+    for g, (_, _, xi_next, acc_new) in enumerate(parts):
+        _advance_generator(gf, lay, g, state, nxt, xi_next, acc_new, oks[g], lives[g])
+    return ca.Function("step", [state, u, y], [nxt, r, j, alarm, isolated, bad], list(STEP_INPUTS), list(STEP_OUTPUTS))
+
+
+def _isolated(gf: GainFile, lay: StateLayout, state: Any, nxt: Any, alarm: Any, r_live: Any, pattern: Any, ran: Any) -> Any:
+    """The class the step names: the signature the alarms match, or the hypothesis test's held class."""
+    assert gf.decision is not None
+    if gf.decision.isolation is None:
+        return pattern
+    return _held_class(gf, lay, state, nxt, r_live, alarm, pattern, ran)
+
+
+def _advance_generator(gf: GainFile, lay: StateLayout, g: int, state: Any, nxt: Any, xi_next: Any, acc_new: Any, ok: Any, live: Any) -> None:
+    """Write generator ``g``'s state and warm-up accumulator into ``nxt``: kept when its sample was skipped
+    (``ok`` 0), the accumulator emptied after the warm-up's last sample."""
+    sl = lay[f"xi{g}"]
+    nxt[sl.start : sl.stop] = ca.if_else(ok, xi_next, state[sl.start : sl.stop])
+    if acc_new is not None:
+        n_warm = gf.generators[g].warmup
+        ready = state[lay["ready"].start + g]
+        acc_sl = lay[f"acc{g}"]
+        zeros = (ca.SX if isinstance(acc_new, ca.SX) else ca.MX).zeros(acc_new.shape[0])
+        emptied = ca.if_else(ready == n_warm - 1, zeros, acc_new)  # used: the accumulator is emptied
+        nxt[acc_sl.start : acc_sl.stop] = ca.if_else(ca.logic_and(ok, 1 - live), emptied, state[acc_sl.start : acc_sl.stop])
+
+
+def _decision(
+    gf: GainFile, lay: StateLayout, state: Any, fin_u: Any, fin_y: Any, gens: list[tuple[Any, Any]], nxt: Any
+) -> tuple[list[Any], list[Any], list[Any], tuple[Any, Any, Any]]:
+    """The statistics, counters and alarm of the step, from the inputs' and outputs' finiteness flags and each
+    generator's residual and the finiteness of its next state and accumulator (``gens``); writes every state
+    entry but the generators', the accumulators' and the isolation test's into ``nxt``. Returns ``r, J, alarm, bad`` (outputs of the step);
+    per generator whether its sample was used (``ok``) and whether its statistics run (``live``, past the
+    warm-up); and what the class is named from: the residuals whose statistics ran, the class whose signature
+    the alarms match (−1: none) and whether any statistic ran (:func:`_isolated`)."""
+    sym: Any = ca.SX if isinstance(state, ca.SX) else ca.MX
+    all_u = all_of(fin_u)
+    assert gf.decision is not None
+    persistence = float(gf.decision.persistence)
+    r_parts, j_parts, flags = [], [sym(0)] * len(gf.evaluators), [sym(0)] * len(gf.evaluators)
+    live_parts = []  # the residuals of the generators whose statistics ran: the isolation evidence's input
+    oks, lives = [], []
+    ran = sym(0)  # some generator's statistics ran
+    overflow = sym(0)
+    for g, gen in enumerate(gf.generators):
+        r_g, gen_finite = gens[g]
+        inputs_ok = ca.logic_and(all_u, all_of(fin_y[[int(j) for j in gen.outputs_used]]))
+        ready = state[lay["ready"].start + g]
+        n_warm = gen.warmup
+        warm = bool(n_warm)  # generator_warmup gives its constants exactly then
+        live = ready >= n_warm if warm else sym(1)  # the statistics run (after the warm-up)
         evs = [j for j, ev in enumerate(gf.evaluators) if ev.generator == g]
         values = {}
         for j in evs:
@@ -68,21 +194,18 @@ def linear_step_function(gf: GainFile) -> ca.Function:
         windows = {j: values[j].state for j in evs if values[j].state is not None}
         # a finite but absurd value can overflow: the sample is then skipped like a non-finite one
         # the statistics are evaluated in the warm-up too: an absurd sample overflows as it would later
-        results_ok = all_finite(r_g, xi_next, *j_g.values(), *windows.values(), *([] if acc_new is None else [acc_new]))
+        results_ok = ca.logic_and(all_finite(r_g, *j_g.values(), *windows.values()), gen_finite)
         ok = ca.logic_and(inputs_ok, results_ok)
         overflow = ca.logic_or(overflow, ca.logic_and(inputs_ok, 1 - results_ok))
-        nxt[sl.start : sl.stop] = ca.if_else(ok, xi_next, state[sl.start : sl.stop])
         # after an overflow the generator restarts at its next valid sample
-        if warm is None:
+        if not warm:
             nxt[lay["ready"].start + g] = ca.if_else(ok, 1, ca.if_else(inputs_ok, 0, ready))
         else:  # its valid samples counted to warmup + 1; a gap in the warm-up restarts it
             held = ca.if_else(ready < n_warm, 0, ready)
             nxt[lay["ready"].start + g] = ca.if_else(ok, ca.fmin(ready + 1, n_warm + 1), ca.if_else(inputs_ok, 0, held))
-            acc_sl = lay[f"acc{g}"]
-            assert acc_new is not None
-            emptied = ca.if_else(ready == n_warm - 1, ca.SX.zeros(gen.n_state), acc_new)  # used: the accumulator is emptied
-            nxt[acc_sl.start : acc_sl.stop] = ca.if_else(ca.logic_and(ok, 1 - live), emptied, state[acc_sl.start : acc_sl.stop])
-        running = ok if warm is None else ca.logic_and(ok, live)
+        running = ok if not warm else ca.logic_and(ok, live)
+        oks.append(ok)
+        lives.append(live)
         r_parts.append(ca.if_else(ok, r_g, 0))
         live_parts.append(ca.if_else(running, r_g, 0))
         ran = ca.logic_or(ran, running)
@@ -100,53 +223,45 @@ def linear_step_function(gf: GainFile) -> ca.Function:
     r = ca.vertcat(*r_parts)
     bad = ca.logic_or(overflow, 1 - ca.logic_and(all_u, all_of(fin_y)))
     nxt[lay["nonfinite"].start] = state[lay["nonfinite"].start] + bad
-    alarm = ca.SX(0)
+    alarm = sym(0)
     for fl in flags:
         alarm = ca.logic_or(alarm, fl)
-    pattern = ca.SX(-1)  # the class whose signature equals the flag pattern (rows are distinct: at most one)
+    pattern = sym(-1)  # the class whose signature equals the flag pattern (rows are distinct: at most one)
     for f, row in enumerate(np.asarray(gf.decision.signatures, dtype=int)):
-        match = ca.SX(1)
+        match = sym(1)
         for j, s in enumerate(row):
             match = match * (flags[j] if s else 1 - flags[j])
         pattern = pattern + (f + 1) * match
-    if gf.decision.isolation is None:
-        isolated = pattern
-    else:
-        isolated = _held_class(gf, lay, state, nxt, ca.vertcat(*live_parts), alarm, pattern, ran)
-    return ca.Function(
-        "step",
-        [state, u, y],
-        [nxt, r, ca.vertcat(*j_parts), alarm, isolated, bad],
-        list(STEP_INPUTS),
-        list(STEP_OUTPUTS),
-    )
+    return [r, ca.vertcat(*j_parts), alarm, bad], oks, lives, (ca.vertcat(*live_parts), pattern, ran)
 
 
 def _held_class(
-    gf: GainFile, lay: StateLayout, state: ca.SX, nxt: ca.SX, r_live: ca.SX, alarm: ca.SX, pattern: ca.SX, ran: ca.SX
-) -> ca.SX:
+    gf: GainFile, lay: StateLayout, state: Any, nxt: Any, r_live: Any, alarm: Any, pattern: Any, ran: Any
+) -> Any:
     """The decision's hypothesis test and held class (:func:`fdisyn.runtime.reference.isolation_test`,
     :func:`~fdisyn.runtime.reference.held_class`), writing the evidence and the named class into ``nxt``; a sample
-    on which no statistic ran (``ran`` 0) leaves them as they were and names nothing."""
+    on which no statistic ran (``ran`` 0) leaves them as they were and names nothing. Written in the symbolic type of ``state`` (SX in the
+    scalar step, MX in the table step, where its products are loops over the test's constant tables)."""
+    sym: Any = ca.SX if isinstance(state, ca.SX) else ca.MX
     assert gf.decision is not None and gf.decision.isolation is not None
     iso = gf.decision.isolation
     ev = lay["evidence"]
     s = float(iso.forgetting) * state[ev.start : ev.stop] + ca.mtimes(constant(np.asarray(iso.basis, dtype=float)), r_live)
-    s = ca.if_else(all_finite(s), s, ca.SX.zeros(s.shape[0]))  # an overflow: the evidence starts again
+    s = ca.if_else(all_finite(s), s, sym.zeros(s.shape[0]))  # an overflow: the evidence starts again
     nxt[ev.start : ev.stop] = ca.if_else(ran, s, state[ev.start : ev.stop])
     q = ca.sumsqr(s)
     directions = np.asarray(iso.directions, dtype=float)
-    proj = ca.mtimes(constant(directions), s) if directions.size else ca.SX.zeros(0)
+    proj = ca.mtimes(constant(directions), s) if directions.size else sym.zeros(0)
     ranks = [int(k) for k in np.asarray(iso.ranks)]
     nested = np.asarray(iso.nested, dtype=int)
     plausible, supported, row = [], [], 0
     for f, k in enumerate(ranks):
-        g = ca.sumsqr(proj[row : row + k]) if k else ca.SX(0)
+        g = ca.sumsqr(proj[row : row + k]) if k else sym(0)
         row += k
         ok = q - g <= float(iso.reject[f])
         plausible.append(ok)
         supported.append(ca.logic_and(ok, g >= float(iso.accept[f])))
-    candidate = ca.SX(-1)
+    candidate = sym(-1)
     for f in reversed(range(len(ranks))):  # the first class that qualifies
         qualifies = supported[f]
         for k in range(len(ranks)):

@@ -233,3 +233,39 @@ def test_the_generator_refuses_sizes_beyond_the_limits_before_writing(wt_built, 
     assert not (tmp_path / "c").exists()
     header = (wt_built.artifacts.c_dir / "wind_turbine_kalman_uio.h").read_text()
     assert f"#define WIND_TURBINE_KALMAN_UIO_STACK_BYTES {stack}" in header
+
+
+def test_a_rebuild_of_the_same_gain_file_reuses_the_build_and_only_that(wt_built, tmp_path, monkeypatch):
+    """``codegen(DIR, reuse=True)`` keeps the library and the replay program when the sources it generates now are
+    the ones in ``DIR/c`` and the compiler command and the library are the same; it compiles again when the
+    compiler command changed, the library was altered, or the gain file is another."""
+    import shutil
+
+    from fdisyn.codegen.library import BUILD_KEY, codegen
+    from fdisyn.runtime.compiled import library_path
+
+    d = tmp_path / "wt"
+    d.mkdir()
+    shutil.copyfile(wt_built.directory / "gains.json", d / "gains.json")
+    first = codegen(d)
+    lib = library_path(d, wt_built.gain_file)
+
+    def stamp() -> tuple[int, int]:
+        return lib.stat().st_mtime_ns, (d / "replay").stat().st_mtime_ns
+
+    before = stamp()
+    assert codegen(d, reuse=True).library == first.library and stamp() == before
+    assert not any(p.name.startswith(".c-staging") for p in d.iterdir())  # the comparison's sources are gone
+    (d / "c" / BUILD_KEY).write_text("gcc -O0\n", encoding="utf-8")  # another compiler command
+    codegen(d, reuse=True)
+    assert stamp() != before
+    rebuilt = stamp()
+    lib.write_bytes(lib.read_bytes() + b"\0")  # an altered library
+    codegen(d, reuse=True)
+    assert stamp() != rebuilt
+    CompiledDiagnoser(lib, wt_built.gain_file)  # and what is left loads
+    doc = (d / "gains.json").read_text(encoding="utf-8")
+    (d / "gains.json").write_text(doc.replace('"persistence": 1', '"persistence": 2', 1), encoding="utf-8")
+    again = stamp()
+    codegen(d, reuse=True)
+    assert stamp() != again  # (loaded in a new process only: a process loads a library path once)

@@ -36,7 +36,11 @@ amplify (the wind turbine's closed loop shows ~1e-15 relative)."""
 
 @pytest.fixture(scope="module")
 def wt_campaign(wt_built):
-    return compiled_campaign(WT, {"kalman_uio": wt_built}, "paper_F1")
+    """The wind turbine's fused campaign, written in every vector width (a library for the main job is written in
+    this CPU's widest and the baseline only), so that the widths can be compared with each other."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("FDISYN_LANE_WIDTHS", "all")
+        return compiled_campaign(WT, {"kalman_uio": wt_built}, "paper_F1")
 
 
 # ----------------------------------------------------------------------------- the generator's law

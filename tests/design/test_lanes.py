@@ -84,3 +84,21 @@ def test_every_operation_is_casadis_scalar_result_at_every_width(tmp_path: Path)
                 keep = np.setdiff1d(np.arange(got.shape[0]), rows)
                 assert np.array_equal(got[keep], want[keep]), (trial, level, scalar, block)
                 assert np.array_equal(got[rows].view(float), want[rows].view(float), equal_nan=True), (trial, level, scalar)
+
+
+def test_a_library_is_written_for_the_building_cpus_widest_vectors_and_the_baseline(monkeypatch) -> None:  # noqa: ANN001
+    """The versions follow the CPU's flags (the widest it runs, then the baseline that every x86-64 runs), all three
+    where the flags are unknown or asked for; a function written without a wide version dispatches to the baseline
+    (the test above checks that every version gives the same bits)."""
+    from fdisyn.codegen.lanes import WIDTHS, build_widths
+
+    monkeypatch.delenv("FDISYN_LANE_WIDTHS", raising=False)
+    assert [t for t, _, _ in build_widths("fpu sse2 avx avx2 avx512f avx512bw")] == ["avx512", "base"]
+    assert [t for t, _, _ in build_widths("fpu sse2 avx avx2 fma")] == ["avx2", "base"]
+    assert [t for t, _, _ in build_widths("fpu sse2")] == ["base"]
+    monkeypatch.setenv("FDISYN_LANE_WIDTHS", "all")
+    assert build_widths("fpu sse2") == WIDTHS
+    text = lane_function(_every_operation(), "lane_f", (WIDTHS[-1],))
+    assert text is not None and "__builtin_cpu_supports" not in text and "target(" not in text
+    text = lane_function(_every_operation(), "lane_f", (WIDTHS[0], WIDTHS[-1]))
+    assert text is not None and 'target("avx512f")' in text and 'target("avx2")' not in text

@@ -173,7 +173,7 @@ def test_every_single_sensor_fault_is_detected_and_isolated(grouped, kind: str) 
 
 def test_the_detector_variants_share_the_grouped_banks_budget() -> None:
     variants = [v for v in tf.PROBLEM.variants if v["options"].get("arl0") is not None]
-    assert [v["options"]["detector"] for v in variants] == [d for d, _ in tf.DETECTORS] == ["wssr", "cusum"]
+    assert [v["options"]["detector"] for v in variants] == [d for d, _ in tf.DETECTORS] == ["wssr", "cusum", "glr"]
     assert {v["options"]["arl0"] for v in variants} == {tf.DETECTOR_ARL0}
     for v in variants:
         assert v["label"].endswith(f" at arl0 = {tf.DETECTOR_ARL0:g} s")
@@ -186,28 +186,23 @@ def test_the_detector_variants_share_the_grouped_banks_budget() -> None:
     assert tf.TS / (statistics * tf.DETECTOR_ARL0) == pytest.approx(tf.PROBLEM.options["P_f"], rel=1e-12)
 
 
-def test_the_glr_of_the_grouped_bank_exceeds_the_step_limits(grouped) -> None:  # noqa: ANN001
-    """Why the comparison has no GLR: with the window the design chooses its onset sums exceed the state limit and its
-    directions the coefficient limit; the coefficients leave room for one onset, far below the predicted delays."""
-    from fdisyn.runtime.layout import linear_state_layout
+def test_the_glr_of_the_grouped_bank_is_a_table_step_within_the_limits() -> None:
+    """The GLR the detector comparison adds: its onset sums (a window of 100 onsets over more than 100 hypotheses) make
+    the largest step of the problems; it is within the gain file's limits, written as loops over constant tables, and
+    its stack frame within the bound the header states."""
+    from fdisyn.codegen.library import STACK_LIMIT_BYTES, step_stack_bytes
     from fdisyn.runtime.schema import LIMITS
-    from fdisyn.runtime.validate import step_coefficients
+    from fdisyn.synthesis.linear_step import TABLE_INSTRUCTIONS, _scalar_estimate, linear_step_function
 
-    gd, _ = grouped
-    gf = gd.gain_file
-    fp = tf.glr_footprint(gf, tf.DETECTOR_ARL0)
-    assert fp.window == 100 and fp.hypotheses > 100
-    assert fp.nstate > LIMITS["nstate"] and fp.coefficients > LIMITS["coefficients"]
-    # without the GLR the step is the WSSR bank's less its windows (the whitened generators of a minimum-variance UIO
-    # are its own generators)
-    wssr_windows = sum(e.window for e in gf.evaluators)
-    assert fp.nstate - fp.hypotheses * fp.window == linear_state_layout(gf.generators, gf.evaluators, gf.decision).size - wssr_windows
-    assert fp.coefficients - fp.per_onset_coefficients * fp.window == step_coefficients(gf.generators, gf.evaluators)
-    # the measured record is of the longest window before the generators' warm-up sums joined the state
-    warm = sum(g.n_state for g in gf.generators if g.warmup)
-    assert fp.onsets_within("coefficients") == 1 < fp.onsets_within("nstate") < tf.GLR_AT_STATE_LIMIT["window"]
-    assert (LIMITS["nstate"] - (fp.nstate - fp.hypotheses * fp.window - warm)) // fp.hypotheses == tf.GLR_AT_STATE_LIMIT["window"]
-    assert min(fp.lorden_samples) > 25
+    gf = tf._designs()["grouped"](P_f=tf.PROBLEM.options["P_f"], persistence=1, window=25, detector="glr", arl0=tf.DETECTOR_ARL0)
+    size = tf.glr_size(gf)
+    assert size["window"] == 100 and size["hypotheses"] > 100
+    assert size["nstate"] == gf.step.nstate <= LIMITS["nstate"] and size["coefficients"] <= LIMITS["coefficients"]
+    assert min(size["lorden_samples"]) > 25  # the window holds the weakest hypotheses' delays twice over (clipped to 100)
+    assert _scalar_estimate(gf) > 4 * TABLE_INSTRUCTIONS  # far beyond straight-line code
+    fn = linear_step_function(gf)
+    assert fn.is_a("MXFunction")
+    assert step_stack_bytes(fn, gf.step.nstate) <= STACK_LIMIT_BYTES
 
 
 def test_labels_name_what_the_gain_file_names(grouped) -> None:  # noqa: ANN001

@@ -11,7 +11,7 @@ import pytest
 from fdisyn.runtime.errors import BuildError, GainFileError
 from fdisyn.runtime.gainfile import gain_file_sha256, read_gain_file, write_gain_file
 from fdisyn.runtime.jsondata import parse_json_data
-from fdisyn.runtime.schema import FORMAT
+from fdisyn.runtime.schema import FORMAT, LIMITS
 
 
 @pytest.fixture
@@ -193,12 +193,17 @@ def test_an_oversized_file_is_refused_before_it_is_read(doc, tmp_path, monkeypat
         read_gain_file(p)
 
 
-def _dense_generator(doc, n: int) -> None:  # noqa: ANN001 - a gain-file document
-    """Give generator 0 a dense, stable n-state Ar (and consistent Bu, By, Cr, Xu, Xy)."""
+def _dense_generator(doc, n: int, *, diagonal: bool = False) -> None:  # noqa: ANN001 - a gain-file document
+    """Give generator 0 a dense, stable n-state Ar (and consistent Bu, By, Cr, Xu, Xy); ``diagonal``: Ar = I/2
+    (a large file written quickly)."""
     rng = np.random.default_rng(1)
-    a = rng.standard_normal((n, n))
-    a *= 0.5 / np.max(np.abs(np.linalg.eigvals(a)))
+    if diagonal:
+        a = 0.5 * np.eye(n)
+    else:
+        a = rng.standard_normal((n, n))
+        a *= 0.5 / np.max(np.abs(np.linalg.eigvals(a)))
     g = doc["generators"][0]
+    doc["step"]["nstate"] += n - len(g["Ar"])
     g["Ar"] = a.tolist()
     g["Bu"] = rng.standard_normal((n, 1)).tolist()
     by = np.zeros((n, 4))
@@ -207,18 +212,20 @@ def _dense_generator(doc, n: int) -> None:  # noqa: ANN001 - a gain-file documen
     g["Cr"] = rng.standard_normal((2, n)).tolist()
     g["Xu"] = np.linalg.solve(np.eye(n) - a, np.array(g["Bu"])).tolist()
     g["Xy"] = np.linalg.solve(np.eye(n) - a, by).tolist()
-    doc["step"]["nstate"] += n - 3
     doc["step"]["init_state"] = [0.0] * doc["step"]["nstate"]
 
 
-def test_a_400_state_dense_generator_is_refused_at_once(doc, tmp_path):
-    """A dense 400 × 400 Ar would keep gcc busy for minutes at gigabytes; the reader refuses it on its size,
-    before the eigenvalue check or any C."""
-    _dense_generator(doc, 400)
+def test_a_generator_beyond_the_state_limit_is_refused_at_once(doc, tmp_path, monkeypatch):
+    """A generator of more than 1 024 states is refused on its size, before the eigenvalue check or any C; the
+    coefficient limit (a step's constant tables) likewise."""
+    n0 = len(doc["generators"][0]["Ar"])
+    _dense_generator(doc, 1100, diagonal=True)
     p = _write(tmp_path, doc)
-    with pytest.raises(GainFileError, match=r"states in one generator: 400; at most 256 are supported"):
+    with pytest.raises(GainFileError, match=r"states in one generator: 1100; at most 1024 are supported"):
         read_gain_file(p)
-    _dense_generator(doc, 120)  # within the state limits, beyond the coefficients'
+    assert n0 < 1100
+    monkeypatch.setitem(LIMITS, "coefficients", 10_000)  # the limit's message, at a size a test writes quickly
+    _dense_generator(doc, 120)
     with pytest.raises(GainFileError, match=r"hold 1[0-9]{4} nonzero coefficients; at most 10000 are supported"):
         read_gain_file(_write(tmp_path, doc))
 

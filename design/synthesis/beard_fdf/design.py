@@ -39,7 +39,7 @@ from fdisyn.numerics.robust_cones import (
 from fdisyn.detectors.sequential import MAX_ARL_SAMPLES
 from fdisyn.runtime.errors import ArgumentError, ExistenceError
 from fdisyn.runtime.gainfile import GainFile
-from fdisyn.runtime.schema import LIMITS, MAX_MAGNITUDE
+from fdisyn.runtime.schema import MAX_MAGNITUDE, SCALAR_STEP_LIMITS
 from fdisyn.runtime.names import shown
 from fdisyn.runtime.warmup import longest_warmup
 from fdisyn.synthesis.beard_fdf.eigenstructure import RADIUS_TOL, optimise_eigenstructure, residual_covariance_trace
@@ -107,15 +107,15 @@ def cone_geometry(axes: Sequence[np.ndarray], Y: np.ndarray) -> dict[str, Any]:
 def _check_sizes(pd: LinearPlant, window: int, where: str) -> None:
     """The window the diagnoser state can hold, refused before anything is allocated for it.
 
-    The state holds ``window·p + n + 5`` entries and a gain file at most ``LIMITS["nstate"]`` with a margin of
+    The state holds ``window·p + n + 5`` entries and a gain file at most ``SCALAR_STEP_LIMITS["nstate"]`` with a margin of
     :data:`~fdisyn.synthesis.beard_fdf.payload.NSTATE_MARGIN` (:func:`~fdisyn.synthesis.beard_fdf.payload.beard_from_gain_file`).
     """
     n, p = int(pd.A.shape[0]), int(pd.C.shape[0])
-    most = (LIMITS["nstate"] - NSTATE_MARGIN - n) // max(p, 1)
+    most = (SCALAR_STEP_LIMITS["nstate"] - NSTATE_MARGIN - n) // max(p, 1)
     if window > most:
         raise ArgumentError(
             f"{at(where, 'window')} = {window}: the diagnoser state holds window × outputs + states + 5 entries, at most "
-            f"{LIMITS['nstate'] - NSTATE_MARGIN + 5}; expected window ≤ {max(most, 0)} for {p} outputs and {n} states"
+            f"{SCALAR_STEP_LIMITS['nstate'] - NSTATE_MARGIN + 5}; expected window ≤ {max(most, 0)} for {p} outputs and {n} states"
         )
 
 
@@ -329,8 +329,8 @@ def design_beard_fdf(
     # the warm-up: the filter's initial error estimated by least squares over its first samples (a plant running at
     # switch-on is at no equilibrium), within what the size limits leave to its constants
     n_x, p_y = ad.shape[0], c.shape[0]
-    room = LIMITS["nstate"] - NSTATE_MARGIN - int(window) * p_y - 2 * n_x >= 0
-    warmup = warmup_length(g, c, None, most=longest_warmup([(n_x, p_y)]), equilibrate=True) if room else 0
+    room = SCALAR_STEP_LIMITS["nstate"] - NSTATE_MARGIN - int(window) * p_y - 2 * n_x >= 0
+    warmup = warmup_length(g, c, None, most=longest_warmup([(n_x, p_y)], SCALAR_STEP_LIMITS["warmup_coefficients"]), equilibrate=True) if room else 0
     info["warmup_samples"] = warmup
 
     # the explicit level and the magnitude threshold

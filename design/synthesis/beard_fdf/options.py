@@ -6,16 +6,16 @@ from dataclasses import replace
 from typing import Any
 
 from fdisyn.runtime.errors import ArgumentError
-from fdisyn.runtime.schema import LIMITS, MAX_MAGNITUDE
+from fdisyn.runtime.schema import MAX_MAGNITUDE, SCALAR_STEP_LIMITS
 from fdisyn.runtime.names import shown
 from fdisyn.synthesis.linear_diagnoser import TS
 from fdisyn.synthesis.registry import ARL0, DEFAULT_ARL0, P_F, PERSISTENCE, WINDOW, Option, at, is_count, is_real
 
 __all__ = ["BEARD_OPTIONS", "MAX_DRAWS", "MAX_NOISE_GAIN", "MAX_WINDOW"]
 
-MAX_WINDOW = LIMITS["nstate"] - 9
+MAX_WINDOW = SCALAR_STEP_LIMITS["nstate"] - 9
 """Largest window whatever the plant: the state holds ``N·p + n + 5`` entries and the gain file allows
-``N·p + n + 8 ≤ LIMITS["nstate"]`` (one state, one output); the design checks ``⌊(nstate − 8 − n)/p⌋`` for its plant."""
+``N·p + n + 8 ≤ SCALAR_STEP_LIMITS["nstate"]`` (one state, one output); the design checks ``⌊(nstate − 8 − n)/p⌋`` for its plant."""
 
 MAX_NOISE_GAIN = 1e6
 """Largest ``noise_gain``: the optimised filter's noise bound ``noise_gain² ×`` the plain one's residual variance

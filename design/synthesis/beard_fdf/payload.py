@@ -28,7 +28,7 @@ from fdisyn.numerics.certificate import Certificate
 from fdisyn.runtime.errors import GainFileError
 from fdisyn.runtime.gainfile import GainFile, StepSpec
 from fdisyn.runtime.jsondata import to_jsonable
-from fdisyn.runtime.schema import LIMITS, MAX_MAGNITUDE
+from fdisyn.runtime.schema import LIMITS, MAX_MAGNITUDE, SCALAR_STEP_LIMITS
 from fdisyn.runtime.validate import check_magnitudes
 from fdisyn.runtime.layout import StateLayout
 from fdisyn.runtime.names import shown
@@ -50,7 +50,7 @@ KIND = "beard_fdf"
 """The diagnoser kind (gain file ``kind``) and the key of the payload in ``extensions``."""
 PAYLOAD_FORMAT = 1
 NSTATE_MARGIN = 8
-"""``N·p + n + NSTATE_MARGIN ≤ LIMITS["nstate"]``: the state holds ``N·p + n + 5`` entries (``n`` more with a
+"""``N·p + n + NSTATE_MARGIN ≤ SCALAR_STEP_LIMITS["nstate"]``: the state holds ``N·p + n + 5`` entries (``n`` more with a
 warm-up, which the limit then counts too); the margin is the specification's."""
 _ORTHONORMAL_TOL = 1e-9
 _EQUILIBRIUM_RTOL = 1e-8
@@ -334,12 +334,12 @@ def beard_from_gain_file(gf: GainFile) -> BeardFilter:
     # sizes first: nothing costly runs on a file beyond the limits
     a_doc = doc["A"]
     n = len(a_doc) if isinstance(a_doc, list) else 0
-    most = min(LIMITS["plant_states"], LIMITS["nstate"] - NSTATE_MARGIN - p)
+    most = min(SCALAR_STEP_LIMITS["plant_states"], SCALAR_STEP_LIMITS["nstate"] - NSTATE_MARGIN - p)
     if not 1 <= n <= most:
         raise rd.fail("A", f"a square matrix of 1 to {most} rows")
     warmup = rd.integer("warmup", 0, MAX_WARMUP) if "warmup" in doc else 0
     acc = n if warmup else 0  # the warm-up's accumulator
-    window = rd.integer("window", 1, max(1, (LIMITS["nstate"] - NSTATE_MARGIN - n - acc) // p))
+    window = rd.integer("window", 1, max(1, (SCALAR_STEP_LIMITS["nstate"] - NSTATE_MARGIN - n - acc) // p))
     persistence = rd.integer("persistence", 1, LIMITS["persistence"])
     A = rd.matrix("A", n, n)
     B = rd.matrix("B", n, m)
@@ -348,14 +348,14 @@ def beard_from_gain_file(gf: GainFile) -> BeardFilter:
     L = rd.matrix("L", n, p)
 
     coefficients = sum(int(np.count_nonzero(x)) for x in (A, B, C, D, L)) + 2 * n * (m + p)
-    if coefficients > LIMITS["coefficients"]:
+    if coefficients > SCALAR_STEP_LIMITS["coefficients"]:
         raise GainFileError(
             f"{where}: A B C D L and the equilibrium maps hold up to {coefficients} coefficients; at most "
-            f"{LIMITS['coefficients']} are supported (the generated C has one multiply-add per coefficient)"
+            f"{SCALAR_STEP_LIMITS['coefficients']} are supported (the generated C has one multiply-add per coefficient)"
         )
-    if warmup_coefficients(warmup, n, p) > LIMITS["warmup_coefficients"]:
-        raise rd.fail("warmup", f"at most {max(0, (LIMITS['warmup_coefficients'] - n * n) // (n * p))} samples for {n} states and "
-                      f"{p} outputs (its constants, {LIMITS['warmup_coefficients']} at most, are multiply-adds of the generated C)")
+    if warmup_coefficients(warmup, n, p) > SCALAR_STEP_LIMITS["warmup_coefficients"]:
+        raise rd.fail("warmup", f"at most {max(0, (SCALAR_STEP_LIMITS['warmup_coefficients'] - n * n) // (n * p))} samples for {n} states and "
+                      f"{p} outputs (its constants, {SCALAR_STEP_LIMITS['warmup_coefficients']} at most, are multiply-adds of the generated C)")
     G = A - L @ C  # finite: entries within MAX_MAGNITUDE (see check_magnitudes)
     try:
         with np.errstate(over="ignore", invalid="ignore"):
