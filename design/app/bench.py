@@ -22,6 +22,7 @@ import sys
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 from datetime import datetime, timezone
 from pathlib import Path
 
@@ -38,7 +39,10 @@ from fdisyn.numerics.lmi_norms import h2_norm_lmi, hinf_norm_lmi, hminus_index_l
 from fdisyn.runtime.reference import LinearReference
 from fdisyn.synthesis.lmi_observer import lmi_diagnostic_observer
 
-__all__ = ["run_bench", "run_monte_carlo_bench", "monte_carlo_section", "machine_description"]
+__all__ = [
+    "run_bench", "run_monte_carlo_bench", "monte_carlo_section", "machine_description", "scaling_section", "step_flops",
+    "c_sizes", "matvec_peak",
+]
 
 
 def machine_description() -> dict[str, str]:
@@ -72,17 +76,29 @@ def _per_call(fn, n: int) -> float:  # noqa: ANN001 - any callable of the sample
     return best * 1e9
 
 
-def run_bench(problems: list[Problem], *, out: Path, workdir: Path, sdp: bool = False, monte_carlo: bool = False) -> Path:
-    """Measure and write the benchmark table, with ``sdp`` the SDP solve times (:func:`sdp_timings`) and with
-    ``monte_carlo`` the Monte Carlo's throughput (:func:`monte_carlo_section`); return its path."""
+def run_bench(
+    problems: list[Problem], *, out: Path, workdir: Path, sdp: bool = False, monte_carlo: bool = False, scaling: bool = False
+) -> Path:
+    """Measure and write the benchmark table, with ``sdp`` the SDP solve times (:func:`sdp_timings`), with
+    ``monte_carlo`` the Monte Carlo's throughput (:func:`monte_carlo_section`) and with ``scaling`` the steps of
+    random plants of 10 to 200 states (:func:`scaling_section`); return its path."""
+    import shutil
+
+    from fdisyn.evaluation.progress import phase_seconds
+
     rows = []
     for prob in problems:
         batch = prob.run("fault_free", [0])
         reps = -(-10_000 // len(batch.t))  # short runs are repeated up to 10⁴ samples
         U, Y = np.tile(batch.U[0], (reps, 1))[:10_000], np.tile(batch.Y[0], (reps, 1))[:10_000]
         for d in tracked(prob.designs, f"bench {prob.name}: build and time", "design"):
-            b = build(prob, d, workdir / "bench" / prob.name / d)
+            where = workdir / "bench" / prob.name / d
+            shutil.rmtree(where, ignore_errors=True)  # compiled afresh: its compile is measured
+            before = phase_seconds().get((prob.name, "generate and compile"), 0.0)
+            b = build(prob, d, where)
+            compile_s = phase_seconds().get((prob.name, "generate and compile"), 0.0) - before
             gf = b.gain_file
+            code, tables = c_sizes(b.artifacts.c_dir / f"{gf.name}_casadi.c")
             samples = workdir / "bench" / prob.name / d / "samples.bin"
             np.ascontiguousarray(np.hstack([U, Y]), dtype=np.float64).tofile(samples)
             exe = compile_bench(gf, b.artifacts.c_dir, workdir / "bench" / prob.name / d / "bench")
@@ -106,7 +122,7 @@ def run_bench(problems: list[Problem], *, out: Path, workdir: Path, sdp: bool = 
                 ref = LinearReference(gf)
                 rst = ref.init_state()
                 numpy_ns = _per_call(lambda k, ref=ref, rst=rst, U=U, Y=Y: ref.step(rst, U[k], Y[k]), 2000)
-            rows.append((prob.name, d, gf.step, c_ns, ctypes_run_ns, ctypes_ns, casadi_ns, numpy_ns))
+            rows.append((prob.name, d, gf.step, c_ns, ctypes_run_ns, ctypes_ns, casadi_ns, numpy_ns, code, tables, compile_s, step_flops(gf)))
     m = machine_description()
     lines = [
         "# fdisyn benchmark: cost of one diagnoser step",
@@ -120,16 +136,24 @@ def run_bench(problems: list[Problem], *, out: Path, workdir: Path, sdp: bool = 
         "",
         "Per sample, in nanoseconds. *C loop*: the generated step called from C over a 10⁴-sample trace (fastest of 20 "
         "replays). *ctypes, whole trace*: one call of `<prefix>_run` from Python. *ctypes, per sample*, *CasADi*, *NumPy*: "
-        "one Python call per sample (fastest of 3 passes).",
+        "one Python call per sample (fastest of 3 passes). *C code*: the generated `<prefix>_casadi.c` apart from its "
+        "constant tables; *compile*: generating the sources and compiling the library and the replay program (two "
+        "compilers side by side); *flops*: the products of one step as its C computes them (linear diagnosers, "
+        "`fdisyn.app.bench.step_flops`).",
         "",
-        "| problem | design | nu/ny/nr/nj/nstate | C loop | ctypes, whole trace | ctypes, per sample | CasADi Function | NumPy reference | NumPy / C |",
-        "|---|---|---|---:|---:|---:|---:|---:|---:|",
+        "| problem | design | nu/ny/nr/nj/nstate | C loop | ctypes, whole trace | ctypes, per sample | CasADi Function | NumPy reference "
+        "| NumPy / C | C code (KB) | tables (KB) | compile (s) | flops |",
+        "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
-    for name, d, spec, c_ns, run_ns, ct_ns, cas_ns, np_ns in rows:
+    for name, d, spec, c_ns, run_ns, ct_ns, cas_ns, np_ns, code, tables, compile_s, flops in rows:
         dims = f"{spec.nu}/{spec.ny}/{spec.nr}/{spec.nj}/{spec.nstate}"
         np_s = f"{np_ns:,.0f}" if np_ns is not None else "—"
         ratio = f"{np_ns / c_ns:,.0f}×" if np_ns is not None else "—"
-        lines.append(f"| {name} | {d} | {dims} | {c_ns:,.1f} | {run_ns:,.1f} | {ct_ns:,.0f} | {cas_ns:,.0f} | {np_s} | {ratio} |")
+        fl = f"{flops:,}" if flops is not None else "—"
+        lines.append(f"| {name} | {d} | {dims} | {c_ns:,.1f} | {run_ns:,.1f} | {ct_ns:,.0f} | {cas_ns:,.0f} | {np_s} | {ratio} "
+                     f"| {code / 1e3:,.0f} | {tables / 1e3:,.0f} | {compile_s:.1f} | {fl} |")
+    if scaling:
+        lines += scaling_section(workdir)
     if monte_carlo:
         lines += monte_carlo_section(workdir=workdir)
     if sdp:
@@ -253,6 +277,214 @@ def random_sampled_data_plant(
         C=rng.standard_normal((p, n)),
         Ts=Ts,
     )
+
+
+# --------------------------------------------------------------------------- steps that scale with the plant
+
+_MATVEC = r"""
+#define _POSIX_C_SOURCE 199309L
+#include <stdio.h>
+#include <time.h>
+#define N 256
+static double a[N * N], x[N], y[N];
+int main(void) {
+    int i, j, r, reps = 2000;
+    struct timespec t0, t1;
+    double best = 1e30, s;
+    for (i = 0; i < N * N; ++i) a[i] = 1e-3 * (i % 97);
+    for (i = 0; i < N; ++i) x[i] = 1.0 + 1e-3 * i;
+    for (r = 0; r < 5; ++r) {
+        clock_gettime(CLOCK_MONOTONIC, &t0);
+        for (s = 0; s < reps; ++s) {
+            for (i = 0; i < N; ++i) y[i] = 0.0;
+            for (j = 0; j < N; ++j) for (i = 0; i < N; ++i) y[i] += a[i + j * N] * x[j];
+            x[(int)s % N] += 1e-12 * y[0];
+        }
+        clock_gettime(CLOCK_MONOTONIC, &t1);
+        s = (t1.tv_sec - t0.tv_sec) + 1e-9 * (t1.tv_nsec - t0.tv_nsec);
+        if (s < best) best = s;
+    }
+    printf("%.6g\n", 2.0 * N * N * reps / best);
+    return 0;
+}
+"""
+
+
+def matvec_peak(workdir: Path) -> float:
+    """Floating-point operations per second of a dense 256 × 256 matrix–vector product, column by column, compiled
+    with the generated C's flags: the rate a table step's products can reach on this machine (its kernel is the
+    same loop, ``casadi_mtimes_dense``), so ``flops / rate`` bounds a step's time from below.
+
+    Parameters
+    ----------
+    workdir : Path
+        Where the probe is compiled.
+
+    Returns
+    -------
+    float
+        Flop/s (the best of five timings).
+    """
+    d = Path(workdir) / "bench" / "matvec"
+    d.mkdir(parents=True, exist_ok=True)
+    (d / "matvec.c").write_text(_MATVEC, encoding="utf-8")
+    subprocess.run([*compiler(), *CFLAGS, str(d / "matvec.c"), "-o", str(d / "matvec")], check=True, capture_output=True)
+    return float(subprocess.run([str(d / "matvec")], check=True, capture_output=True, text=True).stdout)
+
+
+def step_flops(gf: Any) -> int | None:
+    """Floating-point operations of the products of one step of a linear diagnoser, as its C computes them: dense
+    products (two flops per entry) in a table step, one multiply-add per nonzero in a straight-line step; the
+    generators' products (with their equilibrium, computed every sample), a warm-up's gain, the statistics' weights
+    and directions, the isolation test's basis and directions. ``None`` for other kinds.
+
+    Parameters
+    ----------
+    gf : GainFile
+        The diagnoser.
+
+    Returns
+    -------
+    int or None
+        The count.
+    """
+    from fdisyn.synthesis.linear_step import linear_step_function
+
+    if gf.kind != "linear":
+        return None
+    dense = linear_step_function(gf).is_a("MXFunction")
+
+    def cost(m: Any) -> int:
+        a = np.asarray(m, dtype=float)
+        return 2 * (a.size if dense and np.any(a) else int(np.count_nonzero(a)))
+
+    total = 0
+    for g in gf.generators:
+        total += sum(cost(getattr(g, k)) for k in ("Ar", "Bu", "By", "Cr", "Du", "Dy", "Xu", "Xy"))
+        if g.warmup:
+            total += 2 * g.n_state * g.n_residual
+    for e in gf.evaluators:
+        total += cost(e.W) if e.W is not None else 0
+        total += cost(e.directions) if getattr(e, "directions", None) is not None else 0
+    iso = None if gf.decision is None else gf.decision.isolation
+    if iso is not None:
+        total += cost(iso.basis) + cost(iso.directions)
+    return int(total)
+
+
+def c_sizes(c_file: Path) -> tuple[int, int]:
+    """The bytes of a generated ``<prefix>_casadi.c`` that are code, and those that are its constant tables (the
+    ``static const`` arrays of numbers and sparsity patterns).
+
+    Parameters
+    ----------
+    c_file : Path
+        The file.
+
+    Returns
+    -------
+    tuple of int
+        ``(code, tables)``.
+    """
+    import re
+
+    text = c_file.read_text(encoding="utf-8")
+    tables = sum(len(t) for t in re.findall(r"static const casadi_(?:real|int) casadi_[cs]\d+\[\d+\] = \s*\{[^}]*\};", text))
+    return len(text) - tables, tables
+
+
+def scaling_plant(n: int, seed: int = 0) -> tuple[Any, dict[str, list[str]]]:
+    """A seeded random stable plant of ``n`` states, ``max(5, n // 5)`` sensors, 3 inputs and 2 unknown inputs, and a
+    bank of 10 generators, each on every sensor but two (a generalised observer scheme)."""
+    from fdisyn.models.linear import LinearPlant
+
+    rng = np.random.default_rng(seed + n)
+    p = max(5, n // 5)
+    a = rng.standard_normal((n, n))
+    a *= 0.95 / max(abs(np.linalg.eigvals(a)))
+    mq, mr = rng.standard_normal((n, n)), rng.standard_normal((p, p))
+    plant = LinearPlant.create(
+        A=a, B=rng.standard_normal((n, 3)), C=rng.standard_normal((p, n)), E=rng.standard_normal((n, 2)),
+        Q=mq @ mq.T / n + 0.05 * np.eye(n), R=mr @ mr.T / p + 0.05 * np.eye(p), Ts=0.1,
+    )
+    out = plant.outputs
+    bank = {f"g{i}": [o for k, o in enumerate(out) if k not in (2 * i % p, (2 * i + 1) % p)] for i in range(10)}
+    return plant, bank
+
+
+def scaling_section(workdir: Path, sizes: Sequence[int] = (10, 50, 100, 200)) -> list[str]:
+    """Design, generate, compile and run a minimum-variance UIO bank on seeded random plants of ``sizes`` states
+    (:func:`scaling_plant`): the times, the C's code and tables, the step's time beside its flop count and the flop
+    bound at this machine's dense matrix–vector rate (:func:`matvec_peak`), and the largest process.
+
+    Parameters
+    ----------
+    workdir : Path
+        Where the builds go.
+    sizes : sequence of int
+        The plants' states.
+
+    Returns
+    -------
+    list of str
+        Markdown lines.
+    """
+    import resource
+
+    import fdisyn
+    from fdisyn.codegen.library import codegen
+    from fdisyn.runtime.compiled import CompiledDiagnoser
+    from fdisyn.runtime.gainfile import write_gain_file
+    from fdisyn.runtime.validate import step_coefficients
+    from fdisyn.runtime.warmup import warmup_coefficients
+
+    peak = matvec_peak(workdir)
+    rows = []
+    for n in sizes:
+        plant, bank = scaling_plant(int(n))
+        t0 = time.perf_counter()
+        gf = fdisyn.design(plant, method="kalman_uio", bank=bank, name=f"scaling{n}")
+        t_design = time.perf_counter() - t0
+        d = Path(workdir) / "bench" / "scaling" / str(n)
+        write_gain_file(gf, d / "gains.json")
+        t0 = time.perf_counter()
+        art = codegen(d)
+        t_build = time.perf_counter() - t0
+        code, tables = c_sizes(art.c_dir / f"{gf.name}_casadi.c")
+        U = np.random.default_rng(1).standard_normal((10_000, gf.step.nu))
+        Y = np.random.default_rng(2).standard_normal((10_000, gf.step.ny))
+        samples = d / "samples.bin"
+        np.ascontiguousarray(np.hstack([U, Y]), dtype=np.float64).tofile(samples)
+        exe = compile_bench(gf, art.c_dir, d / "bench")
+        c_ns = float(subprocess.run([str(exe), str(samples), "5"], capture_output=True, text=True, check=True).stdout.split()[1])
+        CompiledDiagnoser(art.library, gf).run(U[:100], Y[:100])
+        flops = step_flops(gf) or 0
+        warm = sum(warmup_coefficients(int(g.warmup), g.n_state, g.n_residual) for g in gf.generators)
+        rows.append((n, plant.p, len(gf.generators), step_coefficients(gf.generators, gf.evaluators), warm, gf.step.nstate,
+                     t_design, t_build, code, tables, c_ns, flops))
+    rss = max(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)
+    lines = [
+        "",
+        "## Steps that scale with the plant",
+        "",
+        "A bank of 10 minimum-variance UIOs (each on every sensor but two) on seeded random stable plants with 3 inputs "
+        "and 2 unknown inputs (`fdisyn.app.bench.scaling_plant`): the design (the Riccati gain above 16 reduced states), "
+        "generating and compiling the library and the replay program, the C (code apart from its constant tables), and "
+        "the step in a C loop (fastest of 5 replays of 10⁴ samples) beside its flop count and the flop bound at this "
+        f"machine's dense matrix–vector rate at the same flags ({peak / 1e9:.2f} GFlop/s).",
+        "",
+        "| states | sensors | generators | coefficients | warm-up constants | nstate | design (s) | generate + compile (s) "
+        "| C code (KB) | tables (MB) | step (µs) | flops | flop bound (µs) | step / bound |",
+        "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+    ]
+    for n, p, ng, coeffs, warm, nstate, td, tb, code, tables, c_ns, flops in rows:
+        bound = flops / peak * 1e6
+        lines.append(
+            f"| {n} | {p} | {ng} | {coeffs:,} | {warm:,} | {nstate:,} | {td:.1f} | {tb:.1f} | {code / 1e3:.0f} | "
+            f"{tables / 1e6:.1f} | {c_ns / 1e3:.2f} | {flops:,} | {bound:.2f} | {c_ns / 1e3 / bound:.1f}× |"
+        )
+    lines += ["", f"Largest process of the section: {rss / 2**20:.2f} GiB."]
+    return lines
 
 
 # --------------------------------------------------------------------------- Monte Carlo throughput

@@ -403,7 +403,8 @@ def _cmd_bench(a: argparse.Namespace) -> None:
         return
     specs = a.specs or problem_names()
     with _user_paths("a writable file and directory with room for the benchmark", ("--out", out), ("--workdir", a.workdir)):
-        path = run_bench([_problem(s) for s in specs], out=out, workdir=Path(a.workdir), sdp=a.sdp or not a.specs, monte_carlo=not a.specs)
+        path = run_bench([_problem(s) for s in specs], out=out, workdir=Path(a.workdir), sdp=a.sdp or not a.specs, monte_carlo=not a.specs,
+                         scaling=a.scaling or not a.specs)
     print(f"wrote {path}")
 
 
@@ -676,15 +677,22 @@ def _parser() -> argparse.ArgumentParser:
         "bench",
         "time the compiled step against the NumPy reference",
         "Time the compiled step of each SPEC's designs (per sample, per block) against the NumPy reference and write "
-        "the table as Markdown; the full bench (no SPEC) or --sdp adds the SDP solve times of the LMI toolkit.",
+        "the table as Markdown; the full bench (no SPEC) or --sdp adds the SDP solve times of the LMI toolkit, and --scaling the "
+        "steps of random plants of 10 to 200 states.",
         "fdisyn bench",
         "fdisyn bench ship_propulsion --out /tmp/bench.md",
         "fdisyn bench wind_turbine --sdp",
+        "fdisyn bench turbofan --scaling --out /tmp/bench.md",
         "fdisyn bench --monte-carlo --out reports/bench_monte_carlo.md",
     )
     p.add_argument("specs", nargs="*", metavar="SPEC", help=_SPEC + "; none: every built-in problem")
     p.add_argument(
         "--sdp", action="store_true", help="also time the SDPs of the LMI toolkit (several seconds; always done without SPEC)"
+    )
+    p.add_argument(
+        "--scaling", action="store_true",
+        help="also design, compile and time a bank of 10 UIOs on random plants of 10, 50, 100 and 200 states (a few "
+        "minutes; always done without SPEC)",
     )
     p.add_argument("--out", default="reports/bench.md", help="the Markdown file to write (default: reports/bench.md)")
     p.add_argument(

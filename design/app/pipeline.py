@@ -73,25 +73,55 @@ class ExportCheck:
         return {"samples": self.samples, "nonfinite_samples": self.nonfinite_samples, "tolerance": EXPORT_TOL, "references": refs, "passed": self.passed}
 
 
-def _casadi_run(fn: ca.Function, init: np.ndarray, U: np.ndarray, Y: np.ndarray) -> tuple[RunResult, np.ndarray]:
-    """The CasADi step over a trace in one call (``mapaccum`` threads the state); also the states, ``nstate × N``."""
+RUN_CHUNK = 64
+"""Samples per call of the CasADi step's ``mapaccum`` in :func:`_casadi_run`: one call over a whole 10⁴-sample
+trace made CasADi hold gigabytes for a large step (the turbofan's GLR bank, 11 533 state entries: 4.9 GB at 10³
+samples); chunks keep it to one chunk's outputs at the speed of one call per sample or better."""
+
+
+def _casadi_run(fn: ca.Function, init: np.ndarray, U: np.ndarray, Y: np.ndarray, rows: np.ndarray | None = None) -> tuple[RunResult, np.ndarray]:
+    """The CasADi step over a trace, ``mapaccum`` threading the state through chunks of :data:`RUN_CHUNK` samples; also
+    the state each sample starts from, its ``rows`` (default all), ``len(rows) × N``."""
     n = Y.shape[0]
-    acc = fn.mapaccum("run", n)
-    out = acc(init, U.T, Y.T)
-    states = np.asarray(out[0])
+    rows = np.arange(len(init)) if rows is None else np.asarray(rows, dtype=int)
+    acc = fn.mapaccum("run", min(RUN_CHUNK, max(n, 1)))
+    state = np.asarray(init, dtype=float)
+    before = np.empty((len(rows), n))
+    parts: list[list[np.ndarray]] = [[] for _ in range(5)]
+    for k0 in range(0, n, RUN_CHUNK):
+        k1 = min(k0 + RUN_CHUNK, n)
+        if k1 - k0 != acc.size2_in(1):  # the last, shorter chunk
+            acc = fn.mapaccum("run", k1 - k0)
+        out = acc(state, U[k0:k1].T, Y[k0:k1].T)
+        states = np.asarray(out[0])
+        before[:, k0] = state[rows]
+        before[:, k0 + 1 : k1] = states[rows, :-1]
+        state = states[:, -1]
+        for q in range(5):
+            parts[q].append(np.asarray(out[q + 1]))
     res = RunResult(
-        r=np.asarray(out[1]).T,
-        J=np.asarray(out[2]).T,
-        alarm=np.asarray(out[3]).ravel().astype(int),
-        isolated=np.rint(np.asarray(out[4]).ravel()).astype(int),
-        status=np.asarray(out[5]).ravel().astype(int),
-        state=states[:, -1],
+        r=np.hstack(parts[0]).T,
+        J=np.hstack(parts[1]).T,
+        alarm=np.hstack(parts[2]).ravel().astype(int),
+        isolated=np.rint(np.hstack(parts[3]).ravel()).astype(int),
+        status=np.hstack(parts[4]).ravel().astype(int),
+        state=state,
     )
-    return res, states
+    return res, before
 
 
-def _rounding_scale(gf: GainFile, states: np.ndarray, res: RunResult, U: np.ndarray, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per sample and component, the magnitudes whose rounding errors make ``r`` and ``J``.
+def _scale_rows(gf: GainFile) -> np.ndarray:
+    """The state entries :func:`_rounding_scale` reads: each generator's state and its ready count."""
+    if not gf.generators:
+        return np.zeros(0, dtype=int)
+    lay = linear_state_layout(gf.generators, gf.evaluators, gf.decision)
+    names = ["ready", *(f"xi{g}" for g in range(len(gf.generators)))]
+    return np.concatenate([np.arange(lay[nm].start, lay[nm].stop) for nm in names])
+
+
+def _rounding_scale(gf: GainFile, before: np.ndarray, res: RunResult, U: np.ndarray, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per sample and component, the magnitudes whose rounding errors make ``r`` and ``J``; ``before``: the state
+    entries :func:`_scale_rows` names at the start of each sample (:func:`_casadi_run`).
 
     A linear generator computes ``r = Cr ξ + Du u + Dy y``, whose rounding
     error is bounded by a few ulps of ``s_r = |Cr||ξ| + |Du||u| + |Dy||y|``;
@@ -106,14 +136,18 @@ def _rounding_scale(gf: GainFile, states: np.ndarray, res: RunResult, U: np.ndar
     if not gf.generators:
         return np.abs(res.r), np.abs(res.J)
     lay = linear_state_layout(gf.generators, gf.evaluators, gf.decision)
-    before = np.column_stack([gf.step.init_state, states[:, :-1]])  # the state each sample starts from
+    at = {int(r): i for i, r in enumerate(_scale_rows(gf))}
+
+    def entries(name: str) -> np.ndarray:
+        return before[[at[r] for r in range(lay[name].start, lay[name].stop)]]
+
     us, ys = np.nan_to_num(U, nan=0.0, posinf=0.0, neginf=0.0), np.nan_to_num(Y, nan=0.0, posinf=0.0, neginf=0.0)
     s_r = np.zeros_like(res.r)
     s_j = np.zeros_like(res.J)
     k = 0
     for g, gen in enumerate(gf.generators):
-        ready = before[lay["ready"]][g] != 0.0
-        xi = np.where(ready[None, :], before[lay[f"xi{g}"]], gen.Xu @ us.T + gen.Xy @ ys.T)
+        ready = entries("ready")[g] != 0.0
+        xi = np.where(ready[None, :], entries(f"xi{g}"), gen.Xu @ us.T + gen.Xy @ ys.T)
         block = (np.abs(gen.Cr) @ np.abs(xi) + np.abs(gen.Du) @ np.abs(us.T) + np.abs(gen.Dy) @ np.abs(ys.T)).T
         rows = slice(k, k + gen.n_residual)
         s_r[:, rows] = block
@@ -168,7 +202,7 @@ def check_export(b: Built, U: np.ndarray, Y: np.ndarray) -> ExportCheck:
     """
     gf = b.gain_file
     c_res = b.diagnoser.run(U, Y)
-    cas, states = _casadi_run(step_function(gf), gf.step.init_state, U, Y)
+    cas, states = _casadi_run(step_function(gf), gf.step.init_state, U, Y, _scale_rows(gf))
     refs: dict[str, RunResult] = {"casadi": cas}
     numpy_run = reference_run(gf, U, Y)
     if numpy_run is not None:

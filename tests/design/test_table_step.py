@@ -76,7 +76,7 @@ def test_a_bank_beyond_straight_line_code_is_compiled_as_tables_and_agrees_with_
     Riccati gain, certified by the optimality condition): its step is far beyond :data:`TABLE_INSTRUCTIONS`, so it
     is written as tables; compiled, it agrees with the NumPy reference (an independent implementation) to the
     pipeline's export tolerance on a trace of a plant moving at switch-on, with non-finite samples."""
-    from fdisyn.app.pipeline import EXPORT_TOL, _relative, _rounding_scale, _state_scale, _casadi_run
+    from fdisyn.app.pipeline import EXPORT_TOL, _casadi_run, _relative, _rounding_scale, _scale_rows, _state_scale
     from fdisyn.synthesis.kinds import reference_run
 
     plant = _big_plant(40, 10, 11)
@@ -92,7 +92,7 @@ def test_a_bank_beyond_straight_line_code_is_compiled_as_tables_and_agrees_with_
     c_res = compiled.run(U, Y)
     ref = reference_run(gf, U, Y)
     assert ref is not None
-    cas, states = _casadi_run(fn, gf.step.init_state, U, Y)
+    cas, states = _casadi_run(fn, gf.step.init_state, U, Y, _scale_rows(gf))
     s_r, s_j = _rounding_scale(gf, states, cas, U, Y)
     assert _relative(c_res.r, ref.r, s_r) <= EXPORT_TOL
     assert _relative(c_res.J, ref.J, s_j) <= EXPORT_TOL
