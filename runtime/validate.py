@@ -241,8 +241,8 @@ def _validate_extension_thresholds(gf: _GainFile) -> None:
 
 
 def step_coefficients(generators: Sequence[_Generator], evaluators: Sequence[_Evaluator]) -> int:
-    """Nonzero coefficients a linear step multiplies by: the generated C has one multiply-add per coefficient
-    (the warm-ups' constants are counted apart: :func:`fdisyn.runtime.warmup.warmup_coefficients`)."""
+    """Nonzero coefficients a linear step multiplies by, each a multiply-add per sample (the warm-ups' constants are
+    counted apart: :func:`fdisyn.runtime.warmup.warmup_coefficients`)."""
     count = sum(int(np.count_nonzero(getattr(g, k))) for g in generators for k in MATRIX_KEYS)
     return count + sum(int(np.count_nonzero(e.W)) + (int(np.count_nonzero(e.directions)) if e.directions is not None else 0) for e in evaluators)
 
@@ -287,7 +287,7 @@ def check_limits(gf: _GainFile) -> None:
     if warm > LIMITS["warmup_coefficients"]:
         _fail(
             f"the generators' warm-ups hold {warm} constants; at most {LIMITS['warmup_coefficients']} are supported (each "
-            "is a multiply-add of the generated C): expected shorter warm-ups (generators[*].warmup)"
+            "a constant table entry of the generated C): expected shorter warm-ups (generators[*].warmup)"
         )
     iso = None if gf.decision is None else gf.decision.isolation
     if iso is not None:
@@ -295,14 +295,15 @@ def check_limits(gf: _GainFile) -> None:
         if held > LIMITS["isolation_coefficients"]:
             _fail(
                 f"decision.isolation holds {held} coefficients (basis and directions); at most "
-                f"{LIMITS['isolation_coefficients']} are supported (each is a multiply-add of the generated C): expected "
+                f"{LIMITS['isolation_coefficients']} are supported (each a multiply-add per sample): expected "
                 "fewer residuals or fault classes, or a design without the isolation test"
             )
     coeffs = step_coefficients(gf.generators, gf.evaluators)
     if coeffs > LIMITS["coefficients"]:
         _fail(
             f"the generators and evaluators hold {coeffs} nonzero coefficients; at most {LIMITS['coefficients']} are "
-            "supported (the generated C has one multiply-add per coefficient and gcc's time and memory grow with them)"
+            "supported (each a multiply-add per sample and 8 bytes of the generated C's tables): expected a smaller bank or "
+            "plant"
         )
 
 

@@ -19,12 +19,11 @@ __all__ = ["linear_step_function"]
 
 
 TABLE_INSTRUCTIONS = 15_000
-"""Largest scalar step (CasADi SX instructions) written as straight-line code; a larger one is written with its
-generators as loops over constant tables (:func:`_table_step`). Measured on 2 cores: the straight-line code
-compiles at ~3 ms of gcc per instruction and 40 bytes of C each (the turbofan's 37 722-instruction bank:
-1.5 MB, 68 s, 2.4 GB of gcc), so 15 000 keeps a compile under a minute; below it the compiled Monte Carlo
-runs the step on vectors (:data:`fdisyn.codegen.lanes.MAX_INSTRUCTIONS`, the same bound), which a
-table step does not have."""
+"""Largest step (CasADi SX instructions) written as straight-line code; a larger one is written as loops over
+constant tables (:func:`_table_step`). The bound is the compiled Monte Carlo's
+(:data:`fdisyn.codegen.lanes.MAX_INSTRUCTIONS`): up to it the step runs eight runs at a time in vector
+registers, which a table step does not; beyond it straight-line code only costs compile time (the turbofan's
+grouped bank, 149 441 instructions: 68 s and 2.4 GB of gcc on 2 cores) where its tables compile in seconds."""
 
 
 def linear_step_function(gf: GainFile, *, tables: bool | None = None) -> ca.Function:
@@ -35,10 +34,10 @@ def linear_step_function(gf: GainFile, *, tables: bool | None = None) -> ca.Func
     gf : GainFile
         A ``linear`` gain file.
     tables : bool, optional
-        Write the generators' products as loops over constant tables (an MX function calling the scalar
-        decision, :func:`_table_step`) rather than as one multiply-add per coefficient (an SX function).
-        Default: tables when the scalar step has more than :data:`TABLE_INSTRUCTIONS` instructions. Both
-        give the reference's values; each product adds its terms in the same order.
+        Write the step as loops over constant tables (an MX function, :func:`_table_step`) rather than as one
+        multiply-add per coefficient (an SX function, :func:`_scalar_step`). Default: tables when the scalar
+        step would have more than :data:`TABLE_INSTRUCTIONS` instructions. Both give the same values bit for
+        bit: each product adds its terms in the same order.
 
     Returns
     -------

@@ -439,7 +439,11 @@ def kalman_uio(plant: LinearPlant, *, variant: Literal["optimal", "paper"] = "op
     certificate requires (i) agreement with the stabilising solution of the
     filtering DARE with cross term, computed by the generalised Schur method,
     to :data:`GAIN_TOL`; (ii) the full-coordinate optimality condition
-    ``L Σ_r = A1 Σ Cᵀ + S`` over all ``n × p`` gains; (iii) decoupling.
+    ``L Σ_r = A1 Σ Cᵀ + S`` over all ``n × p`` gains; (iii) decoupling. Above
+    :data:`NLP_STATES` reduced states the NLP is not solved (its time grows
+    like ``n⁵·⁵``): the gain is the Riccati solution, certified by (ii) and
+    (iii) (:func:`_riccati_gain`), so a bank on a 100-state plant designs in
+    seconds.
     ``variant="paper"`` is the steady state of the paper's recursion (eqs. (14),
     (16)): the stabilising solution of the DARE in ``(A1, C, T Q Tᵀ + H R Hᵀ, R)``
     (the paper itself suggests taking the steady-state Kalman solution),
