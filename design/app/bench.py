@@ -350,7 +350,7 @@ def step_flops(gf: Any) -> int | None:
     """
     from fdisyn.synthesis.linear_step import linear_step_function
 
-    if gf.kind != "linear":
+    if not gf.generators:  # not a bank of linear generators
         return None
     dense = linear_step_function(gf).is_a("MXFunction")
 

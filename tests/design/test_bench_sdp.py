@@ -12,12 +12,12 @@ from fdisyn.app.cli import main
 
 @pytest.fixture
 def calls(monkeypatch) -> list[dict]:
-    """``run_bench`` as the command line calls it: its problems and its ``sdp`` and ``monte_carlo`` flags, nothing
-    measured."""
+    """``run_bench`` as the command line calls it: its problems and its ``sdp``, ``monte_carlo`` and ``scaling`` flags,
+    nothing measured."""
     seen: list[dict] = []
 
-    def fake(problems, *, out: Path, workdir: Path, sdp: bool = False, monte_carlo: bool = False) -> Path:  # noqa: ANN001
-        seen.append({"problems": [p.name for p in problems], "sdp": sdp, "monte_carlo": monte_carlo})
+    def fake(problems, *, out: Path, workdir: Path, sdp: bool = False, monte_carlo: bool = False, scaling: bool = False) -> Path:  # noqa: ANN001
+        seen.append({"problems": [p.name for p in problems], "sdp": sdp, "monte_carlo": monte_carlo, "scaling": scaling})
         return out
 
     monkeypatch.setattr(bench, "run_bench", fake)
@@ -29,8 +29,10 @@ def test_only_the_full_bench_or_sdp_times_the_sdps(calls, tmp_path) -> None:
     assert main(["bench", "wind_turbine", *out]) == 0
     assert main(["bench", "wind_turbine", "--sdp", *out]) == 0
     assert main(["bench", *out]) == 0
-    assert [c["sdp"] for c in calls] == [False, True, True]
-    assert [c["monte_carlo"] for c in calls] == [False, False, True]  # the Monte Carlo's throughput: the full bench
+    assert main(["bench", "wind_turbine", "--scaling", *out]) == 0
+    assert [c["sdp"] for c in calls] == [False, True, True, False]
+    assert [c["monte_carlo"] for c in calls] == [False, False, True, False]  # the Monte Carlo's throughput: the full bench
+    assert [c["scaling"] for c in calls] == [False, False, True, True]  # the random plants: the full bench or --scaling
     assert calls[0]["problems"] == ["wind_turbine"] and len(calls[2]["problems"]) > 1
 
 
