@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import shutil
 import subprocess
 import tempfile
@@ -16,12 +17,20 @@ _MYPY: list[tuple[subprocess.Popen, Path]] = []
 
 def pytest_collection_finish(session: pytest.Session) -> None:
     """Start mypy as soon as ``tests/test_typing.py::test_mypy_passes`` is among the tests to run: a process of its
-    own for half a minute, it runs on the second core beside the other tests (which use one) instead of after them."""
+    own for half a minute, it runs on the second core beside the other tests (which use one) instead of after them.
+    Under pytest-xdist every worker collects every test, so there the test starts mypy itself (:func:`mypy_run`) in
+    the one worker that runs it, beside the other worker's tests."""
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        return
     for item in [] if session.config.option.collectonly else session.items:
         if item.nodeid.endswith("test_typing.py::test_mypy_passes"):
-            scratch = Path(tempfile.mkdtemp(prefix="fdisyn-mypy-"))
-            _MYPY.append((item.module.start_mypy(scratch), scratch))  # type: ignore[attr-defined]
+            _start_mypy(item.module)
             return
+
+
+def _start_mypy(module: object) -> None:
+    scratch = Path(tempfile.mkdtemp(prefix="fdisyn-mypy-"))
+    _MYPY.append((module.start_mypy(scratch), scratch))  # type: ignore[attr-defined]
 
 
 def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
@@ -36,7 +45,11 @@ def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
 
 @pytest.fixture(scope="session")
 def mypy_run() -> tuple[subprocess.Popen, Path]:
-    """The mypy process started when the tests were collected, and its scratch folder."""
+    """The mypy process started when the tests were collected (or now, under pytest-xdist), and its scratch folder."""
+    if not _MYPY:
+        from tests import test_typing
+
+        _start_mypy(test_typing)
     return _MYPY[0]
 
 

@@ -393,13 +393,31 @@ def c_sizes(c_file: Path) -> tuple[int, int]:
     return len(text) - tables, tables
 
 
-def scaling_plant(n: int, seed: int = 0) -> tuple[Any, dict[str, list[str]]]:
-    """A seeded random stable plant of ``n`` states, ``max(5, n // 5)`` sensors, 3 inputs and 2 unknown inputs, and a
-    bank of 10 generators, each on every sensor but two (a generalised observer scheme)."""
+def scaling_plant(n: int, seed: int = 0, *, sensors: int | None = None, generators: int = 10) -> tuple[Any, dict[str, list[str]]]:
+    """A seeded random stable plant and a bank of minimum-variance UIOs on it, each on every sensor but two (a
+    generalised observer scheme).
+
+    Parameters
+    ----------
+    n : int
+        States.
+    seed : int
+        With ``n``, the random draws' seed.
+    sensors : int, optional
+        Outputs (default ``max(5, n // 5)``).
+    generators : int
+        The bank's generators; the ``i``-th leaves out sensors ``2i`` and ``2i + 1`` (modulo the sensors).
+
+    Returns
+    -------
+    tuple
+        ``(plant, bank)``: a :class:`~fdisyn.models.linear.LinearPlant` with 3 inputs and 2 unknown inputs, and the
+        bank as ``fdisyn.design(..., bank=...)`` takes it.
+    """
     from fdisyn.models.linear import LinearPlant
 
     rng = np.random.default_rng(seed + n)
-    p = max(5, n // 5)
+    p = max(5, n // 5) if sensors is None else int(sensors)
     a = rng.standard_normal((n, n))
     a *= 0.95 / max(abs(np.linalg.eigvals(a)))
     mq, mr = rng.standard_normal((n, n)), rng.standard_normal((p, p))
@@ -408,7 +426,7 @@ def scaling_plant(n: int, seed: int = 0) -> tuple[Any, dict[str, list[str]]]:
         Q=mq @ mq.T / n + 0.05 * np.eye(n), R=mr @ mr.T / p + 0.05 * np.eye(p), Ts=0.1,
     )
     out = plant.outputs
-    bank = {f"g{i}": [o for k, o in enumerate(out) if k not in (2 * i % p, (2 * i + 1) % p)] for i in range(10)}
+    bank = {f"g{i}": [o for k, o in enumerate(out) if k not in (2 * i % p, (2 * i + 1) % p)] for i in range(generators)}
     return plant, bank
 
 

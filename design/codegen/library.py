@@ -483,7 +483,7 @@ def _gain_file_bytes(path: Path) -> bytes | None:
         return None
 
 
-def codegen(directory: str | Path, *, reuse: bool = False) -> CodegenResult:
+def codegen(directory: str | Path, *, reuse: bool = False, sources_only: bool = False) -> CodegenResult:
     """``fdisyn codegen DIR``: generate and compile everything for ``DIR/gains.json``.
 
     The file's bytes are read before and after it is parsed: the sha256 compiled into ``replay`` and
@@ -501,6 +501,10 @@ def codegen(directory: str | Path, *, reuse: bool = False) -> CodegenResult:
         and content hash, its build mark). As a build system keys its work by its inputs (acados regenerates a
         solver only when its description changed); the sources are generated anyway, the compile (the costly
         part) is skipped.
+    sources_only : bool
+        Generate the sources only (``DIR/c``), for a diagnoser whose C only a larger build compiles (a
+        threshold copy in the compiled Monte Carlo's library); the returned library and ``replay`` are where a later
+        ``codegen`` puts them.
 
     Returns
     -------
@@ -520,6 +524,8 @@ def codegen(directory: str | Path, *, reuse: bool = False) -> CodegenResult:
         if reuse and _unchanged_build(gf, d, bytes_sha):
             return CodegenResult(directory=d, c_dir=c_dir, header=c_dir / f"{gf.name}.h", library=library_path(d, gf), replay=d / "replay")
         header = generate_sources(gf, c_dir, gain_file_bytes_sha256=bytes_sha)
+        if sources_only:
+            return CodegenResult(directory=d, c_dir=c_dir, header=header, library=library_path(d, gf), replay=d / "replay")
         lib, replay = compile_sources(gf, c_dir, d, gain_file_bytes_sha256=bytes_sha)
         fresh_path(c_dir / BUILD_KEY).write_text(_build_key(), encoding="utf-8")
     except BuildError:

@@ -25,12 +25,26 @@ __all__ = ["Built", "build", "load_built", "threshold_copies"]
 
 @dataclass(frozen=True, eq=False)
 class Built:
-    """A designed, written and compiled diagnoser."""
+    """A designed, written and compiled diagnoser (a threshold copy: its sources, compiled on first use)."""
 
     gain_file: GainFile
     directory: Path
     artifacts: CodegenResult
-    diagnoser: CompiledDiagnoser
+    loaded: CompiledDiagnoser | None = None
+    """The compiled step once loaded (:attr:`diagnoser`); ``None`` until then."""
+
+    @property
+    def diagnoser(self) -> CompiledDiagnoser:
+        """The compiled step, loaded on first use. A diagnoser built with its sources only
+        (:func:`threshold_copies`: the compiled Monte Carlo compiles them into its own library) is compiled then,
+        in ``directory`` (:func:`~fdisyn.codegen.library.codegen` with ``reuse``)."""
+        if self.loaded is None:
+            lib = self.artifacts.library
+            if not lib.is_file():
+                lib = codegen(self.directory, reuse=True).library
+            object.__setattr__(self, "loaded", CompiledDiagnoser(lib, self.gain_file))
+        assert self.loaded is not None
+        return self.loaded
 
 
 def build(problem: Problem, design: str, directory: str | Path, **options: Any) -> Built:
@@ -51,7 +65,9 @@ def build(problem: Problem, design: str, directory: str | Path, **options: Any) 
         else:
             gf = old
         art = codegen(d, reuse=old is not None)
-    return Built(gain_file=gf, directory=d, artifacts=art, diagnoser=CompiledDiagnoser(art.library, gf))
+    built = Built(gain_file=gf, directory=d, artifacts=art)
+    built.diagnoser  # loaded now: a build that cannot load fails here, not in the Monte Carlo
+    return built
 
 
 def _same_design(path: Path, gf: GainFile) -> GainFile | None:
@@ -72,10 +88,12 @@ def load_built(directory: str | Path) -> Built:
     gf = read_gain_file(d / "gains.json")
     lib = library_path(d, gf)
     art = CodegenResult(directory=d, c_dir=d / "c", header=d / "c" / f"{gf.name}.h", library=lib, replay=d / "replay")
-    return Built(gain_file=gf, directory=d, artifacts=art, diagnoser=CompiledDiagnoser(lib, gf))
+    return Built(gain_file=gf, directory=d, artifacts=art)
 
 
-def threshold_copies(built: Mapping[str, Built], directory: str | Path, scales: Sequence[float] | None = None) -> dict[str, dict[float, Built]]:
+def threshold_copies(
+    built: Mapping[str, Built], directory: str | Path, scales: Sequence[float] | None = None, *, sources_only: bool = True
+) -> dict[str, dict[float, Built]]:
     """Each design's copies with its thresholds scaled, built beside it, for the designs whose operating
     characteristic does not follow from one run's statistics and whose kind makes such copies
     (:attr:`fdisyn.synthesis.kinds.DiagnoserKind.threshold_scaled`; a NAFDF restarts its learning after an alarm).
@@ -88,6 +106,10 @@ def threshold_copies(built: Mapping[str, Built], directory: str | Path, scales: 
         Where the copies are built: ``DIR/<design>/<k>`` for the ``k``-th scale.
     scales : sequence of float, optional
         The scales (default :data:`~fdisyn.evaluation.metrics.COPY_SCALES`); 1, the design itself, is not copied.
+    sources_only : bool
+        Generate each copy's C without compiling its own library (default): the compiled Monte Carlo compiles it
+        into the campaign's library, and a copy's :attr:`Built.diagnoser` compiles it on first use (the Python path).
+        ``False``: compile every copy now.
 
     Returns
     -------
@@ -115,7 +137,7 @@ def threshold_copies(built: Mapping[str, Built], directory: str | Path, scales: 
                 write_gain_file(copy, d / "gains.json")
             else:
                 copy = old
-            art = codegen(d, reuse=old is not None)
-            copies[float(s)] = Built(gain_file=copy, directory=d, artifacts=art, diagnoser=CompiledDiagnoser(art.library, copy))
+            art = codegen(d, reuse=old is not None, sources_only=sources_only)
+            copies[float(s)] = Built(gain_file=copy, directory=d, artifacts=art)
         out[name] = copies
     return out

@@ -195,6 +195,9 @@ def evaluate(
         raise ArgumentError(
             f"problem {problem.name!r} is not built in: give source= (its plant file) to run it on workers, or workers=1"
         )
+    if not (compiled and problem.sample_model is not None):
+        for b in runs_built.values():  # the Python path runs each copy's own library: compiled here, before a worker loads it
+            b.diagnoser
     copy_names = tuple(k for keys in copy_keys.values() for k in keys.values())
     campaign = Campaign(problem, runs_built, options, extra_hooks(problem, built), compiled=compiled, copies=copy_names)
     ts = min((b.gain_file.Ts for b in built.values()), default=1.0)

@@ -580,15 +580,8 @@ def _kalman_uio(plant: LinearPlant, st: UIOStructure, variant: str) -> UIODesign
             "<=",
             "the optimal value is trace Σ at the stabilising DARE gain (both by the same Lyapunov solver)",
         ),
-        Check("DARE residual", truth.residual, RESIDUAL_TOL, "<=", "backward-stable generalised Schur solver"),
-        Check(
-            "full-coordinate optimality L Σ_r = A1 Σ Cᵀ + S",
-            _stationarity(st, plant, l_nlp, sig_nlp, sig_r_nlp),
-            1e-7,
-            "<=",
-            "the gradient of trace Σ over all n×p gains vanishes at the optimum; "
-            "the residual scales with the gain error (≤ 1e-8) times cond(Σ_r)",
-        ),
+        *_optimality_checks(st, plant, truth, l_nlp, sig_nlp, sig_r_nlp, "the gradient of trace Σ over all n×p gains vanishes "
+                            "at the optimum; the residual scales with the gain error (≤ 1e-8) times cond(Σ_r)"),
     ]
     info: dict[str, object] = {
         "nlp_iterations": stats["iter_count"],
@@ -598,6 +591,17 @@ def _kalman_uio(plant: LinearPlant, st: UIOStructure, variant: str) -> UIODesign
         "paper_gain_excess_trace": float(np.trace(uio_error_covariance(st, paper, q, r, c)[0])) / max(tr_truth, 1e-300) - 1.0,
     }
     return _finish(plant, st, l_nlp, "kalman_uio", "optimal", checks, info)
+
+
+def _optimality_checks(
+    st: UIOStructure, plant: LinearPlant, truth: Any, L: np.ndarray, sigma: np.ndarray, sigma_r: np.ndarray, why: str
+) -> list[Check]:
+    """The filtering DARE's residual and the full-coordinate optimality condition at the gain ``L`` (its error
+    covariances ``sigma``, ``sigma_r``; :func:`_stationarity`), ``why`` the latter's reason."""
+    return [
+        Check("DARE residual", truth.residual, RESIDUAL_TOL, "<=", "backward-stable generalised Schur solver"),
+        Check("full-coordinate optimality L Σ_r = A1 Σ Cᵀ + S", _stationarity(st, plant, L, sigma, sigma_r), 1e-7, "<=", why),
+    ]
 
 
 def _riccati_gain(
@@ -614,17 +618,8 @@ def _riccati_gain(
     c, q, r = np.asarray(plant.C), np.asarray(plant.Q), np.asarray(plant.R)
     sig, sig_r = uio_error_covariance(st, l_truth, q, r, c)
     tr = float(np.trace(sig))
-    checks = [
-        Check("DARE residual", truth.residual, RESIDUAL_TOL, "<=", "backward-stable generalised Schur solver"),
-        Check(
-            "full-coordinate optimality L Σ_r = A1 Σ Cᵀ + S",
-            _stationarity(st, plant, l_truth, sig, sig_r),
-            1e-7,
-            "<=",
-            "the gradient of trace Σ over all n×p gains vanishes only at the minimum-variance gain; the residual "
-            "of the Riccati gain is round-off times cond(Σ_r)",
-        ),
-    ]
+    checks = _optimality_checks(st, plant, truth, l_truth, sig, sig_r, "the gradient of trace Σ over all n×p gains vanishes "
+                                "only at the minimum-variance gain; the residual of the Riccati gain is round-off times cond(Σ_r)")
     info: dict[str, object] = {
         "gain_route": f"Riccati (reduced problem of {red.A.shape[0]} > {NLP_STATES} states: no NLP cross-check)",
         "dare_residual": truth.residual,

@@ -280,6 +280,23 @@ def test_a_copy_at_scale_one_is_the_design(ship_copies, tmp_path) -> None:
     assert a.alarm.any()  # the comparison saw the fault's alarm
 
 
+def test_copies_are_compiled_only_where_they_run(ship_copies, tmp_path) -> None:
+    """A copy is written as C sources only: the fused Monte Carlo compiles them into its own library, so the copy's
+    own library is built on the first use of its diagnoser (the Python path), then gives the fused run's alarms."""
+    from fdisyn.evaluation.built import threshold_copies
+    from fdisyn.evaluation.evaluate import evaluate
+
+    problem, built, _ = ship_copies
+    copy = threshold_copies(built, tmp_path, scales=(2.0,))["nafdf"][2.0]
+    assert (copy.artifacts.c_dir / f"{copy.gain_file.name}_casadi.c").is_file() and not copy.artifacts.library.exists()
+    ev = evaluate(problem, built, runs=1, scenarios=["paper_a_half"], workers=1, progress=False, copies={"nafdf": {2.0: copy}})
+    assert not copy.artifacts.library.exists()  # the fused library ran it
+    op = ev.metrics["nafdf"]["paper_a_half"].operating
+    batch = problem.run("paper_a_half", [0])
+    assert copy.diagnoser.run(batch.U[0], batch.Y[0]).alarm.shape == (batch.Y.shape[1],)
+    assert copy.artifacts.library.is_file() and op is not None and op["scales"] == [1.0, 2.0]
+
+
 @pytest.mark.parametrize("scale", [0.0, -1.0, float("nan"), float("inf"), 1e4, "2"])
 def test_a_scale_out_of_range_is_refused(ship_copies, scale) -> None:
     from fdisyn.runtime.errors import FdisynError

@@ -211,7 +211,7 @@ def test_reference_casadi_and_c_agree_with_an_independent_implementation(tmp_pat
     write_gain_file(gf, d / "gains.json")
     assert read_gain_file(d / "gains.json").to_dict() == gf.to_dict()
     art = codegen(d)
-    built = Built(gain_file=gf, directory=d, artifacts=art, diagnoser=CompiledDiagnoser(art.library, gf))
+    built = Built(gain_file=gf, directory=d, artifacts=art)
     U, Y = _simulate(plant, np.random.default_rng(11), 1500)
     Y[700:, 0] += 3.0 * math.sqrt(plant.R[0, 0])  # a 3σ bias: the statistics rise, alarm and hold
     Y[100, 1], U[300, 0] = np.nan, np.inf  # skipped samples

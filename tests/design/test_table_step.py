@@ -14,7 +14,7 @@ import casadi as ca
 import fdisyn
 import numpy as np
 import pytest
-from fdisyn.models.linear import LinearPlant
+from fdisyn.app.bench import scaling_plant
 from fdisyn.synthesis.linear_step import TABLE_INSTRUCTIONS, _scalar_step, _table_step, linear_step_function
 
 from tests.helpers import random_plant
@@ -59,17 +59,6 @@ def test_the_table_step_gives_the_scalar_steps_values_bit_for_bit(seed: int, opt
     assert linear_step_function(gf).is_a("SXFunction")  # a small step stays straight-line code
 
 
-def _big_plant(n: int, p: int, seed: int) -> LinearPlant:
-    rng = np.random.default_rng(seed)
-    a = rng.standard_normal((n, n))
-    a *= 0.95 / max(abs(np.linalg.eigvals(a)))
-    mq, mr = rng.standard_normal((n, n)), rng.standard_normal((p, p))
-    return LinearPlant.create(
-        A=a, B=rng.standard_normal((n, 3)), C=rng.standard_normal((p, n)), E=rng.standard_normal((n, 2)),
-        Q=mq @ mq.T / n + 0.05 * np.eye(n), R=mr @ mr.T / p + 0.05 * np.eye(p), Ts=0.1,
-    )
-
-
 @pytest.mark.filterwarnings("ignore:overflow encountered:RuntimeWarning")  # the trace's absurd sample, on purpose
 def test_a_bank_beyond_straight_line_code_is_compiled_as_tables_and_agrees_with_the_reference(tmp_path: Path) -> None:
     """A 40-state plant on 10 sensors with a bank of four minimum-variance UIOs (reduced problems of 38 states: the
@@ -79,9 +68,7 @@ def test_a_bank_beyond_straight_line_code_is_compiled_as_tables_and_agrees_with_
     from fdisyn.app.pipeline import EXPORT_TOL, _casadi_run, _relative, _rounding_scale, _scale_rows, _state_scale
     from fdisyn.synthesis.kinds import reference_run
 
-    plant = _big_plant(40, 10, 11)
-    out = plant.outputs
-    bank = {f"g{i}": [o for k, o in enumerate(out) if k not in (2 * i, 2 * i + 1)] for i in range(4)}
+    plant, bank = scaling_plant(40, 11, sensors=10, generators=4)
     gf = fdisyn.design(plant, method="kalman_uio", bank=bank)
     assert gf.certificate["generators"][0]["info"]["gain_route"].startswith("Riccati")
     fn = linear_step_function(gf)

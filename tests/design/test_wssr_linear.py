@@ -13,7 +13,6 @@ from fdisyn.app.pipeline import check_export
 from fdisyn.codegen.library import codegen
 from fdisyn.codegen.step import step_function
 from fdisyn.evaluation.built import Built
-from fdisyn.runtime.compiled import CompiledDiagnoser
 from fdisyn.runtime.errors import ArgumentError, GainFileError
 from fdisyn.runtime.gainfile import (
     Decision,
@@ -225,7 +224,7 @@ def test_reference_casadi_and_compiled_c_agree_on_random_data_with_nan_samples(t
     d = tmp_path / "wssr"
     write_gain_file(gf, d / "gains.json")
     art = codegen(d)
-    built = Built(gain_file=gf, directory=d, artifacts=art, diagnoser=CompiledDiagnoser(art.library, gf))
+    built = Built(gain_file=gf, directory=d, artifacts=art)
     rng = np.random.default_rng(11)
     n = 3000
     U = rng.normal(size=(n, plant.m))
