@@ -687,7 +687,7 @@ def _parser() -> argparse.ArgumentParser:
     )
     p.add_argument("specs", nargs="*", metavar="SPEC", help=_SPEC + "; none: every built-in problem")
     p.add_argument(
-        "--sdp", action="store_true", help="also time the SDPs of the LMI toolkit (several seconds; always done without SPEC)"
+        "--sdp", action="store_true", help="also time the SDPs of the LMI toolkit, n = 2 to 32 (about ten minutes; always done without SPEC)"
     )
     p.add_argument(
         "--scaling", action="store_true",
