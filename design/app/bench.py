@@ -41,7 +41,7 @@ from fdisyn.synthesis.lmi_observer import GAIN_SDP_STATES, lmi_diagnostic_observ
 
 __all__ = [
     "run_bench", "run_monte_carlo_bench", "monte_carlo_section", "machine_description", "scaling_section", "step_flops",
-    "c_sizes", "matvec_peak",
+    "c_sizes", "matvec_peak", "MAIN_JOB_HEADING", "kept_section", "record_main_job",
 ]
 
 
@@ -158,9 +158,90 @@ def run_bench(
         lines += monte_carlo_section(workdir=workdir)
     if sdp:
         lines += _sdp_section()
+    lines += kept_section(out)  # the main job's own section, measured by `fdisyn reproduce`
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text("\n".join(lines) + "\n", encoding="utf-8")
     return out
+
+
+MAIN_JOB_HEADING = "## The main job (`fdisyn reproduce`)"
+"""The heading of the section of ``bench.md`` that the full main job writes (:func:`record_main_job`) and
+:func:`run_bench` carries over."""
+
+
+def _section(text: str, heading: str) -> tuple[int, int] | None:
+    """Where the section under ``heading`` is in ``text`` (up to the next ``## `` heading or the end), or ``None``."""
+    start = text.find("\n" + heading + "\n")
+    if start < 0:
+        return None
+    nxt = text.find("\n## ", start + 1)
+    return start, len(text) if nxt < 0 else nxt
+
+
+def kept_section(path: Path, heading: str = MAIN_JOB_HEADING) -> list[str]:
+    """The lines of the section under ``heading`` in the file at ``path`` (nothing when the file or the section is
+    not there), for a rewrite of the file to keep it.
+
+    Parameters
+    ----------
+    path : Path
+        A Markdown file (``reports/bench.md``).
+    heading : str
+        The section's heading line.
+
+    Returns
+    -------
+    list of str
+        Its lines, the blank line before the heading first.
+    """
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError:
+        return []
+    at = _section(text, heading)
+    return [] if at is None else text[at[0] : at[1]].rstrip("\n").split("\n")
+
+
+def record_main_job(path: Path, problems: Sequence[str]) -> Path:
+    """Write the main job's time per problem and phase and its largest process (:func:`~fdisyn.app.pipeline.phase_table`
+    of this process) as the section :data:`MAIN_JOB_HEADING` of the Markdown file at ``path`` (``reports/bench.md``),
+    replacing that section where the file has one, else appended (the file made where there is none).
+
+    Parameters
+    ----------
+    path : Path
+        The benchmark file.
+    problems : sequence of str
+        The problems the main job ran, in order.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    from fdisyn.app.pipeline import phase_table
+
+    m = machine_description()
+    lines = [
+        "",
+        MAIN_JOB_HEADING,
+        "",
+        f"Measured by `fdisyn reproduce` (every built-in problem, default runs) on "
+        f"{datetime.now(timezone.utc).strftime('%Y-%m-%d %H:%M UTC')}, {m['cores']} cores ({m['cpu']}). Seconds per "
+        "problem and phase; *Monte Carlo* includes compiling its fused libraries.",
+        "",
+        *phase_table(list(problems)).rstrip("\n").split("\n"),
+    ]
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        text = "# fdisyn benchmark\n"
+    at = _section(text, MAIN_JOB_HEADING)
+    text = text.rstrip("\n") + "\n" if at is None else text[: at[0]] + text[at[1] :]
+    text = text.rstrip("\n") + "\n" + "\n".join(lines) + "\n"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text, encoding="utf-8")
+    return path
 
 
 SDP_SIZES = (2, 4, 8, 16, 24, 32)

@@ -386,6 +386,10 @@ def _cmd_reproduce(a: argparse.Namespace) -> None:
 
     print(summary_table(Path(a.reports), [p.name for p in problems]))
     print("time per problem and phase (s):\n" + phase_table([p.name for p in problems]))
+    if not a.specs and a.runs is None and a.variants is None:  # the main job itself: its figures go beside the bench's
+        from fdisyn.app.bench import record_main_job
+
+        print(f"wrote {record_main_job(Path(a.reports) / 'bench.md', [p.name for p in problems])}")
 
 
 def _cmd_bench(a: argparse.Namespace) -> None:

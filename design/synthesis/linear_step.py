@@ -73,7 +73,8 @@ def _table_step(gf: GainFile) -> ca.Function:
     elementwise operation on a vector one loop, so the C grows with the operations of the step and not with
     its coefficients. Every product adds its terms column by column from the first, as the scalar step's
     does, and an unused warm-up gain contributes nothing (the scalar step adds exact zeros), so both give the
-    same values (checked on every reference problem's diagnosers)."""
+    same values (checked on every reference problem's diagnosers). The equilibrium, the warm-up gain's product
+    and the warm-up's correction run only on the samples that use them (:func:`_only_if`)."""
     return _step(gf, ca.MX)
 
 
@@ -83,6 +84,18 @@ def _product(m: np.ndarray, x: Any) -> Any:
         return ca.mtimes(constant(m), x)
     m = np.asarray(m, dtype=float)
     return ca.mtimes(ca.DM(m), x) if np.any(m) else ca.MX.zeros(m.shape[0], x.shape[1])
+
+
+def _only_if(cond: Any, fn: Any, *args: Any) -> Any:
+    """``fn(*args)`` where ``cond`` holds, else zeros of its shape; in MX ``fn`` runs only then (a switch in the C on
+    ``args`` alone): the equilibrium, a warm-up gain's product and the warm-up's correction are needed on a few
+    samples of a run, yet are a quarter of a large bank's products. The value is the same arithmetic either way."""
+    if not isinstance(args[0], ca.MX):
+        return ca.if_else(cond, fn(*args), 0)
+    syms = [ca.MX.sym(f"a{i}", a.shape) for i, a in enumerate(args)]
+    taken = ca.Function("taken", syms, [fn(*syms)])
+    none = ca.Function("none", syms, [ca.MX.zeros(taken.size_out(0))])
+    return ca.Function.if_else("only_if", taken, none)(cond, *args)
 
 
 def _warm_gain(gains: np.ndarray, ready: Any, r_g: Any, acc: Any) -> Any:
@@ -95,8 +108,7 @@ def _warm_gain(gains: np.ndarray, ready: Any, r_g: Any, acc: Any) -> Any:
     # gains[k] column-major, k-major: the sample's gain is one read of ns·nr entries at k·ns·nr
     table = ca.MX(ca.DM(np.transpose(gains, (0, 2, 1)).reshape(-1)))
     k = ca.fmin(ca.fmax(ready, 0), n_warm - 1)
-    gain = ca.reshape(table[k * (ns * nr) + ca.DM(np.arange(ns * nr, dtype=float))], ns, nr)
-    return acc + ca.if_else(ready < n_warm, ca.mtimes(gain, r_g), ca.MX.zeros(ns))
+    return acc + _only_if(ready < n_warm, lambda k_, r_: ca.mtimes(ca.reshape(table[k_ * (ns * nr) + ca.DM(np.arange(ns * nr, dtype=float))], ns, nr), r_), k, r_g)
 
 
 def _step(gf: GainFile, sym: Any) -> ca.Function:
@@ -113,7 +125,8 @@ def _step(gf: GainFile, sym: Any) -> ca.Function:
     for g, gen in enumerate(gf.generators):
         ready = state[lay["ready"].start + g]
         sl = lay[f"xi{g}"]
-        xi_eq = _product(gen.Xu, us) + _product(gen.Xy, ys)
+        equilibrium = lambda u_, y_, gen=gen: _product(gen.Xu, u_) + _product(gen.Xy, y_)  # noqa: E731
+        xi_eq = _only_if(ready == 0, equilibrium, us, ys) if sym is ca.MX else equilibrium(us, ys)
         xi = ca.if_else(ready == 0, xi_eq, state[sl.start : sl.stop])
         r_g = _product(gen.Cr, xi) + _product(gen.Du, us) + _product(gen.Dy, ys)
         xi_next = _product(gen.Ar, xi) + _product(gen.Bu, us) + _product(gen.By, ys)
@@ -124,7 +137,7 @@ def _step(gf: GainFile, sym: Any) -> ca.Function:
             acc_sl = lay[f"acc{g}"]
             acc_new = ca.if_else(ready == 0, sym.zeros(gen.n_state), state[acc_sl.start : acc_sl.stop])
             acc_new = _warm_gain(gains, ready, r_g, acc_new)
-            xi_next = xi_next + ca.if_else(ready == gen.warmup - 1, _product(correction, acc_new), sym.zeros(gen.n_state))
+            xi_next = xi_next + _only_if(ready == gen.warmup - 1, lambda a_, c_=correction: _product(c_, a_), acc_new)
         parts.append((r_g, all_finite(xi_next, *([] if acc_new is None else [acc_new])), xi_next, acc_new))
     (r, j, alarm, bad), oks, lives, naming = _decision(gf, lay, state, fin_u, fin_y, [(r, fin) for r, fin, _, _ in parts], nxt)
     isolated = _isolated(gf, lay, state, nxt, alarm, *naming)
