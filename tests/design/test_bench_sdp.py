@@ -39,9 +39,11 @@ def test_only_the_full_bench_or_sdp_times_the_sdps(calls, tmp_path) -> None:
 def test_the_sdp_section_is_written_only_when_asked(monkeypatch, tmp_path) -> None:
     row = bench.TimingRow(n=2, hinf_solve=1e-3, hinf_wall=2e-2, h2_solve=2e-4, hminus_solve=8e-4, design_solve=5e-3, design_wall=0.3, design_sdps=4)
     asked: list[bool] = []
-    monkeypatch.setattr(bench, "sdp_timings", lambda **kw: asked.append(True) or [row])
+    big = bench.TimingRow(n=16, hinf_solve=0.5, hinf_wall=0.6, h2_solve=0.1, hminus_solve=0.9, design_solve=4.0, design_wall=5.0, design_sdps=3)
+    monkeypatch.setattr(bench, "sdp_timings", lambda **kw: asked.append(True) or [row, big])
     plain = bench.run_bench([], out=tmp_path / "plain.md", workdir=tmp_path / "w").read_text(encoding="utf-8")
     assert asked == [] and "SDP" not in plain and "| problem | design |" in plain
     full = bench.run_bench([], out=tmp_path / "full.md", workdir=tmp_path / "w", sdp=True).read_text(encoding="utf-8")
     assert asked == [True] and full.startswith(plain.split("Measured by")[0])
-    assert "## SDP solve times (cvxpy + Clarabel)" in full and "| 2 | 1.0 (20) | 0.2 | 0.8 | 5 (300 wall, 4 SDPs) |" in full
+    assert "## SDP solve times (cvxpy + Clarabel)" in full and "| 2 | 1.0 (20) | 0.2 | 0.8 | SDP | 5 (300 wall, 4 SDPs) |" in full
+    assert "| 16 | 500.0 (600) | 100.0 | 900.0 | DARE | 4000 (5000 wall, 3 SDPs) |" in full  # the gain's route by size
