@@ -237,7 +237,8 @@ def record_main_job(path: Path, problems: Sequence[str]) -> Path:
     except FileNotFoundError:
         text = "# fdisyn benchmark\n"
     at = _section(text, MAIN_JOB_HEADING)
-    text = text.rstrip("\n") + "\n" if at is None else text[: at[0]] + text[at[1] :]
+    if at is not None:
+        text = text[: at[0]] + text[at[1] :]
     text = text.rstrip("\n") + "\n" + "\n".join(lines) + "\n"
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(text, encoding="utf-8")

@@ -48,7 +48,7 @@ import casadi as ca
 import fdisyn.runtime
 import numpy as np
 from fdisyn.codegen.step import step_function
-from fdisyn.runtime.compiled import BUILD_MARK, STALE_BUILD, library_path, write_manifest
+from fdisyn.runtime.compiled import BUILD_MARK, STALE_BUILD, library_path, manifest_path, write_manifest
 from fdisyn.runtime.errors import BuildError, GainFileError
 from fdisyn.runtime.gainfile import GainFile, gain_file_sha256, read_gain_file
 from fdisyn.runtime.jsondata import read_regular_file
@@ -524,8 +524,11 @@ def codegen(directory: str | Path, *, reuse: bool = False, sources_only: bool = 
         if reuse and _unchanged_build(gf, d, bytes_sha):
             return CodegenResult(directory=d, c_dir=c_dir, header=c_dir / f"{gf.name}.h", library=library_path(d, gf), replay=d / "replay")
         header = generate_sources(gf, c_dir, gain_file_bytes_sha256=bytes_sha)
-        if sources_only:
-            return CodegenResult(directory=d, c_dir=c_dir, header=header, library=library_path(d, gf), replay=d / "replay")
+        if sources_only:  # an earlier build's library and program are not these sources': removed, never loaded
+            lib = library_path(d, gf)
+            for stale in (lib, manifest_path(lib), d / "replay", c_dir / BUILD_KEY):
+                stale.unlink(missing_ok=True)
+            return CodegenResult(directory=d, c_dir=c_dir, header=header, library=lib, replay=d / "replay")
         lib, replay = compile_sources(gf, c_dir, d, gain_file_bytes_sha256=bytes_sha)
         fresh_path(c_dir / BUILD_KEY).write_text(_build_key(), encoding="utf-8")
     except BuildError:

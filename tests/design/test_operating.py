@@ -295,6 +295,17 @@ def test_copies_are_compiled_only_where_they_run(ship_copies, tmp_path) -> None:
     batch = problem.run("paper_a_half", [0])
     assert copy.diagnoser.run(batch.U[0], batch.Y[0]).alarm.shape == (batch.Y.shape[1],)
     assert copy.artifacts.library.is_file() and op is not None and op["scales"] == [1.0, 2.0]
+    # the design changed: its copy's sources are written again and the library of the earlier ones is gone
+    other = threshold_copies(built, tmp_path, scales=(1.5,))["nafdf"][1.5]
+    assert other.directory == copy.directory and not other.artifacts.library.exists()
+    # compiled on demand, the new library passes the loader's checks for the new gain file (loading it here is
+    # refused: this process already loaded that path)
+    from fdisyn.codegen.library import codegen
+    from fdisyn.runtime.compiled import _check_before_loading
+    from fdisyn.runtime.gainfile import gain_file_sha256
+
+    lib = codegen(other.directory, reuse=True).library
+    _check_before_loading(lib, gain_file_sha256(other.gain_file), gain_file=other.directory / "gains.json", marked=True)
 
 
 @pytest.mark.parametrize("scale", [0.0, -1.0, float("nan"), float("inf"), 1e4, "2"])
