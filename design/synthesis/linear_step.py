@@ -4,6 +4,7 @@ persistence counters and the decision table, with the semantics of the NumPy ref
 
 from __future__ import annotations
 
+import functools
 from typing import Any
 
 import casadi as ca
@@ -89,13 +90,50 @@ def _product(m: np.ndarray, x: Any) -> Any:
 def _only_if(cond: Any, fn: Any, *args: Any) -> Any:
     """``fn(*args)`` where ``cond`` holds, else zeros of its shape; in MX ``fn`` runs only then (a switch in the C on
     ``args`` alone): the equilibrium, a warm-up gain's product and the warm-up's correction are needed on a few
-    samples of a run, yet are a quarter of a large bank's products. The value is the same arithmetic either way."""
-    if not isinstance(args[0], ca.MX):
+    samples of a run, yet are a quarter of a large bank's products. ``fn`` takes its constant matrices as
+    arguments (``args`` holds them as constants), so one switch serves every generator of the same shapes and the C
+    has one copy of it, its constants passed by pointer (:func:`_switch`). The value is the same arithmetic either
+    way."""
+    if not isinstance(args[-1], ca.MX):
         return ca.if_else(cond, fn(*args), 0)
-    syms = [ca.MX.sym(f"a{i}", a.shape) for i, a in enumerate(args)]
-    taken = ca.Function("taken", syms, [fn(*syms)])
-    none = ca.Function("none", syms, [ca.MX.zeros(taken.size_out(0))])
-    return ca.Function.if_else("only_if", taken, none)(cond, *args)
+    return _switch(fn, tuple(a.shape for a in args))(cond, *args)
+
+
+@functools.lru_cache(maxsize=None)
+def _switch(fn: Any, shapes: tuple[tuple[int, int], ...]) -> ca.Function:
+    """The one switch ``cond ? fn(*args) : 0`` for arguments of ``shapes`` (cached: the same ``Function`` object
+    is one function in the C, however many generators call it)."""
+    syms = [ca.MX.sym(f"a{i}", *shape) for i, shape in enumerate(shapes)]
+    taken = ca.Function(f"{fn.__name__.strip('_')}", syms, [fn(*syms)])
+    none = ca.Function("zeros", syms, [ca.MX.zeros(taken.size_out(0))])
+    return ca.Function.if_else(f"only_if_{fn.__name__.strip('_')}", taken, none)
+
+
+def _affine(*pairs: Any) -> Any:
+    """``M₁ x₁ + M₂ x₂ + …`` for ``pairs = (M₁, x₁, M₂, x₂, …)``, the products added in that order."""
+    out = ca.mtimes(pairs[0], pairs[1])
+    for k in range(2, len(pairs), 2):
+        out = out + ca.mtimes(pairs[k], pairs[k + 1])
+    return out
+
+
+def _lazy_affine(cond: Any, terms: list[tuple[np.ndarray, Any]]) -> Any:
+    """``Σ M x`` over ``terms`` (constant ``M``, symbolic ``x``) where ``cond`` holds, else zeros: in SX the products'
+    nonzeros unrolled, in MX one shared switch (:func:`_only_if`) over the nonzero ``M`` only (as
+    :func:`_product` skips a zero matrix)."""
+    if not isinstance(terms[0][1], ca.MX):
+        return ca.if_else(cond, sum((_product(m, x) for m, x in terms[1:]), _product(*terms[0])), 0)
+    live = [(np.asarray(m, dtype=float), x) for m, x in terms if np.any(m)]
+    if not live:
+        return ca.MX.zeros(np.shape(terms[0][0])[0], 1)
+    return _only_if(cond, _affine, *[a for m, x in live for a in (ca.MX(ca.DM(m)), x)])
+
+
+def _warm_product(table: Any, k: Any, r: Any) -> Any:
+    """``gains[k] r`` for the warm-up gains ``table``, column ``k`` the ``k``-th gain column-major."""
+    nr = r.shape[0]
+    ns = table.shape[0] // nr
+    return ca.mtimes(ca.reshape(table[k * (ns * nr) + ca.DM(np.arange(ns * nr, dtype=float))], ns, nr), r)
 
 
 def _warm_gain(gains: np.ndarray, ready: Any, r_g: Any, acc: Any) -> Any:
@@ -105,10 +143,10 @@ def _warm_gain(gains: np.ndarray, ready: Any, r_g: Any, acc: Any) -> Any:
         for k in range(n_warm):
             acc = acc + ca.if_else(ready == k, ca.mtimes(constant(gains[k]), r_g), ca.SX.zeros(ns))
         return acc
-    # gains[k] column-major, k-major: the sample's gain is one read of ns·nr entries at k·ns·nr
-    table = ca.MX(ca.DM(np.transpose(gains, (0, 2, 1)).reshape(-1)))
+    # gains[k] column-major in column k: the sample's gain is one read of ns·nr entries at k·ns·nr
+    table = ca.MX(ca.DM(np.transpose(gains, (0, 2, 1)).reshape(n_warm, ns * nr).T))
     k = ca.fmin(ca.fmax(ready, 0), n_warm - 1)
-    return acc + _only_if(ready < n_warm, lambda k_, r_: ca.mtimes(ca.reshape(table[k_ * (ns * nr) + ca.DM(np.arange(ns * nr, dtype=float))], ns, nr), r_), k, r_g)
+    return acc + _only_if(ready < n_warm, _warm_product, table, k, r_g)
 
 
 def _step(gf: GainFile, sym: Any) -> ca.Function:
@@ -125,8 +163,10 @@ def _step(gf: GainFile, sym: Any) -> ca.Function:
     for g, gen in enumerate(gf.generators):
         ready = state[lay["ready"].start + g]
         sl = lay[f"xi{g}"]
-        equilibrium = lambda u_, y_, gen=gen: _product(gen.Xu, u_) + _product(gen.Xy, y_)  # noqa: E731
-        xi_eq = _only_if(ready == 0, equilibrium, us, ys) if sym is ca.MX else equilibrium(us, ys)
+        if sym is ca.MX:
+            xi_eq = _lazy_affine(ready == 0, [(gen.Xu, us), (gen.Xy, ys)])
+        else:
+            xi_eq = _product(gen.Xu, us) + _product(gen.Xy, ys)
         xi = ca.if_else(ready == 0, xi_eq, state[sl.start : sl.stop])
         r_g = _product(gen.Cr, xi) + _product(gen.Du, us) + _product(gen.Dy, ys)
         xi_next = _product(gen.Ar, xi) + _product(gen.Bu, us) + _product(gen.By, ys)
@@ -137,7 +177,7 @@ def _step(gf: GainFile, sym: Any) -> ca.Function:
             acc_sl = lay[f"acc{g}"]
             acc_new = ca.if_else(ready == 0, sym.zeros(gen.n_state), state[acc_sl.start : acc_sl.stop])
             acc_new = _warm_gain(gains, ready, r_g, acc_new)
-            xi_next = xi_next + _only_if(ready == gen.warmup - 1, lambda a_, c_=correction: _product(c_, a_), acc_new)
+            xi_next = xi_next + _lazy_affine(ready == gen.warmup - 1, [(correction, acc_new)])
         parts.append((r_g, all_finite(xi_next, *([] if acc_new is None else [acc_new])), xi_next, acc_new))
     (r, j, alarm, bad), oks, lives, naming = _decision(gf, lay, state, fin_u, fin_y, [(r, fin) for r, fin, _, _ in parts], nxt)
     isolated = _isolated(gf, lay, state, nxt, alarm, *naming)
