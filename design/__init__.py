@@ -31,6 +31,9 @@ _PUBLIC = {
     "load": "fdisyn.app.api",
     "methods": "fdisyn.app.api",
     "fault_account": "fdisyn.synthesis.account",
+    "structure_matrices": "fdisyn.synthesis.structure",
+    "analyse_structure": "fdisyn.synthesis.structure",
+    "check_structure": "fdisyn.synthesis.structure",
     "LinearPlant": "fdisyn.models.linear",
     "NonlinearPlant": "fdisyn.models.nonlinear",
     "SampledDataPlant": "fdisyn.models.sampled_data",
@@ -43,6 +46,7 @@ __all__ = ["__version__", *_PUBLIC]
 if TYPE_CHECKING:
     from fdisyn.app.api import design, export, load, methods  # noqa: F401
     from fdisyn.synthesis.account import fault_account  # noqa: F401
+    from fdisyn.synthesis.structure import analyse_structure, check_structure, structure_matrices  # noqa: F401
     from fdisyn.models.linear import LinearPlant  # noqa: F401
     from fdisyn.models.nonlinear import NonlinearPlant  # noqa: F401
     from fdisyn.models.sampled_data import SampledDataPlant  # noqa: F401

@@ -444,6 +444,41 @@ def _cmd_example(a: argparse.Namespace) -> None:
     print(f"wrote {path}: the example plant file {a.name!r}; fdisyn design {path} --out DIR designs it")
 
 
+def _frequencies(text: str) -> list[float]:
+    """``--frequencies F,…``: numbers in rad/s."""
+    out = []
+    for part in text.split(","):
+        try:
+            out.append(float(part))
+        except ValueError:
+            raise ArgumentError(f"--frequencies {shown(text)}: {shown(part.strip())} is not a number; expected rad/s values such as 0,0.5") from None
+    return out
+
+
+def _cmd_analyse(a: argparse.Namespace) -> None:
+    from fdisyn.synthesis.structure import analyse_structure
+
+    opts = _options(a.option)
+    prob = _problem(a.spec)
+    if prob.model is None:
+        raise ArgumentError(f"{a.spec}: the structure analysis needs a linear plant; {prob.name!r} is nonlinear (linearise it at its operating point)")
+    freqs = _frequencies(a.frequencies) if a.frequencies is not None else None
+    if freqs is not None and not a.strong:
+        raise ArgumentError("--frequencies sets the strong structure's frequencies: add --strong, or omit --frequencies")
+    res = analyse_structure(prob.model(**prob.check_options(opts)), kind="strong" if a.strong else "weak", frequencies=freqs)
+    if a.json:
+        print(json.dumps({"problem": prob.name, **res.to_dict()}, indent=1))
+        return
+    at = f" at {', '.join(f'{w:g}' for w in res.frequencies)} rad/s" if res.kind == "strong" else ""
+    print(f"{prob.name}: {len(res.faults)} faults, {res.kind} structure{at}: {len(res.rows)} achievable specification(s) "
+          f"(1: the residual sees the fault; 0: decoupled from it)")
+    header = [*res.faults, "least order", "decouples"]
+    rows = [[*(str(v) for v in row), str(lo), ", ".join(dec) or "—"] for row, lo, dec in zip(res.rows, res.least_orders, res.decoupled, strict=True)]
+    widths = [max(len(str(c)) for c in col) for col in zip(header, *rows, strict=True)]
+    for row in [header, ["-" * w for w in widths], *rows]:
+        print("  ".join(c.rjust(w) if i < len(res.faults) + 1 else c for i, (c, w) in enumerate(zip(row, widths, strict=True))).rstrip())
+
+
 def _cmd_methods(a: argparse.Namespace) -> None:
     from fdisyn.synthesis.registry import PLANT_KINDS, REQUIRED, all_methods, get_method
 
@@ -734,6 +769,25 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--option", default=None, metavar="PATTERN", help="only the options whose name matches PATTERN ('P_*', 'window'), as a table")
     p.add_argument("--plant-kind", default=None, metavar="KIND", help="only the methods for this plant kind: linear, continuous or nonlinear")
     p.set_defaults(fn=_cmd_methods)
+
+    p = command(
+        "analyse",
+        "which faults the plant's sensors can detect and isolate",
+        "Print the achievable fault signatures of SPEC's linear plant: every row of a structure matrix a scalar residual "
+        "decoupled from the known and unknown inputs can have (1: it sees the fault; 0: it is decoupled from it), over "
+        "the plant's faults (one per sensor, then the component faults), with the least order of a filter achieving "
+        "each row and the faults it decouples. --strong asks that every fault a row sees has a nonzero response at "
+        "--frequencies (rad/s; default 0: constant faults). A continuous plant file is analysed on its exact sampling.",
+        "fdisyn analyse wind_turbine",
+        "fdisyn analyse dc_motor.toml --strong",
+        "fdisyn analyse turbofan --strong --frequencies 0,1 --json",
+    )
+    p.add_argument("spec", metavar="SPEC", help=_SPEC)
+    p.add_argument("--strong", action="store_true", help="the strong structure: nonzero responses at --frequencies (default: the weak one)")
+    p.add_argument("--frequencies", default=None, metavar="F,…", help="the strong structure's frequencies in rad/s, comma separated (default 0)")
+    p.add_argument("--json", action="store_true", help="print the analysis as JSON (faults, rows with their least orders, basis sizes and decoupled faults)")
+    opt(p)
+    p.set_defaults(fn=_cmd_analyse)
 
     p = command(
         "example",

@@ -506,6 +506,7 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
         simulate=simulate,
         sample_model=sample_model,
         monte_carlo_runs=50,
+        model=lambda **_: physical,
     )
 
 
