@@ -25,7 +25,7 @@ import slycot
 
 from fdisyn.runtime.errors import SolverError
 
-__all__ = ["left_minimal_indices", "minimal_realisation", "normal_rank", "null_dimension", "polynomial_left_null"]
+__all__ = ["left_kronecker_indices", "left_minimal_indices", "minimal_realisation", "normal_rank", "null_dimension", "polynomial_left_null"]
 
 TOEPLITZ_ENTRIES = 4_000_000
 """Largest block Toeplitz matrix (entries) :func:`polynomial_left_null` forms: its SVD then takes about a second
@@ -104,6 +104,31 @@ def normal_rank(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray) -> i
     return _ag08bd(A, B, C, D)[0]
 
 
+def left_kronecker_indices(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray) -> tuple[int, ...]:
+    """The left Kronecker indices of the system pencil of this realisation, ascending (SLICOT ``AG08BD``): the
+    row degrees of a minimal basis of its polynomial left null vectors ``[w(λ) v(λ)]``, whose ``v`` annihilates
+    ``G`` and makes ``v C (λI − A)⁻¹`` polynomial, i.e. cancels every mode of the realisation, excited or not by
+    these inputs. For a minimal realisation they are :func:`left_minimal_indices`.
+
+    Parameters
+    ----------
+    A, B, C, D : numpy.ndarray
+        The realisation.
+
+    Returns
+    -------
+    tuple of int
+        The indices.
+    """
+    p = C.shape[0]
+    if B.shape[1] == 0 and A.shape[0] == 0:
+        return (0,) * p
+    rank, kron = _ag08bd(A, B, C, D)
+    if len(kron) != p - rank:  # pragma: no cover - SLICOT's own consistency
+        raise SolverError(f"the system pencil gave {len(kron)} left Kronecker indices for a left null space of dimension {p - rank}")
+    return tuple(kron)
+
+
 def left_minimal_indices(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray) -> tuple[int, ...]:
     """The left minimal indices of ``G(λ) = C (λI − A)⁻¹ B + D``, ascending: the row degrees of a minimal polynomial
     basis of its rational left null space (one per dimension of that space, ``p − rank G``).
@@ -120,14 +145,9 @@ def left_minimal_indices(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndar
     tuple of int
         The indices.
     """
-    a, b, c = minimal_realisation(A, B, C)
-    p = C.shape[0]
     if B.shape[1] == 0:
-        return (0,) * p
-    rank, kron = _ag08bd(a, b, c, D)
-    if len(kron) != p - rank:  # pragma: no cover - SLICOT's own consistency
-        raise SolverError(f"the system pencil gave {len(kron)} left Kronecker indices for a left null space of dimension {p - rank}")
-    return tuple(kron)
+        return (0,) * C.shape[0]
+    return left_kronecker_indices(*minimal_realisation(A, B, C), D)
 
 
 def null_dimension(indices: tuple[int, ...] | list[int], k: int) -> int:

@@ -129,7 +129,7 @@ def residual_covariance(gen: Generator, plant: LinearPlant) -> np.ndarray:
         circle: it then has no stationary law.
     """
     form = internal_form(gen, plant)
-    if spectral_radius(form.A) >= 1.0:
+    if spectral_radius(form.A) >= 1.0 - 1e-12:  # as _stationary_model: an integrator sampled exactly may be 1 − eps
         a, k, c, dn, w = _stationary_model(gen, plant)
         s = c @ dlyap(a, k @ w @ k.T) @ c.T + dn @ w @ dn.T
         return 0.5 * (s + s.T)
@@ -177,7 +177,10 @@ def _stationary_model(gen: Generator, plant: LinearPlant) -> tuple[np.ndarray, .
     if spectral_radius(a) >= 1.0 - 1e-12:  # an integrator sampled exactly may come out at 1 − eps
         t, u, unstable = scipy.linalg.schur(a, output="real", sort=lambda re, im: re * re + im * im >= 1.0 - 1e-12)
         seen = float(np.linalg.norm(c @ u[:, :unstable]))
-        if not seen <= _DECOUPLED_RTOL * max(float(np.linalg.norm(c)), 1e-300):
+        # relative to the sizes of c's terms Dy C and Cr: a residual that sees no state at all (a static
+        # combination of the outputs with Dy C = 0) has a c of round-off size, and round-off is what it sees
+        terms = float(np.linalg.norm(gen.Dy, 2) * np.linalg.norm(plant.C, 2) + np.linalg.norm(gen.Cr, 2))
+        if not seen <= _DECOUPLED_RTOL * max(float(np.linalg.norm(c)), terms, 1e-300):
             raise ExistenceError(
                 f"the residual of generator {gen.name!r} sees a mode of the plant on or outside the unit circle "
                 f"(output direction {seen:.3g}): it has no stationary law and no windowed threshold"

@@ -25,6 +25,12 @@ set (Varga's recursion of ``genspec_in`` visits the same sets). Normal ranks com
 vectors of degree at most ``k`` for ``D`` outnumber those for ``D ∪ {j}``, counted from the left minimal indices of
 the two null spaces (:func:`fdisyn.numerics.pencils.null_dimension`).
 
+On a plant with modes on or beyond the stability boundary (an integrator, an unstable mode) the filter must also
+cancel those modes in its responses to the noise and to every fault, so that its residual is stationary and
+``R_f`` stable (Varga's synthesis problems ask for both): the pencils are then built on a realisation that keeps
+every mode the noise or a fault excites, and the least orders are those of such filters (they may exceed the
+rational least orders of ``G_e``).
+
 *Strong* at frequencies ``Ω`` (a persistent fault of that frequency; 0 for a constant one): ``R_fj(λ) ≠ 0`` at
 ``λ = jω`` (continuous) or ``e^{jωTs}`` (discrete) for every ``ω`` in ``Ω``. Every admissible filter is a rational
 combination of a minimal polynomial basis ``N(λ)``, so ``R_fj(λ₀)`` can be made nonzero iff
@@ -45,10 +51,10 @@ from typing import Any, Literal
 import numpy as np
 
 from fdisyn.models.linear import LinearPlant
-from fdisyn.numerics.pencils import left_minimal_indices, minimal_realisation, normal_rank, null_dimension, polynomial_left_null
+from fdisyn.numerics.pencils import left_kronecker_indices, minimal_realisation, normal_rank, null_dimension, polynomial_left_null
 from fdisyn.runtime.errors import ArgumentError
 
-__all__ = ["MAX_ROWS", "STRONG_TOL", "StructureAnalysis", "analyse_structure", "check_structure", "fault_entries", "structure_matrices"]
+__all__ = ["MAX_ROWS", "STRONG_TOL", "FaultPencils", "StructureAnalysis", "analyse_structure", "check_structure", "fault_entries", "structure_matrices"]
 
 MAX_ROWS = 4096
 """Most achievable rows the analysis enumerates. Faults in general position on ``p`` sensors give every subset
@@ -149,8 +155,16 @@ def fault_entries(plant: LinearPlant) -> tuple[tuple[str, ...], np.ndarray, np.n
     return tuple(plant.outputs) + tuple(plant.component_faults), bf, df
 
 
-class _Pencils:
-    """The plant's transfer matrices for subsets of its faults, with their ranks and indices cached."""
+class FaultPencils:
+    """The plant's transfer matrices with subsets of its faults decoupled, balanced, with their normal ranks, left
+    minimal indices and polynomial null vectors (cached): what the structure analysis and the nullspace synthesis
+    (:mod:`fdisyn.synthesis.nullspace`) compute on.
+
+    Parameters
+    ----------
+    plant : LinearPlant
+        The plant; its faults in its fault order (:func:`fault_entries`).
+    """
 
     def __init__(self, plant: LinearPlant) -> None:
         self.names, bf, df = fault_entries(plant)
@@ -164,15 +178,24 @@ class _Pencils:
         out = _pow2(np.hypot(np.linalg.norm(c, axis=1), np.linalg.norm(d, axis=1)))[:, None]
         c, d, df = c / out, d / out, df / out
 
-        def unit(x: Any, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        def unit(x: Any, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             x = np.asarray(x, float) / s[:, None]
-            k = _pow2(np.hypot(np.linalg.norm(x, axis=0), np.linalg.norm(y, axis=0)))[None, :]
-            return x / k, y / k
+            k = _pow2(np.hypot(np.linalg.norm(x, axis=0), np.linalg.norm(y, axis=0)))
+            return x / k[None, :], y / k[None, :], k
 
-        b, d = unit(plant.B, d)
-        e, _ = unit(plant.E, np.zeros((plant.p, plant.q)))
-        bf, df = unit(bf, df)
+        b, d, k_u = unit(plant.B, d)
+        e, _, _ = unit(plant.E, np.zeros((plant.p, plant.q)))
+        bf, df, _ = unit(bf, df)
+        self.out, self.k_u = out[:, 0], k_u  # the pencil sees y / out and u · k_u
         self.A, self.B, self.C, self.D, self.E, self.bf, self.df = a, b, c, d, e, bf, df
+        # a plant with modes on or beyond the stability boundary: the filter must cancel them in its responses to the
+        # noise and to every fault too (R_w and R_f stable, as Varga's synthesis asks), so the pencils keep every
+        # mode the noise or a fault excites (hidden inputs of the realisation, not columns of the pencil)
+        poles = np.linalg.eigvals(a) if plant.n else np.zeros(0)
+        self.unstable = bool(np.any(np.abs(poles) >= 1 - 1e-9) if plant.Ts is not None else np.any(poles.real >= -1e-9))
+        lam, vec = np.linalg.eigh(np.asarray(plant.Q, float) / np.outer(s, s)) if plant.n else (np.zeros(0), np.zeros((0, 0)))
+        noise = vec * np.sqrt(np.clip(lam, 0.0, None))[None, :]
+        self.hidden = np.hstack([bf, noise[:, np.any(noise != 0, axis=0)]]) if self.unstable else np.zeros((plant.n, 0))
         self.n, self.p, self.m, self.q = plant.n, plant.p, plant.m, plant.q
         self._rank: dict[frozenset[int], int] = {}
         self._indices: dict[frozenset[int], tuple[int, ...]] = {}
@@ -200,10 +223,18 @@ class _Pencils:
         de = np.block([[self.D, d], [np.eye(m), np.zeros((m, k))]])
         return self.A, be, ce, de
 
+    def realisation(self, faults: frozenset[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The realisation of ``G_e`` (:meth:`extended`) the pencils are built on: minimal, but for an unstable plant
+        keeping the modes the noise and the faults excite (:attr:`hidden`)."""
+        a, b, c, d = self.extended(faults)
+        ar, br, cr = minimal_realisation(a, np.hstack([b, self.hidden]), c)
+        return ar, br[:, : b.shape[1]], cr, d
+
     def indices(self, faults: frozenset[int]) -> tuple[int, ...]:
-        """Left minimal indices of ``G_e`` with ``faults`` decoupled."""
+        """Left Kronecker indices of :meth:`realisation` with ``faults`` decoupled: the left minimal indices of
+        ``G_e`` for a stable plant."""
         if faults not in self._indices:
-            self._indices[faults] = left_minimal_indices(*self.extended(faults))
+            self._indices[faults] = left_kronecker_indices(*self.realisation(faults))
         return self._indices[faults]
 
     def seen(self, j: int, decoupled: frozenset[int]) -> bool:
@@ -223,19 +254,27 @@ class _Pencils:
                 return k
         raise AssertionError("a weakly detectable fault is seen by the whole basis")  # pragma: no cover
 
-    def null_values(self, decoupled: frozenset[int], k: int, lam: complex) -> np.ndarray:
-        """The values at ``λ`` of the ``y`` parts of a basis of the polynomial null vectors of degree ``≤ k``."""
-        a, b, c, d = self.extended(decoupled)
-        a, b, c = minimal_realisation(a, b, c)
+    def null_vectors(self, decoupled: frozenset[int], k: int, toward: np.random.Generator | None = None) -> np.ndarray:
+        """A basis of the polynomial left null vectors of degree ``≤ k`` of ``G_e`` with ``decoupled`` decoupled:
+        their ``[y; u]`` coefficients, ``(count, k + 1, p + m)`` (degree-major), in the balanced units (the
+        pencil sees ``y / out`` and ``u · k_u``). With ``toward``, one vector instead (``count = 1``): the orthogonal
+        projection onto the null space of a standard normal draw from it, which does not depend on the basis the
+        SVD returns (another BLAS kernel may return another one)."""
+        a, b, c, d = self.realisation(decoupled)
         nr, rows = a.shape[0], c.shape[0]
         mm = np.block([[a, b], [c, d]])
         nn = np.zeros_like(mm)
         nn[:nr, :nr] = np.eye(nr)
         count = null_dimension(self.indices(decoupled), k)
         x = polynomial_left_null(mm, nn, k, count)
-        width = nr + rows
-        val = sum((x[:, i * width : (i + 1) * width] * lam**i for i in range(k + 1)), np.zeros((count, width), complex))
-        return val[:, nr : nr + self.p]
+        if toward is not None:
+            x = (x.T @ (x @ toward.standard_normal(x.shape[1])))[None, :]
+        return x.reshape(x.shape[0], k + 1, nr + rows)[:, :, nr:]
+
+    def null_values(self, decoupled: frozenset[int], k: int, lam: complex) -> np.ndarray:
+        """The values at ``λ`` of the ``y`` parts of a basis of the polynomial null vectors of degree ``≤ k``."""
+        x = self.null_vectors(decoupled, k)
+        return np.einsum("cdw,d->cw", x, lam ** np.arange(k + 1))[:, : self.p]
 
     def response(self, j: int, lam: complex) -> np.ndarray:
         """``G_fj(λ)``, exact zeros where it is zero to round-off of its terms ``C (λI − A)⁻¹ b`` and ``d``."""
@@ -326,7 +365,7 @@ def analyse_structure(plant: Any, *, kind: Literal["weak", "strong"] = "weak", f
         A plant that is not linear, a bad kind or frequency, or more than :data:`MAX_ROWS` rows.
     """
     lin, freqs = _checked(plant, kind, frequencies)
-    pen = _Pencils(lin)
+    pen = FaultPencils(lin)
     nf = len(pen.names)
     everything = frozenset(range(nf))
     start = pen.closure(frozenset())
@@ -424,7 +463,7 @@ def check_structure(
         row needs seen that decoupling its zeros hides, or which it cannot see strongly; ``""`` when achievable).
     """
     lin, freqs = _checked(plant, kind, frequencies)
-    pen = _Pencils(lin)
+    pen = FaultPencils(lin)
     nf = len(pen.names)
     s = np.asarray(structure)
     if s.ndim != 2 or s.shape[1] != nf or not np.all((s == 0) | (s == 1)):

@@ -126,7 +126,8 @@ def test_methods_option_filters_by_name_or_pattern(capsys) -> None:
     assert main(["methods", "--option", "P_*"]) == 0  # a shell pattern, over every method
     out = capsys.readouterr().out
     heads = [ln.split(" ", 1)[0] for ln in out.splitlines() if ln and not ln.startswith(" ")]
-    assert heads == ["beard_fdf", "kalman_uio", "kalman_uio_gos", "kalman_uio_paper", "lmi", "nafdf", "sampled_data_observer", "uio_pole_placement"]
+    assert heads == ["beard_fdf", "kalman_uio", "kalman_uio_gos", "kalman_uio_paper", "lmi", "nafdf", "nullspace", "sampled_data_observer",
+                     "uio_pole_placement"]
     rows = {ln.split()[0] for ln in out.splitlines() if ln.startswith("    ") and not ln.startswith("     ")}
     assert rows == {"option", "P_f"}
 

@@ -54,13 +54,14 @@ BASE: dict[str, tuple[Any, dict[str, Any]]] = {
     "lmi": (_continuous, {"Ts": 0.1}),
     "sampled_data_observer": (_continuous, {"Ts": 0.1}),
     "nafdf": (_nonlinear, {}),
+    "nullspace": (_discrete, {}),
 }
 VALUES = [0, 1e-300, 1e308, -1, math.nan, math.inf, -math.inf, 10**12]
 SEQUENTIAL = {"P_f", "arl0", "window", "min_fault", "min_shift"}
 """Options whose reading depends on the detector: swept with each detector that reads them."""
 LISTS = {"x0", "theta0", "theta_lower", "theta_upper", "isolable_jump", "convergence_tolerance", "u0", "poles"}
 NOT_NUMBERS = {"bank", "faults", "sensor_faults", "eigenvalues", "training", "groups", "virtual_outputs", "sensors", "detector",
-               "evaluator", "threshold_rule", "eigenstructure", "sampling", "eta", "fault_free"}
+               "evaluator", "threshold_rule", "eigenstructure", "sampling", "eta", "fault_free", "structure"}
 
 
 def _detectors(method: str, option: str) -> list[str | None]:
