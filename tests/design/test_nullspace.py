@@ -208,3 +208,13 @@ def test_the_reference_plants_get_an_isolating_bank_of_least_order_filters(probl
     gf = fdisyn.design(plant, method="nullspace", structure=rows)
     assert [g.n_state for g in gf.generators] == orders
     assert list(gf.faults) == list(res.faults)  # every fault isolable: its own class
+
+
+def test_a_continuous_plant_is_designed_on_its_exact_sampling_and_needs_its_sample_time() -> None:
+    plant = fdisyn.LinearPlant.create(A=[[-1.0, 0.5], [0.0, -2.0]], B=[[0.0], [1.0]], C=np.eye(2), E=[[0.1], [1.0]],
+                                      Q=np.eye(2) * 1e-3, R=np.eye(2) * 1e-2)
+    with pytest.raises(ArgumentError, match="a continuous plant needs Ts"):
+        fdisyn.design(plant, method="nullspace")
+    gf = fdisyn.design(plant, method="nullspace", Ts=0.05)
+    assert gf.Ts == 0.05 and gf.certificate["passed"]
+    assert [g.n_state for g in gf.generators] == list(analyse_structure(plant.discretise(0.05)).least_orders[:1])
