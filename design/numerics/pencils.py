@@ -25,7 +25,7 @@ import slycot
 
 from fdisyn.runtime.errors import SolverError
 
-__all__ = ["left_kronecker_indices", "left_minimal_indices", "minimal_realisation", "normal_rank", "null_dimension", "polynomial_left_null"]
+__all__ = ["left_kronecker_indices", "minimal_realisation", "normal_rank", "null_dimension", "polynomial_left_null"]
 
 TOEPLITZ_ENTRIES = 4_000_000
 """Largest block Toeplitz matrix (entries) :func:`polynomial_left_null` forms: its SVD then takes about a second
@@ -108,7 +108,8 @@ def left_kronecker_indices(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.nd
     """The left Kronecker indices of the system pencil of this realisation, ascending (SLICOT ``AG08BD``): the
     row degrees of a minimal basis of its polynomial left null vectors ``[w(λ) v(λ)]``, whose ``v`` annihilates
     ``G`` and makes ``v C (λI − A)⁻¹`` polynomial, i.e. cancels every mode of the realisation, excited or not by
-    these inputs. For a minimal realisation they are :func:`left_minimal_indices`.
+    these inputs. For a minimal realisation (:func:`minimal_realisation`) they are the left minimal indices of
+    ``G``.
 
     Parameters
     ----------
@@ -129,36 +130,15 @@ def left_kronecker_indices(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.nd
     return tuple(kron)
 
 
-def left_minimal_indices(A: np.ndarray, B: np.ndarray, C: np.ndarray, D: np.ndarray) -> tuple[int, ...]:
-    """The left minimal indices of ``G(λ) = C (λI − A)⁻¹ B + D``, ascending: the row degrees of a minimal polynomial
-    basis of its rational left null space (one per dimension of that space, ``p − rank G``).
-
-    Parameters
-    ----------
-    A, B, C, D : numpy.ndarray
-        Any realisation: it is made minimal first (:func:`minimal_realisation`), as the system pencil's left
-        Kronecker indices are the transfer matrix's left minimal indices only for a minimal one (an uncontrollable
-        mode of a non-square pencil shows as a larger index, not as a zero).
-
-    Returns
-    -------
-    tuple of int
-        The indices.
-    """
-    if B.shape[1] == 0:
-        return (0,) * C.shape[0]
-    return left_kronecker_indices(*minimal_realisation(A, B, C), D)
-
-
 def null_dimension(indices: tuple[int, ...] | list[int], k: int) -> int:
-    """Dimension of the polynomial left null vectors of degree at most ``k`` for left minimal indices ``indices``:
+    """Dimension of the polynomial left null vectors of degree at most ``k`` for left Kronecker indices ``indices``:
     ``Σᵢ max(0, k − νᵢ + 1)`` (every such vector is a polynomial combination of the minimal basis with degrees
     bounded by the basis' predictable degrees).
 
     Parameters
     ----------
     indices : sequence of int
-        The left minimal indices (:func:`left_minimal_indices`).
+        The left Kronecker indices (:func:`left_kronecker_indices`).
     k : int
         The degree bound.
 

@@ -32,7 +32,7 @@ from fdisyn.runtime.errors import ArgumentError, ExistenceError
 from fdisyn.runtime.gainfile import GainFile, Generator
 from fdisyn.runtime.names import shown
 from fdisyn.synthesis.residual import embed_outputs, residual_covariance
-from fdisyn.synthesis.structure import FaultPencils, check_structure, fault_entries
+from fdisyn.synthesis.structure import FaultPencils, fault_entries
 
 __all__ = ["DECOUPLING_TOL", "nullspace_generator"]
 
@@ -79,7 +79,7 @@ def _realise(v: np.ndarray, k: int, pole: float) -> tuple[np.ndarray, np.ndarray
 
 
 def nullspace_generator(
-    plant: LinearPlant, row: Sequence[int], name: str, *, pole: float = 0.5
+    plant: LinearPlant, row: Sequence[int], name: str, *, pole: float = 0.5, pencils: FaultPencils | None = None
 ) -> tuple[Generator, np.ndarray, Certificate]:
     """The least-order generator of one row of a structure matrix on a discrete plant (module docstring).
 
@@ -93,6 +93,8 @@ def nullspace_generator(
         The generator's name.
     pole : float
         The filter's poles, all at this real value in ``(−1, 1)``.
+    pencils : FaultPencils, optional
+        The plant's pencils, when a bank shares them (default: computed here).
 
     Returns
     -------
@@ -106,8 +108,8 @@ def nullspace_generator(
     """
     names, bf, df = fault_entries(plant)
     row = [int(v) for v in row]
-    pen = FaultPencils(plant)
-    verdict = check_structure(plant, [row])[0]
+    pen = FaultPencils(plant) if pencils is None else pencils
+    verdict = pen.verdict(row)
     if not verdict["achievable"]:
         raise ExistenceError(f"generator {name!r}: its row {row} over faults {list(names)} is not achievable: {verdict['why']}")
     k = least = int(verdict["least_order"])
@@ -231,7 +233,8 @@ def nullspace_design(
     else:
         discrete = plant.discretise(Ts)
     rows = _structure_rows(discrete, structure, at)
-    designed = [nullspace_generator(discrete, r, f"r{i}_" + "".join(str(v) for v in r), pole=pole) for i, r in enumerate(rows)]
+    pen = FaultPencils(discrete)
+    designed = [nullspace_generator(discrete, r, f"r{i}_" + "".join(str(v) for v in r), pole=pole, pencils=pen) for i, r in enumerate(rows)]
     gens = [g for g, _, _ in designed]
     kind = chosen_detector(detector, evaluator, where)
     return linear_diagnoser(

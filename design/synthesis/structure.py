@@ -199,6 +199,7 @@ class FaultPencils:
         self.n, self.p, self.m, self.q = plant.n, plant.p, plant.m, plant.q
         self._rank: dict[frozenset[int], int] = {}
         self._indices: dict[frozenset[int], tuple[int, ...]] = {}
+        self._null: dict[tuple[frozenset[int], int], np.ndarray] = {}
 
     def _columns(self, faults: frozenset[int]) -> tuple[np.ndarray, np.ndarray]:
         """``(B, D)`` of ``[G_d G_f,faults]``."""
@@ -266,7 +267,9 @@ class FaultPencils:
         nn = np.zeros_like(mm)
         nn[:nr, :nr] = np.eye(nr)
         count = null_dimension(self.indices(decoupled), k)
-        x = polynomial_left_null(mm, nn, k, count)
+        if (decoupled, k) not in self._null:
+            self._null[(decoupled, k)] = polynomial_left_null(mm, nn, k, count)
+        x = self._null[(decoupled, k)]
         if toward is not None:
             x = (x.T @ (x @ toward.standard_normal(x.shape[1])))[None, :]
         return x.reshape(x.shape[0], k + 1, nr + rows)[:, :, nr:]
@@ -275,6 +278,25 @@ class FaultPencils:
         """The values at ``λ`` of the ``y`` parts of a basis of the polynomial null vectors of degree ``≤ k``."""
         x = self.null_vectors(decoupled, k)
         return np.einsum("cdw,d->cw", x, lam ** np.arange(k + 1))[:, : self.p]
+
+    def verdict(self, row: Sequence[int], points: Sequence[complex] = (), frequencies: Sequence[float] = ()) -> dict[str, Any]:
+        """Whether ``row`` is achievable (weakly, or strongly at ``points``, the ``frequencies`` in the plant's
+        domain), its least order and why not (:func:`check_structure`)."""
+        nf = len(self.names)
+        zeros = frozenset(j for j in range(nf) if row[j] == 0)
+        ones = [j for j in range(nf) if row[j] == 1]
+        hidden = [self.names[j] for j in ones if not self.seen(j, zeros)]
+        if hidden:
+            return {"achievable": False, "least_order": None, "why": f"decoupling {sorted(self.names[j] for j in zeros)} hides {hidden}"}
+        order = self.least_order(zeros, ones) if ones else 0
+        if points and ones:
+            top = max(self.indices(zeros), default=0)
+            if not self.strong(zeros, ones, top, points):
+                weak = [self.names[j] for j in ones if not self.strong(zeros, [j], top, points)]
+                return {"achievable": False, "least_order": None,
+                        "why": f"{weak} have a zero response at {list(frequencies)} rad/s once {sorted(self.names[j] for j in zeros)} are decoupled"}
+            order = next(k for k in range(order, top + 1) if self.strong(zeros, ones, k, points))
+        return {"achievable": True, "least_order": order, "why": ""}
 
     def response(self, j: int, lam: complex) -> np.ndarray:
         """``G_fj(λ)``, exact zeros where it is zero to round-off of its terms ``C (λI − A)⁻¹ b`` and ``d``."""
@@ -389,13 +411,10 @@ def analyse_structure(plant: Any, *, kind: Literal["weak", "strong"] = "weak", f
     points = _points(lin, freqs) if kind == "strong" else []
     rows, orders, sizes, borders, dec = [], [], [], [], []
     for flat in flats:
-        faults = [j for j in range(nf) if j not in flat]
-        order = pen.least_order(flat, faults)
-        if kind == "strong":
-            top = max(pen.indices(flat), default=0)
-            if not pen.strong(flat, faults, top, points):
-                continue
-            order = next(k for k in range(order, top + 1) if pen.strong(flat, faults, k, points))
+        verdict = pen.verdict([0 if j in flat else 1 for j in range(nf)], points, freqs)
+        if not verdict["achievable"]:  # weakly it is (a closed set): not at the frequencies
+            continue
+        order = verdict["least_order"]
         rows.append([0 if j in flat else 1 for j in range(nf)])
         orders.append(order)
         ind = pen.indices(flat)
@@ -469,23 +488,4 @@ def check_structure(
     if s.ndim != 2 or s.shape[1] != nf or not np.all((s == 0) | (s == 1)):
         raise ArgumentError(f"structure must be 0/1 rows of {nf} entries (faults {list(pen.names)}); got an array of shape {s.shape}")
     points = _points(lin, freqs) if kind == "strong" else []
-    out: list[dict[str, Any]] = []
-    for row in s.astype(int):
-        zeros = frozenset(j for j in range(nf) if row[j] == 0)
-        ones = [j for j in range(nf) if row[j] == 1]
-        hidden = [pen.names[j] for j in ones if not pen.seen(j, zeros)]
-        if hidden:
-            out.append({"achievable": False, "least_order": None,
-                        "why": f"decoupling {sorted(pen.names[j] for j in zeros)} hides {hidden}"})
-            continue
-        order = pen.least_order(zeros, ones) if ones else 0
-        if kind == "strong" and ones:
-            top = max(pen.indices(zeros), default=0)
-            if not pen.strong(zeros, ones, top, points):
-                weak = [pen.names[j] for j in ones if not pen.strong(zeros, [j], top, points)]
-                out.append({"achievable": False, "least_order": None,
-                            "why": f"{weak} have a zero response at {list(freqs)} rad/s once {sorted(pen.names[j] for j in zeros)} are decoupled"})
-                continue
-            order = next(k for k in range(order, top + 1) if pen.strong(zeros, ones, k, points))
-        out.append({"achievable": True, "least_order": order, "why": ""})
-    return out
+    return [pen.verdict(row, points, freqs) for row in s.astype(int)]
