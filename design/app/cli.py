@@ -53,6 +53,7 @@ import argparse
 import errno
 import fnmatch
 import json
+import math
 import os
 import re
 import select
@@ -456,6 +457,7 @@ def _frequencies(text: str) -> list[float]:
 
 
 def _cmd_analyse(a: argparse.Namespace) -> None:
+    from fdisyn.synthesis.nullspace import analyse_gaps
     from fdisyn.synthesis.structure import analyse_structure
 
     opts = _options(a.option)
@@ -465,18 +467,21 @@ def _cmd_analyse(a: argparse.Namespace) -> None:
     freqs = _frequencies(a.frequencies) if a.frequencies is not None else None
     if freqs is not None and not a.strong:
         raise ArgumentError("--frequencies sets the strong structure's frequencies: add --strong, or omit --frequencies")
-    res = analyse_structure(prob.model(**prob.check_options(opts)), kind="strong" if a.strong else "weak", frequencies=freqs)
+    plant = prob.model(**prob.check_options(opts))
+    res = analyse_gaps(analyse_structure(plant, kind="strong" if a.strong else "weak", frequencies=freqs), plant, pole=a.pole)
     if a.json:
         print(json.dumps({"problem": prob.name, **res.to_dict()}, indent=1))
         return
     at = f" at {', '.join(f'{w:g}' for w in res.frequencies)} rad/s" if res.kind == "strong" else ""
     print(f"{prob.name}: {len(res.faults)} faults, {res.kind} structure{at}: {len(res.rows)} achievable specification(s) "
-          f"(1: the residual sees the fault; 0: decoupled from it)")
-    header = [*res.faults, "least order", "decouples"]
-    rows = [[*(str(v) for v in row), str(lo), ", ".join(dec) or "—"] for row, lo, dec in zip(res.rows, res.least_orders, res.decoupled, strict=True)]
+          f"(1: the residual sees the fault; 0: decoupled from it); gap: min_j ‖R_fj‖∞ / ‖R_w‖∞ of the least-order filter "
+          f"with its poles at {res.pole:g}")
+    header = [*res.faults, "least order", "gap", "decouples"]
+    rows = [[*(str(v) for v in row), str(lo), "∞" if math.isinf(g) else f"{g:.4g}", ", ".join(dec) or "—"]
+            for row, lo, g, dec in zip(res.rows, res.least_orders, res.gaps or (), res.decoupled, strict=True)]
     widths = [max(len(str(c)) for c in col) for col in zip(header, *rows, strict=True)]
     for row in [header, ["-" * w for w in widths], *rows]:
-        print("  ".join(c.rjust(w) if i < len(res.faults) + 1 else c for i, (c, w) in enumerate(zip(row, widths, strict=True))).rstrip())
+        print("  ".join(c.rjust(w) if i < len(res.faults) + 2 else c for i, (c, w) in enumerate(zip(row, widths, strict=True))).rstrip())
 
 
 def _cmd_methods(a: argparse.Namespace) -> None:
@@ -776,7 +781,9 @@ def _parser() -> argparse.ArgumentParser:
         "Print the achievable fault signatures of SPEC's linear plant: every row of a structure matrix a scalar residual "
         "decoupled from the known and unknown inputs can have (1: it sees the fault; 0: it is decoupled from it), over "
         "the plant's faults (one per sensor, then the component faults), with the least order of a filter achieving "
-        "each row and the faults it decouples. --strong asks that every fault a row sees has a nonzero response at "
+        "each row, its fault-to-noise gap (Varga's: the smallest H∞ norm over the faults it sees over the H∞ norm "
+        "from the plant's noise, for the least-order filter of the largest gap with its poles at --pole) and the faults "
+        "it decouples. --strong asks that every fault a row sees has a nonzero response at "
         "--frequencies (rad/s; default 0: constant faults). A continuous plant file is analysed on its exact sampling.",
         "fdisyn analyse wind_turbine",
         "fdisyn analyse dc_motor.toml --strong",
@@ -785,7 +792,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("spec", metavar="SPEC", help=_SPEC)
     p.add_argument("--strong", action="store_true", help="the strong structure: nonzero responses at --frequencies (default: the weak one)")
     p.add_argument("--frequencies", default=None, metavar="F,…", help="the strong structure's frequencies in rad/s, comma separated (default 0)")
-    p.add_argument("--json", action="store_true", help="print the analysis as JSON (faults, rows with their least orders, basis sizes and decoupled faults)")
+    p.add_argument("--json", action="store_true", help="print the analysis as JSON (faults, rows with their least orders, gaps, basis sizes and decoupled faults)")
+    p.add_argument("--pole", type=float, default=None, metavar="P", help="the filters' poles for the gaps (default 0.5; the plant files are analysed discrete)")
     opt(p)
     p.set_defaults(fn=_cmd_analyse)
 

@@ -4,10 +4,11 @@
 
     x⁺ = A x + B u + E d + Fx f + w        (discrete, ``Ts`` given)
     ẋ  = A x + B u + E d + Fx f + w        (continuous, ``Ts is None``)
-    y  = C x + D u + v
+    y  = C x + D u + Dd d + Df f + f_s + v
 
 with ``u`` known inputs, ``d`` unknown inputs (disturbances), ``f`` component
-or actuator faults with known directions, ``w ~ N(0, Q)`` and ``v ~ N(0, R)``.
+or actuator faults with known directions (on states, sensors or both), ``f_s``
+one additive fault per sensor, ``w ~ N(0, Q)`` and ``v ~ N(0, R)``.
 For a continuous plant ``Q`` is the intensity (power spectral density) of
 continuous white process noise and ``R`` the covariance of the sampled sensor
 noise; ``discretise`` turns ``Q`` into the exact sampled covariance.
@@ -46,7 +47,7 @@ def identifier_names(given: Sequence[str] | None, what: str, *, count: int | Non
 class LinearPlant:
     """A linear plant with unknown inputs, fault entries and Gaussian noise.
 
-    Construct with keyword arguments; missing ``D``, ``E``, ``Fx`` default to
+    Construct with keyword arguments; missing ``D``, ``E``, ``Fx``, ``Dd``, ``Df`` default to
     zero matrices of the right size, missing ``Q``/``R`` to zero. Every matrix
     is checked against the dimensions implied by ``A``, ``B`` and ``C``, every
     name against the signal-name grammar (:mod:`fdisyn.runtime.names`), and
@@ -57,11 +58,15 @@ class LinearPlant:
     Attributes
     ----------
     A, B, C, D : numpy.ndarray
-        The model ``ẋ = A x + B u + E d + Fx f`` (``x⁺`` when discrete), ``y = C x + D u``.
+        The model ``ẋ = A x + B u + E d + Fx f`` (``x⁺`` when discrete), ``y = C x + D u + Dd d + Df f + f_s``
+        (``f_s``: one sensor fault per output).
     E : numpy.ndarray
         The unknown inputs' entry (``n × q``): the disturbances the residuals are decoupled from.
     Fx : numpy.ndarray
         The component faults' entry (``n × len(component_faults)``); sensor faults need none.
+    Dd, Df : numpy.ndarray
+        The unknown inputs' and the component faults' direct reach into the outputs (``p × q``, ``p × f``; zero
+        unless given): an unknown input or a component fault may act on states, on sensors or on both.
     Q, R : numpy.ndarray
         The process and measurement noise covariances (symmetric positive semidefinite).
     Ts : float or None
@@ -99,6 +104,14 @@ class LinearPlant:
     component_faults: tuple[str, ...]
     units: Mapping[str, str] = field(default_factory=dict)
     state_scale: tuple[float, ...] | None = None
+    Dd: np.ndarray = None  # type: ignore[assignment]  # zeros (p × q) when not given: __post_init__
+    Df: np.ndarray = None  # type: ignore[assignment]  # zeros (p × f) when not given: __post_init__
+
+    def __post_init__(self) -> None:
+        p = self.C.shape[0]
+        for key, cols in (("Dd", self.E.shape[1]), ("Df", self.Fx.shape[1])):
+            if getattr(self, key) is None:
+                object.__setattr__(self, key, frozen_array(np.zeros((p, cols))))
 
     @classmethod
     def create(
@@ -113,6 +126,8 @@ class LinearPlant:
         Q: object | None = None,
         R: object | None = None,
         Ts: float | None = None,
+        Dd: object | None = None,
+        Df: object | None = None,
         states: Sequence[str] | None = None,
         inputs: Sequence[str] | None = None,
         unknown_inputs: Sequence[str] | None = None,
@@ -140,6 +155,9 @@ class LinearPlant:
             The process and measurement noise covariances; default zero.
         Ts : float, optional
             The sample time in seconds; default ``None``, a continuous plant.
+        Dd, Df : array_like, optional
+            The unknown inputs' and the component faults' feed-through to the outputs (``p × q``, ``p × f``);
+            default zero. A component fault given by ``Df`` alone acts on the sensors only.
         states, inputs, unknown_inputs, outputs, component_faults : sequence of str, optional
             The signal names (default ``x0 x1 …``, ``u0 …``, ``d0 …``, ``y0 …``, ``f0 …``): distinct across all
             of them, each following :mod:`fdisyn.runtime.names`.
@@ -169,10 +187,12 @@ class LinearPlant:
         d = np.zeros((p, m)) if D is None else as_matrix(D, "D", rows=p, cols=m)
         e = np.zeros((n, 0)) if E is None else as_matrix(E, "E", rows=n, cols=None if np.ndim(np.asarray(E)) == 2 else 1)
         fx = np.zeros((n, 0)) if Fx is None else as_matrix(Fx, "Fx", rows=n, cols=None if np.ndim(np.asarray(Fx)) == 2 else 1)
+        dd = np.zeros((p, e.shape[1])) if Dd is None else as_matrix(Dd, "Dd", rows=p, cols=e.shape[1])
+        df = np.zeros((p, fx.shape[1])) if Df is None else as_matrix(Df, "Df", rows=p, cols=fx.shape[1])
         q = np.zeros((n, n)) if Q is None else as_symmetric(Q, "Q", n, psd=True)
         r = np.zeros((p, p)) if R is None else as_symmetric(R, "R", p, psd=True)
         ts = None if Ts is None else check_sample_time(Ts)
-        for key, mat in (("A", a), ("B", b), ("C", c), ("D", d), ("E", e), ("Fx", fx), ("Q", q), ("R", r)):
+        for key, mat in (("A", a), ("B", b), ("C", c), ("D", d), ("E", e), ("Fx", fx), ("Dd", dd), ("Df", df), ("Q", q), ("R", r)):
             if mat.size and not np.max(np.abs(mat)) <= MAX_MAGNITUDE:  # its design's gain file could not hold it
                 at = tuple(int(i) for i in np.unravel_index(int(np.argmax(np.abs(mat))), mat.shape))
                 raise ArgumentError(
@@ -197,6 +217,8 @@ class LinearPlant:
             Q=frozen_array(q),
             R=frozen_array(r),
             Ts=ts,
+            Dd=frozen_array(dd),
+            Df=frozen_array(df),
             states=names["states"],
             inputs=names["inputs"],
             unknown_inputs=names["unknown inputs"],
@@ -393,6 +415,8 @@ class LinearPlant:
             Q=self.Q if Q is None else Q,
             R=self.R if R is None else R,
             Ts=self.Ts,
+            Dd=self.Dd,
+            Df=self.Df,
             states=self.states,
             inputs=self.inputs,
             unknown_inputs=self.unknown_inputs,
@@ -431,6 +455,8 @@ class LinearPlant:
             self,
             C=frozen_array(self.C[ii, :]),
             D=frozen_array(self.D[ii, :]),
+            Dd=frozen_array(self.Dd[ii, :]),
+            Df=frozen_array(self.Df[ii, :]),
             R=frozen_array(self.R[np.ix_(ii, ii)]),
             outputs=tuple(self.outputs[i] for i in ii),
         )
@@ -440,7 +466,7 @@ class LinearPlant:
         return {k: np.asarray(getattr(self, k)) for k in ("A", "B", "C", "D", "E", "Q", "R")}
 
     def to_control(self) -> Any:
-        """The plant as a python-control ``StateSpace`` with inputs ``[u; d]``: ``(A, [B E], C, [D 0])``.
+        """The plant as a python-control ``StateSpace`` with inputs ``[u; d]``: ``(A, [B E], C, [D Dd])``.
 
         ``dt`` is ``Ts`` (0 for a continuous plant); the signal names are kept
         (states, inputs then unknown inputs, outputs). The inverse of
@@ -453,7 +479,7 @@ class LinearPlant:
             self.A,
             np.hstack([self.B, self.E]),
             self.C,
-            np.hstack([self.D, np.zeros((self.p, self.q))]),
+            np.hstack([self.D, self.Dd]),
             dt=0 if self.Ts is None else self.Ts,
             states=list(self.states),
             inputs=[*self.inputs, *self.unknown_inputs],
@@ -478,9 +504,9 @@ class LinearPlant:
     ) -> LinearPlant:
         """A plant from a python-control ``StateSpace`` whose last ``n_unknown`` inputs are unknown.
 
-        ``sys = (A, [B E], C, [D 0])``: the first ``m`` input columns are the
+        ``sys = (A, [B E], C, [D Dd])``: the first ``m`` input columns are the
         known inputs ``u`` (``B``, ``D``), the last ``n_unknown`` the unknown
-        inputs ``d`` (``E``), which may not reach the outputs directly. A
+        inputs ``d`` (``E``, ``Dd``). A
         continuous ``sys`` (``dt = 0``) gives a continuous plant, a discrete
         one (``dt > 0``) a discrete plant with ``Ts = dt``. ``Q``, ``R``, the
         names and the rest are those of :meth:`create`::
@@ -512,7 +538,7 @@ class LinearPlant:
         ------
         ArgumentError
             ``sys`` is not a ``StateSpace``, ``n_unknown`` is out of range, ``sys.dt`` does not give the sample
-            time, an unknown input reaches the outputs directly, or :meth:`create` refuses the result.
+            time, or :meth:`create` refuses the result.
         """
         import control
 
@@ -529,14 +555,13 @@ class LinearPlant:
                 f"sys.dt = {dt!r} does not say the sample time; expected 0 (continuous) or the sample time in seconds"
             )
         m = b.shape[1] - int(n_unknown)
-        if np.any(d[:, m:] != 0):
-            raise ArgumentError("unknown inputs may not reach the outputs directly: the last n_unknown columns of sys.D must be zero")
         return cls.create(
             A=a,
             B=b[:, :m],
             C=c,
             D=d[:, :m],
             E=b[:, m:],
+            Dd=d[:, m:],
             Fx=Fx,
             Q=Q,
             R=R,

@@ -139,13 +139,17 @@ def _internal(gen: Any, plant: Mapping[str, np.ndarray]) -> tuple[np.ndarray, np
 
 def _fault_path(gen: Any, plant: Mapping[str, np.ndarray], kind: str, column: np.ndarray | int) -> tuple[np.ndarray, ...]:
     """``(A, b, C, d)`` from one fault to ``gen``'s residual: a sensor bias ``y + e_j a`` enters the generator alone
-    (``Ar, By e_j, Cr, Dy e_j``); a component fault ``x⁺ = … + f a`` the internal form (``[f; 0]``, no feedthrough)."""
+    (``Ar, By e_j, Cr, Dy e_j``); a component fault ``x⁺ = … + f a``, ``y = … + g a`` (``column = [f; g]``) the
+    internal form (``[f; By g]``, feed-through ``Dy g``)."""
     if kind == "sensor":
         j = int(column)  # type: ignore[arg-type]
         return gen.Ar, gen.By[:, j], gen.Cr, gen.Dy[:, j]
     ai, ci = _internal(gen, plant)
-    b = np.concatenate([np.asarray(column, dtype=float), np.zeros(gen.n_state)])
-    return ai, b, ci, np.zeros(ci.shape[0])
+    col = np.asarray(column, dtype=float)
+    n = ai.shape[0] - gen.n_state
+    f, g = col[:n], (col[n:] if col.size > n else np.zeros(gen.By.shape[1]))
+    b = np.concatenate([f, gen.By @ g])
+    return ai, b, ci, gen.Dy @ g
 
 
 # --------------------------------------------------------------------------- sizes
@@ -518,7 +522,10 @@ def bank_account(gf: GainFile, view: BankView, plant: Any = None) -> dict[str, A
     design, why = _design_plant(gf, view, plant)
     if why is not None:
         notes.append(f"component faults {comp_names} not accounted for: {why}" if comp_names else why)
-    fx = np.asarray(design.Fx, dtype=float) if design is not None and comp_names else None
+    fx = None
+    if design is not None and comp_names:  # a component fault's column of Fx over its column of Df (zero if none)
+        fx = np.asarray(design.Fx, dtype=float)
+        fx = np.vstack([fx, np.asarray(getattr(design, "Df", np.zeros((np.shape(design.C)[0], fx.shape[1]))), dtype=float)])
     gens: list[Any] = list(view.generators)
     evs: list[Any] = list(view.statistics)
     model = dict(view.model)

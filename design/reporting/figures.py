@@ -512,28 +512,30 @@ def _operating_figure(ctx: ReportContext) -> str:
 
 
 def _discrete_model(problem: Problem, variant: Any, gf: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, np.ndarray]] | None:
-    """``(A, E, C, fault directions)`` of the design model in discrete time: each fault of the gain file that is a
-    component fault (a column of ``Fx``, into the state) or a single sensor (into the output)."""
+    """``(A, [E; Dd], C, fault directions)`` of the design model in discrete time: each fault of the gain file that is
+    a component fault (a column of ``Fx`` into the state, of ``Df`` into the outputs) or a single sensor (into the
+    output); the unknown inputs' entry stacked over their feed-through to the outputs."""
     if problem.model is None:
         return None
     model = problem.model(**dict(variant.options))
     if hasattr(model, "A_D"):  # a sampled-data plant: exact sampling of the disturbance, the fault held
         A, E, C, Fx = model.A_D, model.E_J, model.C, model.Fx_D
+        Dd, Df = np.zeros((C.shape[0], E.shape[1])), np.zeros((C.shape[0], Fx.shape[1]))
         comp = list(gf.faults) if Fx.shape[1] == len(gf.faults) else []
         outputs: list[str] = list(gf.outputs)
     else:
         plant = model if model.is_discrete else model.discretise(gf.Ts)
-        A, E, C, Fx = plant.A, plant.E, plant.C, plant.Fx
+        A, E, C, Fx, Dd, Df = plant.A, plant.E, plant.C, plant.Fx, plant.Dd, plant.Df
         comp, outputs = list(plant.component_faults), list(plant.outputs)
     if C.shape[0] != len(gf.outputs):
         return None
     dirs: dict[str, np.ndarray] = {}
     for f in gf.faults:
         if f in comp:
-            dirs[f] = np.concatenate([Fx[:, comp.index(f)], np.zeros(C.shape[0])])
+            dirs[f] = np.concatenate([Fx[:, comp.index(f)], Df[:, comp.index(f)]])
         elif f in outputs:
             dirs[f] = np.concatenate([np.zeros(A.shape[0]), np.eye(C.shape[0])[outputs.index(f)]])
-    return A, E, C, dirs
+    return A, np.vstack([E, Dd]), C, dirs
 
 
 def _responses(A: np.ndarray, E: np.ndarray, C: np.ndarray, dirs: Mapping[str, np.ndarray], gen: Any, w: np.ndarray) -> tuple[np.ndarray, dict[str, np.ndarray]]:
@@ -541,12 +543,13 @@ def _responses(A: np.ndarray, E: np.ndarray, C: np.ndarray, dirs: Mapping[str, n
     n, ns = A.shape[0], gen.Ar.shape[0]
     Acl = np.block([[A, np.zeros((n, ns))], [gen.By @ C, gen.Ar]])
     Ccl = np.hstack([gen.Dy @ C, gen.Cr])
-    Bd = np.vstack([E, np.zeros((ns, E.shape[1]))])
+    Bd = np.vstack([E[:n], gen.By @ E[n:]])
+    Dd = gen.Dy @ E[n:]
     rd = np.zeros(w.size)
     rf = {f: np.zeros(w.size) for f in dirs}
     for i, z in enumerate(np.exp(1j * w)):
         M = z * np.eye(n + ns) - Acl
-        rd[i] = np.linalg.norm(Ccl @ np.linalg.solve(M, Bd), 2) if E.shape[1] else 0.0
+        rd[i] = np.linalg.norm(Ccl @ np.linalg.solve(M, Bd) + Dd, 2) if E.shape[1] else 0.0
         for f, v in dirs.items():
             bx, by = v[:n], v[n:]
             B = np.concatenate([bx, gen.By @ by])

@@ -150,7 +150,7 @@ from fdisyn.runtime.names import (
     shown,
 )
 from fdisyn.runtime.values import real_number
-from fdisyn.synthesis.registry import Method, all_methods, check_options, get_method
+from fdisyn.synthesis.registry import Method, all_methods, check_options, check_plant, get_method
 
 __all__ = ["load_spec", "problem_from_toml", "problem_from_document"]
 
@@ -370,7 +370,7 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
     mod = _Section(
         top.get("model", required=True),
         f"{path} [model]",
-        {"time", "Ts", "A", "B", "C", "D", "E", "Fx", "Q", "R", "state_scale", *SAMPLED_DATA_LETTERS},
+        {"time", "Ts", "A", "B", "C", "D", "E", "Fx", "Dd", "Df", "Q", "R", "state_scale", *SAMPLED_DATA_LETTERS},
     )
     mod.accept_letters(SAMPLED_DATA_LETTERS)
     time = mod.get("time", "continuous")
@@ -380,7 +380,7 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
     if ts is None or ts <= 0:  # number() has refused NaN and ±inf
         raise SpecError(f"{path} [model].{mod.aliases.get('Ts', 'Ts')} must be a positive sample time in seconds, got {ts!r}")
     # read (and name) every matrix first: a wrong one is reported once, by the key the file wrote
-    mats = {k: mod.matrix(k, required=k in ("A", "C")) for k in ("A", "B", "C", "D", "E", "Fx", "Q", "R")}
+    mats = {k: mod.matrix(k, required=k in ("A", "C")) for k in ("A", "B", "C", "D", "E", "Fx", "Dd", "Df", "Q", "R")}
     try:
         plant = LinearPlant.create(
             A=mats["A"],
@@ -389,6 +389,8 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
             D=mats["D"],
             E=mats["E"],
             Fx=mats["Fx"],
+            Dd=mats["Dd"],
+            Df=mats["Df"],
             Q=mats["Q"],
             R=mats["R"],
             Ts=ts if time == "discrete" else None,
@@ -417,6 +419,8 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
         # the sampled-data methods, and those whose model error is on the continuous A, sample the plant themselves, every Ts
         design_plant = plant.scaled(scale) if scale is not None else plant
         options = {**options, "Ts": ts}
+    with _spec_errors():
+        check_plant(method, design_plant)
     checked = _checked(method, options, design_plant, path)
     record = {"spec": str(path), "method": method.name, **{k: v for k, v in options.items() if k not in ("bank", "faults", "Ts")}}
     listed = checked.get("faults")  # the fault classes of a bank; a method without them names its faults itself

@@ -143,24 +143,26 @@ def _finite(values: Any, what: str) -> np.ndarray:
 
 
 def linear_parameters(plant: LinearPlant, scenario: Scenario) -> np.ndarray:
-    """``p`` of :func:`linear_sample_model` for ``scenario``: ``[onset, stuck, value, gain, offset, drift, Fx f]``.
+    """``p`` of :func:`linear_sample_model` for ``scenario``: ``[onset, stuck, value, gain, offset, drift, Fx f, Df f]``.
 
     Per output, the scenario's sensor faults composed in order into
     ``y ↦ (stuck ? value : gain·y) + offset + drift·(t − onset)``; the
-    component faults' ``Fx f`` added to the state; both while the fault is
-    active (:meth:`SampleModel.window`).
+    component faults' ``Fx f`` added to the state and their ``Df f`` to the outputs (before the sensor faults);
+    all while the fault is active (:meth:`SampleModel.window`).
     """
     faults = [f if isinstance(f, SensorFaultSpec) else SensorFaultSpec(*f) for f in scenario.params.get("sensor_faults", [])]
     stuck, value, gain, offset, drift = sensor_fault_map(
         faults, plant.outputs, lambda f: float(_finite(f.value, f"the size of the {f.kind} fault on {f.sensor!r}"))
     )
-    fvec = np.zeros(plant.n)
+    fvec, fy = np.zeros(plant.n), np.zeros(plant.p)
     for cname, size in scenario.params.get("component_faults", []):
         if cname not in plant.component_faults:
             raise ArgumentError(f"component fault {cname!r}: the plant has {list(plant.component_faults)}")
-        fvec = fvec + np.asarray(plant.Fx)[:, plant.component_faults.index(cname)] * float(size)
+        j = plant.component_faults.index(cname)
+        fvec = fvec + np.asarray(plant.Fx)[:, j] * float(size)
+        fy = fy + np.asarray(plant.Df)[:, j] * float(size)
     onset = float(scenario.onset or 0.0)
-    return _finite(np.concatenate([[onset], stuck, value, gain, offset, drift, fvec]), "the scenario's fault")
+    return _finite(np.concatenate([[onset], stuck, value, gain, offset, drift, fvec, fy]), "the scenario's fault")
 
 
 def linear_sample_model(
@@ -186,7 +188,7 @@ def linear_sample_model(
         raise ArgumentError("a linear sample model needs the discrete plant")
     if len(inputs) != plant.m or len(unknown_inputs) != plant.q:
         raise ShapeError(f"simulation needs {plant.m} input and {plant.q} unknown-input signals")
-    a, b, c, d, e = (_finite(getattr(plant, k), f"the plant's {k}") for k in ("A", "B", "C", "D", "E"))
+    a, b, c, d, e, d_d = (_finite(getattr(plant, k), f"the plant's {k}") for k in ("A", "B", "C", "D", "E", "Dd"))
     if feedback is not None and np.any(d):
         raise ArgumentError("a feedback input needs D = 0 (otherwise u and y form an algebraic loop)")
     ts = float(plant.Ts)  # type: ignore[arg-type]
@@ -197,7 +199,7 @@ def linear_sample_model(
     x = ca.SX.sym("x", n + len(random))
     z = ca.SX.sym("z", nq + nv + len(random))
     k = ca.SX.sym("k")
-    par = ca.SX.sym("p", 1 + 5 * p + n)
+    par = ca.SX.sym("p", 1 + 5 * p + n + p)
     t = k * ts
     values: list[ca.SX] = []
     memory: list[ca.SX] = []
@@ -213,10 +215,13 @@ def linear_sample_model(
     def sample(faulty: bool) -> list[ca.SX]:
         """The sample's outputs outside the fault's window, or inside it (``faulty``)."""
         y = ca.mtimes(ca.DM(c), xs) + ca.mtimes(ca.DM(lr), z[nq : nq + nv])
+        if plant.q and np.any(d_d):
+            y = y + ca.mtimes(ca.DM(d_d), dd)
         u = ca.vertcat(*values[: plant.m]) if plant.m else ca.SX(0, 1)
         if feedback is None and plant.m:
             y = y + ca.mtimes(ca.DM(d), u)
         if faulty:
+            y = y + par[1 + 5 * p + n :]
             stuck, value, gain, offset, drift = (par[1 + i * p : 1 + (i + 1) * p] for i in range(5))
             y = faulty_measurement_sx(y, stuck, value, gain, offset, drift, t, par[0])
         if feedback is not None:
@@ -225,7 +230,7 @@ def linear_sample_model(
                 raise ShapeError(f"the feedback gives {u.shape[1]}×{u.shape[0]}; expected 1×{plant.m}")
         nxt = ca.mtimes(ca.DM(a), xs) + ca.mtimes(ca.DM(b), u) + ca.mtimes(ca.DM(e), dd) + ca.mtimes(ca.DM(lq), z[:nq])
         if faulty:
-            nxt = nxt + par[1 + 5 * p :]
+            nxt = nxt + par[1 + 5 * p : 1 + 5 * p + n]
         return [ca.vertcat(nxt, *memory), u, y, ca.vertcat(xs, dd)]
 
     ins = [x, z, k, par, ca.SX(0, 1)]

@@ -32,10 +32,10 @@ def simulate_linear(
 ) -> Batch:
     """Exact discrete simulation of ``plant`` over ``scenario``, vectorised over seeds.
 
-    ``x⁺ = A x + B u + E d + w``, ``y = C x + D u + v`` with ``w ~ N(0, Q)``,
-    ``v ~ N(0, R)`` (the design's covariances), the scenario's sensor faults
-    applied to ``y`` and its component faults (steps through ``Fx``) to the
-    state. ``u`` comes from ``inputs`` or, when ``feedback`` is
+    ``x⁺ = A x + B u + E d + w``, ``y = C x + D u + Dd d + v`` with ``w ~ N(0, Q)``,
+    ``v ~ N(0, R)`` (the design's covariances), the scenario's component faults
+    (steps through ``Fx`` into the state and ``Df`` into the outputs) and then its
+    sensor faults applied to ``y``. ``u`` comes from ``inputs`` or, when ``feedback`` is
     given, from ``feedback(y_k, k)`` (runs × nu) computed on the (possibly
     faulty) measurements — a controller closing the loop; it needs ``D = 0``.
 
@@ -51,7 +51,7 @@ def simulate_linear(
     n = int(round(scenario.duration / ts))
     t = np.arange(n) * ts
     runs = len(seeds)
-    a, b, c, d, e = (np.asarray(getattr(plant, k)) for k in ("A", "B", "C", "D", "E"))
+    a, b, c, d, e, d_d = (np.asarray(getattr(plant, k)) for k in ("A", "B", "C", "D", "E", "Dd"))
     lq, lr = psd_factor(plant.Q, "Q"), psd_factor(plant.R, "R")
     faults = [SensorFaultSpec(*f) if not isinstance(f, SensorFaultSpec) else f for f in scenario.params.get("sensor_faults", [])]
     if feedback is not None and np.any(plant.D):
@@ -76,20 +76,24 @@ def simulate_linear(
             (uu[i, :, j] if j < len(inputs) else dd[i, :, j - len(inputs)])[:] = sig.sample(t, rng, ts, z)
     active = scenario.active(t)
     onset = scenario.onset or 0.0
-    # component faults: steps of the fault inputs while active, entering through Fx (held over the sample)
-    fvec = None
+    # component faults: steps of the fault inputs while active, entering through Fx (held over the sample) and Df
+    fvec, fy = None, None
     for cname, value in scenario.params.get("component_faults", []):
         if cname not in plant.component_faults:
             raise ArgumentError(f"component fault {cname!r}: the plant has {list(plant.component_faults)}")
-        col = np.asarray(plant.Fx)[:, plant.component_faults.index(cname)] * float(value)
+        j = plant.component_faults.index(cname)
+        col, row = np.asarray(plant.Fx)[:, j] * float(value), np.asarray(plant.Df)[:, j] * float(value)
         fvec = col if fvec is None else fvec + col
+        fy = row if fy is None else fy + row
     x = np.tile(np.asarray(x0, dtype=float), (runs, 1))
     Y = np.empty((runs, n, plant.p))
     X = np.empty((runs, n, plant.n))
     for k in range(n):
-        y = x @ c.T + v[:, k]
+        y = x @ c.T + v[:, k] + dd[:, k] @ d_d.T
         if feedback is None:
             y += uu[:, k] @ d.T
+        if active[k] and fy is not None:
+            y += fy
         if active[k]:
             apply_sensor_faults(y, plant.outputs, faults, since_onset=t[k] - onset)
         if feedback is not None:

@@ -482,7 +482,7 @@ def _expected(fault: FaultClass, gen: Generator, plant: LinearPlant) -> int:
     for c in fault.components:
         j = plant.component_faults.index(c)
         # round-off of an exactly decoupled transfer is ~1e-16; 1e-8 separates "reaches" from "cancels"
-        if transfer_size(form.A, form.Bf[:, [j]], form.C, np.zeros((form.C.shape[0], 1))) > 1e-8:
+        if transfer_size(form.A, form.Bf[:, [j]], form.C, form.Df[:, [j]]) > 1e-8:
             return 1
     return 0
 

@@ -14,13 +14,21 @@ generator for detection: the row of every fault the plant lets a residual see (`
 The certificate is independent of that construction: ``R_u = Q_y G_u + Q_u`` and ``R_d = Q_y G_d`` evaluated from
 the generator's own matrices and the plant's at points on the unit circle (a rational function of degree at most
 ``n + k`` that vanishes at more points than twice that is zero), each fault's response against the row, the order
-against the least order and the poles against the requested ones. Varga's approximate syntheses (``afdsyn``,
-``afdisyn``: the combination chosen for the fault-to-noise gap) are not here yet: the combination is a fixed
-generic one, checked to see every fault of its row.
+against the least order and the poles against the requested ones; the certificate's information holds the filter's
+fault-to-noise gap (:mod:`fdisyn.synthesis.gap`, computed by SLICOT ``AB13DD`` on the filter's own responses).
+
+The combination of the row's null vectors: ``synthesis = "exact"`` (Varga's ``efdsyn``/``efdisyn``) takes a generic
+one, checked to see every fault of its row; ``"approximate"`` (``afdsyn``/``afdisyn``) the one of the largest
+fault-to-noise gap, ``min_j ‖R_fj‖∞ / ‖R_w‖∞`` with the noise of the plant's ``Q`` and ``R``, maximised on a grid of
+the stability boundary from several starts (Nelder–Mead). Varga's procedures go further where the noise can be
+whitened: they divide the filter by the quasi-co-outer factor of ``R_w`` (``goifac``), which raises its order; fdisyn
+keeps the least order and the common pole, so its gap is the best at that order and pole, not the supremum over all
+filters.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -31,10 +39,15 @@ from fdisyn.numerics.certificate import Certificate, Check
 from fdisyn.runtime.errors import ArgumentError, ExistenceError
 from fdisyn.runtime.gainfile import GainFile, Generator
 from fdisyn.runtime.names import shown
+from fdisyn.synthesis.gap import boundary_points, generator_performance, noise_entries, relative_responses, transfer_at
 from fdisyn.synthesis.residual import embed_outputs, residual_covariance
-from fdisyn.synthesis.structure import FaultPencils, fault_entries
+from fdisyn.synthesis.registry import is_real as is_number
+from fdisyn.synthesis.structure import FaultPencils, StructureAnalysis, fault_entries
 
-__all__ = ["DECOUPLING_TOL", "nullspace_generator"]
+__all__ = ["DECOUPLING_TOL", "SYNTHESES", "nullspace_generator", "row_filter", "analyse_gaps"]
+
+SYNTHESES = ("approximate", "exact")
+"""How a row's least-degree null vectors are combined (:func:`row_filter`)."""
 
 DECOUPLING_TOL = 1e-8
 """``‖R_u(z)‖`` and ``‖R_d(z)‖`` relative to ``‖Q(z)‖ ‖G_e(z)‖`` at the test points, and a decoupled fault's
@@ -45,21 +58,19 @@ plants of the tests), while a fault the residual sees stays above :data:`SEEN_TO
 SEEN_TOL = 1e-6
 """A fault the row asks for must reach at least this (same relative measure) at one of the test points."""
 
+GAP_FLOOR = 1e-3
+"""The approximate synthesis keeps every fault of the row at least this fraction of the response the best combination
+could give it alone: Varga's gap is scale-free in the faults, and where it is as large for a combination that all but
+loses one fault (e.g. a row whose noise enters with only some of its faults), the optimum would drift to a residual
+that sees that fault a million times weaker than it could."""
+
+GAP_GAIN = 1.01
+"""The approximate synthesis keeps the generic combination of the exact synthesis unless its optimum raises the gap
+by more than this factor: equal gaps are no reason to leave the combination that sees every fault generically."""
+
 COMBINATION_SEED = 20170501
 """The seed of the generic null vector (a fixed standard normal draw projected onto the null space): fixed, so a
 design is reproducible, and a projection, so it does not depend on the basis a BLAS kernel's SVD returns."""
-
-
-def _points(n: int, k: int) -> np.ndarray:
-    """``2 (n + k) + 8`` points on the unit circle, off the real axis (an integrator's pole at 1 is avoided)."""
-    count = 2 * (n + k) + 8
-    return np.exp(1j * (np.pi * (np.arange(count) + 0.5) / count))
-
-
-def _transfer(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray, z: complex) -> np.ndarray:
-    if a.shape[0] == 0:
-        return d.astype(complex)
-    return c @ np.linalg.solve(z * np.eye(a.shape[0]) - a, b) + d
 
 
 def _realise(v: np.ndarray, k: int, pole: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -78,8 +89,165 @@ def _realise(v: np.ndarray, k: int, pole: float) -> tuple[np.ndarray, np.ndarray
     return ar, b, cr, d[None, :]
 
 
+def _grid(plant: LinearPlant, pole: float, count: int = 160) -> np.ndarray:
+    """Points of the plant's stability boundary the gap is optimised on: the unit circle, or the imaginary axis over
+    the decades of the plant's and the filter's poles; off the real axis, so an integrator's pole is never hit."""
+    if plant.is_discrete:
+        return np.exp(1j * np.pi * (np.arange(count) + 0.5) / count)
+    mags = np.abs(np.concatenate([np.linalg.eigvals(np.asarray(plant.A, float)) if plant.n else np.zeros(0), [pole]]))
+    mags = mags[mags > 0]
+    lo, hi = (float(np.min(mags)), float(np.max(mags))) if mags.size else (1.0, 1.0)
+    return 1j * np.logspace(np.log10(lo) - 3, np.log10(hi) + 3, count)
+
+
+class _GridGap:
+    """``min_j max_λ |h·F_j(λ)| / max_λ ‖h·W(λ)‖`` on the grid for unit ``h`` (``F``: faults × count × points, ``W``:
+    points × count × noise inputs); 0 when a fault's response is below :data:`GAP_FLOOR` of the most any unit ``h``
+    gets from it, the noise's ignored below round-off (then the gap is infinite)."""
+
+    def __init__(self, fault: np.ndarray, noise: np.ndarray) -> None:
+        nf, count, g = fault.shape
+        self.shape_f, self.shape_w = (nf, g), (noise.shape[0], noise.shape[2])
+        # count × everything: one product with h per evaluation
+        self.fault = np.ascontiguousarray(np.transpose(fault, (1, 0, 2)).reshape(count, -1))
+        self.noise = np.ascontiguousarray(np.transpose(noise, (1, 0, 2)).reshape(count, -1))
+        self.floor = GAP_FLOOR * np.max(np.linalg.norm(fault, axis=1), axis=1)
+        self.noise_floor = 1e-12 * float(np.max(np.linalg.norm(noise, axis=(1, 2)))) if noise.size else 0.0
+
+    def __call__(self, h: np.ndarray) -> float:
+        top_f = np.max(np.abs(h @ self.fault).reshape(self.shape_f), axis=1)
+        if not np.all(top_f > self.floor):
+            return 0.0
+        if not self.noise.size:
+            return math.inf
+        top_w = float(np.sqrt(np.max(np.sum(np.abs(h @ self.noise).reshape(self.shape_w) ** 2, axis=1))))
+        return math.inf if not top_w > self.noise_floor else float(np.min(top_f)) / top_w
+
+
+def _best_combination(basis: np.ndarray, plant: LinearPlant, fault_cols: list[tuple[np.ndarray, np.ndarray]], pole: float, start: np.ndarray) -> np.ndarray:
+    """The combination of the null vectors ``basis`` (count × (k + 1) × (p + m), user units) of the largest
+    fault-to-noise gap on :func:`_grid`: from the generic one ``start``, each basis direction and each fault's
+    generalised eigenvector of its energy against the noise's, the best two polished by Nelder–Mead on the grid's
+    gap. ``start`` is a vector of the space (``(k + 1) × (p + m)``)."""
+    from scipy.optimize import minimize
+
+    count, k = basis.shape[0], basis.shape[1] - 1
+    bw, dw = noise_entries(plant)
+    if count == 1 or not bw.shape[1]:
+        return start
+    # an orthonormal basis of the same space that does not depend on the one the SVD returned: the projector onto it
+    # applied to fixed draws, orthonormalised in a fixed order
+    flat = basis.reshape(count, -1)
+    qx, _ = np.linalg.qr(flat.T)
+    draws = np.random.default_rng(COMBINATION_SEED + 1).standard_normal((flat.shape[1], count))
+    canon, _ = np.linalg.qr(qx @ (qx.T @ draws))
+    flat = canon.T
+    basis = flat.reshape(count, k + 1, -1)
+    grid = _grid(plant, pole)
+    p, n = plant.p, plant.n
+    a, c = np.asarray(plant.A, float), np.asarray(plant.C, float)
+    bf = np.stack([b for b, _ in fault_cols], axis=1)
+    df = np.stack([d for _, d in fault_cols], axis=1)
+    entries_b, entries_d = np.hstack([bf, bw]), np.hstack([df, dw])
+    if n:
+        res = np.linalg.solve(grid[:, None, None] * np.eye(n)[None] - a[None], np.broadcast_to(entries_b.astype(complex), (grid.size, *entries_b.shape)))
+        g_all = c[None] @ res + entries_d[None]
+    else:
+        g_all = np.broadcast_to(entries_d.astype(complex), (grid.size, *entries_d.shape))
+    phi = np.prod([grid - pole for _ in range(k)], axis=0) if k else np.ones(grid.size)
+    vy = np.einsum("cdw,gd->cgw", basis[:, :, :p], grid[:, None] ** np.arange(k + 1)[None, :]) / phi[None, :, None]
+    resp = np.einsum("cgw,gwe->gce", vy, g_all)  # points × count × (faults, noise)
+    nf = bf.shape[1]
+    fault, noise = np.transpose(resp[:, :, :nf], (2, 1, 0)), resp[:, :, nf:]
+    if not np.any(noise):
+        return start
+    gap = _GridGap(fault, noise)
+    start_h = flat @ start.reshape(-1)  # the generic combination in the canonical basis
+    wn = np.real(np.einsum("gcv,gev->ce", noise, noise.conj()))
+    wn = wn + 1e-12 * float(np.trace(wn)) * np.eye(count)
+    cands = [start_h, *np.eye(count)]
+    for f in fault:
+        lam, vec = np.linalg.eig(np.linalg.solve(wn, np.real(f @ f.conj().T)))
+        cands.append(np.real(vec[:, int(np.argmax(np.real(lam)))]))
+    ref = max(gap(start_h / float(np.linalg.norm(start_h))), 1e-300)
+
+    def cost(h: np.ndarray) -> float:
+        size = float(np.linalg.norm(h))
+        return 0.0 if size == 0.0 else -min(gap(h / size) / ref, 1e300)
+
+    best = min(cands, key=cost)
+    for h0 in sorted(cands, key=cost)[:2]:
+        res = minimize(cost, h0, method="Nelder-Mead", options={"xatol": 1e-6, "fatol": 1e-8, "maxiter": 100 * count})
+        if res.fun < cost(best):
+            best = res.x
+    if not -cost(best) > GAP_GAIN:
+        return start
+    best = best / float(np.linalg.norm(best))
+    return np.einsum("c,cdw->dw", best, basis)
+
+
+def row_filter(
+    plant: LinearPlant, row: Sequence[int], *, pole: float, pencils: FaultPencils | None = None, synthesis: str = "approximate"
+) -> tuple[np.ndarray, int]:
+    """The numerator ``v(λ) = Σᵢ vᵢ λⁱ`` of a row's least-order filter ``Q = v/(λ − pole)ᵏ`` (discrete or continuous).
+
+    Parameters
+    ----------
+    plant : LinearPlant
+        The plant, discrete or continuous (``λ`` is ``z`` or ``s``).
+    row : sequence of int
+        ``0``/``1`` per fault in the plant's fault order.
+    pole : float
+        The filter's poles (its denominator matters to the gap).
+    pencils : FaultPencils, optional
+        The plant's pencils, when a bank shares them.
+    synthesis : {"approximate", "exact"}
+        ``"exact"`` (Varga's ``efdsyn``/``efdisyn``): a generic combination of the row's least-degree null vectors,
+        the same on every BLAS kernel; ``"approximate"`` (``afdsyn``/``afdisyn``): the combination of the largest
+        fault-to-noise gap (the same when the noise does not reach the residual, or one vector spans the row).
+
+    Returns
+    -------
+    tuple
+        ``(v, k)``: ``v`` (``(k + 1) × (p + m)``, coefficients of ``[y; u]`` in the user's units, scaled to a largest
+        entry 1) and the order ``k``.
+
+    Raises
+    ------
+    ExistenceError
+        The row is not achievable (the message says which faults decoupling its zeros hides).
+    """
+    names, bf, df = fault_entries(plant)
+    row = [int(v) for v in row]
+    pen = FaultPencils(plant) if pencils is None else pencils
+    verdict = pen.verdict(row)
+    if not verdict["achievable"]:
+        raise ExistenceError(f"its row {row} over faults {list(names)} is not achievable: {verdict['why']}")
+    k = int(verdict["least_order"])
+    zeros = frozenset(j for j, v in enumerate(row) if v == 0)
+    ones = [j for j, v in enumerate(row) if v == 1]
+    unscale = np.concatenate([1.0 / pen.out, pen.k_u])  # back to the user's units: the pencil saw y / out and u · k_u
+    rng = np.random.default_rng(COMBINATION_SEED)
+    test = boundary_points(2 * (plant.n + k) + 8, not plant.is_discrete)
+    a, c = np.asarray(plant.A, float), np.asarray(plant.C, float)
+    g = [[transfer_at(a, bf[:, [j]], c, df[:, [j]], z)[:, 0] for j in ones] for z in test]
+    for _ in range(8):  # a generic draw sees every fault of the row; a draw that does not is drawn again
+        v = pen.null_vectors(zeros, k, toward=rng)[0] * unscale[None, :]
+        v = v / max(float(np.max(np.abs(v))), 1e-300)
+        vz = [(z ** np.arange(k + 1)) @ v for z in test]
+        sizes = [[float(abs(vv[: plant.p] @ gj)) / max(float(np.linalg.norm(vv)) * float(np.linalg.norm(gj)), 1e-300) for gj in gz] for vv, gz in zip(vz, g, strict=True)]
+        if all(max(col) > SEEN_TOL for col in zip(*sizes, strict=True)) if ones else True:
+            break
+    if synthesis == "approximate" and ones:
+        basis = pen.null_vectors(zeros, k) * unscale[None, None, :]
+        v = _best_combination(basis, plant, [(bf[:, j], df[:, j]) for j in ones], pole, v)
+        v = v / max(float(np.max(np.abs(v))), 1e-300)
+    return v, k
+
+
 def nullspace_generator(
-    plant: LinearPlant, row: Sequence[int], name: str, *, pole: float = 0.5, pencils: FaultPencils | None = None
+    plant: LinearPlant, row: Sequence[int], name: str, *, pole: float = 0.5, pencils: FaultPencils | None = None,
+    synthesis: str = "approximate",
 ) -> tuple[Generator, np.ndarray, Certificate]:
     """The least-order generator of one row of a structure matrix on a discrete plant (module docstring).
 
@@ -95,6 +263,8 @@ def nullspace_generator(
         The filter's poles, all at this real value in ``(−1, 1)``.
     pencils : FaultPencils, optional
         The plant's pencils, when a bank shares them (default: computed here).
+    synthesis : {"approximate", "exact"}
+        How the row's null vectors are combined (:func:`row_filter`).
 
     Returns
     -------
@@ -106,76 +276,98 @@ def nullspace_generator(
     ExistenceError
         The row is not achievable (the message says which faults decoupling its zeros hides).
     """
-    names, bf, df = fault_entries(plant)
     row = [int(v) for v in row]
     pen = FaultPencils(plant) if pencils is None else pencils
-    verdict = pen.verdict(row)
-    if not verdict["achievable"]:
-        raise ExistenceError(f"generator {name!r}: its row {row} over faults {list(names)} is not achievable: {verdict['why']}")
-    k = least = int(verdict["least_order"])
-    zeros = frozenset(j for j, v in enumerate(row) if v == 0)
-    ones = [j for j, v in enumerate(row) if v == 1]
-    # back to the user's units: the pencil saw y / out and u · k_u
-    unscale = np.concatenate([1.0 / pen.out, pen.k_u])
-    rng = np.random.default_rng(COMBINATION_SEED)
+    try:
+        v, k = row_filter(plant, row, pole=pole, pencils=pen, synthesis=synthesis)
+    except ExistenceError as exc:
+        raise ExistenceError(f"generator {name!r}: {exc}") from None
+    least = k
+    gen = _row_generator(plant, row, name, v, k, pole, {
+        "design": "nullspace", "row": row, "order": k, "least_order": least, "pole": float(pole), "synthesis": synthesis})
+    checks = _checks(plant, gen, row, boundary_points(2 * (plant.n + k) + 8, False), least, float(pole))
+    perf = generator_performance(gen, plant)
+    info = {"row": row, "order": k, "least_order": least, "synthesis": synthesis, "gap": perf.to_dict()["gap"],
+            "hinf_minus": perf.to_dict()["hinf_minus"], "noise_norm": perf.to_dict()["noise_norm"]}
+    return gen, residual_covariance(gen, plant), Certificate.of(name, checks, info=info)
+
+
+def _row_generator(plant: LinearPlant, row: Sequence[int], name: str, v: np.ndarray, k: int, pole: float, method: Mapping[str, Any]) -> Generator:
+    """The generator ``v(λ)/(λ − pole)ᵏ`` in observable canonical form, reading only the sensors whose faults the row
+    sees (a decoupled sensor fault is a sensor the filter does not read: its columns are round-off)."""
     p = plant.p
-    test = _points(plant.n, k)
-    for _ in range(8):
-        v = pen.null_vectors(zeros, k, toward=rng)[0] * unscale[None, :]
-        v = v / max(float(np.max(np.abs(v))), 1e-300)
-        ar, bq, cr, dq = _realise(v, k, float(pole))
-        # a decoupled sensor fault is a sensor the filter does not read (its columns are round-off): left out
-        used = [i for i in range(p) if row[i] == 1]
-        gen = embed_outputs(Generator.from_canonical(
-            name=name, outputs_used=range(len(used)), Ar=ar, Bu=bq[:, p:], By=bq[:, used], Cr=cr, Du=dq[:, p:], Dy=dq[:, used],
-            method={"design": "nullspace", "row": row, "order": k, "least_order": least, "pole": float(pole)},
-        ), used, p)
-        checks, seen = _checks(plant, gen, row, bf, df, test, least, float(pole))
-        if all(seen[j] for j in ones):
-            break
-    return gen, residual_covariance(gen, plant), Certificate.of(name, checks, info={"row": row, "order": k, "least_order": least})
+    ar, bq, cr, dq = _realise(v, k, float(pole))
+    used = [i for i in range(p) if row[i] == 1]
+    return embed_outputs(Generator.from_canonical(
+        name=name, outputs_used=range(len(used)), Ar=ar, Bu=bq[:, p:], By=bq[:, used], Cr=cr, Du=dq[:, p:], Dy=dq[:, used], method=dict(method),
+    ), used, p)
 
 
-def _checks(
-    plant: LinearPlant, gen: Generator, row: Sequence[int], bf: np.ndarray, df: np.ndarray, points: np.ndarray, least: int, pole: float
-) -> tuple[list[Check], dict[int, bool]]:
+def analyse_gaps(analysis: StructureAnalysis, plant: Any, *, pole: float | None = None) -> StructureAnalysis:
+    """``analysis`` with the fault-to-noise gap of each row's least-order filter (Varga's ``fdif2ngap`` of the filter
+    his ``afdsyn`` would design at the least order): the combination of the row's null vectors of the largest gap
+    (:func:`row_filter`), every pole at ``pole``.
+
+    Parameters
+    ----------
+    analysis : StructureAnalysis
+        The plant's analysis (:func:`~fdisyn.synthesis.structure.analyse_structure`).
+    plant : LinearPlant or SampledDataPlant
+        The plant analysed.
+    pole : float, optional
+        The filters' poles: in ``(−1, 1)`` for a discrete plant (default 0.5), negative for a continuous one (default
+        −1 rad/s). A gap depends on it: the same null vector over another denominator weighs the frequencies otherwise.
+
+    Returns
+    -------
+    StructureAnalysis
+        The analysis with :attr:`~StructureAnalysis.gaps` and :attr:`~StructureAnalysis.pole`.
+
+    Raises
+    ------
+    ArgumentError
+        A pole outside the plant's stability region.
+    """
+    from dataclasses import replace
+
+    from fdisyn.synthesis.structure import _linear
+
+    lin = _linear(plant)
+    if pole is None:
+        pole = 0.5 if lin.is_discrete else -1.0
+    ok = is_number(pole) and (-1.0 < float(pole) < 1.0 if lin.is_discrete else float(pole) < 0.0)
+    if not ok:
+        raise ArgumentError(f"pole {shown(pole)}: expected a number in (-1, 1) for a discrete plant" if lin.is_discrete
+                            else f"pole {shown(pole)}: expected a negative number (rad/s) for a continuous plant")
+    pen = FaultPencils(lin)
+    gaps = []
+    for row in analysis.rows:
+        r = [int(x) for x in row]
+        v, k = row_filter(lin, r, pole=float(pole), pencils=pen)
+        gaps.append(generator_performance(_row_generator(lin, r, "row", v, k, float(pole), {}), lin, hminus=False).gap)
+    return replace(analysis, gaps=tuple(gaps), pole=float(pole))
+
+
+def _checks(plant: LinearPlant, gen: Generator, row: Sequence[int], points: np.ndarray, least: int, pole: float) -> list[Check]:
     """The generator's certificate from its own matrices and the plant's (module docstring)."""
-    a, c = np.asarray(plant.A, float), np.asarray(plant.C, float)
-    ru = rd = 0.0
-    fault = np.zeros(len(row))
-    for z in points:
-        q = np.hstack([_transfer(gen.Ar, gen.By, gen.Cr, gen.Dy, z), _transfer(gen.Ar, gen.Bu, gen.Cr, gen.Du, z)])
-        qy = q[:, : plant.p]
-        gu = _transfer(a, np.asarray(plant.B, float), c, np.asarray(plant.D, float), z)
-        ge = np.vstack([gu, np.eye(plant.m)]) if plant.m else np.zeros((plant.p, 0))
-        qn = float(np.linalg.norm(q))
-        if plant.m:
-            ru = max(ru, float(np.linalg.norm(q @ ge)) / max(qn * float(np.linalg.norm(ge, 2)), 1e-300))
-        if plant.q:
-            gd = _transfer(a, np.asarray(plant.E, float), c, np.zeros((plant.p, plant.q)), z)
-            rd = max(rd, float(np.linalg.norm(qy @ gd)) / max(qn * float(np.linalg.norm(gd, 2)), 1e-300))
-        for j in range(len(row)):
-            g = _transfer(a, bf[:, [j]], c, df[:, [j]], z)
-            fault[j] = max(fault[j], float(np.linalg.norm(qy @ g)) / max(qn * float(np.linalg.norm(g)), 1e-300))
+    rel = relative_responses(gen, plant, points)
     why = "exact decoupling: the filter is a null vector of the plant's pencil; round-off only"
     checks = [
-        Check("max relative |R_u(z)| on the unit circle", ru, DECOUPLING_TOL, "<=", why),
-        Check("max relative |R_d(z)| on the unit circle", rd, DECOUPLING_TOL, "<=", why),
+        Check("max relative |R_u(z)| on the unit circle", rel["u"], DECOUPLING_TOL, "<=", why),
+        Check("max relative |R_d(z)| on the unit circle", rel["d"], DECOUPLING_TOL, "<=", why),
     ]
-    seen = {}
     for j, want in enumerate(row):
-        seen[j] = fault[j] >= SEEN_TOL
         if want:
-            checks.append(Check(f"fault {j}: relative response (seen)", float(fault[j]), SEEN_TOL, ">=", "the row asks the residual to see it"))
+            checks.append(Check(f"fault {j}: relative response (seen)", float(rel["faults"][j]), SEEN_TOL, ">=", "the row asks the residual to see it"))
         else:
-            checks.append(Check(f"fault {j}: relative response (decoupled)", float(fault[j]), DECOUPLING_TOL, "<=", why))
+            checks.append(Check(f"fault {j}: relative response (decoupled)", float(rel["faults"][j]), DECOUPLING_TOL, "<=", why))
     checks.append(Check("order of the filter − least order of the row", float(gen.n_state - least), 0.0, "<=",
                         "the least order the structure analysis gives (left minimal indices)"))
     achieved = np.linalg.eigvals(gen.Ar) if gen.n_state else np.zeros(0)
     spread = float(np.max(np.abs(achieved - pole))) if achieved.size else 0.0
     checks.append(Check("filter poles: max |eig(Ar) − pole|", spread, 1e-4 ** (1.0 / max(1, gen.n_state)) if gen.n_state > 1 else 1e-9, "<=",
                         "a k-fold pole moves by (round-off)^(1/k) under perturbation; the filter's A is exact"))
-    return checks, seen
+    return checks
 
 
 def _structure_rows(plant: LinearPlant, structure: Any, where: str) -> list[list[int]]:
@@ -196,7 +388,7 @@ def _structure_rows(plant: LinearPlant, structure: Any, where: str) -> list[list
 
 def nullspace_design(
     plant: LinearPlant, *, name: str, problem: str | None = None, record: Mapping[str, object] | None = None, where: str = "",
-    structure: Any = None, pole: float = 0.5, Ts: float | None = None, P_f: float, persistence: int,
+    structure: Any = None, pole: float = 0.5, synthesis: str = "approximate", Ts: float | None = None, P_f: float, persistence: int,
     evaluator: str | None = None, window: int | None = None, detector: str | None = None, arl0: float | None = None,
     min_fault: Mapping[str, float] | None = None, shifts: Sequence[float] | None = None, faults: Any = None,
     false_isolation: float | None = None, isolation_memory: int | None = None,
@@ -214,6 +406,8 @@ def nullspace_design(
         ``0``/``1`` rows, one per residual, one column per fault (default: one row for detection).
     pole : float
         The filters' poles (all at this value, in ``(−1, 1)``).
+    synthesis : {"approximate", "exact"}
+        How each row's null vectors are combined (:func:`row_filter`).
     Ts, P_f, persistence, evaluator, window, detector, arl0, min_fault, shifts, faults, false_isolation, isolation_memory
         The linear diagnoser's options (:func:`~fdisyn.synthesis.linear_diagnoser.linear_diagnoser`).
 
@@ -234,7 +428,8 @@ def nullspace_design(
         discrete = plant.discretise(Ts)
     rows = _structure_rows(discrete, structure, at)
     pen = FaultPencils(discrete)
-    designed = [nullspace_generator(discrete, r, f"r{i}_" + "".join(str(v) for v in r), pole=pole, pencils=pen) for i, r in enumerate(rows)]
+    designed = [nullspace_generator(discrete, r, f"r{i}_" + "".join(str(v) for v in r), pole=pole, pencils=pen, synthesis=synthesis)
+                for i, r in enumerate(rows)]
     gens = [g for g, _, _ in designed]
     kind = chosen_detector(detector, evaluator, where)
     return linear_diagnoser(
@@ -262,6 +457,10 @@ def _register() -> None:
         ),
         Option("pole", 0.5, "the poles of every filter (discrete, all at this value)", "a number in (-1, 1)",
                lambda v: is_real(v) and -1 < v < 1),
+        Option("synthesis", "approximate",
+               "how each row's least-degree null vectors are combined: 'approximate' for the largest fault-to-noise gap "
+               "(Varga's afdsyn/afdisyn at the least order), 'exact' a generic combination (efdsyn/efdisyn)",
+               "'approximate' or 'exact'", lambda v: v in SYNTHESES),
     )
 
     def design(plant: LinearPlant, *, name: str, problem: str | None = None, record: Mapping[str, object] | None = None, where: str = "", **opts: Any) -> GainFile:
@@ -277,6 +476,7 @@ def _register() -> None:
             options=options,
             design=design,
             diagnoser_kind="linear",
+            feedthrough=True,
         )
     )
 

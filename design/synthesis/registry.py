@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import json
 import math
+import numpy as np
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
@@ -151,6 +152,9 @@ class Method:
     samples_itself: bool = False
     """A ``linear`` method whose design samples a continuous plant itself, at the option ``Ts`` (its model error is
     on the continuous ``A``): a plant file hands it the continuous plant and ``[model].Ts``, not the sampled plant."""
+    feedthrough: bool = False
+    """A ``linear`` method that designs for plants whose unknown inputs or component faults reach the outputs
+    directly (``Dd``, ``Df`` nonzero); the others are handed such a plant refused by :func:`check_plant`."""
     option_names: tuple[str, ...] = field(init=False)
 
     def __post_init__(self) -> None:
@@ -275,6 +279,15 @@ def check_plant(method: Method, plant: Any) -> None:
         if isinstance(plant, LinearPlant):
             got = f"a {'discrete' if plant.is_discrete else 'continuous'} LinearPlant"
         raise ArgumentError(f"method {method.name!r} designs for {PLANT_KINDS[kind]}; got {got}")
+    if isinstance(plant, LinearPlant) and not method.feedthrough:
+        reach = [k for k in ("Dd", "Df") if np.any(getattr(plant, k) != 0)]
+        if reach:
+            able = [m.name for m in all_methods() if m.feedthrough]
+            raise ArgumentError(
+                f"method {method.name!r} assumes unknown inputs and component faults reach the sensors only through the "
+                f"states, but the plant's {' and '.join(reach)} {'are' if len(reach) > 1 else 'is'} nonzero: design it by "
+                f"method {' or '.join(repr(a) for a in able)}"
+            )
 
 
 def check_options(method: Method, options: Mapping[str, Any], *, plant: Any = None, where: str | None = None) -> dict[str, Any]:

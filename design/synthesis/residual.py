@@ -50,7 +50,8 @@ class InternalForm:
     Channels: ``u`` (known input), ``d`` (unknown input), ``f`` (component
     faults) and ``s`` (additive sensor faults, one per output). The input
     matrices are named by channel, like the generator's ``Bu`` and ``By``:
-    ``Bd = [E; 0]`` and ``Bf = [Fx; 0]`` carry the plant's ``E`` and ``Fx``.
+    ``Bd = [E; By Dd]`` and ``Bf = [Fx; By Df]`` carry the plant's ``E`` and ``Fx`` (and their
+    feed-through ``Dd``, ``Df`` to the outputs, read by the generator: ``Dd = Dy Dd``, ``Df = Dy Df``).
     """
 
     A: np.ndarray
@@ -61,6 +62,8 @@ class InternalForm:
     Bf: np.ndarray
     Bs: np.ndarray
     Ds: np.ndarray
+    Dd: np.ndarray
+    Df: np.ndarray
 
     def coupling(self, channel: str) -> float:
         """Largest normalised Markov parameter from ``channel`` to ``r``
@@ -68,7 +71,7 @@ class InternalForm:
         channel is decoupled, of order ``eps`` for an exactly decoupled
         generator computed in floating point, independently of units."""
         b = getattr(self, "B" + channel)
-        d = self.Du if channel == "u" else (self.Ds if channel == "s" else np.zeros((self.C.shape[0], b.shape[1])))
+        d = getattr(self, "D" + channel)
         return transfer_size(self.A, b, self.C, d)
 
 
@@ -83,11 +86,11 @@ def internal_form(gen: Generator, plant: LinearPlant) -> InternalForm:
     c = np.hstack([gen.Dy @ plant.C, gen.Cr])
     bu = np.vstack([plant.B, gen.Bu + gen.By @ plant.D])
     du = gen.Du + gen.Dy @ plant.D
-    bd = np.vstack([plant.E, np.zeros((ns, plant.q))])
-    bf = np.vstack([plant.Fx, np.zeros((ns, plant.Fx.shape[1]))])
+    bd = np.vstack([plant.E, gen.By @ plant.Dd])
+    bf = np.vstack([plant.Fx, gen.By @ plant.Df])
     # additive sensor faults y = C x + D u + f_y enter like a second y input
     bs = np.vstack([np.zeros((n, plant.p)), gen.By])
-    return InternalForm(A=a, C=c, Bu=bu, Du=du, Bd=bd, Bf=bf, Bs=bs, Ds=gen.Dy.copy())
+    return InternalForm(A=a, C=c, Bu=bu, Du=du, Bd=bd, Bf=bf, Bs=bs, Ds=gen.Dy.copy(), Dd=gen.Dy @ plant.Dd, Df=gen.Dy @ plant.Df)
 
 
 def dc_gain_y(gen: Generator) -> np.ndarray:
@@ -321,7 +324,8 @@ def fault_steady_state(gen: Generator, plant: LinearPlant, sensors: np.ndarray, 
     if spectral_radius(form.A) >= 1.0:
         return None
     b = form.Bs @ np.asarray(sensors, dtype=float) + form.Bf @ np.asarray(components, dtype=float)
-    return form.C @ np.linalg.solve(np.eye(form.A.shape[0]) - form.A, b) + form.Ds @ np.asarray(sensors, dtype=float)
+    d = form.Ds @ np.asarray(sensors, dtype=float) + form.Df @ np.asarray(components, dtype=float)
+    return form.C @ np.linalg.solve(np.eye(form.A.shape[0]) - form.A, b) + d
 
 
 def fault_step_response(gen: Generator, plant: LinearPlant, sensors: np.ndarray, components: np.ndarray, lags: int) -> np.ndarray:
@@ -332,7 +336,7 @@ def fault_step_response(gen: Generator, plant: LinearPlant, sensors: np.ndarray,
     """
     form = internal_form(gen, plant)
     b = form.Bs @ np.asarray(sensors, dtype=float) + form.Bf @ np.asarray(components, dtype=float)
-    d = form.Ds @ np.asarray(sensors, dtype=float)
+    d = form.Ds @ np.asarray(sensors, dtype=float) + form.Df @ np.asarray(components, dtype=float)
     out = np.empty((int(lags), gen.n_residual))
     z = np.zeros(form.A.shape[0])
     for ell in range(int(lags)):

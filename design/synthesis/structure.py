@@ -43,6 +43,7 @@ relative to the sizes of ``N(λ₀)`` and ``G_fj(λ₀)`` (:data:`STRONG_TOL`), 
 
 from __future__ import annotations
 
+import math
 from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -95,6 +96,12 @@ class StructureAnalysis:
         Per row, the faults it decouples (its zeros), by name.
     discrete : bool
         The analysis is of a discrete plant (``λ = z``); else continuous (``λ = s``).
+    gaps : tuple of float or None
+        Per row, the fault-to-noise gap of its least-order filter with every pole at :attr:`pole`, the combination
+        chosen for the gap (:func:`fdisyn.synthesis.nullspace.analyse_gaps`; ``inf``: the noise does not reach it);
+        ``None`` when not computed.
+    pole : float or None
+        The filters' pole the gaps are for.
     """
 
     faults: tuple[str, ...]
@@ -106,17 +113,23 @@ class StructureAnalysis:
     basis_orders: tuple[int, ...]
     decoupled: tuple[tuple[str, ...], ...]
     discrete: bool
+    gaps: tuple[float, ...] | None = None
+    pole: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """The analysis as JSON-ready data (``fdisyn analyse --json``)."""
+        gaps = self.gaps if self.gaps is not None else (None,) * len(self.least_orders)
         return {
             "faults": list(self.faults),
             "kind": self.kind,
             "frequencies_rad_s": list(self.frequencies),
             "domain": "discrete" if self.discrete else "continuous",
+            **({} if self.pole is None else {"pole": self.pole}),
             "rows": [
-                {"signature": [int(v) for v in row], "least_order": lo, "basis_size": bs, "basis_order": bo, "decoupled": list(dec)}
-                for row, lo, bs, bo, dec in zip(self.rows, self.least_orders, self.basis_sizes, self.basis_orders, self.decoupled, strict=True)
+                {"signature": [int(v) for v in row], "least_order": lo, "basis_size": bs, "basis_order": bo, "decoupled": list(dec),
+                 **({} if gap is None else {"gap": "inf" if math.isinf(gap) else float(gap)})}
+                for row, lo, bs, bo, dec, gap in zip(
+                    self.rows, self.least_orders, self.basis_sizes, self.basis_orders, self.decoupled, gaps, strict=True)
             ],
         }
 
@@ -136,7 +149,8 @@ def _linear(plant: Any) -> LinearPlant:
 
 def fault_entries(plant: LinearPlant) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
     """The plant's faults in its fault order and where they enter: ``(names, Bf, Df)``, a sensor fault adding to its
-    output (``Df`` a column of the identity) and a component fault entering the state through its column of ``Fx``.
+    output (``Df`` a column of the identity) and a component fault entering the state through its column of ``Fx``
+    and the outputs through its column of the plant's ``Df``.
 
     Parameters
     ----------
@@ -151,7 +165,7 @@ def fault_entries(plant: LinearPlant) -> tuple[tuple[str, ...], np.ndarray, np.n
     n, p = plant.n, plant.p
     nc = len(plant.component_faults)
     bf = np.hstack([np.zeros((n, p)), np.asarray(plant.Fx, float).reshape(n, nc)])
-    df = np.hstack([np.eye(p), np.zeros((p, nc))])
+    df = np.hstack([np.eye(p), np.asarray(plant.Df, float).reshape(p, nc)])
     return tuple(plant.outputs) + tuple(plant.component_faults), bf, df
 
 
@@ -184,10 +198,10 @@ class FaultPencils:
             return x / k[None, :], y / k[None, :], k
 
         b, d, k_u = unit(plant.B, d)
-        e, _, _ = unit(plant.E, np.zeros((plant.p, plant.q)))
+        e, dd, _ = unit(plant.E, np.asarray(plant.Dd, float) / out)
         bf, df, _ = unit(bf, df)
         self.out, self.k_u = out[:, 0], k_u  # the pencil sees y / out and u · k_u
-        self.A, self.B, self.C, self.D, self.E, self.bf, self.df = a, b, c, d, e, bf, df
+        self.A, self.B, self.C, self.D, self.E, self.Dd, self.bf, self.df = a, b, c, d, e, dd, bf, df
         # a plant with modes on or beyond the stability boundary: the filter must cancel them in its responses to the
         # noise and to every fault too (R_w and R_f stable, as Varga's synthesis asks), so the pencils keep every
         # mode the noise or a fault excites (hidden inputs of the realisation, not columns of the pencil)
@@ -205,7 +219,7 @@ class FaultPencils:
         """``(B, D)`` of ``[G_d G_f,faults]``."""
         idx = sorted(faults)
         b = np.hstack([self.E, self.bf[:, idx]])
-        d = np.hstack([np.zeros((self.p, self.q)), self.df[:, idx]])
+        d = np.hstack([self.Dd, self.df[:, idx]])
         return b, d
 
     def rank(self, faults: frozenset[int]) -> int:

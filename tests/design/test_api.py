@@ -190,3 +190,14 @@ def test_the_public_names() -> None:
     for name in fdisyn.__all__:
         assert getattr(fdisyn, name) is not None
     assert fdisyn.__version__[0].isdigit()  # the installed distribution's version (fdisyn --version prints it)
+
+
+def test_from_control_keeps_the_unknown_inputs_feedthrough_and_the_observer_methods_refuse_it() -> None:
+    """An unknown input that reaches the sensors directly is the plant's ``Dd``; the methods that assume it does not
+    say so in one line and name the method that designs for it."""
+    sys = control.ss(A, np.hstack([B, E]), C, np.hstack([np.zeros((3, 1)), np.ones((3, 1))]), dt=0.1)
+    plant = fdisyn.LinearPlant.from_control(sys, n_unknown=1)
+    assert np.array_equal(plant.Dd, np.ones((3, 1))) and plant.Df.shape == (3, 0)
+    assert np.array_equal(plant.to_control().D, sys.D)
+    with pytest.raises(ArgumentError, match=r"method 'kalman_uio' assumes unknown inputs and component faults reach the sensors only through the states, but the plant's Dd is nonzero: design it by method 'nullspace'"):
+        fdisyn.design(plant, method="kalman_uio")

@@ -36,7 +36,7 @@ def _responses(plant: fdisyn.LinearPlant, gen, z: complex) -> tuple[float, float
     qn = np.linalg.norm(np.hstack([qy, qu]))
     gu = _transfer(a, np.asarray(plant.B), c, np.asarray(plant.D), z)
     ru = np.linalg.norm(qy @ gu + qu) / (qn * max(np.linalg.norm(gu), 1.0)) if plant.m else 0.0
-    gd = _transfer(a, np.asarray(plant.E), c, np.zeros((plant.p, plant.q)), z)
+    gd = _transfer(a, np.asarray(plant.E), c, np.asarray(plant.Dd), z)
     rd = np.linalg.norm(qy @ gd) / (qn * np.linalg.norm(gd)) if plant.q else 0.0
     _, bf, df = fault_entries(plant)
     gf = _transfer(a, bf, c, df, z)

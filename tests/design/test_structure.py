@@ -28,9 +28,14 @@ def _plant(seed: int, *, discrete: bool = True) -> fdisyn.LinearPlant:
     a = rng.standard_normal((n, n))
     a = a * (0.9 / max(abs(np.linalg.eigvals(a)))) if discrete else a - (max(np.linalg.eigvals(a).real) + 0.5) * np.eye(n)
     d = rng.standard_normal((p, m)) if rng.random() < 0.5 else np.zeros((p, m))
+    b, c, e, fx = rng.standard_normal((n, m)), rng.standard_normal((p, n)), rng.standard_normal((n, q)), rng.standard_normal((n, nc))
+    # unknown inputs and component faults that reach the sensors directly too (Dd, Df), or only them
+    dd = rng.standard_normal((p, q)) if rng.random() < 0.4 else np.zeros((p, q))
+    df = rng.standard_normal((p, nc)) if rng.random() < 0.4 else np.zeros((p, nc))
+    if nc and rng.random() < 0.2:
+        fx[:, 0], df[:, 0] = 0.0, rng.standard_normal(p)  # a fault of the sensors only
     return fdisyn.LinearPlant.create(
-        A=a, B=rng.standard_normal((n, m)), C=rng.standard_normal((p, n)), D=d, E=rng.standard_normal((n, q)),
-        Fx=rng.standard_normal((n, nc)), Ts=0.1 if discrete else None, component_faults=[f"c{i}" for i in range(nc)],
+        A=a, B=b, C=c, D=d, E=e, Fx=fx, Dd=dd, Df=df, Ts=0.1 if discrete else None, component_faults=[f"c{i}" for i in range(nc)],
     )
 
 
@@ -44,7 +49,7 @@ def _point_rank(plant: fdisyn.LinearPlant, cols: list[int], points: np.ndarray) 
     """Rank of ``[G_d G_f,cols]`` at random points: its normal rank (generic points are neither poles nor zeros)."""
     _, bf, df = fault_entries(plant)
     b = np.hstack([np.asarray(plant.E), bf[:, cols]])
-    d = np.hstack([np.zeros((plant.p, plant.q)), df[:, cols]])
+    d = np.hstack([np.asarray(plant.Dd), df[:, cols]])
     if b.shape[1] == 0:
         return 0
     best = 0
@@ -89,7 +94,7 @@ def _least_order_by_points(plant: fdisyn.LinearPlant, row: np.ndarray, points: n
     ones = [j for j in range(len(row)) if row[j] == 1]
     n, p, m = plant.n, plant.p, plant.m
     b = np.hstack([np.asarray(plant.B), np.asarray(plant.E), bf[:, zeros]])
-    d = np.hstack([np.asarray(plant.D), np.zeros((p, plant.q)), df[:, zeros]])
+    d = np.hstack([np.asarray(plant.D), np.asarray(plant.Dd), df[:, zeros]])
     for k in range(n + 1):
         fit = np.exp(1j * np.linspace(0.1, 3.0, 2 * (k + n) + 6)) * 1.2
         blocks = []
@@ -179,7 +184,7 @@ def test_the_users_units_do_not_change_the_structure(seed: int) -> None:
     scaled = fdisyn.LinearPlant.create(
         A=np.diag(1 / sx) @ plant.A @ np.diag(sx), B=np.diag(1 / sx) @ plant.B @ np.diag(su), C=np.diag(so) @ plant.C @ np.diag(sx),
         D=np.diag(so) @ plant.D @ np.diag(su), E=np.diag(1 / sx) @ plant.E, Fx=np.diag(1 / sx) @ plant.Fx, Ts=plant.Ts,
-        component_faults=plant.component_faults,
+        Dd=np.diag(so) @ plant.Dd, Df=np.diag(so) @ plant.Df, component_faults=plant.component_faults,
     )
     a, b = analyse_structure(plant), analyse_structure(scaled)
     assert np.array_equal(a.rows, b.rows) and a.least_orders == b.least_orders
@@ -227,7 +232,8 @@ def test_fdisyn_analyse_prints_the_rows_with_their_least_orders(capsys: pytest.C
     assert main(["analyse", "wind_turbine", "--strong", "--frequencies", "0,1", "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
     assert doc["kind"] == "strong" and doc["frequencies_rad_s"] == [0.0, 1.0] and doc["domain"] == "discrete"
-    assert all(set(r) == {"signature", "least_order", "basis_size", "basis_order", "decoupled"} for r in doc["rows"])
+    assert all(set(r) == {"signature", "least_order", "basis_size", "basis_order", "decoupled", "gap"} for r in doc["rows"])
+    assert doc["pole"] == 0.5 and all(r["gap"] == "inf" or r["gap"] > 0 for r in doc["rows"])
 
 
 @pytest.mark.parametrize(
