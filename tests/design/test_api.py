@@ -144,7 +144,6 @@ def test_from_control_takes_the_last_columns_as_unknown_inputs() -> None:
         (lambda: fdisyn.LinearPlant.from_control(control.ss(A, B, C, 0), n_unknown=2), ArgumentError, r"n_unknown must be a whole number in 0..1"),
         (lambda: fdisyn.LinearPlant.from_control(control.ss(A, B, C, 0), n_unknown=True), ArgumentError, "n_unknown"),
         (lambda: fdisyn.LinearPlant.from_control(control.ss(A, B, C, 0, dt=True), n_unknown=1), ArgumentError, "does not say the sample time"),
-        (lambda: fdisyn.LinearPlant.from_control(control.ss(A, np.hstack([B, E]), C, np.ones((3, 2))), n_unknown=1), ArgumentError, "may not reach the outputs"),
         # a non-finite Q is a wrong value (ArgumentError); a Q of the wrong size a ShapeError
         (lambda: fdisyn.LinearPlant.from_control(control.ss(A, B, C, 0), Q=np.diag([1.0, np.nan, 1.0])), ArgumentError, "Q contains a non-finite entry"),
         (lambda: fdisyn.LinearPlant.from_control(control.ss(A, B, C, 0), Q=np.eye(2)), ShapeError, r"Q has shape \(2, 2\); expected \(3, 3\)"),
