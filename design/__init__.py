@@ -34,6 +34,8 @@ _PUBLIC = {
     "structure_matrices": "fdisyn.synthesis.structure",
     "analyse_structure": "fdisyn.synthesis.structure",
     "check_structure": "fdisyn.synthesis.structure",
+    "analyse_gaps": "fdisyn.synthesis.nullspace",
+    "bank_performance": "fdisyn.synthesis.gap",
     "LinearPlant": "fdisyn.models.linear",
     "NonlinearPlant": "fdisyn.models.nonlinear",
     "SampledDataPlant": "fdisyn.models.sampled_data",
@@ -47,6 +49,8 @@ if TYPE_CHECKING:
     from fdisyn.app.api import design, export, load, methods  # noqa: F401
     from fdisyn.synthesis.account import fault_account  # noqa: F401
     from fdisyn.synthesis.structure import analyse_structure, check_structure, structure_matrices  # noqa: F401
+    from fdisyn.synthesis.nullspace import analyse_gaps  # noqa: F401
+    from fdisyn.synthesis.gap import bank_performance  # noqa: F401
     from fdisyn.models.linear import LinearPlant  # noqa: F401
     from fdisyn.models.nonlinear import NonlinearPlant  # noqa: F401
     from fdisyn.models.sampled_data import SampledDataPlant  # noqa: F401

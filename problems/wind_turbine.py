@@ -37,6 +37,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 from fdisyn.reporting.kit import Claim, ReportContext, fmt, folded, shade, subplots
+from fdisyn.reporting.structure import bank_structure_section
 from fdisyn.simulation.sample_models import SampleModel, clip_sx, linear_sample_model
 from fdisyn.simulation.signals import Signal
 from fdisyn.simulation.simulate import simulate_linear
@@ -342,7 +343,34 @@ def _designs() -> dict[str, Callable[..., GainFile]]:
         for m in all_methods()
         if m.plant_kind == "linear" and {"bank", "faults"} <= set(m.option_names) and {o.name for o in m.options if o.required} <= _SUPPLIED
     ]
-    return {m.name: make(m.name) for m in usable}
+    return {**{m.name: make(m.name) for m in usable}, "nullspace": _nullspace_design}
+
+
+NULLSPACE_STRUCTURE = tuple(tuple(int(k in (i, j)) for k in range(len(OUTPUTS))) for i, j in BANK)
+"""The paper bank's structure matrix (each UIO sees the faults of its two sensors), asked of the nullspace method."""
+
+
+def _nullspace_design(
+    *, parameters: str = "benchmark", P_f: float = 3e-4, persistence: int = 1, detector: str | None = None, arl0: float | None = None,
+    shifts: Sequence[float] | None = None, **_: object,
+) -> GainFile:
+    """The nullspace bank of the paper bank's structure (Varga 2017, Procedure AFDI at the least order): the same
+    signatures as the four UIOs, from least-order filters whose null-vector combination and pole maximise the gap at
+    0 rad/s (the sensor faults are persistent: biases, stuck readings, gains; on the benchmark's parameters, whose
+    model has no pole there)."""
+    plant = design_model(parameters)
+    extra: dict[str, Any] = {"shifts": [float(v) for v in shifts]} if shifts is not None else {}
+    # the paper's parameter set has an undamped rotor (a pole at z = 1): no constant response exists there, so its
+    # bank keeps the weak structure and the faults' H∞ norms
+    if parameters == "benchmark":
+        extra["frequencies"] = [0.0]
+    return design_with(
+        plant, "nullspace", name=_name(parameters, "nullspace", detector, shifts), problem="wind_turbine",
+        record={"parameters": parameters, "P_f": P_f, "persistence": persistence, "detector": detector, "arl0": arl0,
+                "shifts": None if shifts is None else [float(v) for v in shifts], "structure": [list(r) for r in NULLSPACE_STRUCTURE]},
+        P_f=P_f if arl0 is None else None, persistence=persistence, detector=detector, arl0=arl0,
+        structure=[list(r) for r in NULLSPACE_STRUCTURE], faults=FAULTS, **extra,
+    )
 
 
 # ------------------------------------------------------------------ simulation
@@ -508,6 +536,7 @@ def _labels() -> dict[str, str]:
         "kalman_uio": "minimum-variance UIO bank (Hu et al. 2013, eqs. (14)–(16))",
         "kalman_uio_paper": "UIO bank with the gain of the paper's covariance recursion (Hu et al. 2013, eq. (16))",
         "uio_pole_placement": "plain UIO bank, poles 0.5, 0.6, 0.7 (the paper's comparison)",
+        "nullspace": "nullspace bank of the same structure, least-order filters (Varga 2017)",
     }
     for i, j in BANK:
         gen = f"uio_{OUTPUTS[i].removeprefix('omega_')}_{OUTPUTS[j].removeprefix('omega_')}"
@@ -604,6 +633,10 @@ def _report(ctx: ReportContext) -> list[tuple[str, str]]:
         if tag == "benchmark" or body:
             # the paper's parameter set repeats the benchmark's figures with its own numbers: folded
             sections.append((f"Figures — {title}", "".join(body) if tag == "benchmark" else folded("".join(body), "Hu et al. 2013, figs. 1–3, on the paper's parameter set")))
+    sections.append(bank_structure_section(ctx, design_model("benchmark"), designs=["kalman_uio", "uio_pole_placement", "nullspace"], intro=(
+        "The paper's UIO banks beside the nullspace bank asked for their structure: each residual sees the faults of "
+        "its two sensors. The UIOs are of the plant's order (3); the nullspace filters of the least order the "
+        "structure allows, their null-vector combination and pole chosen for the gap at 0 rad/s.")))
     return sections
 
 

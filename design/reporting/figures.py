@@ -530,7 +530,8 @@ def _discrete_model(problem: Problem, variant: Any, gf: Any) -> tuple[np.ndarray
     if C.shape[0] != len(gf.outputs):
         return None
     dirs: dict[str, np.ndarray] = {}
-    for f in gf.faults:
+    # each fault of each class: a class of faults no generator tells apart ("y1|f1") shows its members one by one
+    for f in dict.fromkeys(m for cls in gf.faults for m in cls.split("|")):
         if f in comp:
             dirs[f] = np.concatenate([Fx[:, comp.index(f)], Df[:, comp.index(f)]])
         elif f in outputs:

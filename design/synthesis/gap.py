@@ -74,7 +74,7 @@ def _responses(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray, zs: n
     return c[None] @ x + d[None]
 
 
-def relative_responses(gen: Generator, plant: LinearPlant, points: Sequence[complex]) -> dict[str, Any]:
+def relative_responses(gen: Generator, plant: LinearPlant, points: Sequence[complex] | np.ndarray) -> dict[str, Any]:
     """The generator's responses at ``points`` from its own matrices and the plant's, each relative to the sizes of
     its factors: ``‖Q(λ) G(λ)‖ / (‖Q(λ)‖ ‖G(λ)‖)``, the largest over the points — zero to round-off exactly where a
     response is identically zero (a rational function of degree at most ``d`` that vanishes at more than ``2d``
@@ -86,7 +86,7 @@ def relative_responses(gen: Generator, plant: LinearPlant, points: Sequence[comp
         The residual generator on all the plant's outputs and inputs.
     plant : LinearPlant
         The plant, discrete or continuous (the points are then on the imaginary axis).
-    points : sequence of complex
+    points : array_like of complex
         The points (:func:`boundary_points`).
 
     Returns
@@ -186,6 +186,9 @@ class GeneratorPerformance:
         ``hinf_minus / noise_norm`` (``inf`` without noise, 0 when it sees no fault).
     hminus : float
         fdisyn's H₋ index of ``R_f`` over the faults it sees, ``inf_ω σ_min`` (0 when they outnumber the residuals).
+    gap_at : float or None
+        The gap with the H∞₋ index taken at the frequencies asked only, ``min_j min_ω |R_fj(ω)| / ‖R_w‖∞`` (Varga's
+        ``fdif2ngap`` with ``freq``); ``None``: none asked.
     """
 
     name: str
@@ -196,6 +199,7 @@ class GeneratorPerformance:
     hinf_minus: float
     gap: float
     hminus: float
+    gap_at: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """The values as JSON-ready numbers (``inf`` as the string ``"inf"``)."""
@@ -207,6 +211,7 @@ class GeneratorPerformance:
             "name": self.name, "weak": list(self.weak), "strong": None if self.strong is None else list(self.strong),
             "fault_norms": [num(x) for x in self.fault_norms], "noise_norm": num(self.noise_norm),
             "hinf_minus": num(self.hinf_minus), "gap": num(self.gap), "hminus": num(self.hminus),
+            "gap_at": None if self.gap_at is None else num(self.gap_at),
         }
 
 
@@ -252,8 +257,9 @@ def generator_performance(
     wb = np.vstack([bw, gen.By @ dw])
     wd = gen.Dy @ dw
     noise = hinf_of(form.A, wb, form.C, wd, continuous=cont) if wb.shape[1] and transfer_size(form.A, wb, form.C, wd) > WEAK_TOL else 0.0
-    strong = None
+    strong, at_freqs = None, None
     if frequencies is not None:
+        lows = []
         top = math.inf if cont else math.pi / float(plant.Ts)  # type: ignore[arg-type]
         strong_row = []
         for j in range(bf.shape[1]):
@@ -265,8 +271,12 @@ def generator_performance(
                 ar, br, cr = minimal_realisation(form.A, fb[:, [j]], form.C)
                 g = (cr @ np.linalg.solve(z * np.eye(ar.shape[0]) - ar, br) if ar.size else 0.0) + fd[:, [j]]
                 ok = ok and float(np.linalg.norm(g)) > STRONG_TOL * max(norms[j], 1e-300)
+                if weak[j]:
+                    lows.append(float(np.linalg.norm(g)))
             strong_row.append(int(ok))
         strong = tuple(strong_row)
+        low = min(lows) if lows else 0.0
+        at_freqs = 0.0 if low == 0.0 else (math.inf if noise == 0.0 else low / noise)
     seen_norms = [norms[j] for j in range(len(norms)) if weak[j]]
     hinf_minus = min(seen_norms) if seen_norms else 0.0
     gap = 0.0 if hinf_minus == 0.0 else (math.inf if noise == 0.0 else hinf_minus / noise)
@@ -276,7 +286,10 @@ def generator_performance(
         sys = _stable_discrete(form.A, fb[:, cols], form.C, fd[:, cols], cont)
         if sys is not None:
             index = float(hminus_index(sys).value)
-    return GeneratorPerformance(gen.name, tuple(weak), strong, tuple(norms), noise, hinf_minus, gap, index)
+            # a zero of R_f evaluated in floating point (a wide residual, or a transmission zero on the boundary) is
+            # round-off against the faults' norms: zero
+            index = 0.0 if index <= 1e-12 * max(norms) else index
+    return GeneratorPerformance(gen.name, tuple(weak), strong, tuple(norms), noise, hinf_minus, gap, index, at_freqs)
 
 
 def bank_performance(generators: Sequence[Generator], plant: LinearPlant, *, frequencies: Sequence[float] | None = None) -> list[GeneratorPerformance]:

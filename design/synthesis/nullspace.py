@@ -22,8 +22,9 @@ one, checked to see every fault of its row; ``"approximate"`` (``afdsyn``/``afdi
 fault-to-noise gap, ``min_j ‖R_fj‖∞ / ‖R_w‖∞`` with the noise of the plant's ``Q`` and ``R``, maximised on a grid of
 the stability boundary from several starts (Nelder–Mead). Varga's procedures go further where the noise can be
 whitened: they divide the filter by the quasi-co-outer factor of ``R_w`` (``goifac``), which raises its order; fdisyn
-keeps the least order and the common pole, so its gap is the best at that order and pole, not the supremum over all
-filters.
+keeps the least order and a common pole, so its gap is the best at that order and pole, not the supremum over all
+filters; the pole, unless given, is chosen for the gap from 0, 0.1, …, 0.9 (:data:`POLE_CHOICES`; 0 makes the filter
+a parity relation of finite memory, which on fast-sampled plants often has the largest gap).
 """
 
 from __future__ import annotations
@@ -42,9 +43,9 @@ from fdisyn.runtime.names import shown
 from fdisyn.synthesis.gap import boundary_points, generator_performance, noise_entries, relative_responses, transfer_at
 from fdisyn.synthesis.residual import embed_outputs, residual_covariance
 from fdisyn.synthesis.registry import is_real as is_number
-from fdisyn.synthesis.structure import FaultPencils, StructureAnalysis, fault_entries
+from fdisyn.synthesis.structure import FaultPencils, StructureAnalysis, fault_entries, frequency_points
 
-__all__ = ["DECOUPLING_TOL", "SYNTHESES", "nullspace_generator", "row_filter", "analyse_gaps"]
+__all__ = ["DECOUPLING_TOL", "SYNTHESES", "nullspace_generator", "row_filter", "least_order_filter", "analyse_gaps"]
 
 SYNTHESES = ("approximate", "exact")
 """How a row's least-degree null vectors are combined (:func:`row_filter`)."""
@@ -67,6 +68,16 @@ that sees that fault a million times weaker than it could."""
 GAP_GAIN = 1.01
 """The approximate synthesis keeps the generic combination of the exact synthesis unless its optimum raises the gap
 by more than this factor: equal gaps are no reason to leave the combination that sees every fault generically."""
+
+POLE_CHOICES = (0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9)
+"""The poles a filter's common pole is chosen from when none is given: the one of the largest gap (0 makes the filter a
+parity relation of finite memory); 0.5 when the noise does not reach the residual."""
+
+POLE_TIE = 1.01
+"""Gaps within this factor of the largest are equal for the choice of the pole, and the slowest of their poles is
+taken: the H∞ gap does not see the noise's variance, which a slower filter lowers and a χ² threshold follows."""
+
+DEFAULT_POLE = 0.5
 
 COMBINATION_SEED = 20170501
 """The seed of the generic null vector (a fixed standard normal draw projected onto the null space): fixed, so a
@@ -105,8 +116,9 @@ class _GridGap:
     points × count × noise inputs); 0 when a fault's response is below :data:`GAP_FLOOR` of the most any unit ``h``
     gets from it, the noise's ignored below round-off (then the gap is infinite)."""
 
-    def __init__(self, fault: np.ndarray, noise: np.ndarray) -> None:
+    def __init__(self, fault: np.ndarray, noise: np.ndarray, *, at_points: bool = False) -> None:
         nf, count, g = fault.shape
+        self.reduce = np.min if at_points else np.max  # the faults' H∞ norm on the grid, or their least gain at the points
         self.shape_f, self.shape_w = (nf, g), (noise.shape[0], noise.shape[2])
         # count × everything: one product with h per evaluation
         self.fault = np.ascontiguousarray(np.transpose(fault, (1, 0, 2)).reshape(count, -1))
@@ -115,7 +127,7 @@ class _GridGap:
         self.noise_floor = 1e-12 * float(np.max(np.linalg.norm(noise, axis=(1, 2)))) if noise.size else 0.0
 
     def __call__(self, h: np.ndarray) -> float:
-        top_f = np.max(np.abs(h @ self.fault).reshape(self.shape_f), axis=1)
+        top_f = self.reduce(np.abs(h @ self.fault).reshape(self.shape_f), axis=1)
         if not np.all(top_f > self.floor):
             return 0.0
         if not self.noise.size:
@@ -124,11 +136,14 @@ class _GridGap:
         return math.inf if not top_w > self.noise_floor else float(np.min(top_f)) / top_w
 
 
-def _best_combination(basis: np.ndarray, plant: LinearPlant, fault_cols: list[tuple[np.ndarray, np.ndarray]], pole: float, start: np.ndarray) -> np.ndarray:
+def _best_combination(
+    basis: np.ndarray, plant: LinearPlant, fault_cols: list[tuple[np.ndarray, np.ndarray]], pole: float, start: np.ndarray, at: Sequence[complex] = ()
+) -> np.ndarray:
     """The combination of the null vectors ``basis`` (count × (k + 1) × (p + m), user units) of the largest
     fault-to-noise gap on :func:`_grid`: from the generic one ``start``, each basis direction and each fault's
     generalised eigenvector of its energy against the noise's, the best two polished by Nelder–Mead on the grid's
-    gap. ``start`` is a vector of the space (``(k + 1) × (p + m)``)."""
+    gap. ``start`` is a vector of the space (``(k + 1) × (p + m)``). With points ``at`` (frequencies of a strong
+    structure), the faults' H∞ norm is replaced by their least gain at those points (Varga's gap with ``freq``)."""
     from scipy.optimize import minimize
 
     count, k = basis.shape[0], basis.shape[1] - 1
@@ -143,7 +158,7 @@ def _best_combination(basis: np.ndarray, plant: LinearPlant, fault_cols: list[tu
     canon, _ = np.linalg.qr(qx @ (qx.T @ draws))
     flat = canon.T
     basis = flat.reshape(count, k + 1, -1)
-    grid = _grid(plant, pole)
+    grid = np.concatenate([_grid(plant, pole), np.asarray(at, dtype=complex)])
     p, n = plant.p, plant.n
     a, c = np.asarray(plant.A, float), np.asarray(plant.C, float)
     bf = np.stack([b for b, _ in fault_cols], axis=1)
@@ -157,11 +172,12 @@ def _best_combination(basis: np.ndarray, plant: LinearPlant, fault_cols: list[tu
     phi = np.prod([grid - pole for _ in range(k)], axis=0) if k else np.ones(grid.size)
     vy = np.einsum("cdw,gd->cgw", basis[:, :, :p], grid[:, None] ** np.arange(k + 1)[None, :]) / phi[None, :, None]
     resp = np.einsum("cgw,gwe->gce", vy, g_all)  # points × count × (faults, noise)
-    nf = bf.shape[1]
-    fault, noise = np.transpose(resp[:, :, :nf], (2, 1, 0)), resp[:, :, nf:]
+    nf, na = bf.shape[1], len(at)
+    fault = np.transpose(resp[grid.size - na :, :, :nf] if na else resp[:, :, :nf], (2, 1, 0))
+    noise = resp[: grid.size - na, :, nf:]
     if not np.any(noise):
         return start
-    gap = _GridGap(fault, noise)
+    gap = _GridGap(fault, noise, at_points=bool(na))
     start_h = flat @ start.reshape(-1)  # the generic combination in the canonical basis
     wn = np.real(np.einsum("gcv,gev->ce", noise, noise.conj()))
     wn = wn + 1e-12 * float(np.trace(wn)) * np.eye(count)
@@ -187,7 +203,8 @@ def _best_combination(basis: np.ndarray, plant: LinearPlant, fault_cols: list[tu
 
 
 def row_filter(
-    plant: LinearPlant, row: Sequence[int], *, pole: float, pencils: FaultPencils | None = None, synthesis: str = "approximate"
+    plant: LinearPlant, row: Sequence[int], *, pole: float, pencils: FaultPencils | None = None, synthesis: str = "approximate",
+    frequencies: Sequence[float] | None = None,
 ) -> tuple[np.ndarray, int]:
     """The numerator ``v(λ) = Σᵢ vᵢ λⁱ`` of a row's least-order filter ``Q = v/(λ − pole)ᵏ`` (discrete or continuous).
 
@@ -205,6 +222,9 @@ def row_filter(
         ``"exact"`` (Varga's ``efdsyn``/``efdisyn``): a generic combination of the row's least-degree null vectors,
         the same on every BLAS kernel; ``"approximate"`` (``afdsyn``/``afdisyn``): the combination of the largest
         fault-to-noise gap (the same when the noise does not reach the residual, or one vector spans the row).
+    frequencies : sequence of float, optional
+        Frequencies (rad/s) at which every fault of the row must have a nonzero response (the strong structure; the
+        order is then the least that achieves it) and at which the approximate synthesis measures the faults' gains.
 
     Returns
     -------
@@ -220,9 +240,11 @@ def row_filter(
     names, bf, df = fault_entries(plant)
     row = [int(v) for v in row]
     pen = FaultPencils(plant) if pencils is None else pencils
-    verdict = pen.verdict(row)
+    at = frequency_points(plant, frequencies) if frequencies else []
+    verdict = pen.verdict(row, at, tuple(frequencies or ()))
     if not verdict["achievable"]:
-        raise ExistenceError(f"its row {row} over faults {list(names)} is not achievable: {verdict['why']}")
+        kind = f"strongly at {list(frequencies or ())} rad/s" if at else "achievable"
+        raise ExistenceError(f"its row {row} over faults {list(names)} is not {kind}: {verdict['why']}")
     k = int(verdict["least_order"])
     zeros = frozenset(j for j, v in enumerate(row) if v == 0)
     ones = [j for j, v in enumerate(row) if v == 1]
@@ -230,24 +252,30 @@ def row_filter(
     rng = np.random.default_rng(COMBINATION_SEED)
     test = boundary_points(2 * (plant.n + k) + 8, not plant.is_discrete)
     a, c = np.asarray(plant.A, float), np.asarray(plant.C, float)
-    g = [[transfer_at(a, bf[:, [j]], c, df[:, [j]], z)[:, 0] for j in ones] for z in test]
-    for _ in range(8):  # a generic draw sees every fault of the row; a draw that does not is drawn again
+    g = [[transfer_at(a, bf[:, [j]], c, df[:, [j]], z)[:, 0] for j in ones] for z in [*test, *at]]
+
+    def sizes(v: np.ndarray) -> np.ndarray:
+        """Each fault's relative response at each point (rows: the test points, then the strong points)."""
+        vz = [(z ** np.arange(k + 1)) @ v for z in [*test, *at]]
+        return np.array([[float(abs(vv[: plant.p] @ gj)) / max(float(np.linalg.norm(vv)) * float(np.linalg.norm(gj)), 1e-300) for gj in gz]
+                         for vv, gz in zip(vz, g, strict=True)]).reshape(len(vz), len(ones))
+
+    for _ in range(8):  # a generic draw sees every fault of the row (at every strong point); one that does not is drawn again
         v = pen.null_vectors(zeros, k, toward=rng)[0] * unscale[None, :]
         v = v / max(float(np.max(np.abs(v))), 1e-300)
-        vz = [(z ** np.arange(k + 1)) @ v for z in test]
-        sizes = [[float(abs(vv[: plant.p] @ gj)) / max(float(np.linalg.norm(vv)) * float(np.linalg.norm(gj)), 1e-300) for gj in gz] for vv, gz in zip(vz, g, strict=True)]
-        if all(max(col) > SEEN_TOL for col in zip(*sizes, strict=True)) if ones else True:
+        rel = sizes(v)
+        if not ones or (np.all(np.max(rel[: len(test)], axis=0) > SEEN_TOL) and np.all(rel[len(test) :] > SEEN_TOL)):
             break
     if synthesis == "approximate" and ones:
         basis = pen.null_vectors(zeros, k) * unscale[None, None, :]
-        v = _best_combination(basis, plant, [(bf[:, j], df[:, j]) for j in ones], pole, v)
+        v = _best_combination(basis, plant, [(bf[:, j], df[:, j]) for j in ones], pole, v, at)
         v = v / max(float(np.max(np.abs(v))), 1e-300)
     return v, k
 
 
 def nullspace_generator(
-    plant: LinearPlant, row: Sequence[int], name: str, *, pole: float = 0.5, pencils: FaultPencils | None = None,
-    synthesis: str = "approximate",
+    plant: LinearPlant, row: Sequence[int], name: str, *, pole: float | None = None, pencils: FaultPencils | None = None,
+    synthesis: str = "approximate", frequencies: Sequence[float] | None = None,
 ) -> tuple[Generator, np.ndarray, Certificate]:
     """The least-order generator of one row of a structure matrix on a discrete plant (module docstring).
 
@@ -259,12 +287,16 @@ def nullspace_generator(
         ``0``/``1`` per fault in the plant's fault order (1: the residual sees it; 0: decoupled).
     name : str
         The generator's name.
-    pole : float
-        The filter's poles, all at this real value in ``(−1, 1)``.
+    pole : float, optional
+        The filter's poles, all at this real value in ``(−1, 1)``; default: the one of :data:`POLE_CHOICES` of the
+        largest fault-to-noise gap.
     pencils : FaultPencils, optional
         The plant's pencils, when a bank shares them (default: computed here).
     synthesis : {"approximate", "exact"}
         How the row's null vectors are combined (:func:`row_filter`).
+    frequencies : sequence of float, optional
+        Frequencies (rad/s) of a strong structure: every fault of the row must show there, the gap is measured there
+        (:func:`row_filter`), and the certificate checks it.
 
     Returns
     -------
@@ -279,16 +311,40 @@ def nullspace_generator(
     row = [int(v) for v in row]
     pen = FaultPencils(plant) if pencils is None else pencils
     try:
-        v, k = row_filter(plant, row, pole=pole, pencils=pen, synthesis=synthesis)
+        if pole is None:
+            tried = []
+            for c in POLE_CHOICES:
+                vc, kc = row_filter(plant, row, pole=c, pencils=pen, synthesis=synthesis, frequencies=frequencies)
+                trial = _row_generator(plant, row, name, vc, kc, c, {})
+                try:  # on an unstable plant a filter must cancel the unstable modes to round-off; one that does not is passed over
+                    residual_covariance(trial, plant)
+                except ExistenceError:
+                    continue
+                perf_c = generator_performance(trial, plant, frequencies=frequencies, hminus=False)
+                tried.append((perf_c.gap if perf_c.gap_at is None else perf_c.gap_at, c, vc, kc))
+            if not tried or all(math.isinf(t[0]) for t in tried):
+                pole = DEFAULT_POLE
+                v, k = row_filter(plant, row, pole=pole, pencils=pen, synthesis=synthesis, frequencies=frequencies)
+            else:
+                best = max(t[0] for t in tried)
+                # of the gaps within POLE_TIE of the best, the slowest pole: the least noise variance for the same gap
+                _, pole, v, k = [t for t in tried if t[0] >= best / POLE_TIE][-1]
+        else:
+            v, k = row_filter(plant, row, pole=pole, pencils=pen, synthesis=synthesis, frequencies=frequencies)
     except ExistenceError as exc:
         raise ExistenceError(f"generator {name!r}: {exc}") from None
     least = k
     gen = _row_generator(plant, row, name, v, k, pole, {
-        "design": "nullspace", "row": row, "order": k, "least_order": least, "pole": float(pole), "synthesis": synthesis})
+        "design": "nullspace", "row": row, "order": k, "least_order": least, "pole": float(pole), "synthesis": synthesis,
+        **({"frequencies": [float(w) for w in frequencies]} if frequencies else {})})
     checks = _checks(plant, gen, row, boundary_points(2 * (plant.n + k) + 8, False), least, float(pole))
-    perf = generator_performance(gen, plant)
-    info = {"row": row, "order": k, "least_order": least, "synthesis": synthesis, "gap": perf.to_dict()["gap"],
-            "hinf_minus": perf.to_dict()["hinf_minus"], "noise_norm": perf.to_dict()["noise_norm"]}
+    for w, z in zip(frequencies or (), frequency_points(plant, frequencies) if frequencies else (), strict=True):
+        rel = relative_responses(gen, plant, [z])["faults"]
+        checks += [Check(f"fault {j} at {w:g} rad/s: relative response (strong)", float(rel[j]), SEEN_TOL, ">=",
+                         "the strong structure asks the residual to see it at this frequency") for j, want in enumerate(row) if want]
+    perf = generator_performance(gen, plant, frequencies=frequencies).to_dict()
+    info = {"row": row, "order": k, "least_order": least, "synthesis": synthesis, "pole": float(pole), "gap": perf["gap"],
+            "hinf_minus": perf["hinf_minus"], "noise_norm": perf["noise_norm"], **({"gap_at": perf["gap_at"]} if frequencies else {})}
     return gen, residual_covariance(gen, plant), Certificate.of(name, checks, info=info)
 
 
@@ -301,6 +357,38 @@ def _row_generator(plant: LinearPlant, row: Sequence[int], name: str, v: np.ndar
     return embed_outputs(Generator.from_canonical(
         name=name, outputs_used=range(len(used)), Ar=ar, Bu=bq[:, p:], By=bq[:, used], Cr=cr, Du=dq[:, p:], Dy=dq[:, used], method=dict(method),
     ), used, p)
+
+
+def least_order_filter(
+    plant: LinearPlant, row: Sequence[int], *, pole: float, synthesis: str = "approximate", name: str = "q", pencils: FaultPencils | None = None
+) -> Generator:
+    """A row's least-order filter ``v(λ)/(λ − pole)ᵏ`` (:func:`row_filter`) as a generator, on a discrete or a
+    continuous plant (then a continuous filter: its matrices are those of ``ẋ = Ar x + …``), uncertified: the
+    nullspace method's design (:func:`nullspace_generator`) certifies its discrete filters.
+
+    Parameters
+    ----------
+    plant : LinearPlant
+        The plant.
+    row : sequence of int
+        ``0``/``1`` per fault in the plant's fault order.
+    pole : float
+        The filter's poles.
+    synthesis : {"approximate", "exact"}
+        How the row's null vectors are combined.
+    name : str
+        The generator's name.
+    pencils : FaultPencils, optional
+        The plant's pencils, when shared.
+
+    Returns
+    -------
+    Generator
+        The filter, reading the sensors whose faults the row sees and every input.
+    """
+    r = [int(x) for x in row]
+    v, k = row_filter(plant, r, pole=float(pole), pencils=pencils, synthesis=synthesis)
+    return _row_generator(plant, r, name, v, k, float(pole), {"design": "nullspace", "row": r, "order": k, "pole": float(pole), "synthesis": synthesis})
 
 
 def analyse_gaps(analysis: StructureAnalysis, plant: Any, *, pole: float | None = None) -> StructureAnalysis:
@@ -342,9 +430,7 @@ def analyse_gaps(analysis: StructureAnalysis, plant: Any, *, pole: float | None 
     pen = FaultPencils(lin)
     gaps = []
     for row in analysis.rows:
-        r = [int(x) for x in row]
-        v, k = row_filter(lin, r, pole=float(pole), pencils=pen)
-        gaps.append(generator_performance(_row_generator(lin, r, "row", v, k, float(pole), {}), lin, hminus=False).gap)
+        gaps.append(generator_performance(least_order_filter(lin, row, pole=float(pole), pencils=pen), lin, hminus=False).gap)
     return replace(analysis, gaps=tuple(gaps), pole=float(pole))
 
 
@@ -388,7 +474,8 @@ def _structure_rows(plant: LinearPlant, structure: Any, where: str) -> list[list
 
 def nullspace_design(
     plant: LinearPlant, *, name: str, problem: str | None = None, record: Mapping[str, object] | None = None, where: str = "",
-    structure: Any = None, pole: float = 0.5, synthesis: str = "approximate", Ts: float | None = None, P_f: float, persistence: int,
+    structure: Any = None, pole: float | None = None, synthesis: str = "approximate", frequencies: Sequence[float] | None = None,
+    Ts: float | None = None, P_f: float, persistence: int,
     evaluator: str | None = None, window: int | None = None, detector: str | None = None, arl0: float | None = None,
     min_fault: Mapping[str, float] | None = None, shifts: Sequence[float] | None = None, faults: Any = None,
     false_isolation: float | None = None, isolation_memory: int | None = None,
@@ -404,10 +491,14 @@ def nullspace_design(
         As for every method (:mod:`fdisyn.synthesis.registry`).
     structure : array_like, optional
         ``0``/``1`` rows, one per residual, one column per fault (default: one row for detection).
-    pole : float
-        The filters' poles (all at this value, in ``(−1, 1)``).
+    pole : float, optional
+        The filters' poles (all at this value, in ``(−1, 1)``; default: each filter's chosen for its gap,
+        :func:`nullspace_generator`).
     synthesis : {"approximate", "exact"}
         How each row's null vectors are combined (:func:`row_filter`).
+    frequencies : sequence of float, optional
+        Frequencies (rad/s) at which every fault a row sees must show (the strong structure, certified), and at
+        which the gap is measured (e.g. ``[0]`` for persistent faults).
     Ts, P_f, persistence, evaluator, window, detector, arl0, min_fault, shifts, faults, false_isolation, isolation_memory
         The linear diagnoser's options (:func:`~fdisyn.synthesis.linear_diagnoser.linear_diagnoser`).
 
@@ -428,7 +519,13 @@ def nullspace_design(
         discrete = plant.discretise(Ts)
     rows = _structure_rows(discrete, structure, at)
     pen = FaultPencils(discrete)
-    designed = [nullspace_generator(discrete, r, f"r{i}_" + "".join(str(v) for v in r), pole=pole, pencils=pen, synthesis=synthesis)
+    freqs = None if frequencies is None else [float(w) for w in frequencies]
+    if freqs is not None:
+        try:
+            frequency_points(discrete, freqs)
+        except ArgumentError as exc:
+            raise ArgumentError(f"{at}frequencies: {exc}") from None
+    designed = [nullspace_generator(discrete, r, f"r{i}_" + "".join(str(v) for v in r), pole=pole, pencils=pen, synthesis=synthesis, frequencies=freqs)
                 for i, r in enumerate(rows)]
     gens = [g for g, _, _ in designed]
     kind = chosen_detector(detector, evaluator, where)
@@ -455,12 +552,19 @@ def _register() -> None:
             "a list of lists of 0 and 1",
             lambda v: isinstance(v, (list, tuple)) and all(isinstance(r, (list, tuple)) for r in v),
         ),
-        Option("pole", 0.5, "the poles of every filter (discrete, all at this value)", "a number in (-1, 1)",
+        Option("pole", None, "the poles of every filter (discrete, all at this value; default: each filter's chosen from "
+               "0, 0.1, …, 0.9 for the largest fault-to-noise gap, 0.5 without noise)", "a number in (-1, 1)",
                lambda v: is_real(v) and -1 < v < 1),
         Option("synthesis", "approximate",
                "how each row's least-degree null vectors are combined: 'approximate' for the largest fault-to-noise gap "
                "(Varga's afdsyn/afdisyn at the least order), 'exact' a generic combination (efdsyn/efdisyn)",
                "'approximate' or 'exact'", lambda v: v in SYNTHESES),
+        Option("frequencies", None,
+               "frequencies in rad/s at which every fault a row sees must show, certified (the strong structure), and at "
+               "which the approximate synthesis measures the faults' gains for the gap (e.g. [0] for persistent faults); "
+               "default: none, the weak structure and the faults' H∞ norms",
+               "a non-empty list of numbers ≥ 0 (rad/s)",
+               lambda v: isinstance(v, (list, tuple)) and len(v) > 0 and all(is_real(w) and w >= 0 for w in v)),
     )
 
     def design(plant: LinearPlant, *, name: str, problem: str | None = None, record: Mapping[str, object] | None = None, where: str = "", **opts: Any) -> GainFile:

@@ -338,8 +338,9 @@ def _pow2(x: np.ndarray) -> np.ndarray:
     return np.where(x > 0, np.exp2(np.round(np.log2(np.where(x > 0, x, 1.0)))), 1.0)
 
 
-def _points(plant: LinearPlant, frequencies: Sequence[float]) -> list[complex]:
-    """The frequencies (rad/s) as points of the plant's domain, away from its poles."""
+def frequency_points(plant: LinearPlant, frequencies: Sequence[float]) -> list[complex]:
+    """The frequencies (rad/s) as points of the plant's domain (``e^{jωTs}`` or ``jω``), refused above the Nyquist
+    frequency and at the plant's poles (an :class:`ArgumentError` that says which)."""
     out = []
     poles = np.linalg.eigvals(np.asarray(plant.A, float)) if plant.n else np.zeros(0)
     for w in frequencies:
@@ -422,7 +423,7 @@ def analyse_structure(plant: Any, *, kind: Literal["weak", "strong"] = "weak", f
                 seen_sets.add(nxt)
                 queue.append(nxt)
     flats = [f for f in seen_sets if f != everything]
-    points = _points(lin, freqs) if kind == "strong" else []
+    points = frequency_points(lin, freqs) if kind == "strong" else []
     rows, orders, sizes, borders, dec = [], [], [], [], []
     for flat in flats:
         verdict = pen.verdict([0 if j in flat else 1 for j in range(nf)], points, freqs)
@@ -501,5 +502,5 @@ def check_structure(
     s = np.asarray(structure)
     if s.ndim != 2 or s.shape[1] != nf or not np.all((s == 0) | (s == 1)):
         raise ArgumentError(f"structure must be 0/1 rows of {nf} entries (faults {list(pen.names)}); got an array of shape {s.shape}")
-    points = _points(lin, freqs) if kind == "strong" else []
+    points = frequency_points(lin, freqs) if kind == "strong" else []
     return [pen.verdict(row, points, freqs) for row in s.astype(int)]

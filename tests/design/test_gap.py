@@ -14,7 +14,7 @@ import fdisyn
 from fdisyn.runtime.errors import ArgumentError
 from fdisyn.runtime.gainfile import Generator
 from fdisyn.synthesis.gap import bank_performance, generator_performance, hinf_of, noise_entries
-from fdisyn.synthesis.nullspace import _realise, analyse_gaps, nullspace_generator, row_filter
+from fdisyn.synthesis.nullspace import analyse_gaps, least_order_filter, nullspace_generator, row_filter
 from fdisyn.synthesis.structure import analyse_structure, fault_entries
 
 SWEEP_POINTS = 20000
@@ -31,12 +31,6 @@ def varga_example_5_11() -> fdisyn.LinearPlant:
         A=np.diag([-2.0, -3.0]), B=[[1.0], [1.0]], C=[[-1.0, 0.0], [0.0, -1.0]], D=[[1.0], [1.0]],
         Fx=[[1.0], [0.0]], Df=[[1.0], [0.0]], Q=np.diag([1.0, 0.0]), inputs=["u"], outputs=["y1", "y2"], component_faults=["f1"],
     )
-
-
-def _generator(plant: fdisyn.LinearPlant, v: np.ndarray, k: int, pole: float) -> Generator:
-    ar, bq, cr, dq = _realise(v, k, pole)
-    p = plant.p
-    return Generator.from_canonical(name="g", outputs_used=range(p), Ar=ar, Bu=bq[:, p:], By=bq[:, :p], Cr=cr, Du=dq[:, p:], Dy=dq[:, :p], method={})
 
 
 def test_the_h_infinity_norms_of_closed_forms() -> None:
@@ -65,7 +59,7 @@ def test_varga_example_5_11_filters_and_gaps() -> None:
             assert k == 1
             scale = coef[np.unravel_index(np.argmax(np.abs(coef)), coef.shape)] / v[np.unravel_index(np.argmax(np.abs(coef)), coef.shape)]
             np.testing.assert_allclose(v * scale, coef, atol=1e-12)
-            perf = generator_performance(_generator(plant, v, k, -3.0), plant, frequencies=[0.0])
+            perf = generator_performance(least_order_filter(plant, row, pole=-3.0, synthesis=synthesis), plant, frequencies=[0.0])
             assert perf.weak == row and perf.strong == row
             assert perf.gap == pytest.approx(gap, rel=1e-9) if math.isfinite(gap) else math.isinf(perf.gap)
     analysis = analyse_gaps(analyse_structure(plant), plant, pole=-3.0)
@@ -233,3 +227,46 @@ def test_a_plant_file_with_direct_reach_simulates_compiled_as_in_python_and_the_
     bad = tmp_path / "observer.toml"
     bad.write_text(FEEDTHROUGH_SPEC.replace('method = "nullspace"', 'method = "kalman_uio"'))
     assert main(["design", str(bad), "--out", str(tmp_path / "x.json")]) == 2
+
+
+def test_the_pole_is_chosen_for_the_gap_and_a_given_one_is_kept() -> None:
+    """Without ``pole``, each filter's pole is the one of :data:`POLE_CHOICES` whose filter has the largest gap (the
+    slowest of those within the tie factor): checked by designing every candidate pole independently."""
+    from fdisyn.synthesis.nullspace import POLE_CHOICES, POLE_TIE
+
+    plant = _noisy_plant(5)
+    row = analyse_structure(plant).rows[0]
+    gen, _, cert = nullspace_generator(plant, row, "g")
+    gaps = {c: generator_performance(nullspace_generator(plant, row, "g", pole=c)[0], plant).gap for c in POLE_CHOICES}
+    best = max(gaps.values())
+    assert gen.method["pole"] == max(c for c, g in gaps.items() if g >= best / POLE_TIE)
+    assert cert.info["gap"] == pytest.approx(gaps[gen.method["pole"]], rel=1e-9)
+    fixed, _, _ = nullspace_generator(plant, row, "g", pole=0.3)
+    np.testing.assert_allclose(np.linalg.eigvals(fixed.Ar), 0.3, atol=1e-4)
+
+
+def test_a_strong_structure_is_certified_and_a_fault_without_a_constant_response_is_refused_by_name() -> None:
+    """``frequencies = [0]``: every fault a row sees shows at DC (certified, with the gap at DC in the certificate);
+    a component fault with ``G_f(1) = C v = 0`` cannot, and the design says which row and why."""
+    rng = np.random.default_rng(8)
+    n, p = 5, 3
+    a = rng.standard_normal((n, n))
+    a *= 0.8 / max(abs(np.linalg.eigvals(a)))
+    c = rng.standard_normal((p, n))
+    v = np.linalg.svd(c)[2][-1]  # C v = 0: the fault (I − A) v has no constant response
+    plant = fdisyn.LinearPlant.create(A=a, C=c, Fx=((np.eye(n) - a) @ v)[:, None], Q=0.01 * np.eye(n), R=0.01 * np.eye(p), Ts=0.1,
+                                      component_faults=["creep"])
+    rows = fdisyn.structure_matrices(plant, kind="strong")
+    ok = [int(x) for x in rows[0]]
+    gf = fdisyn.design(plant, method="nullspace", structure=[ok], frequencies=[0.0], P_f=1e-4)
+    gen = gf.generators[0]
+    assert gen.method["frequencies"] == [0.0]
+    perf = generator_performance(gen, plant, frequencies=[0.0])
+    assert list(perf.strong) == ok and perf.gap_at is not None and 0 < perf.gap_at <= perf.gap * (1 + 1e-9)
+    _, _, cert = nullspace_generator(plant, ok, "g", frequencies=[0.0])
+    strong = [ch for ch in cert.checks if ch.name.endswith("(strong)")]
+    assert len(strong) == sum(ok) and all(ch.passed for ch in strong) and cert.info["gap_at"] == pytest.approx(perf.gap_at, rel=1e-9)
+    with pytest.raises(fdisyn.runtime.errors.ExistenceError, match=r"not strongly at \[0.0\] rad/s: \['creep'\] have a zero response"):
+        fdisyn.design(plant, method="nullspace", structure=[[1, 1, 1, 1]], frequencies=[0.0], P_f=1e-4)
+    with pytest.raises(ArgumentError, match="Nyquist"):
+        fdisyn.design(plant, method="nullspace", frequencies=[100.0], P_f=1e-4)
