@@ -839,7 +839,11 @@ PROBLEM = Problem(
     # the designs' budgets), so a design at its budget can catch every fault within it
     operating_delay=0.2,
     variants=(
-        {"label": "paper parameter set", "options": {"parameters": "paper"}, "scenarios": ["fault_free", "paper_F1", "paper_F2"]},
+        # the paper's banks on the paper's parameters (the nullspace bank is compared on the benchmark's: with the
+        # paper's undamped rotor its evidence covariance has a direction at 8e-8 of the largest, whose weight the
+        # design's round-off decides)
+        {"label": "paper parameter set", "options": {"parameters": "paper"}, "scenarios": ["fault_free", "paper_F1", "paper_F2"],
+         "designs": [d for d in _designs() if d != "nullspace"]},
         {"label": "persistence 3", "options": {"persistence": 3}},
         *(
             {

@@ -419,8 +419,10 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
         # the sampled-data methods, and those whose model error is on the continuous A, sample the plant themselves, every Ts
         design_plant = plant.scaled(scale) if scale is not None else plant
         options = {**options, "Ts": ts}
-    with _spec_errors():
+    try:
         check_plant(method, design_plant)
+    except ArgumentError as exc:
+        raise SpecError(f"{path} [design].method: {exc}") from exc
     checked = _checked(method, options, design_plant, path)
     record = {"spec": str(path), "method": method.name, **{k: v for k, v in options.items() if k not in ("bank", "faults", "Ts")}}
     listed = checked.get("faults")  # the fault classes of a bank; a method without them names its faults itself

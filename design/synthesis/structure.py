@@ -273,8 +273,9 @@ class FaultPencils:
         """A basis of the polynomial left null vectors of degree ``≤ k`` of ``G_e`` with ``decoupled`` decoupled:
         their ``[y; u]`` coefficients, ``(count, k + 1, p + m)`` (degree-major), in the balanced units (the
         pencil sees ``y / out`` and ``u · k_u``). With ``toward``, one vector instead (``count = 1``): the orthogonal
-        projection onto the null space of a standard normal draw from it, which does not depend on the basis the
-        SVD returns (another BLAS kernel may return another one)."""
+        projection of a standard normal draw from it onto the span of the basis's ``[y; u]`` parts, which depends
+        neither on the basis the SVD returns nor on the state coordinates of the realisation (another BLAS kernel
+        may return others)."""
         a, b, c, d = self.realisation(decoupled)
         nr, rows = a.shape[0], c.shape[0]
         mm = np.block([[a, b], [c, d]])
@@ -283,10 +284,16 @@ class FaultPencils:
         count = null_dimension(self.indices(decoupled), k)
         if (decoupled, k) not in self._null:
             self._null[(decoupled, k)] = polynomial_left_null(mm, nn, k, count)
-        x = self._null[(decoupled, k)]
-        if toward is not None:
-            x = (x.T @ (x @ toward.standard_normal(x.shape[1])))[None, :]
-        return x.reshape(x.shape[0], k + 1, nr + rows)[:, :, nr:]
+        x = self._null[(decoupled, k)].reshape(-1, k + 1, nr + rows)[:, :, nr:]
+        if toward is not None and not x.shape[0]:
+            x = np.zeros((1, k + 1, rows))
+        elif toward is not None:
+            # the projection of a draw onto the span of the [y; u] parts: neither the basis the SVD returns nor the
+            # realisation's state coordinates (another BLAS kernel's) enter it
+            q, _ = np.linalg.qr(x.reshape(x.shape[0], -1).T)
+            flat = q @ (q.T @ toward.standard_normal(q.shape[0]))
+            x = flat.reshape(1, k + 1, rows)
+        return x
 
     def null_values(self, decoupled: frozenset[int], k: int, lam: complex) -> np.ndarray:
         """The values at ``λ`` of the ``y`` parts of a basis of the polynomial null vectors of degree ``≤ k``."""

@@ -49,7 +49,7 @@ def test_every_achievable_row_gets_a_decoupled_generator_of_its_least_order(seed
     plant = _plant(400 + seed)
     res = analyse_structure(plant)
     for row, least in zip(res.rows, res.least_orders, strict=True):
-        gen, sigma, cert = nullspace_generator(plant, row, "g")
+        gen, sigma, cert = nullspace_generator(plant, row, "g", pole=0.5)  # the pole's choice: tests/design/test_gap.py
         assert cert.passed, cert
         assert gen.n_state == least == _least_order_by_points(plant, row, _points(seed))
         assert np.all(np.abs(np.linalg.eigvals(gen.Ar)) < 1) and sigma.shape == (1, 1) and np.isfinite(sigma).all()
@@ -183,7 +183,7 @@ def test_on_an_unstable_plant_the_filter_cancels_the_unstable_modes_in_its_noise
     wq = vec * np.sqrt(np.clip(lam, 0, None))
     _, bf, df = fault_entries(plant)
     for row in analyse_structure(plant).rows[:6]:
-        gen, sigma, cert = nullspace_generator(plant, row, "g")
+        gen, sigma, cert = nullspace_generator(plant, row, "g", pole=0.5)  # the pole's choice: tests/design/test_gap.py
         assert cert.passed and np.isfinite(sigma).all() and sigma[0, 0] > 0
         for z0 in poles:
             near, nearer = z0 * (1 + 1e-3), z0 * (1 + 1e-7)
@@ -205,7 +205,7 @@ def test_the_reference_plants_get_an_isolating_bank_of_least_order_filters(probl
     plant = plant if plant.is_discrete else plant.discretise(Ts)
     res = analyse_structure(plant)
     rows = [list(r) for r in res.rows if sum(r) == len(res.faults) - 1]
-    gf = fdisyn.design(plant, method="nullspace", structure=rows)
+    gf = fdisyn.design(plant, method="nullspace", structure=rows, pole=0.5)
     assert [g.n_state for g in gf.generators] == orders
     assert list(gf.faults) == list(res.faults)  # every fault isolable: its own class
 
