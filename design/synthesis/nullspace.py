@@ -145,9 +145,9 @@ def _best_combination(
     basis: np.ndarray, plant: LinearPlant, fault_cols: list[tuple[np.ndarray, np.ndarray]], pole: float, start: np.ndarray, at: Sequence[complex] = ()
 ) -> np.ndarray:
     """The combination of the null vectors ``basis`` (count × (k + 1) × (p + m), user units) of the largest
-    fault-to-noise gap on :func:`_grid`: from the generic one ``start``, each basis direction and each fault's
-    generalised eigenvector of its energy against the noise's, the best two polished by Nelder–Mead on the grid's
-    gap. ``start`` is a vector of the space (``(k + 1) × (p + m)``). With points ``at`` (frequencies of a strong
+    fault-to-noise gap on :func:`_grid`: of the generic one ``start``, each basis direction and each fault's
+    generalised eigenvector of its energy against the noise's, the first within :data:`GAP_GAIN` of the best, then
+    polished by Nelder–Mead on the grid's gap pulled towards it (:data:`GAP_PULL`). ``start`` is a vector of the space (``(k + 1) × (p + m)``). With points ``at`` (frequencies of a strong
     structure), the faults' H∞ norm is replaced by their least gain at those points (Varga's gap with ``freq``)."""
     from scipy.optimize import minimize
 
