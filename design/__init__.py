@@ -30,7 +30,15 @@ _PUBLIC = {
     "export": "fdisyn.app.api",
     "load": "fdisyn.app.api",
     "methods": "fdisyn.app.api",
+    "problem": "fdisyn.app.api",
+    "simulate": "fdisyn.app.api",
+    "evaluate": "fdisyn.app.api",
+    "fault_size_sweep": "fdisyn.app.api",
+    "report": "fdisyn.app.api",
     "fault_account": "fdisyn.synthesis.account",
+    "plot_trace": "fdisyn.reporting.plots",
+    "plot_laws": "fdisyn.reporting.plots",
+    "plot_detection": "fdisyn.reporting.plots",
     "structure_matrices": "fdisyn.synthesis.structure",
     "analyse_structure": "fdisyn.synthesis.structure",
     "check_structure": "fdisyn.synthesis.structure",
@@ -46,8 +54,9 @@ _PUBLIC = {
 __all__ = ["__version__", *_PUBLIC]
 
 if TYPE_CHECKING:
-    from fdisyn.app.api import design, export, load, methods  # noqa: F401
+    from fdisyn.app.api import design, evaluate, export, fault_size_sweep, load, methods, problem, report, simulate  # noqa: F401
     from fdisyn.synthesis.account import fault_account  # noqa: F401
+    from fdisyn.reporting.plots import plot_detection, plot_laws, plot_trace  # noqa: F401
     from fdisyn.synthesis.structure import analyse_structure, check_structure, structure_matrices  # noqa: F401
     from fdisyn.synthesis.nullspace import analyse_gaps  # noqa: F401
     from fdisyn.synthesis.gap import bank_performance  # noqa: F401

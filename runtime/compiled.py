@@ -131,7 +131,7 @@ def stale_build_message(directory: str | Path, have: str, built: str) -> str:
     return STALE_BUILD % (shown_path(str(d / "gains.json")), shown_dir, have, built, shown_dir)
 
 
-def write_manifest(library: str | Path, gain_sha256: str, gain_file_bytes_sha256: str | None = None) -> Path:
+def write_manifest(library: str | Path, gain_sha256: str, gain_file_bytes_sha256: str | None = None, *, precision: str = "double") -> Path:
     """Record what ``library`` is.
 
     Parameters
@@ -143,6 +143,9 @@ def write_manifest(library: str | Path, gain_sha256: str, gain_file_bytes_sha256
     gain_file_bytes_sha256 : str, optional
         The sha256 of the bytes of the ``gains.json`` beside it that ``fdisyn codegen`` read; ``None`` for a
         library built from a gain file that is not on disk (the check of the file beside it is then skipped).
+    precision : str
+        What the step computes in: ``"double"``, or ``"single"`` (``fdisyn codegen --precision single``); a record
+        for the reader, not checked by the loader (both builds have the same double API).
 
     Returns
     -------
@@ -156,6 +159,7 @@ def write_manifest(library: str | Path, gain_sha256: str, gain_file_bytes_sha256
         "library_sha256": file_sha256(lib),
         "gain_file_sha256": gain_sha256,
         "gain_file_bytes_sha256": gain_file_bytes_sha256,
+        "precision": precision,
     }
     out = manifest_path(lib)
     if out.is_symlink():  # a planted link would be followed and its target overwritten

@@ -66,7 +66,7 @@ from fdisyn.runtime.jsondata import parse_json_data, read_regular_file, to_jsona
 from fdisyn.runtime.names import shown
 from fdisyn.runtime.schema import FORMAT, FORMAT_FAMILY, LIMITS, MATRIX_KEYS
 from fdisyn.runtime.statistics import STATISTICS
-from fdisyn.runtime.validate import check_certificate, check_magnitudes, validate_gain_file, validate_generator
+from fdisyn.runtime.validate import check_certificate, check_magnitudes, signal_keys, validate_gain_file, validate_generator
 from fdisyn.runtime.values import real_number
 
 __all__ = [
@@ -83,6 +83,7 @@ __all__ = [
     "gain_file_from_dict",
     "gain_file_sha256",
     "release_level",
+    "signals_block",
 ]
 
 
@@ -112,6 +113,10 @@ class Generator:
     Ts : float or None
         Sample time of the gain file that holds the generator (set by :class:`GainFile`; not written:
         the file's ``Ts`` is).
+    input_names, output_names, residual_names : tuple of str
+        The names of its inputs ``u`` and outputs ``y`` (the gain file's ``inputs`` and ``outputs``) and of its
+        residuals (its rows of the file's ``step.residual_names``); set by :class:`GainFile`, not written (the
+        file's lists are); empty for a generator outside a gain file.
 
     Raises
     ------
@@ -133,6 +138,9 @@ class Generator:
     method: Mapping[str, Any] = field(default_factory=dict)
     Ts: float | None = None
     warmup: int = 0
+    input_names: tuple[str, ...] = ()
+    output_names: tuple[str, ...] = ()
+    residual_names: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         validate_generator(self)
@@ -209,10 +217,29 @@ class Generator:
         ``[u; y]`` (every input, then every output of the gain file), output
         ``r``, ``dt`` the gain file's ``Ts`` (``True``, discrete with an
         unspecified sample time, for a generator outside a gain file).
-        python-control is imported here, not with the runtime.
+        The system's signals are named after the gain file: its inputs are
+        the file's ``inputs`` then ``outputs`` (e.g. ``u``, ``y1``), its
+        outputs the generator's residual names (``step.residual_names``)
+        without the generator's name before a ``.``: python-control refuses a
+        ``.`` in a signal name (it addresses ``system.signal``, and the system
+        is named after the generator), so ``g0.y1`` is the output ``y1`` of the
+        system ``g0`` and any other ``.`` is written ``_``. A generator outside
+        a gain file keeps python-control's ``u[i]``, ``y[i]``. python-control
+        is imported here, not with the runtime.
+
+        Returns
+        -------
+        control.StateSpace
+            The generator, discrete, with named signals.
         """
         import control
 
+        named = {}
+        if len(self.input_names) + len(self.output_names) == self.Bu.shape[1] + self.By.shape[1]:
+            named["inputs"] = [*self.input_names, *self.output_names]
+        if self.residual_names and len(self.residual_names) == self.Cr.shape[0]:
+            own = f"{self.name}."
+            named["outputs"] = [(r[len(own):] if r.startswith(own) else r).replace(".", "_") for r in self.residual_names]
         return control.ss(
             self.Ar,
             np.hstack([self.Bu, self.By]),
@@ -220,6 +247,7 @@ class Generator:
             np.hstack([self.Du, self.Dy]),
             dt=True if self.Ts is None else self.Ts,
             name=self.name,
+            **named,
         )
 
     @property
@@ -473,6 +501,11 @@ class GainFile:
         What the design can see (optional; written by the design side, ``fdisyn.numerics.account``): each fault's
         effect on the residuals, its smallest detectable size and the fault classes the diagnoser can tell apart.
         A file without it (written before it existed) reads and hashes as before.
+    signals : Mapping or None
+        Readable texts of the file's signals (optional): ``{"units": {name: unit}, "labels": {name: label}}``, each
+        table optional, keyed by the file's inputs, outputs and the component faults its faults name
+        (:func:`~fdisyn.runtime.validate.validate_signals`); written by the design side from the plant's ``units``
+        and ``labels`` (:func:`signals_block`). A file without it reads and hashes as before.
 
     Raises
     ------
@@ -498,11 +531,35 @@ class GainFile:
     extensions: Mapping[str, Any] = field(default_factory=dict)
     format: str = FORMAT
     account: Mapping[str, Any] | None = None
+    signals: Mapping[str, Mapping[str, str]] | None = None
 
     def __post_init__(self) -> None:
         validate_gain_file(self)
+        if self.signals is not None:
+            object.__setattr__(self, "signals", {table: dict(texts) for table, texts in self.signals.items()})
         ts = float(self.Ts)
-        object.__setattr__(self, "generators", tuple(g if g.Ts == ts else replace(g, Ts=ts) for g in self.generators))
+        offsets = np.cumsum([0, *(g.n_residual for g in self.generators)])
+        names = self.step.residual_names if self.kind == "linear" and offsets[-1] == len(self.step.residual_names) else None
+        gens = []
+        for k, g in enumerate(self.generators):
+            own: dict[str, Any] = {
+                "Ts": ts,
+                "input_names": tuple(self.inputs),
+                "output_names": tuple(self.outputs),
+                "residual_names": () if names is None else tuple(names[offsets[k] : offsets[k + 1]]),
+            }
+            gens.append(g if all(getattr(g, key) == v for key, v in own.items()) else replace(g, **own))
+        object.__setattr__(self, "generators", tuple(gens))
+
+    @property
+    def units(self) -> dict[str, str]:
+        """The unit of each signal the file describes (its ``signals.units``; empty without the block)."""
+        return dict((self.signals or {}).get("units", {}))
+
+    @property
+    def labels(self) -> dict[str, str]:
+        """The readable name of each signal the file describes (its ``signals.labels``; empty without the block)."""
+        return dict((self.signals or {}).get("labels", {}))
 
     @property
     def thresholds(self) -> np.ndarray:
@@ -593,7 +650,36 @@ class GainFile:
         doc["extensions"] = to_jsonable(dict(self.extensions))
         if self.account is not None:  # absent: the document (and its content hash) is what it was without the block
             doc["account"] = to_jsonable(dict(self.account))
+        if self.signals is not None:  # absent: the document (and its content hash) is what it was without the block
+            doc["signals"] = {table: dict(texts) for table, texts in self.signals.items()}
         return doc
+
+
+def signals_block(
+    units: Mapping[str, str], labels: Mapping[str, str], inputs: Sequence[str], outputs: Sequence[str], faults: Sequence[str]
+) -> dict[str, dict[str, str]] | None:
+    """The ``signals`` block of a gain file from a plant's ``units`` and ``labels``: the entries of the file's names.
+
+    Parameters
+    ----------
+    units, labels : Mapping of str to str
+        A unit and a readable name per signal of the plant (checked by the plant).
+    inputs, outputs, faults : sequence of str
+        The gain file's names; entries of other signals (states, unknown inputs) are left out.
+
+    Returns
+    -------
+    dict or None
+        ``{"units": {…}, "labels": {…}}`` with the tables that have an entry; ``None`` when neither has one (the file
+        then has no block, and reads and hashes as a file written before the block existed).
+    """
+    keys = signal_keys(tuple(inputs), tuple(outputs), tuple(faults))
+    block = {}
+    for table, texts in (("units", units), ("labels", labels)):
+        kept = {k: texts[k] for k in keys if k in texts}
+        if kept:
+            block[table] = kept
+    return block or None
 
 
 # --------------------------------------------------------------------------- I/O
@@ -854,6 +940,7 @@ def gain_file_from_dict(doc: object, *, source: str = "gain file") -> GainFile:
             kind=dd.string("kind"), signatures=dd.matrix("signatures"), persistence=dd.integer("persistence", minimum=1),
             isolation=isolation,
         )
+    signals = r.obj("signals") if "signals" in doc else None  # its refusal names the source already
     try:
         return GainFile(
             kind=kind,
@@ -869,6 +956,7 @@ def gain_file_from_dict(doc: object, *, source: str = "gain file") -> GainFile:
             provenance=r.obj("provenance"),
             extensions=r.obj("extensions") if "extensions" in doc else {},
             account=r.obj("account") if "account" in doc else None,
+            signals=signals,
             **kwargs,
         )
     except GainFileError as exc:

@@ -18,6 +18,8 @@ by the backend with the same rules and messages for both.
 
 from __future__ import annotations
 
+import re
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal, cast
@@ -29,7 +31,7 @@ from fdisyn.runtime.gainfile import GainFile, read_gain_file
 from fdisyn.runtime.names import shown
 from fdisyn.runtime.reference import ChangeEstimate, LinearReference, RunResult, glr_estimates
 
-__all__ = ["BACKENDS", "Verdict", "Monitor"]
+__all__ = ["BACKENDS", "Verdict", "Monitor", "fault_label"]
 
 
 @dataclass(frozen=True)
@@ -52,6 +54,10 @@ class Verdict:
         The residuals, one per ``step.residual_names``.
     skipped : bool
         The sample held a non-finite value and was skipped where it mattered.
+    fault_label : str or None
+        The isolated fault's readable name from the gain file's ``signals.labels`` (``"rotor speed sensor"`` style
+        text the design's plant gave its signals; a fault of several signals joins theirs with `` + `` or `` | ``,
+        a signal without a label keeps its name); ``None`` when :attr:`fault` is.
     """
 
     time: float
@@ -63,6 +69,30 @@ class Verdict:
     r: np.ndarray
     skipped: bool
     """The sample held a non-finite value and was skipped where it mattered."""
+    fault_label: str | None = None
+    """The isolated fault's readable name (the gain file's labels; its name where it has none)."""
+
+
+def fault_label(fault: str | None, labels: Mapping[str, str]) -> str | None:
+    """The readable name of ``fault`` (a fault name of a gain file): each signal's label, joined as the name joins them.
+
+    Parameters
+    ----------
+    fault : str or None
+        A fault name: signal names joined by ``+`` (at once) or ``|`` (classes not told apart).
+    labels : Mapping of str to str
+        A readable name per signal (a gain file's ``signals.labels``); a signal without one keeps its name.
+
+    Returns
+    -------
+    str or None
+        ``None`` for ``None``; ``fault`` itself when no signal of it has a label.
+    """
+    if fault is None:
+        return None
+    # a fault name is signal names and the operators + and | between them (fdisyn.runtime.names)
+    parts = re.split(r"([+|])", fault)
+    return "".join(f" {p} " if p in ("+", "|") else labels.get(p, p) for p in parts)
 
 
 BACKENDS = ("auto", "compiled", "reference")
@@ -96,6 +126,9 @@ class Monitor:
         Samples processed since the last :meth:`reset`.
     skipped_samples : int
         Of those, the samples that held a non-finite value.
+    units, labels : dict of str to str
+        The unit and the readable name of each signal the gain file describes (its optional ``signals`` block:
+        inputs, outputs and component faults; empty without it), e.g. ``mon.units["omega_r"] == "rad/s"``.
 
     Examples
     --------
@@ -144,6 +177,8 @@ class Monitor:
                 raise BuildError("backend='compiled' needs the path of the compiled library")
             self.impl = CompiledDiagnoser(library, gf)
         self.backend = "reference" if isinstance(self.impl, LinearReference) else "compiled"
+        self.units = gf.units
+        self.labels = gf.labels
         self.reset()
 
     @classmethod
@@ -225,6 +260,7 @@ class Monitor:
             J=out.J,
             r=out.r,
             skipped=bool(out.status),
+            fault_label=fault_label(self.gf.faults[iso], self.labels) if iso >= 0 else None,
         )
 
     def change_estimates(self) -> list[ChangeEstimate]:

@@ -75,6 +75,8 @@ __all__ = [
     "check_fault_name",
     "check_diagnoser_name",
     "check_label",
+    "check_text",
+    "check_signal_texts",
     "check_distinct",
     "shown",
 ]
@@ -211,6 +213,46 @@ def check_label(name: object, what: str, *, max_length: int = LABEL_MAX, error: 
             f"at most {max_length} characters"
         )
     return s
+
+
+def check_text(value: object, what: str, *, max_length: int, error: Error = ArgumentError) -> str:
+    """``value`` if it is short text: one line of 1 to ``max_length`` printable characters, no blank at either end.
+
+    The readable texts of signals (a unit such as ``"rad/s"`` or ``"N·m"``, a label such as ``"rotor speed"``)
+    are data that reach pages, terminals and gain files but never C or a CSV header: any printable Unicode is
+    accepted (``str.isprintable``: no control character, line or paragraph separator, or invisible formatting
+    character such as a bidirectional override), so the text shows as one line wherever it is printed.
+    """
+    s = _string(value, what, error)
+    if not s or len(s) > max_length or not s.isprintable() or s != s.strip():
+        raise error(
+            f"{what} {shown(s)} is not short text: expected 1 to {max_length} printable characters on one line, "
+            "without blanks at either end"
+        )
+    return s
+
+
+def check_signal_texts(
+    texts: object, what: str, signals: Sequence[str], *, max_length: int, owner: str = "the plant", error: Error = ArgumentError
+) -> dict[str, str]:
+    """A table signal name → text (:func:`check_text`) whose every key is one of ``signals`` (those of ``owner``);
+    ``what`` names the table.
+
+    Returns a plain ``dict`` in the table's order; refuses a key that is not one of ``signals`` naming the key and the
+    signals there are.
+    """
+    if not isinstance(texts, Mapping):
+        raise error(f"{what} must be a table of text by signal name, found {type(texts).__name__} {shown(texts)}")
+    known = set(signals)
+    out: dict[str, str] = {}
+    for key, value in texts.items():
+        _string(key, f"a key of {what}", error)
+        if key not in known:
+            raise error(
+                f"{what} names {shown(key)}, which is not a signal of {owner}; expected keys among {shown(list(signals), 200)}"
+            )
+        out[key] = check_text(value, f"{what}[{key!r}]", max_length=max_length, error=error)
+    return out
 
 
 def check_distinct(groups: Mapping[str, Sequence[str]], *, why: str, error: Error = ArgumentError) -> None:

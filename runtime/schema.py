@@ -21,6 +21,8 @@ __all__ = [
     "ACCOUNT_FORMAT",
     "ACCOUNT_EFFECTS",
     "MAX_MAGNITUDE",
+    "UNIT_MAX",
+    "SIGNAL_LABEL_MAX",
 ]
 
 FORMAT = "fdisyn.gains/1"
@@ -106,3 +108,10 @@ The reader's consistency checks multiply the file's numbers: ``(I − Ar) Xu −
 and the Frobenius norm of a matrix of at most 2048 × 2048 such sums ~4·10³⁰⁶: below the largest double
 (1.8·10³⁰⁸), so no check can overflow to ``inf`` and pass (``gap ≤ tol·inf``). Designed files hold
 numbers far below it (the committed designs: at most ~10¹⁰)."""
+
+UNIT_MAX = 32
+"""Longest unit of a signal (``"rad/s"``, ``"N·m"``), in characters: a plant's ``units`` and a gain file's
+``signals.units``."""
+SIGNAL_LABEL_MAX = 80
+"""Longest readable name of a signal (``"rotor speed"``, without its unit), in characters: a plant's ``labels`` and a
+gain file's ``signals.labels`` (one line of a table or a legend)."""

@@ -20,6 +20,7 @@ from fdisyn.runtime.names import (
     check_distinct,
     check_fault_name,
     check_label,
+    check_signal_texts,
     check_signal_names,
     shown,
 )
@@ -30,6 +31,8 @@ from fdisyn.runtime.schema import (
     LIMITS,
     MATRIX_KEYS,
     MAX_MAGNITUDE,
+    SIGNAL_LABEL_MAX,
+    UNIT_MAX,
 )
 from fdisyn.runtime.statistics import STATISTICS
 from fdisyn.runtime.warmup import MAX_WARMUP, warmup_coefficients
@@ -47,6 +50,8 @@ __all__ = [
     "validate_gain_file",
     "validate_generator",
     "validate_account",
+    "validate_signals",
+    "signal_keys",
     "check_certificate",
     "check_limits",
     "check_magnitudes",
@@ -112,6 +117,39 @@ def validate_gain_file(gf: _GainFile) -> None:
         _validate_extension_thresholds(gf)
     if gf.account is not None:
         validate_account(gf)
+    if gf.signals is not None:
+        validate_signals(gf)
+
+
+SIGNAL_TEXTS = {"units": UNIT_MAX, "labels": SIGNAL_LABEL_MAX}
+"""The tables of the optional ``signals`` block and the longest text each holds."""
+
+
+def signal_keys(inputs: Sequence[str], outputs: Sequence[str], faults: Sequence[str]) -> tuple[str, ...]:
+    """The names a gain file's ``signals`` block may describe: its inputs, its outputs and the other signals its faults
+    name (component faults; a fault ``a+b`` or ``a|b`` names ``a`` and ``b``), in that order."""
+    named = dict.fromkeys(part for f in faults for alt in f.split("|") for part in alt.split("+"))
+    return (*inputs, *outputs, *(nm for nm in named if nm not in inputs and nm not in outputs))
+
+
+def validate_signals(gf: _GainFile) -> None:
+    """The optional ``signals`` block: ``{"units": {name: text}, "labels": {name: text}}``, each table optional.
+
+    A key is an input, an output or a signal a fault of the file names (:func:`signal_keys`); a unit is at most
+    :data:`~fdisyn.runtime.schema.UNIT_MAX` printable characters on one line, a label at most
+    :data:`~fdisyn.runtime.schema.SIGNAL_LABEL_MAX` (:func:`~fdisyn.runtime.names.check_text`). Anything else is
+    refused naming the field.
+    """
+    block = gf.signals
+    if not isinstance(block, Mapping):
+        _fail(f"signals must be an object with 'units' and/or 'labels', found {type(block).__name__} {shown(block)}")
+    other = [k for k in block if k not in SIGNAL_TEXTS]
+    if other:
+        _fail(f"signals holds {shown(other)}; expected only the tables 'units' and 'labels' (text by signal name)")
+    keys = signal_keys(gf.inputs, gf.outputs, gf.faults)
+    for table, longest in SIGNAL_TEXTS.items():
+        if table in block:
+            check_signal_texts(block[table], f"signals.{table}", keys, max_length=longest, owner="the gain file", error=GainFileError)
 
 
 _RULE_MAX = 400

@@ -51,8 +51,13 @@ def _module(path: Path) -> str:
     return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
 
 
+EXAMPLES = ROOT / "design" / "examples"
+"""The example plant files and workflow scripts: data shipped with the package, not modules of it (a workflow
+script imports the package root alone, as a user's script does; tests/design/test_workflows.py runs them)."""
+
+
 def _modules() -> dict[str, Path]:
-    return {_module(p): p for top in SOURCES for p in sorted((ROOT / top).rglob("*.py"))}
+    return {_module(p): p for top in SOURCES for p in sorted((ROOT / top).rglob("*.py")) if EXAMPLES not in p.parents}
 
 
 def _imports(name: str, path: Path, known: set[str]) -> set[str]:

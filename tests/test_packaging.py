@@ -1,7 +1,7 @@
 """The wheel carries every subpackage: ``pyproject.toml`` lists packages by hand (the folders are mapped
 onto ``fdisyn``), so a new subpackage that is not listed would be missing from a non-editable install.
 It carries the example plant files and the two references (``examples/PLANT_FILES.md``,
-``runtime/REFERENCE.md``) too, and it installs the runtime alone (NumPy) unless the extra
+``runtime/REFERENCE.md``) too, the ``py.typed`` marker and the licence, and it installs the runtime alone (NumPy) unless the extra
 ``design`` is asked for."""
 
 from __future__ import annotations
@@ -46,7 +46,7 @@ def test_the_base_installation_is_the_runtime_and_the_design_packages_are_an_ext
 def wheel(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The wheel ``pip wheel`` builds from a copy of the sources (setuptools writes its ``build/`` there)."""
     src = tmp_path_factory.mktemp("src")
-    for name in ("pyproject.toml", "README.md"):
+    for name in ("pyproject.toml", "README.md", "LICENSE"):
         shutil.copy2(ROOT / name, src / name)
     for folder in ("design", "runtime", "problems"):
         shutil.copytree(ROOT / folder, src / folder, ignore=shutil.ignore_patterns("__pycache__"))
@@ -89,3 +89,26 @@ def test_the_wheel_carries_the_examples_and_installs_the_runtime_alone(wheel: Pa
     assert Path(proc.stdout.splitlines()[0]).is_relative_to(site)  # the wheel's files, not the source tree
     assert (work / "ship.toml").read_bytes() == (EXAMPLES / "ship.toml").read_bytes()
     assert proc.stdout.endswith(PLANT_FILES.read_text(encoding="utf-8"))  # the reference, runtime-only too
+
+
+@pytest.mark.slow
+def test_the_wheel_carries_the_typing_marker_and_the_licence(wheel: Path) -> None:
+    """``py.typed`` (PEP 561) at the package root, the MIT licence in the metadata and as a file."""
+    with zipfile.ZipFile(wheel) as zf:
+        names = zf.namelist()
+        assert "fdisyn/py.typed" in names
+        (meta,) = [n for n in names if n.endswith(".dist-info/METADATA")]
+        fields = [ln for ln in zf.read(meta).decode().splitlines() if ln.startswith(("License-Expression:", "License-File:"))]
+        (licence,) = [n for n in names if n.endswith(".dist-info/licenses/LICENSE")]
+        assert zf.read(licence) == (ROOT / "LICENSE").read_bytes()
+    assert "License-Expression: MIT" in fields and "License-File: LICENSE" in fields
+    text = (ROOT / "LICENSE").read_text(encoding="utf-8")
+    assert text.startswith("MIT License") and "Copyright (c) 2026 the fdisyn authors" in text
+
+
+def test_the_source_tree_has_the_typing_marker_and_the_licence() -> None:
+    cfg = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    assert (ROOT / cfg["tool"]["setuptools"]["package-dir"]["fdisyn"] / "py.typed").is_file()
+    assert "py.typed" in cfg["tool"]["setuptools"]["package-data"]["fdisyn"]
+    assert cfg["project"]["license"] == "MIT" and cfg["project"]["license-files"] == ["LICENSE"]
+    assert (ROOT / "LICENSE").is_file()

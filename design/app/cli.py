@@ -19,8 +19,9 @@
 tcp://HOST:PORT]``: the runs spread over N local processes (default: every
 core; more than the cores is run as that many, said in one line), or over a
 Dask cluster (the scheduler at ``--address``, else a local one of N
-processes). ``fdisyn --quiet <command>`` shows no progress bar (there is none
-either when stderr is not a terminal) and no note. Every whole-number
+processes). ``fdisyn --quiet <command>`` (or ``--quiet`` anywhere after the
+command) shows no progress bar (there is none either when stderr is not a
+terminal) and no note. Every whole-number
 argument (``--runs``, ``--seed``, ``--workers``, ``--mc-runs``,
 ``--rss-runs``) is the digits 0–9 alone: no sign, ``_``, blank or other
 script's digits.
@@ -253,8 +254,9 @@ def _cmd_codegen(a: argparse.Namespace) -> None:
     if Path(a.dir).exists() and not Path(a.dir).is_dir():
         raise FileError(f"DIR {a.dir} is a file: expected the directory holding gains.json (fdisyn design --out DIR)")
     with _user_paths("a writable directory holding gains.json", ("DIR", a.dir)):
-        res = codegen(a.dir)
-    print(f"wrote {res.c_dir}/, {res.library}, {res.replay}")
+        res = codegen(a.dir, precision=a.precision)
+    single = " (single precision)" if a.precision == "single" else ""
+    print(f"wrote {res.c_dir}/, {res.library}, {res.replay}{single}")
 
 
 def _cmd_replay(a: argparse.Namespace) -> None:
@@ -501,14 +503,9 @@ def _cmd_methods(a: argparse.Namespace) -> None:
     def default(o: Any) -> str:
         return "required" if o.default is REQUIRED else repr(o.default)
 
-    if a.name is None and a.option is None:  # the listing: one line per option
+    if a.name is None and a.option is None:  # the listing: one line per method (NAME or --option: the option tables)
         for m in methods:
             print(f"{m.name} ({m.plant_kind} plant): {m.summary}")
-            print(f"  reference: {m.reference}")
-            for o in m.options:
-                given = "required" if o.default is REQUIRED else f"default {default(o)}"
-                where = f"; a plant file takes it from {o.plant_file}" if o.plant_file else ""
-                print(f"  {o.name} ({given}): {o.doc}; {o.expected}{where}")
         return
     pattern = "*" if a.option is None else a.option.lower()
 
@@ -574,17 +571,21 @@ def _parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     ap.add_argument("--version", action="version", version=f"fdisyn {__version__}", help="print the version of fdisyn and exit")
-    ap.add_argument("--quiet", action="store_true", help="no progress bars (there are none either when stderr is not a terminal)")
+    quiet_help = "no progress bars (there are none either when stderr is not a terminal)"
+    ap.add_argument("--quiet", action="store_true", help=quiet_help)
     sub = ap.add_subparsers(dest="command", required=True, metavar="command", help="the command to run; fdisyn <command> --help describes it")
 
     def command(name: str, summary: str, description: str, *examples: str) -> argparse.ArgumentParser:
-        return sub.add_parser(
+        p = sub.add_parser(
             name,
             help=summary,
             description=textwrap.fill(description, 79),  # the formatter keeps the epilog's lines, so wrap here
             epilog=_examples(*examples),
             formatter_class=argparse.RawDescriptionHelpFormatter,
         )
+        # --quiet after the command too; SUPPRESS: absent there, it leaves the value given before the command
+        p.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS, help=quiet_help)
+        return p
 
     def opt(p: argparse.ArgumentParser) -> None:
         p.add_argument(
@@ -637,8 +638,13 @@ def _parser() -> argparse.ArgumentParser:
         ".dll on Windows) with its build manifest and the replay program DIR/replay; the C compiler is $CC (default gcc).",
         "fdisyn codegen motor",
         "CC='gcc -m32' fdisyn codegen motor",
+        "fdisyn codegen motor --precision single",
     )
     p.add_argument("dir", metavar="DIR", help="the directory holding gains.json (fdisyn design --out DIR)")
+    p.add_argument(
+        "--precision", choices=("double", "single"), default="double",
+        help="what the step computes in: double (default) or single (float, for a target without a double-precision FPU)",
+    )
     p.set_defaults(fn=_cmd_codegen)
 
     p = command(
@@ -757,10 +763,10 @@ def _parser() -> argparse.ArgumentParser:
 
     p = command(
         "methods",
-        "list the design methods with their plant kind, reference and options",
-        "List every registered design method: the plant it designs for, its summary, the paper it implements and each "
-        "option with its default and meaning. A plant file names one in [design].method; Python passes it to "
-        "fdisyn.design(plant, method=...). With NAME, that method's option table: each option's name, default, the "
+        "list the design methods (one line each); with NAME, its reference and options",
+        "List every registered design method, one line each: its name, the plant it designs for and its summary. A "
+        "plant file names one in [design].method; Python passes it to fdisyn.design(plant, method=...). With NAME, "
+        "that method's reference and option table: each option's name, default, the "
         "values it accepts and its meaning; --option PATTERN keeps the options whose name matches PATTERN (a shell "
         "pattern such as 'P_*', or a part of the name, in any case), --plant-kind KIND the methods for one plant "
         "kind (linear, continuous, nonlinear).",

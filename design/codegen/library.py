@@ -2,16 +2,25 @@
 
 ``fdisyn codegen DIR`` reads ``DIR/gains.json`` and writes
 
-* ``DIR/c/``: ``<prefix>_casadi.c`` (CasADi's code for the step),
-  ``<prefix>.c`` / ``<prefix>.h`` (the malloc-free C API), ``replay.c``,
-  ``bench.c`` and a ``CMakeLists.txt`` for users who build it themselves;
+* ``DIR/c/``: the library a firmware or application compiles, nothing
+  else: ``<prefix>.c`` / ``<prefix>.h`` (the malloc-free C API; ``<prefix>.c``
+  is the one source, listed in ``SOURCES``), ``<prefix>_casadi.c`` /
+  ``<prefix>_casadi.h`` (CasADi's code for the step, which ``<prefix>.c``
+  includes; compiled on its own it is empty, so a build that takes every
+  ``.c`` file of the folder links too), and a ``CMakeLists.txt`` whose static
+  library target ``fdisyn::<prefix>`` an ``add_subdirectory`` adds;
+* ``DIR/c/tools/``: the programs with a ``main``, ``replay.c`` and ``bench.c``;
 * ``DIR/lib<prefix>.so`` (``.dylib`` on macOS, ``.dll`` on Windows:
   :func:`fdisyn.runtime.compiled.library_suffix`): the shared library (loaded by ctypes);
 * ``DIR/replay``: the pure-C replay program.
 
 Everything is compiled with ``-std=c99 -O2 -Wall -Wextra -Werror -pedantic``
-(never ``-ffast-math``, which may remove the non-finite checks). ``<prefix>``
-is the gain file's ``name``.
+(never ``-ffast-math``, which may remove the non-finite checks); the library
+is also warning-free under ``-std=c11``. ``<prefix>`` is the gain file's
+``name``. With ``precision="single"`` the step computes in ``float``
+(CasADi's ``casadi_real`` option, ``<tgmath.h>`` for its math functions):
+``<prefix>_init_f`` / ``<prefix>_step_f`` take floats, and the double API
+converts at the boundary.
 
 A gain file is data, never code. Before anything is generated, the name that
 prefixes the C API is checked again (it cannot be escaped: it forms
@@ -33,6 +42,7 @@ run beside another one, with the line ``fdisyn replay`` prints
 from __future__ import annotations
 
 import hashlib
+import math
 import os
 import re
 import shlex
@@ -49,7 +59,7 @@ import fdisyn.runtime
 import numpy as np
 from fdisyn.codegen.step import step_function
 from fdisyn.runtime.compiled import BUILD_MARK, STALE_BUILD, library_path, manifest_path, write_manifest
-from fdisyn.runtime.errors import BuildError, GainFileError
+from fdisyn.runtime.errors import ArgumentError, BuildError, GainFileError
 from fdisyn.runtime.gainfile import GainFile, gain_file_sha256, read_gain_file
 from fdisyn.runtime.jsondata import read_regular_file
 from fdisyn.runtime.schema import FORMAT, LIMITS
@@ -58,6 +68,11 @@ from fdisyn.runtime.names import check_diagnoser_name
 
 __all__ = [
     "CFLAGS",
+    "LIBRARY_SOURCES",
+    "PRECISIONS",
+    "TOOLS",
+    "check_precision",
+    "float_literals",
     "STACK_LIMIT_BYTES",
     "CodegenResult",
     "c_comment_text",
@@ -76,6 +91,17 @@ C_TEMPLATES = Path(fdisyn.runtime.__file__).parent / "c"
 """The C templates shipped with the runtime package."""
 
 CFLAGS = ("-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-pedantic")
+
+PRECISIONS = ("double", "single")
+"""What the generated step may compute in: IEEE double (the default), or single (``float``) for targets without a
+double-precision FPU."""
+
+TOOLS = "tools"
+"""The folder of ``DIR/c`` that holds the programs with a ``main`` (``replay.c``, ``bench.c``): ``DIR/c`` itself
+holds only the library, so a build may compile every ``.c`` file there."""
+
+LIBRARY_SOURCES = "SOURCES"
+"""The file of ``DIR/c`` that lists the sources a build compiles, one a line, relative to ``DIR/c``."""
 
 
 def shared_library_flags(platform: str | None = None) -> tuple[str, ...]:
@@ -265,7 +291,96 @@ def casadi_step(gf: GainFile, step: ca.Function | None = None) -> ca.Function:
     return ca.Function(f"{gf.name}_casadi_step", ins, fn.call(ins), list(fn.name_in()), list(fn.name_out()))
 
 
-def generate_sources(gf: GainFile, c_dir: str | Path, *, step: ca.Function | None = None, gain_file_bytes_sha256: str | None = None) -> Path:
+def check_precision(precision: object) -> str:
+    """``precision`` if it is one of :data:`PRECISIONS`.
+
+    Parameters
+    ----------
+    precision : object
+        What the step is to compute in, as given.
+
+    Returns
+    -------
+    str
+        ``"double"`` or ``"single"``.
+
+    Raises
+    ------
+    ArgumentError
+        Anything else, in one line naming the two.
+    """
+    if precision not in PRECISIONS:
+        raise ArgumentError(f"precision must be 'double' or 'single', not {precision!r}; expected --precision double (the default) or single")
+    return str(precision)
+
+
+_FLOAT_LITERAL = re.compile(r"(?<![\w.])(?:\d+\.\d*(?:[eE][+-]?\d+)?|\.\d+(?:[eE][+-]?\d+)?|\d+[eE][+-]?\d+)(?![\w.])")
+"""A decimal floating literal of CasADi's C (``2.``, ``1.0000000000000001e+300``), not part of a name or a version."""
+
+_FLT_MIN, _FLT_MAX = float(np.finfo(np.float32).tiny), float(np.finfo(np.float32).max)
+
+
+def float_literals(text: str) -> str:
+    """``text`` (CasADi's C of a step) with every floating literal written as the ``float`` nearest its double value,
+    with the suffix ``F``, so that no operation is promoted to double (CasADi writes ``2.*x`` for a doubling).
+
+    The guards a step takes from the double range keep their sense in float's: a nonzero constant below the
+    smallest normal float (``DBL_MIN``, ``1e-280``: floors against a division by zero or a logarithm of zero) becomes
+    ``FLT_MIN``, one beyond the largest float (``DBL_MAX``, ``1e300``: caps and overflow checks) ``FLT_MAX``, rather
+    than 0 and infinity.
+
+    Parameters
+    ----------
+    text : str
+        C generated by CasADi.
+
+    Returns
+    -------
+    str
+        The same C with its floating literals as ``float`` constants.
+    """
+
+    def one(m: re.Match[str]) -> str:
+        v = float(m.group(0))
+        mag = abs(v)
+        if mag == 0.0 or math.isinf(mag):
+            f = v
+        elif mag < _FLT_MIN:
+            f = math.copysign(_FLT_MIN, v)
+        elif mag > _FLT_MAX:
+            f = math.copysign(_FLT_MAX, v)
+        else:
+            f = float(np.float32(v))
+        s = repr(float(np.float32(f)))
+        return (s if any(ch in s for ch in ".e") else s + ".") + "F"
+
+    return _FLOAT_LITERAL.sub(one, text)
+
+
+def _casadi_unit(text: str, gf: GainFile, precision: str) -> str:
+    """CasADi's generated C of the step, guarded so that only ``<prefix>.c``, which includes it, compiles it: on its
+    own it is an empty unit (one typedef, as ISO C requires a declaration), so a build that compiles every ``.c``
+    file of ``DIR/c`` defines each symbol once. In single precision ``<tgmath.h>`` makes CasADi's ``sqrt``, ``exp``,
+    ``fmax``… of a ``float`` the ``float`` functions (``sqrtf``…), so no double arithmetic is left in the step."""
+    p, P = gf.name, gf.name.upper()
+    head = [
+        f"/* {p}_casadi.c: CasADi's code for the step of the fdisyn diagnoser \"{p}\" ({precision} precision).",
+        f" * It is compiled as part of {p}.c, which includes it; compiled on its own (a build that",
+        " * takes every .c file of this folder) it is empty, so no symbol is defined twice. */",
+        f"#ifndef {P}_CASADI_IN_WRAPPER",
+        f"typedef int {p}_casadi_compiled_in_wrapper; /* ISO C: a unit declares something */",
+        "#else",
+    ]
+    if precision == "single":
+        head.append("#include <tgmath.h> /* math functions of the argument's type: sqrt of a float is sqrtf */")
+        text = float_literals(text)
+    return "\n".join(head) + "\n" + text.rstrip("\n") + f"\n#endif /* {P}_CASADI_IN_WRAPPER */\n"
+
+
+def generate_sources(
+    gf: GainFile, c_dir: str | Path, *, step: ca.Function | None = None, gain_file_bytes_sha256: str | None = None,
+    precision: str = "double",
+) -> Path:
     """Write the C sources of ``gf``'s step into ``c_dir``; return the header path.
 
     Refuses, before writing anything, a ``name`` that cannot prefix the C API
@@ -284,11 +399,13 @@ def generate_sources(gf: GainFile, c_dir: str | Path, *, step: ca.Function | Non
     gain_file_bytes_sha256 : str, optional
         The sha256 of the bytes of the ``gains.json`` ``gf`` was read from: ``replay.c`` refuses to run beside
         any other. ``None`` (a gain file that is not on disk): the replay program refuses to run at all.
+    precision : {"double", "single"}
+        What the step computes in (:data:`PRECISIONS`); single adds ``<name>_init_f`` and ``<name>_step_f``.
 
     Returns
     -------
     Path
-        The header ``c_dir/<name>.h``.
+        The header ``c_dir/<name>.h``; the programs with a ``main`` are in ``c_dir/tools`` (:data:`TOOLS`).
 
     Raises
     ------
@@ -296,9 +413,13 @@ def generate_sources(gf: GainFile, c_dir: str | Path, *, step: ca.Function | Non
         A name or size the C cannot take, a stack frame too large, a folder that is a link.
     """
     check_diagnoser_name(gf.name, "name", error=GainFileError)
+    check_precision(precision)
     check_limits(gf)
     fn = step if step is not None else step_function(gf)
-    stack = step_stack_bytes(fn, gf.step.nstate)
+    st = gf.step
+    stack = step_stack_bytes(fn, st.nstate)
+    if precision == "single":  # the double API's float copies of the signals (the state's fits in the 8-byte slots)
+        stack += 4 * (st.nu + st.ny + st.nr + st.nj + 4)
     if stack > STACK_LIMIT_BYTES:
         raise BuildError(
             f"the step of {gf.name!r} would need {stack} bytes of stack (CasADi work arrays and the state); "
@@ -307,29 +428,48 @@ def generate_sources(gf: GainFile, c_dir: str | Path, *, step: ca.Function | Non
     c_dir = Path(c_dir)
     if c_dir.is_symlink():
         raise BuildError(f"{c_dir} is a symbolic link; expected a folder of its own for the generated C (remove the link)")
+    tools = c_dir / TOOLS
+    if tools.is_symlink():
+        raise BuildError(f"{tools} is a symbolic link; expected the folder `fdisyn codegen` writes the replay and bench programs in (remove the link)")
     c_dir.mkdir(parents=True, exist_ok=True)
-    for generated in (f"{gf.name}_casadi.c", f"{gf.name}_casadi.h", f"{gf.name}.h", f"{gf.name}.c", "replay.c", "bench.c", "CMakeLists.txt"):
+    tools.mkdir(exist_ok=True)
+    # replay.c and bench.c in DIR/c itself are an earlier layout's: removed, so every .c file there is the library's
+    for generated in (f"{gf.name}_casadi.c", f"{gf.name}_casadi.h", f"{gf.name}.h", f"{gf.name}.c", "replay.c", "bench.c", "CMakeLists.txt", LIBRARY_SOURCES):
         fresh_path(c_dir / generated)
+    for generated in ("replay.c", "bench.c"):
+        fresh_path(tools / generated)
     named = casadi_step(gf, fn)
     # the generated header carries the <f>_SZ_* work-size macros the wrapper uses
-    cg = ca.CodeGenerator(f"{gf.name}_casadi.c", {"with_header": True, "with_export": False, "verbose": False})
+    real = "float" if precision == "single" else "double"
+    cg = ca.CodeGenerator(f"{gf.name}_casadi.c", {"with_header": True, "with_export": False, "verbose": False, "casadi_real": real})
     cg.add(named)
     cg.generate(str(c_dir) + os.sep)
+    unit = c_dir / f"{gf.name}_casadi.c"
+    unit.write_text(_casadi_unit(unit.read_text(encoding="utf-8"), gf, precision), encoding="utf-8")
+    api = ("api_single" if precision == "single" else "api_double")
     extra = {
         "GAIN_FILE_SHA256": c_string_literal(gain_file_sha256(gf)),
         "BUILD_MARK": c_string_literal(BUILD_MARK.decode("ascii")),
         "GAIN_FILE_BYTES_SHA256": c_string_literal(gain_file_bytes_sha256 or ""),
         "STALE_BUILD": c_string_literal(STALE_BUILD),
         "STACK_BYTES": str(stack),
+        "REAL": real,
+        "SINGLE": "1" if precision == "single" else "0",
+        "PRECISION_NOTE": "Single precision: the step computes in float." if precision == "single" else "Double precision.",
     }
+    if precision == "single":  # the initial state as floats: no conversion left for the compiler to warn of
+        extra["INIT_STATE"] = float_literals(_c_doubles(st.init_state))
+    extra["API"] = _render(f"{api}.c.in", gf, extra)
+    extra["API_DECL"] = _render("api_single.h.in", gf, extra) if precision == "single" else ""
     for template, out in (
         ("diagnoser.h.in", f"{gf.name}.h"),
         ("diagnoser.c.in", f"{gf.name}.c"),
-        ("replay.c.in", "replay.c"),
-        ("bench.c.in", "bench.c"),
+        ("replay.c.in", f"{TOOLS}/replay.c"),
+        ("bench.c.in", f"{TOOLS}/bench.c"),
         ("CMakeLists.txt.in", "CMakeLists.txt"),
     ):
         (c_dir / out).write_text(_render(template, gf, extra), encoding="utf-8")
+    (c_dir / LIBRARY_SOURCES).write_text(f"{gf.name}.c\n", encoding="utf-8")
     return c_dir / f"{gf.name}.h"
 
 
@@ -400,7 +540,9 @@ def _finish(proc: subprocess.Popen[str], argv: list[str], what: str, log: Path |
         )
 
 
-def compile_sources(gf: GainFile, c_dir: str | Path, out_dir: str | Path, *, gain_file_bytes_sha256: str | None = None) -> tuple[Path, Path]:
+def compile_sources(
+    gf: GainFile, c_dir: str | Path, out_dir: str | Path, *, gain_file_bytes_sha256: str | None = None, precision: str = "double"
+) -> tuple[Path, Path]:
     """Compile the shared library (:func:`~fdisyn.runtime.compiled.library_path`) and the ``replay`` program;
     return their paths.
 
@@ -412,7 +554,8 @@ def compile_sources(gf: GainFile, c_dir: str | Path, out_dir: str | Path, *, gai
     and are judged and logged in turn, the library first: a failure of the
     library is the one reported (the other compile is waited for, not killed,
     so no half-written program is left), and ``build.log`` holds the same
-    output as when they ran one after the other.
+    output as when they ran one after the other. ``precision`` (what :func:`generate_sources` generated) is
+    recorded in the manifest.
     """
     check_diagnoser_name(gf.name, "name", error=GainFileError)
     c_dir, out_dir = Path(c_dir).absolute(), Path(out_dir).absolute()
@@ -421,12 +564,12 @@ def compile_sources(gf: GainFile, c_dir: str | Path, out_dir: str | Path, *, gai
     replay = out_dir / "replay"
     wrapper = str(c_dir / f"{gf.name}.c")
     lib_argv = [*cc, *CFLAGS, *shared_library_flags(), wrapper, "-o", str(lib), "-lm"]
-    replay_argv = [*cc, *CFLAGS, str(c_dir / "replay.c"), wrapper, "-o", str(replay), "-lm"]
+    replay_argv = [*cc, *CFLAGS, str(c_dir / TOOLS / "replay.c"), wrapper, "-o", str(replay), "-lm"]
     started = [_start(lib_argv, str(lib))]
     try:
         started.append(_start(replay_argv, str(replay)))
         _finish(started[0], lib_argv, str(lib))
-        write_manifest(lib, gain_file_sha256(gf), gain_file_bytes_sha256)
+        write_manifest(lib, gain_file_sha256(gf), gain_file_bytes_sha256, precision=check_precision(precision))
     except Exception:  # the first failure is reported; the other compile is waited for, not killed
         for proc in started:
             proc.communicate()
@@ -436,15 +579,16 @@ def compile_sources(gf: GainFile, c_dir: str | Path, out_dir: str | Path, *, gai
             proc.kill()
             proc.wait()
         raise
-    _finish(started[1], replay_argv, str(replay))
+    _finish(started[1], replay_argv, str(replay), log=c_dir / "build.log")
     return lib, replay
 
 
 def compile_bench(gf: GainFile, c_dir: str | Path, out: str | Path) -> Path:
-    """Compile the benchmark driver (``-O2`` like the library)."""
+    """Compile the benchmark driver ``c_dir/tools/bench.c`` (``-O2`` like the library); its output in ``c_dir/build.log``."""
     check_diagnoser_name(gf.name, "name", error=GainFileError)
     c_dir, out = Path(c_dir).absolute(), Path(out).absolute()
-    _run([*compiler(), *CFLAGS, str(c_dir / "bench.c"), str(c_dir / f"{gf.name}.c"), "-o", str(out), "-lm"], str(out))
+    argv = [*compiler(), *CFLAGS, str(c_dir / TOOLS / "bench.c"), str(c_dir / f"{gf.name}.c"), "-o", str(out), "-lm"]
+    _finish(_start(argv, str(out)), argv, str(out), log=c_dir / "build.log")
     return out
 
 
@@ -456,7 +600,7 @@ def _build_key() -> str:
     return shlex.join([*compiler(), *CFLAGS, *shared_library_flags()]) + "\n"
 
 
-def _unchanged_build(gf: GainFile, d: Path, bytes_sha: str) -> bool:
+def _unchanged_build(gf: GainFile, d: Path, bytes_sha: str, precision: str = "double") -> bool:
     """Whether ``d`` holds a build of ``gf`` (read from ``d/gains.json`` with bytes ``bytes_sha``) that this fdisyn,
     compiler and flags would make again (:func:`codegen`'s ``reuse``)."""
     import tempfile
@@ -469,8 +613,9 @@ def _unchanged_build(gf: GainFile, d: Path, bytes_sha: str) -> bool:
             return False
         _check_before_loading(lib, gain_file_sha256(gf), gain_file=d / "gains.json", marked=True)
         with tempfile.TemporaryDirectory(dir=d, prefix=".c-staging-") as staging:
-            generate_sources(gf, staging, gain_file_bytes_sha256=bytes_sha)
-            return all((c_dir / f.name).read_bytes() == f.read_bytes() for f in Path(staging).iterdir())
+            generate_sources(gf, staging, gain_file_bytes_sha256=bytes_sha, precision=precision)
+            made = [f for f in Path(staging).rglob("*") if f.is_file()]
+            return all((c_dir / f.relative_to(staging)).read_bytes() == f.read_bytes() for f in made)
     except (OSError, BuildError):
         return False
 
@@ -483,7 +628,7 @@ def _gain_file_bytes(path: Path) -> bytes | None:
         return None
 
 
-def codegen(directory: str | Path, *, reuse: bool = False, sources_only: bool = False) -> CodegenResult:
+def codegen(directory: str | Path, *, reuse: bool = False, sources_only: bool = False, precision: str = "double") -> CodegenResult:
     """``fdisyn codegen DIR``: generate and compile everything for ``DIR/gains.json``.
 
     The file's bytes are read before and after it is parsed: the sha256 compiled into ``replay`` and
@@ -505,12 +650,18 @@ def codegen(directory: str | Path, *, reuse: bool = False, sources_only: bool = 
         Generate the sources only (``DIR/c``), for a diagnoser whose C only a larger build compiles (a
         threshold copy in the compiled Monte Carlo's library); the returned library and ``replay`` are where a later
         ``codegen`` puts them.
+    precision : {"double", "single"}
+        What the step computes in (default double). ``"single"``: ``casadi_real`` is ``float``, for targets
+        without a double-precision FPU; the library keeps the double API (so the Monitor and both replays run it)
+        and adds ``<name>_init_f``/``<name>_step_f``. Its agreement with the double build is stated in
+        ``runtime/REFERENCE.md``.
 
     Returns
     -------
     CodegenResult
         Where everything is.
     """
+    check_precision(precision)
     d = Path(directory)
     p = d / "gains.json"
     before = _gain_file_bytes(p)
@@ -521,15 +672,15 @@ def codegen(directory: str | Path, *, reuse: bool = False, sources_only: bool = 
     bytes_sha = hashlib.sha256(after).hexdigest()
     c_dir = d / "c"
     try:
-        if reuse and _unchanged_build(gf, d, bytes_sha):
+        if reuse and _unchanged_build(gf, d, bytes_sha, precision):
             return CodegenResult(directory=d, c_dir=c_dir, header=c_dir / f"{gf.name}.h", library=library_path(d, gf), replay=d / "replay")
-        header = generate_sources(gf, c_dir, gain_file_bytes_sha256=bytes_sha)
+        header = generate_sources(gf, c_dir, gain_file_bytes_sha256=bytes_sha, precision=precision)
         if sources_only:  # an earlier build's library and program are not these sources': removed, never loaded
             lib = library_path(d, gf)
             for stale in (lib, manifest_path(lib), d / "replay", c_dir / BUILD_KEY):
                 stale.unlink(missing_ok=True)
             return CodegenResult(directory=d, c_dir=c_dir, header=header, library=lib, replay=d / "replay")
-        lib, replay = compile_sources(gf, c_dir, d, gain_file_bytes_sha256=bytes_sha)
+        lib, replay = compile_sources(gf, c_dir, d, gain_file_bytes_sha256=bytes_sha, precision=precision)
         fresh_path(c_dir / BUILD_KEY).write_text(_build_key(), encoding="utf-8")
     except BuildError:
         raise

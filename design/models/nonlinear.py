@@ -49,6 +49,7 @@ import math
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -58,7 +59,8 @@ from fdisyn.models.linear import identifier_names
 from fdisyn.models.sampling import check_sample_time
 from fdisyn.numerics.linalg import as_covariance, as_vector, frozen_array
 from fdisyn.runtime.errors import ArgumentError, NominalValueError, ShapeError
-from fdisyn.runtime.names import check_distinct, shown
+from fdisyn.runtime.names import check_distinct, check_signal_texts, shown
+from fdisyn.runtime.schema import SIGNAL_LABEL_MAX, UNIT_MAX
 from fdisyn.runtime.values import real_number
 
 __all__ = ["NonlinearPlant"]
@@ -78,6 +80,16 @@ def _distinct_names(states: tuple[str, ...], inputs: tuple[str, ...], outputs: t
     check_distinct(
         {"inputs": inputs, "outputs": outputs, "simulated truth columns": truth},
         why="they are columns of the trace CSV `fdisyn simulate` writes",
+    )
+
+
+def _signal_texts(
+    units: Mapping[str, str] | None, labels: Mapping[str, str] | None, signals: Sequence[str]
+) -> tuple[dict[str, str], dict[str, str]]:
+    """A plant's ``units`` and ``labels``, checked: keys among ``signals``, values short text."""
+    return tuple(  # type: ignore[return-value]
+        {} if given is None else check_signal_texts(given, key, list(dict.fromkeys(signals)), max_length=longest)
+        for key, given, longest in (("units", units, UNIT_MAX), ("labels", labels, SIGNAL_LABEL_MAX))
     )
 
 
@@ -138,7 +150,9 @@ class NonlinearPlant:
     expressions : Mapping or None
         The expression strings the plant was built from, if any (for reports and gain files).
     units : Mapping of str to str
-        A unit per name.
+        A unit per name (states, inputs, outputs, parameters; ``"rad/s"``).
+    labels : Mapping of str to str
+        A readable name per name, without its unit (``"rotor speed"``).
 
     Examples
     --------
@@ -161,6 +175,7 @@ class NonlinearPlant:
     Ts: float | None = None
     expressions: Mapping[str, object] | None = None
     units: Mapping[str, str] = field(default_factory=dict)
+    labels: Mapping[str, str] = field(default_factory=dict)
 
     # construction ------------------------------------------------------------
     @classmethod
@@ -179,6 +194,7 @@ class NonlinearPlant:
         Ts: float | None = None,
         units: Mapping[str, str] | None = None,
         expressions: Mapping[str, object] | None = None,
+        labels: Mapping[str, str] | None = None,
     ) -> NonlinearPlant:
         """Validate and build a plant from CasADi Functions ``f(x, u, θ)`` and ``h(x, θ)``.
 
@@ -200,9 +216,13 @@ class NonlinearPlant:
         Ts : float, optional
             The sample time in seconds (informational; the model is already discrete).
         units : Mapping of str to str, optional
-            A unit per name.
+            A unit per name: keys among the states, inputs, outputs and parameters, each unit one line of at most
+            :data:`~fdisyn.runtime.schema.UNIT_MAX` printable characters.
         expressions : Mapping, optional
             The expression strings ``f`` and ``h`` were built from (recorded for reports and gain files).
+        labels : Mapping of str to str, optional
+            A readable name per name, without its unit: keys as ``units``, each at most
+            :data:`~fdisyn.runtime.schema.SIGNAL_LABEL_MAX` printable characters.
 
         Returns
         -------
@@ -218,13 +238,15 @@ class NonlinearPlant:
         ShapeError
             Wrong port shapes.
         ArgumentError
-            Bad names, a covariance that is not one, a model that is too large.
+            Bad names, a covariance that is not one, a model that is too large, a unit or label of no name of the
+            plant or that is not short text.
         """
         st = _names(states, "state")
         inp = _names(inputs, "input", allow_empty=True)
         out = _names(outputs, "output")
         par = _names(parameters, "parameter")
         _distinct_names(st, inp, out, par)
+        texts = _signal_texts(units, labels, (*st, *inp, *out, *par))
         n, m, p, l = len(st), len(inp), len(out), len(par)
         theta = _nominal_vector(par, nominal)
         f_sx = _as_sx_function(f, "f", (n, m, l), n, ("x", "u", "theta"), "x_next")
@@ -243,7 +265,8 @@ class NonlinearPlant:
             R=frozen_array(r),
             Ts=None if Ts is None else check_sample_time(Ts),
             expressions=None if expressions is None else dict(expressions),
-            units=dict(units or {}),
+            units=texts[0],
+            labels=texts[1],
         )
 
     @classmethod
@@ -262,6 +285,7 @@ class NonlinearPlant:
         constants: Mapping[str, float] | None = None,
         Ts: float | None = None,
         units: Mapping[str, str] | None = None,
+        labels: Mapping[str, str] | None = None,
     ) -> NonlinearPlant:
         """Build a plant from one next-state expression per state and one expression per output.
 
@@ -283,8 +307,8 @@ class NonlinearPlant:
             The measurement-noise covariance of ``e`` (the paper's ``Q2``); positive definite.
         Ts : float, optional
             The sample time in seconds (informational; the model is already discrete).
-        units : Mapping of str to str, optional
-            A unit per name.
+        units, labels : Mapping of str to str, optional
+            A unit and a readable name per name, as in :meth:`create`.
         f : Mapping of str to str
             One next-state expression per state.
         h : Mapping of str to str
@@ -316,6 +340,7 @@ class NonlinearPlant:
         out = _names(outputs, "output")
         par = _names(parameters, "parameter")
         _distinct_names(st, inp, out, par)
+        _signal_texts(units, labels, (*st, *inp, *out, *par))  # before parsing anything
         _nominal_vector(par, nominal)  # fail on missing nominal values before parsing anything
         consts = {"pi": float(np.pi), **expression_constants(constants)}
         clash = sorted(set(consts) & set(st + inp + out + par))
@@ -360,6 +385,7 @@ class NonlinearPlant:
             R=R,
             Ts=Ts,
             units=units,
+            labels=labels,
             expressions={"f": dict(f), "h": dict(h), "constants": {k: v for k, v in consts.items() if k != "pi"}},
         )
 
@@ -482,6 +508,34 @@ class NonlinearPlant:
                 f"the model is not finite at {point}: {what} = {float(vals[key][i, j])!r}{text}; "
                 "expected finite values of f, h and their Jacobians there"
             )
+
+    def to_toml(self, name: str = "plant", **sections: Any) -> str:
+        """The plant as a TOML plant file (``time = "nonlinear"``) that the plant-file reader reads back as this plant.
+
+        Only a plant built from expressions (:meth:`from_expressions`, or a plant file) can be written: a plant
+        file holds expressions, not CasADi functions.
+
+        Parameters
+        ----------
+        name : str
+            The problem's name (it prefixes the C API of its diagnosers).
+        **sections
+            Optional sections (:func:`fdisyn.models.plant_toml.plant_file_text`): ``title``, ``design``,
+            ``designs``, ``simulation``, ``scenarios``.
+
+        Returns
+        -------
+        str
+            The TOML text.
+
+        Raises
+        ------
+        ArgumentError
+            A plant built from CasADi functions, or a section value a plant file cannot hold.
+        """
+        from fdisyn.models.plant_toml import nonlinear_tables, plant_file_text
+
+        return plant_file_text(nonlinear_tables(self), name, **sections)
 
 
 def _nominal_vector(parameters: Sequence[str], nominal: Mapping[str, float]) -> np.ndarray:

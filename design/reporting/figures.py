@@ -9,8 +9,8 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-from fdisyn.reporting.kit import MIN_FONT_PT, ReportContext, defined, figure_legend, fmt, folded, label, shade, subplots, table, timeline
-from fdisyn.detectors.table import DETECTORS
+from fdisyn.reporting.kit import MIN_FONT_PT, ReportContext, defined, figure_legend, fmt, folded, label, subplots, table
+from fdisyn.reporting.plots import ESTIMATE_PREFIX, LAW_PANELS, _law_panels, _sweep_points, plot_detection, plot_laws, plot_trace
 from fdisyn.evaluation.metrics import DETECTION_GOAL, ISOLATION_GOAL, ISOLATION_MARGIN, OPERATING_SCALES, isolation_at_size
 from fdisyn.simulation.problem import Problem
 
@@ -20,123 +20,46 @@ __all__ = ["run_figures", "standard_figures", "POLE_LEGEND", "OPERATING_TICKS", 
 def run_figures(ctx: ReportContext) -> list[tuple[str, str]]:
     """Figures of a problem without its own report hook (e.g. a TOML plant file).
 
-    For every design and scenario, run 0 through the generated C: each
-    statistic that has a fixed threshold, divided by it (an alarm is above 1);
-    the isolated fault; and for parameter estimators (``theta_hat_<θ>``
-    statistics) the estimate beside the simulated truth ``true_<θ>``.
+    For every design and scenario, run 0 through the generated C (:func:`~fdisyn.reporting.plots.plot_trace`):
+    each statistic that has a fixed threshold, divided by it (an alarm is above 1), with the alarm instants; the
+    isolated fault; and for parameter estimators (``theta_hat_<θ>`` statistics) the estimate beside the simulated
+    truth ``true_<θ>``.
     """
     v = ctx.variants[0]
     ex, bt = v.evaluation.examples, v.evaluation.batches
     body = []
     for dname, built in v.built.items():
         gf = built.gain_file
-        names = list(gf.step.statistic_names)
-        thr = np.asarray(gf.thresholds, dtype=float)
-        fixed = [j for j in range(len(names)) if np.isfinite(thr[j]) and thr[j] > 0]
         for sname, res in ex.get(dname, {}).items():
-            b = bt[sname]
-            est = [(j, nm[len("theta_hat_") :]) for j, nm in enumerate(names) if nm.startswith("theta_hat_")]
-            est = [(j, q) for j, q in est if f"true_{q}" in b.extra]
-            rows = 2 + bool(est)
-            fig, axes = subplots(rows, 1, figsize=(9, 2.2 * rows + 0.6), sharex=True)
-            timeline(axes[0], b.t, res.J[:, fixed] / thr[fixed], [names[j] for j in fixed], threshold=1.0)
-            axes[0].set_ylabel("J / threshold")
-            shade(axes[0], b.t, b.active)
-            axes[0].legend(fontsize=7, ncol=3)
-            axes[1].step(b.t, res.isolated, where="post", lw=0.9)
-            axes[1].set_yticks(range(-1, len(gf.faults)), ["none", *(label(ctx.problem, f) for f in gf.faults)])
-            axes[1].set_ylabel("isolated")
-            axes[1].grid(alpha=0.3)
-            shade(axes[1], b.t, b.active)
-            for j, q in est:
-                axes[2].plot(b.t, res.J[:, j], lw=0.8, label=f"estimate of {q}")
-                axes[2].plot(b.t, b.extra[f"true_{q}"][0], "k--", lw=0.8, label=f"true {q}" if len(est) > 1 else "truth")
-            if est:
-                axes[2].set_ylabel("parameters")
-                axes[2].legend(fontsize=7, ncol=2)
-                axes[2].grid(alpha=0.3)
-            axes[-1].set_xlabel("t (s)")
+            trace = bt[sname].trace(0)
+            fig = plot_trace(gf, trace, res, labels=ctx.problem.labels)
+            est = any(n.startswith(ESTIMATE_PREFIX) and f"true_{n[len(ESTIMATE_PREFIX):]}" in trace.extra for n in gf.step.statistic_names)
             body.append(
                 ctx.figure(
                     f"{dname}_{sname}",
                     fig,
                     f"{label(ctx.problem, dname)}, scenario {label(ctx.problem, sname)} ({ctx.problem.scenarios[sname].description or 'no description'}): run 0 "
-                    "through the generated C — statistics over their thresholds, the isolated fault"
+                    "through the generated C — statistics over their thresholds with the alarm instants (red ticks), the isolated fault"
                     + (", the parameter estimates against the truth." if est else "."),
                 )
             )
     return [("Figures", "".join(body))] if body else []
 
 
-def _fault_free_counts(variant: Any, design: str, nj: int) -> list[np.ndarray]:
-    """Per statistic, its fault-free samples of every run and scenario counted in the bins
-    :data:`~fdisyn.evaluation.metrics.HISTOGRAM_EDGES` ``× threshold`` (empty: the statistic has no threshold)."""
-    total: list[np.ndarray] = [np.zeros(0, dtype=np.int64)] * nj
-    for m in variant.evaluation.metrics.get(design, {}).values():
-        for j, c in enumerate(m.fault_free_histogram[:nj]):
-            c = np.asarray(c, dtype=np.int64)
-            if c.size:
-                total[j] = c if total[j].size == 0 else total[j] + c
-    return total
-
-
 def _law_figures(ctx: ReportContext) -> str:
-    """Per design, each statistic's fault-free histogram over every run against its law: its density against the
-    closed-form law of its detector where it has one (:attr:`fdisyn.detectors.table.Detector.null_law`: χ²(dof) for a
-    χ² statistic); for the others (WSSR, CUSUM, GLR, …) the empirical tail P(J ≥ x) against the threshold and the
-    design's P_f."""
-    from fdisyn.evaluation.metrics import HISTOGRAM_EDGES
-    from matplotlib.ticker import MaxNLocator
-
+    """Per design, each statistic's fault-free histogram over every run against its law
+    (:func:`~fdisyn.reporting.plots.plot_laws`): its density against the closed-form law of its detector where it has
+    one (:attr:`fdisyn.detectors.table.Detector.null_law`: χ²(dof) for a χ² statistic); for the others (WSSR, CUSUM,
+    GLR, …) the empirical tail P(J ≥ x) against the threshold and the design's P_f."""
     v, problem, out = ctx.variants[0], ctx.problem, []
     for k, (d, b) in enumerate(v.built.items()):
         gf = b.gain_file
-        names = list(gf.step.statistic_names)
-        counts = _fault_free_counts(v, d, len(names))
-        shown = [j for j, c in enumerate(counts) if c.size and c.sum() > 0][:8]
+        counts, shown = _law_panels(v.evaluation.metrics.get(d, {}), gf, LAW_PANELS)
         if not shown:
             continue
         with_threshold = sum(1 for c in counts if c.size)
-        cols = min(4, len(shown))
-        rows = -(-len(shown) // cols)
-        fig, axes = subplots(rows, cols, figsize=(2.6 * cols, 2.9 * rows + 0.4), squeeze=False)
-        thr = np.asarray(gf.thresholds, dtype=float)
-        samples = 0
-        for j, ax in zip(shown, axes.ravel(), strict=False):
-            c, h = counts[j], float(thr[j])
-            n = int(c.sum())
-            samples = max(samples, n)
-            edges = HISTOGRAM_EDGES * h
-            ev = gf.evaluators[j] if j < len(gf.evaluators) else None
-            null = None if ev is None or DETECTORS.get(ev.kind) is None else DETECTORS[ev.kind].null_law
-            if null is not None:  # a closed-form fault-free law: the histogram's density against it
-                density, law = null(ev)
-                dens = c[1:-1] / (n * np.diff(edges))
-                ax.stairs(np.where(dens > 0, dens, np.nan), edges, fill=True, color="tab:blue", alpha=0.6)
-                grid = np.linspace(edges[-1] / 400, edges[-1], 400)
-                ax.plot(grid, density(grid), "k", lw=1.0)
-                ax.set_ylabel("density")
-                ax.set_ylim(bottom=0.3 / (n * (edges[1] - edges[0])))  # below one sample per bin the law is not seen
-            else:
-                # P(J ≥ edge): the samples in the bins from that edge up, over all
-                tail = np.cumsum(c[::-1])[::-1][1:] / n
-                ax.step(edges, np.where(tail > 0, tail, np.nan), where="post", color="tab:blue")
-                ax.set_ylabel("P(J ≥ x)")
-                ax.set_ylim(bottom=0.3 / n)
-                if ev is not None and ev.P_f is not None and ev.P_f > 0:
-                    ax.axhline(ev.P_f, color="tab:red", ls=":", lw=1.0)
-                law = "empirical tail"
-            ax.set_yscale("log")
-            ax.axvline(h, color="k", ls="--", lw=0.9)
-            # the statistic's name above its panel (wrapped), the axis only "J": long names side by side overlap
-            ax.set_title(textwrap.fill(label(problem, names[j]), 30) + f"\n{law}", fontsize=MIN_FONT_PT)
-            ax.set_xlabel("J")
-            ax.xaxis.set_major_locator(MaxNLocator(4))  # a narrow panel: a few ticks that do not run into each other
-            ax.ticklabel_format(axis="x", style="sci", scilimits=(-2, 3), useMathText=True)  # 2·10⁻⁴, not 0.0002
-            ax.grid(alpha=0.3)
-        for ax in axes.ravel()[len(shown):]:
-            ax.set_visible(False)
-        fig.tight_layout()
+        samples = max(int(counts[j].sum()) for j in shown)
+        fig = plot_laws(v, d, labels=problem.labels)
         caption = (
             f"{label(problem, d)}: the fault-free samples of every run and scenario ({fmt(samples)} per statistic), binned from "
             "0 to 3 thresholds in steps of a twentieth. χ² statistics: histogram (density) against the χ² density with the "
@@ -151,68 +74,28 @@ def _law_figures(ctx: ReportContext) -> str:
 
 def _sweep_figure(ctx: ReportContext) -> str:
     """Mean detection delay, the share of runs that detect (and that name the true fault) and, where the diagnoser
-    has a Lorden bound, the delay over the bound against the fault's size, per design and faulty scenario; below, the
-    isolation goal's table (:func:`_isolation_goal_table`)."""
+    has a Lorden bound, the delay over the bound against the fault's size, per design and faulty scenario
+    (:func:`~fdisyn.reporting.plots.plot_detection`); below, the isolation goal's table (:func:`_isolation_goal_table`)."""
     from fdisyn.reporting.budget import RATIO_GOAL
-    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
     v, problem = ctx.variants[0], ctx.problem
     sweep = getattr(v, "sweep", None)
     if sweep is None or not sweep.scenarios:
         return ""
-    designs = list(v.evaluation.metrics)
-
-    def metric(d: str, base: str, f: float) -> Any:
-        return v.evaluation.metrics[d][base] if f == 1.0 else sweep.evaluation.metrics[d][sweep.scenarios[base][f]]
-
-    factors = {base: sorted({1.0, *by_factor}) for base, by_factor in sweep.scenarios.items()}
+    designs, factors, metric = _sweep_points(sweep, v.evaluation)
     bounded = any(metric(d, b, f).delay_bound_ratio is not None for d in designs for b, fs in factors.items() for f in fs)
     isolating = any(metric(d, b, f).isolation_accuracy is not None for d in designs for b, fs in factors.items() for f in fs)
-    cols = 2 + bounded
-    fig, axes = subplots(len(designs), cols, figsize=(4.5 * cols, 2.2 * len(designs) + 0.4), squeeze=False)
     rows, goals = [], []
-    for i, d in enumerate(designs):
+    for d in designs:
         for base, fs in factors.items():
             ms = [metric(d, base, f) for f in fs]
             rows += [[label(problem, d), label(problem, base), f, m.runs, m.missed_detection_rate, m.detection_delay_mean_s,
                       m.delay_bound_ratio, m.isolation_accuracy] for f, m in zip(fs, ms, strict=True)]
-            delays = [np.nan if m.detection_delay_mean_s is None else m.detection_delay_mean_s for m in ms]
-            (line,) = axes[i, 0].plot(fs, delays, "o-", lw=1.0, ms=3)
-            axes[i, 1].plot(fs, [1.0 - m.missed_detection_rate for m in ms], "o-", lw=1.0, ms=3, label=label(problem, base))
-            ratios = [np.nan if m.delay_bound_ratio is None else m.delay_bound_ratio for m in ms]
-            if bounded:
-                axes[i, 2].plot(fs, ratios, "o-", lw=1.0, ms=3, color=line.get_color())
             if isolating:
-                named = [np.nan if m.isolation_accuracy is None else m.isolation_accuracy for m in ms]
-                axes[i, 1].plot(fs, named, "s--", lw=1.0, ms=3, color=line.get_color())
                 goal = isolation_at_size(dict(zip(fs, ms, strict=True)), sweep.detection_grid)
                 if goal is not None:
                     goals.append((d, base, ms[0].fault, goal))
-            # a mean delay over the few runs that detected at all flatters: hollow where more than half missed
-            lucky = [j for j, m in enumerate(ms) if m.missed_detection_rate > 0.5]
-            for col, ys in ((0, delays), *(((2, ratios),) if bounded else ())):
-                axes[i, col].plot([fs[j] for j in lucky], [ys[j] for j in lucky], "o", ms=5, mfc="white", color=line.get_color())
-        axes[i, 0].set_title(label(problem, d), loc="left", fontsize=MIN_FONT_PT).set_in_layout(False)  # it spans the row
-        axes[i, 0].set_ylabel("mean delay (s)")
-        axes[i, 1].set_ylabel("detected" + (" / named" if isolating else "") + " (of runs)")
-        axes[i, 1].axhline(DETECTION_GOAL, color="tab:red", ls=":", lw=1.0)
-        axes[i, 1].set_ylim(-0.03, 1.03)
-        if bounded:
-            axes[i, 2].set_ylabel("delay / Lorden bound")
-            axes[i, 2].axhline(1.0, color="k", lw=0.8)
-            axes[i, 2].axhline(RATIO_GOAL, color="tab:red", ls=":", lw=1.0)
-            axes[i, 2].set_yscale("log")
-            axes[i, 2].yaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))  # 1, 2, 5, 10: a ratio is read, not a decade
-            axes[i, 2].yaxis.set_major_formatter(FuncFormatter(lambda x, _: fmt(x)))
-            axes[i, 2].yaxis.set_minor_formatter(NullFormatter())
-        ticks = sorted({1.0, *sweep.detection_grid})
-        for ax in axes[i]:
-            ax.set_xscale("log")
-            ax.set_xticks(ticks, [fmt(f) for f in ticks])
-            ax.minorticks_off()
-            ax.grid(alpha=0.3)
-    fig.supxlabel("fault size (× the scenario's)", fontsize=MIN_FONT_PT + 1)
-    figure_legend(fig, *axes[0, 1].get_legend_handles_labels())
+    fig = plot_detection(sweep, v.evaluation, labels=problem.labels)
     return ctx.figure(
         "fault_size_sweep",
         fig,

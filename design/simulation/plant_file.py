@@ -11,6 +11,8 @@ The TOML format (every key is validated; errors name the key)::
     inputs = ["u"]
     unknown_inputs = ["d"]
     outputs = ["y1", "y2", "y3"]
+    labels = { y1 = "rotor speed" }   # readable names and units by signal name (pages, gain files)
+    units = { y1 = "rad/s", u = "N·m" }
 
     [model]
     time = "continuous"               # or "discrete"
@@ -21,7 +23,9 @@ The TOML format (every key is validated; errors name the key)::
     D = [[...]]                       # p × m (optional)
     E = [[...]]                       # n × q unknown-input directions
     Fx = [[...]]                      # n × f component-fault directions (optional; names in [signals].component_faults)
-    Q = [[...]]                       # process noise: intensity (continuous) or covariance per sample
+    Q_intensity = [[...]]             # process noise of a continuous model: white noise intensity (PSD);
+                                      # Q_sample = [[...]] for a discrete one: covariance per sample
+                                      # (Q alone: the one the model's time implies)
     R = [[...]]                       # sensor noise covariance per sample
     state_scale = [...]               # optional typical state magnitudes (conditioning)
 
@@ -34,6 +38,18 @@ The TOML format (every key is validated; errors name the key)::
     faults = [{ name = "y1", sensors = ["y1"] }, { name = "f", components = ["f"] }]
                                       # default: one per sensor and component fault, merged when alike
     poles = [0.5, 0.6]                # an option of one method (here uio_pole_placement)
+
+    [[designs]]                       # instead of [design]: several designs, compared on one page
+    name = "kalman"                   # the design's name: the diagnoser is <name>_<design name>
+    method = "kalman_uio"             # and the keys of [design]
+    [[designs]]
+    name = "poles"
+    method = "uio_pole_placement"
+    poles = [0.5, 0.6]
+
+The problem's options (``--option KEY=VALUE``, ``Problem.design(NAME, **options)``) are the design keys: a
+value given overrides the file's in every design whose method reads it (``P_f`` replaces ``arl0`` and the
+other way round), validated like the file.
 
 The generalised UIO bank (``method = "kalman_uio_gos"``, Long & Wang,
 Aeroengine 43(5), 2017) reads, besides ``arl0`` (or ``P_f``), ``persistence``, ``faults``::
@@ -134,7 +150,7 @@ from fdisyn.simulation.sample_models import SampleModel, linear_sample_model, no
 from fdisyn.simulation.signals import SENSOR_FAULT_KINDS, SensorFaultSpec, Signal
 from fdisyn.simulation.simulate import simulate_linear
 from fdisyn.models.linear import LinearPlant
-from fdisyn.simulation.problem import Batch, Problem, Scenario, get_problem
+from fdisyn.simulation.problem import Batch, DesignFn, Problem, Scenario, get_problem
 from fdisyn.models.sampling import van_loan
 from fdisyn.runtime.errors import ArgumentError, FdisynError, ShapeError, SpecError
 from fdisyn.runtime.gainfile import GainFile
@@ -152,7 +168,7 @@ from fdisyn.runtime.names import (
 from fdisyn.runtime.values import real_number
 from fdisyn.synthesis.registry import Method, all_methods, check_options, check_plant, get_method
 
-__all__ = ["load_spec", "problem_from_toml", "problem_from_document"]
+__all__ = ["load_spec", "problem_from_toml", "problem_from_document", "signal_labels"]
 
 SAMPLED_DATA_LETTERS = {"Bu": "B", "Bd": "E", "Bf": "Fx", "h": "Ts"}
 """Qiu, Wen & Jiang 2010 (eq. (1)) write a sampled-data plant as ``ẋ = A x + Bu u + Bd d + Bf f``,
@@ -161,6 +177,61 @@ SAMPLED_DATA_LETTERS = {"Bu": "B", "Bd": "E", "Bf": "Fx", "h": "Ts"}
 NONLINEAR_LETTERS = {"Q1": "Q", "Q2": "R"}
 """Zhou, Xi & Zhang 1991 (eq. (2.1)) call the covariances of ``v`` and ``e`` ``Q1`` and ``Q2``: those
 names are accepted for ``Q`` and ``R`` of a nonlinear plant."""
+NOISE_KEYS = {"Q_intensity": "continuous", "Q_sample": "discrete"}
+"""The process noise by what it is: ``Q_intensity``, the power spectral density of continuous white noise (a
+continuous model; its covariance per sample is about ``Q_intensity·Ts``), or ``Q_sample``, the covariance per sample
+(a discrete or nonlinear model). ``Q`` alone means the one the model's time implies."""
+SIGNAL_TEXTS = ("units", "labels")
+"""``[signals]`` tables of text per signal name: its unit (``"rad/s"``) and its readable name (``"rotor speed"``)."""
+
+
+def _process_noise(mod: _Section, time: str) -> None:
+    """Read ``Q_intensity`` or ``Q_sample`` as ``Q`` where it fits the model's time; one of the three keys at most."""
+    given = [k for k in ("Q", *NOISE_KEYS) if k in mod.doc]
+    if len(given) > 1:
+        raise SpecError(f"{mod.where} gives {' and '.join(given)}: they are the same process noise, give one")
+    for key, kind in NOISE_KEYS.items():
+        if key not in mod.doc:
+            continue
+        if (kind == "continuous") != (time == "continuous"):
+            other = "Q_intensity" if time == "continuous" else "Q_sample"
+            what = "an intensity (continuous white noise)" if time == "continuous" else "a covariance per sample"
+            raise SpecError(f"{mod.where}.{key} does not fit time = {time!r}, whose process noise is {what}: write it as {other}")
+        mod.doc = {**{k: v for k, v in mod.doc.items() if k != key}, "Q": mod.doc[key]}
+        mod.aliases["Q"] = key
+
+
+def _signal_texts(sig: _Section) -> dict[str, dict[str, str]]:
+    """``[signals].units`` and ``.labels``: tables of text by signal name (the plant checks the names and the text)."""
+    out = {}
+    for key in SIGNAL_TEXTS:
+        v = sig.get(key)
+        if v is None:
+            continue
+        if not isinstance(v, Mapping):
+            raise SpecError(f"{sig.where}.{key} must be a table of text by signal name, e.g. {{ y1 = \"rad/s\" }}; got {shown(v)}")
+        for name, text in v.items():
+            if not isinstance(text, str):
+                raise SpecError(f"{sig.where}.{key}.{name} must be text in quotes, e.g. {name} = \"rad/s\"; got {shown(text)}")
+        out[key] = dict(v)
+    return out
+
+
+def signal_labels(plant: Any) -> dict[str, str]:
+    """What a page calls each of ``plant``'s named signals: its label and unit, ``"rotor speed (rad/s)"``.
+
+    Parameters
+    ----------
+    plant : LinearPlant or NonlinearPlant
+        A plant with ``labels`` and ``units`` (signal name → text).
+
+    Returns
+    -------
+    dict
+        The signals with a label or a unit: the label (else the name) followed by the unit in parentheses.
+    """
+    labels, units = dict(getattr(plant, "labels", {}) or {}), dict(getattr(plant, "units", {}) or {})
+    return {k: labels.get(k, k) + (f" ({units[k]})" if k in units else "") for k in sorted(set(labels) | set(units))}
 
 def load_spec(spec: str | Path) -> Problem:
     """A built-in problem by name, or the problem a ``.toml`` file describes.
@@ -350,9 +421,10 @@ def problem_from_toml(path: Path) -> Problem:
     return problem_from_document(doc, path)
 
 
-def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
-    """The problem a parsed plant file describes (``path`` names it in errors and in the gain file)."""
-    top = _Section(doc, str(path), {"name", "title", "signals", "model", "design", "simulation", "scenarios"})
+def problem_from_document(doc: Mapping[str, Any], path: Path, *, origin: str | None = None) -> Problem:
+    """The problem a parsed plant file describes (``path`` names it in errors and in the gain file; ``origin`` says
+    where the plant comes from in the page's summary, default the file's name)."""
+    top = _Section(doc, str(path), {"name", "title", "signals", "model", "design", "designs", "simulation", "scenarios"})
     name = check_diagnoser_name(top.get("name", required=True), f"{path}: name", error=SpecError)
     model = top.get("model", required=True)
     if not isinstance(model, Mapping):
@@ -360,9 +432,9 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
     if model.get("time", "continuous") not in ("continuous", "discrete", "nonlinear"):
         raise SpecError(f"{path} [model].time must be 'continuous', 'discrete' or 'nonlinear', got {shown(model.get('time'))}")
     if model.get("time") == "nonlinear":
-        return _nonlinear_problem(path, top, name)
-    sig = _Section(top.get("signals", {}), f"{path} [signals]", {"states", "inputs", "unknown_inputs", "outputs", "component_faults"})
-    given = {f"[signals].{k}": check_signal_names(v, f"{path} [signals].{k}", error=SpecError) for k, v in sig.doc.items()}
+        return _nonlinear_problem(path, top, name, origin or f"described by {path.name}")
+    sig = _Section(top.get("signals", {}), f"{path} [signals]", {"states", "inputs", "unknown_inputs", "outputs", "component_faults", *SIGNAL_TEXTS})
+    given = {f"[signals].{k}": check_signal_names(v, f"{path} [signals].{k}", error=SpecError) for k, v in sig.doc.items() if k not in SIGNAL_TEXTS}
     try:
         check_distinct(given, why="they are columns of the trace CSV `fdisyn simulate` writes, and fault classes are named after sensors and component faults", error=SpecError)
     except SpecError as exc:
@@ -370,17 +442,19 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
     mod = _Section(
         top.get("model", required=True),
         f"{path} [model]",
-        {"time", "Ts", "A", "B", "C", "D", "E", "Fx", "Dd", "Df", "Q", "R", "state_scale", *SAMPLED_DATA_LETTERS},
+        {"time", "Ts", "A", "B", "C", "D", "E", "Fx", "Dd", "Df", "Q", "R", "state_scale", *SAMPLED_DATA_LETTERS, *NOISE_KEYS},
     )
     mod.accept_letters(SAMPLED_DATA_LETTERS)
     time = mod.get("time", "continuous")
     if time not in ("continuous", "discrete"):
         raise SpecError(f"{path} [model].time must be 'continuous', 'discrete' or 'nonlinear', got {shown(time)}")
+    _process_noise(mod, time)
     ts = mod.number("Ts", required=True)
     if ts is None or ts <= 0:  # number() has refused NaN and ±inf
         raise SpecError(f"{path} [model].{mod.aliases.get('Ts', 'Ts')} must be a positive sample time in seconds, got {ts!r}")
     # read (and name) every matrix first: a wrong one is reported once, by the key the file wrote
     mats = {k: mod.matrix(k, required=k in ("A", "C")) for k in ("A", "B", "C", "D", "E", "Fx", "Dd", "Df", "Q", "R")}
+    texts = _signal_texts(sig)
     try:
         plant = LinearPlant.create(
             A=mats["A"],
@@ -399,6 +473,7 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
             unknown_inputs=sig.get("unknown_inputs"),
             outputs=sig.get("outputs"),
             component_faults=sig.get("component_faults"),
+            **texts,
         )
         physical = plant if time == "discrete" else plant.discretise(ts, name=mod.aliases.get("Ts", "Ts"))
     except FdisynError as exc:
@@ -408,28 +483,36 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
         design_plant = physical.scaled(scale) if scale is not None else physical
     except FdisynError as exc:
         raise SpecError(f"{path} [model].state_scale: {exc}") from exc
-    method, options = _design_section(top, path, name, ("linear", "continuous"))
-    if isinstance(options.get("training"), str) and options["training"]:
-        # a training trace is named relative to the plant file, like the file's other companions
-        options = {**options, "training": str(path.parent / options["training"])}
-    white = method.plant_kind == "continuous"
-    if white and time != "continuous":
-        raise SpecError(f"{path} [design].method {method.name!r} designs for a continuous plant sampled at Ts: set [model].time = \"continuous\"")
-    if white or (method.samples_itself and time == "continuous"):
-        # the sampled-data methods, and those whose model error is on the continuous A, sample the plant themselves, every Ts
-        design_plant = plant.scaled(scale) if scale is not None else plant
-        options = {**options, "Ts": ts}
-    try:
-        check_plant(method, design_plant)
-    except ArgumentError as exc:
-        raise SpecError(f"{path} [design].method: {exc}") from exc
-    checked = _checked(method, options, design_plant, path)
-    record = {"spec": str(path), "method": method.name, **{k: v for k, v in options.items() if k not in ("bank", "faults", "Ts")}}
-    listed = checked.get("faults")  # the fault classes of a bank; a method without them names its faults itself
-
-    def design_fn(**_: Any) -> GainFile:
-        with _spec_errors():
-            return method.design(design_plant, name=f"{name}_{method.name}", problem=name, record=record, where=f"{path} [design]", **checked)
+    designs: dict[str, DesignFn] = {}
+    classes: list[list[Any] | None] = []
+    whites = set()
+    for label, method, options, where in _design_entries(top, path, name, ("linear", "continuous")):
+        if isinstance(options.get("training"), str) and options["training"]:
+            # a training trace is named relative to the plant file, like the file's other companions
+            options = {**options, "training": str(path.parent / options["training"])}
+        white = method.plant_kind == "continuous"
+        if white and time != "continuous":
+            raise SpecError(f"{where}.method {method.name!r} designs for a continuous plant sampled at Ts: set [model].time = \"continuous\"")
+        des_plant = design_plant
+        if white or (method.samples_itself and time == "continuous"):
+            # the sampled-data methods, and those whose model error is on the continuous A, sample the plant themselves, every Ts
+            des_plant = plant.scaled(scale) if scale is not None else plant
+            options = {**options, "Ts": ts}
+        try:
+            check_plant(method, des_plant)
+        except ArgumentError as exc:
+            raise SpecError(f"{where}.method: {exc}") from exc
+        checked = _checked(method, options, des_plant, where)
+        record = {"spec": str(path), "method": method.name, **{k: v for k, v in options.items() if k not in ("bank", "faults", "Ts")}}
+        designs[label] = _design_fn(method, des_plant, options, checked, record, name=f"{name}_{label}", problem=name, where=where)
+        classes.append(checked.get("faults"))  # the fault classes of a bank; a method without them names its faults itself
+        whites.add(white)
+    if len(whites) > 1:
+        raise SpecError(
+            f"{path} [[designs]]: the sampled-data methods read [model].E as continuous white noise, the others as unknown "
+            "inputs to decouple; the simulation cannot be both: put them in two plant files"
+        )
+    white = whites.pop()
 
     sim = _Section(top.get("simulation", {}), f"{path} [simulation]", {"duration", "x0", "inputs", "unknown_inputs"})
     u_sigs = [_signal(s, f"{path} [simulation].inputs[{i}]") for i, s in enumerate(sim.entries("inputs"))]
@@ -441,7 +524,8 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
     x0 = sim.vector("x0", physical.n)
     scenarios = {"fault_free": Scenario("fault_free", "No fault.", sim.duration("duration", 100.0, Ts=ts))}
     sources = set(physical.outputs) | set(physical.component_faults)
-    known = {f.name for f in listed} if listed is not None else None
+    # a scenario's fault is a class of one of the designs ("a|b": default classes merged when alike)
+    known = None if any(c is None for c in classes) else {f.name for c in classes for f in c}  # type: ignore[union-attr]
     first: dict[str, int] = {}
     for i, sd in enumerate(top.entries("scenarios")):
         w = f"{path} [[scenarios]][{i}]"
@@ -496,23 +580,25 @@ def problem_from_document(doc: Mapping[str, Any], path: Path) -> Problem:
     else:
         sim_plant = physical
 
-    def simulate(scenario: Scenario, seeds: tuple[int, ...], draws: np.ndarray | None = None) -> Batch:
+    def simulate(scenario: Scenario, seeds: tuple[int, ...], draws: np.ndarray | None = None, **_: Any) -> Batch:
         return simulate_linear(sim_plant, scenario, seeds, x0=x0, inputs=u_sigs, unknown_inputs=d_sigs, draws=draws)
 
-    def sample_model() -> SampleModel:
+    def sample_model(**_: Any) -> SampleModel:
         return linear_sample_model(sim_plant, x0=x0, inputs=u_sigs, unknown_inputs=d_sigs)
 
     return Problem(
         name=name,
         title=top.text("title", name),
-        summary=f"Plant described by {path.name}; design method {method.name}.",
-        designs={method.name: design_fn},
-        default_design=method.name,
+        summary=_summary(f"Plant {origin or f'described by {path.name}'}", designs),
+        designs=designs,
+        default_design=next(iter(designs)),
         scenarios=scenarios,
         simulate=simulate,
         sample_model=sample_model,
         monte_carlo_runs=50,
         model=lambda **_: physical,
+        options=_design_options(designs),
+        labels=signal_labels(physical),
     )
 
 
@@ -532,20 +618,48 @@ def _check_fault_window(where: str, fault: str | None, onset: float | None, end:
         raise SpecError(f"{where}.end = {end:g} s must come after onset = {onset:g} s")
 
 
-def _design_section(top: _Section, path: Path, name: str, kinds: tuple[str, ...]) -> tuple[Method, dict[str, Any]]:
-    """``[design]``: its method (one designing for ``kinds`` of plants) and the options it gives.
+def _design_entries(top: _Section, path: Path, name: str, kinds: tuple[str, ...]) -> list[tuple[str, Method, dict[str, Any], str]]:
+    """The file's designs: ``[design]`` (one, named after its method) or ``[[designs]]`` (several, each with a
+    ``name``), as ``(name, method, options given, where)`` in the file's order."""
+    if "design" in top.doc and "designs" in top.doc:
+        raise SpecError(f"{path}: give [design] (one design) or [[designs]] (several, each with a name), not both")
+    if "designs" not in top.doc:
+        method, options = _design_section(top.get("design", {}), f"{path} [design]", path, kinds)
+        _diagnoser_name(name, method.name, path)
+        return [(method.name, method, options, f"{path} [design]")]
+    tables = top.entries("designs")
+    if not tables:
+        raise SpecError(f"{path} [[designs]] is empty: give one table per design, each with a name and a method")
+    out: list[tuple[str, Method, dict[str, Any], str]] = []
+    first: dict[str, int] = {}
+    for i, table in enumerate(tables):
+        where = f"{path} [[designs]][{i}]"
+        method, options = _design_section(table, where, path, kinds, named=True)
+        if "name" not in options:
+            raise SpecError(f"{where}: missing key 'name' (the design's name on the page and in the C API, e.g. name = \"kalman\")")
+        label = check_label(options.pop("name"), f"{where}.name", max_length=SHORT_LABEL_MAX, error=SpecError)
+        if label in first:
+            raise SpecError(f"{where}.name {label!r} is already the name of [[designs]][{first[label]}]; design names must be unique")
+        first[label] = i
+        _diagnoser_name(name, label, path)
+        out.append((label, method, options, where))
+    return out
+
+
+def _design_section(doc: Any, where: str, path: Path, kinds: tuple[str, ...], *, named: bool = False) -> tuple[Method, dict[str, Any]]:
+    """One design's table: its method (one designing for ``kinds`` of plants) and the options it gives (``name``
+    too when ``named``).
 
     The keys allowed are those of the methods' schemas (:mod:`fdisyn.synthesis.registry`);
     options a plant file takes from elsewhere (``Ts`` from ``[model]``) are not keys here.
     """
     methods = [m for m in all_methods() if m.plant_kind in kinds]
-    keys = {"method"} | {o.name for m in methods for o in m.options if o.plant_file is None}
-    des = _Section(top.get("design", {}), f"{path} [design]", keys)
+    keys = {"method"} | ({"name"} if named else set()) | {o.name for m in methods for o in m.options if o.plant_file is None}
+    des = _Section(doc, where, keys)
     method = des.get("method", methods[0].name if len(methods) == 1 else "kalman_uio")
     if not isinstance(method, str) or method not in [m.name for m in methods]:
         family = "nonlinear" if "nonlinear" in kinds else "linear"
-        raise SpecError(f"{path} [design].method {shown(method)}: a {family} plant is designed by {', '.join(repr(m.name) for m in methods)}")
-    _diagnoser_name(name, method, path)
+        raise SpecError(f"{where}.method {shown(method)}: a {family} plant is designed by {', '.join(repr(m.name) for m in methods)}")
     return get_method(method), {k: v for k, v in des.doc.items() if k != "method"}
 
 
@@ -558,14 +672,48 @@ def _spec_errors() -> Iterator[None]:
         raise SpecError(str(exc)) from exc
 
 
-def _checked(method: Method, given: Mapping[str, Any], plant: Any, path: Path) -> dict[str, Any]:
-    """The method's options from ``[design]``, validated against its schema (errors name the key)."""
+def _checked(method: Method, given: Mapping[str, Any], plant: Any, where: str) -> dict[str, Any]:
+    """The method's options from a design's table, validated against its schema (errors name the key)."""
     with _spec_errors():
-        return check_options(method, given, plant=plant, where=f"{path} [design]")
+        return check_options(method, given, plant=plant, where=where)
+
+
+BUDGET_KEYS = ("P_f", "arl0")
+"""The two ways of giving a design's false-alarm budget: an option giving one replaces the file's other."""
+
+
+def _design_fn(method: Method, plant: Any, options: Mapping[str, Any], checked: Mapping[str, Any], record: Mapping[str, Any], *,
+               name: str, problem: str, where: str) -> DesignFn:  # fmt: skip
+    """A design of the file: its options as the file gives them, updated by the problem's options given (``--option
+    KEY=VALUE``; ``None``, the problem's default, keeps the file's value), each validated like the file's."""
+
+    def design_fn(**given: Any) -> GainFile:
+        over = {k: v for k, v in given.items() if v is not None and k in method.option_names}
+        opts = dict(checked)
+        if over:
+            base = {k: v for k, v in options.items() if not (k in BUDGET_KEYS and set(BUDGET_KEYS) & set(over))}
+            opts = _checked(method, {**base, **over}, plant, f"{where} with the option(s) given")
+        with _spec_errors():
+            return method.design(plant, name=name, problem=problem, record={**record, **over}, where=where, **opts)
+
+    design_fn.method = method  # type: ignore[attr-defined]  # what the problem's options and summary read
+    return design_fn
+
+
+def _design_options(designs: Mapping[str, Any]) -> dict[str, None]:
+    """The problem's options: every key of its designs' methods (``None``: as the file gives it)."""
+    keys = sorted({o.name for fn in designs.values() for o in fn.method.options if o.plant_file is None})
+    return dict.fromkeys(keys)
+
+
+def _summary(head: str, designs: Mapping[str, Any]) -> str:
+    if len(designs) == 1:
+        return f"{head}; design method {next(iter(designs.values())).method.name}."
+    return f"{head}; designs " + ", ".join(f"{k} ({fn.method.name})" for k, fn in designs.items()) + "."
 
 
 def _diagnoser_name(name: str, method: str, path: Path) -> None:
-    """The gain file's name ``<name>_<method>`` prefixes the C API: within the length limit too."""
+    """The gain file's name ``<name>_<design>`` prefixes the C API: within the length limit too."""
     full = f"{name}_{method}"
     if len(full) > DIAGNOSER_NAME_MAX:
         raise SpecError(
@@ -585,14 +733,16 @@ def _scenario_name(value: Any, scenarios: Mapping[str, Scenario], where: str) ->
 
 # --------------------------------------------------------------------------- nonlinear plants (Zhou, Xi & Zhang 1991)
 
-def _nonlinear_problem(path: Path, top: _Section, name: str) -> Problem:
+def _nonlinear_problem(path: Path, top: _Section, name: str, origin: str) -> Problem:
     """A ``time = "nonlinear"`` plant file: the model of Zhou, Xi & Zhang 1991 (eq. (2.1)) and the NAFDF (format in ``design/examples/PLANT_FILES.md``)."""
     from fdisyn.models.nonlinear import NonlinearPlant
     from fdisyn.numerics.linalg import as_covariance
 
-    sig = _Section(top.get("signals", {}), f"{path} [signals]", {"states", "inputs", "outputs", "parameters"})
-    mod = _Section(top.get("model", required=True), f"{path} [model]", {"time", "Ts", "f", "h", "nominal", "constants", "Q", "R", *NONLINEAR_LETTERS})
+    sig = _Section(top.get("signals", {}), f"{path} [signals]", {"states", "inputs", "outputs", "parameters", *SIGNAL_TEXTS})
+    mod = _Section(top.get("model", required=True), f"{path} [model]",
+                   {"time", "Ts", "f", "h", "nominal", "constants", "Q", "R", *NONLINEAR_LETTERS, *NOISE_KEYS})
     mod.accept_letters(NONLINEAR_LETTERS)
+    _process_noise(mod, "nonlinear")
     ts = mod.number("Ts")
     names = {}
     for key in ("states", "inputs", "outputs", "parameters"):
@@ -611,6 +761,7 @@ def _nonlinear_problem(path: Path, top: _Section, name: str) -> Problem:
             raise SpecError(f"{path} [model].{key} must be a table such as {{ x = \"...\" }}")
     if not isinstance(mod.get("constants", {}), Mapping):
         raise SpecError(f"{path} [model].constants must be a table such as {{ g = 9.81 }}, got {shown(mod.get('constants'))}")
+    texts = _signal_texts(sig)
     try:
         plant = NonlinearPlant.from_expressions(
             states=names["states"],
@@ -624,6 +775,7 @@ def _nonlinear_problem(path: Path, top: _Section, name: str) -> Problem:
             R=noise["R"],
             constants=mod.get("constants"),
             Ts=ts,
+            **texts,
         )
     except FdisynError as exc:
         raise SpecError(f"{path} [model]: {exc}") from exc
@@ -639,18 +791,17 @@ def _nonlinear_problem(path: Path, top: _Section, name: str) -> Problem:
     if not np.all(np.isfinite(x0)):
         raise SpecError(f"{path} [simulation].x0 must hold finite numbers, got {x0.tolist()}")
 
-    method, given = _design_section(top, path, name, ("nonlinear",))
-    checked = _checked(method, {"x0": x0.tolist(), **given}, plant, path)
-    u0 = np.zeros(plant.m) if checked["u0"] is None else np.asarray(checked["u0"], dtype=float)
-    # the model must be finite where the simulation starts (x/0, x**x at 0 …): refused here, before any data
-    try:
-        plant.check_finite(x=x0, u=u0, point=f"the nominal point ([simulation].x0 = {x0.tolist()}, u = {u0.tolist()}, nominal θ)")
-    except FdisynError as exc:
-        raise SpecError(f"{path} [model]: {exc}") from None
-
-    def design_fn(**_: Any) -> GainFile:
-        with _spec_errors():
-            return method.design(plant, name=f"{name}_{method.name}", problem=name, record={"spec": str(path)}, where=f"{path} [design]", **checked)
+    designs: dict[str, DesignFn] = {}
+    for label, method, given, where in _design_entries(top, path, name, ("nonlinear",)):
+        options = {"x0": x0.tolist(), **given}
+        checked = _checked(method, options, plant, where)
+        u0 = np.zeros(plant.m) if checked["u0"] is None else np.asarray(checked["u0"], dtype=float)
+        # the model must be finite where the simulation starts (x/0, x**x at 0 …): refused here, before any data
+        try:
+            plant.check_finite(x=x0, u=u0, point=f"the nominal point ([simulation].x0 = {x0.tolist()}, u = {u0.tolist()}, nominal θ)")
+        except FdisynError as exc:
+            raise SpecError(f"{path} [model]: {exc}") from None
+        designs[label] = _design_fn(method, plant, options, checked, {"spec": str(path)}, name=f"{name}_{label}", problem=name, where=where)
 
     scenarios = {
         "fault_free": Scenario("fault_free", "No fault.", sim.duration("duration", 1000.0 * step_ts, Ts=step_ts))
@@ -694,21 +845,24 @@ def _nonlinear_problem(path: Path, top: _Section, name: str) -> Problem:
 
     keep = {f"true_{q}": q for q in pars} | {f"true_{s}": s for s in plant.states}
 
-    def simulate(scenario: Scenario, seeds: tuple[int, ...], draws: np.ndarray | None = None) -> Batch:
+    def simulate(scenario: Scenario, seeds: tuple[int, ...], draws: np.ndarray | None = None, **_: Any) -> Batch:
         return simulate_nonlinear_runs(plant, scenario, seeds, x0=x0, drive=lambda sc: (None, parameters(sc)), Ts=step_ts, extra=keep,
                                        signals=u_sigs, draws=draws)
 
-    def sample_model() -> SampleModel:
+    def sample_model(**_: Any) -> SampleModel:
         return nonlinear_sample_model(plant, x0=x0, drive=lambda sc: (None, parameters(sc)), Ts=step_ts, extra=keep, signals=u_sigs)
 
     return Problem(
         name=name,
         title=top.text("title", name),
-        summary=f"Nonlinear plant described by {path.name}; the adaptive fault detection filter (NAFDF, Zhou, Xi & Zhang 1991).",
-        designs={method.name: design_fn},
-        default_design=method.name,
+        summary=f"Nonlinear plant {origin}; the adaptive fault detection filter (NAFDF, Zhou, Xi & Zhang 1991)"
+        + ("." if len(designs) == 1 else f": designs {', '.join(designs)}."),
+        designs=designs,
+        default_design=next(iter(designs)),
         scenarios=scenarios,
         simulate=simulate,
         sample_model=sample_model,
         monte_carlo_runs=50,
+        options=_design_options(designs),
+        labels=signal_labels(plant),
     )

@@ -31,7 +31,7 @@ from fdisyn.models.linear import LinearPlant
 from fdisyn.numerics.certificate import Certificate, Check
 from fdisyn.numerics.linalg import transfer_size
 from fdisyn.runtime.errors import ArgumentError, ExistenceError, FdisynError, ShapeError, SolverError
-from fdisyn.runtime.gainfile import Decision, Evaluator, GainFile, Generator, StepSpec
+from fdisyn.runtime.gainfile import Decision, Evaluator, GainFile, Generator, StepSpec, signals_block
 from fdisyn.runtime.layout import linear_state_layout
 from fdisyn.runtime.warmup import MAX_WARMUP, PINV_RTOL, information_pinv, longest_warmup
 from fdisyn.runtime.statistics import MAX_WSSR_WINDOW
@@ -236,6 +236,7 @@ def linear_diagnoser(
         generators=tuple(gens),
         evaluators=tuple(evals),
         decision=decision,
+        signals=signals_block(plant.units, plant.labels, plant.inputs, plant.outputs, [f.name for f in faults]),
         certificate={
             "passed": True,
             "generators": [c.to_dict() for c in certificates],

@@ -706,7 +706,10 @@ def gos_design(
         model = LinearPlant.create(
             A=plant.A, B=plant.B, C=plant.C, D=plant.D, E=est.E, Fx=plant.Fx, Q=0.5 * (q_model + q_model.T), R=plant.R,
             states=plant.states, inputs=plant.inputs, outputs=plant.outputs,
-            unknown_inputs=tuple(f"d{i + 1}" for i in range(est.rank)), component_faults=plant.component_faults, units=plant.units,
+            unknown_inputs=tuple(f"d{i + 1}" for i in range(est.rank)), component_faults=plant.component_faults,
+            # the estimated unknown inputs replace the plant's: their units and labels go with them
+            units={k: v for k, v in plant.units.items() if k not in plant.unknown_inputs},
+            labels={k: v for k, v in plant.labels.items() if k not in plant.unknown_inputs},
         )
     discrete = model if model.is_discrete else model.discretise(ts)  # type: ignore[arg-type]
     if est is not None:

@@ -219,7 +219,7 @@ def test_design_command_prints_the_account(motor, tmp_path: Path, capsys) -> Non
     out = capsys.readouterr().out
     assert "what the design can see" in out
     assert any(line.split()[:3] == ["theta_meas", "(sensor)", "transient"] for line in out.splitlines())
-    assert "(in the units of i_meas)" in out
+    assert "(A)" in out and "(rad/s)" in out  # the plant file's [signals].units
     assert read_gain_file(tmp_path / "m" / "gains.json").account is not None
 
 
@@ -235,7 +235,7 @@ def test_report_shows_the_account_folded_beside_the_certificate(motor) -> None:
     prob, gf = motor
     page = _certificate_html(gf, prob)
     assert "<summary>What the design can see</summary>" in page
-    assert "none at steady state" in page and "units of i_meas" in page
+    assert "none at steady state" in page and "(rad/s)" in page
     nafdf = read_gain_file(REPORTS / "ship_propulsion" / "gains" / "ship_propulsion_nafdf.json")
     assert "What the design can see: not computed" in _certificate_html(nafdf)
     assert "What the design can see" not in _certificate_html(replace(gf, account=None), prob)

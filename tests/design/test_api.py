@@ -185,7 +185,8 @@ def test_design_through_the_registry_names_the_method(motor) -> None:
 
 def test_the_public_names() -> None:
     assert set(fdisyn.__all__) == {"__version__", "design", "export", "load", "methods", "fault_account", "LinearPlant", "NonlinearPlant", "SampledDataPlant", "GainFile", "Monitor",
-                                  "structure_matrices", "analyse_structure", "check_structure", "analyse_gaps", "bank_performance"}
+                                  "structure_matrices", "analyse_structure", "check_structure", "analyse_gaps", "bank_performance",
+                                  "problem", "simulate", "evaluate", "fault_size_sweep", "report", "plot_trace", "plot_laws", "plot_detection"}
     for name in fdisyn.__all__:
         assert getattr(fdisyn, name) is not None
     assert fdisyn.__version__[0].isdigit()  # the installed distribution's version (fdisyn --version prints it)

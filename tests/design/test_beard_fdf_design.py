@@ -70,7 +70,7 @@ def _toml(doc: dict[str, Any]) -> str:
 def _continuous_plant() -> LinearPlant:
     m, s = DOC["model"], DOC["signals"]
     return LinearPlant.create(
-        A=m["A"], B=m["B"], C=m["C"], Fx=m["Fx"], Q=m["Q"], R=m["R"], states=s["states"], inputs=s["inputs"],
+        A=m["A"], B=m["B"], C=m["C"], Fx=m["Fx"], Q=m["Q_intensity"], R=m["R"], states=s["states"], inputs=s["inputs"],
         outputs=s["outputs"], component_faults=s["component_faults"],
     )
 
@@ -120,7 +120,7 @@ def test_the_textbook_file_designs_plain(tmp_path: Path) -> None:
 def test_a_discrete_plant_file_designs(tmp_path: Path) -> None:
     pd = _continuous_plant().discretise(TS)
     path = _file(tmp_path, model={"time": "discrete", "A": np.asarray(pd.A).tolist(), "Fx": np.asarray(pd.Fx).tolist(),
-                                  "B": np.asarray(pd.B).tolist(), "Q": np.asarray(pd.Q).tolist()},
+                                  "B": np.asarray(pd.B).tolist(), "Q_intensity": None, "Q_sample": np.asarray(pd.Q).tolist()},
                  design={"sigma": 0.0})
     gf = load_spec(path).design()
     assert gf.faults == ("f_push", "f_act") and _info(gf)["detection_space_dims"] == [2, 1]

@@ -24,7 +24,7 @@ def test_built_in_problem_design_codegen_simulate_replay(tmp_path, capsys):
     gf = read_gain_file(d / "gains.json")
     assert gf.name == "wind_turbine_kalman_uio" and gf.design == "kalman_uio"
     assert main(["codegen", str(d)]) == 0
-    for rel in ("c/wind_turbine_kalman_uio.h", "c/wind_turbine_kalman_uio.c", "c/replay.c", f"libwind_turbine_kalman_uio{library_suffix()}", "replay"):
+    for rel in ("c/wind_turbine_kalman_uio.h", "c/wind_turbine_kalman_uio.c", "c/tools/replay.c", f"libwind_turbine_kalman_uio{library_suffix()}", "replay"):
         assert (d / rel).exists(), rel
     trace = tmp_path / "trace.csv"
     assert main(["simulate", "wind_turbine", "--scenario", "benchmark_stuck", "--seed", "7", "--out", str(trace)]) == 0

@@ -208,7 +208,7 @@ def test_every_signal_and_fault_kind_matches_the_python_simulation(motor_built, 
     u_sig, d_sig = SIGNALS[kinds]
     x0 = np.array([0.1, 0.0, 0.0])
     base = load_spec(DATA / "dc_motor.toml")
-    prob = replace(base, sample_model=lambda: linear_sample_model(plant, x0=x0, inputs=[u_sig], unknown_inputs=[d_sig]),
+    prob = replace(base, sample_model=lambda **_: linear_sample_model(plant, x0=x0, inputs=[u_sig], unknown_inputs=[d_sig]),
                    scenarios={s.name: s for s in FAULTS})
     for sc in FAULTS:
         cc = compiled_campaign(prob, {base.default_design: motor_built}, sc, directory=tmp_path)

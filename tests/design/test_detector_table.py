@@ -107,7 +107,7 @@ def test_no_module_outside_the_detectors_names_a_detector_kind_in_code():
     for top in ("design", "runtime", "problems"):
         for path in sorted((ROOT / top).rglob("*.py")):
             rel = path.relative_to(ROOT).as_posix()
-            if rel in OWN_MODULES or rel in NOT_YET:
+            if rel in OWN_MODULES or rel in NOT_YET or rel.startswith("design/examples/"):  # user scripts: they choose one
                 continue
             named = _named_kinds(path)
             allowed = ALLOWED[rel][0] if rel in ALLOWED else {}

@@ -164,17 +164,17 @@ def test_a_valid_gain_file_round_trips_its_names_through_the_writer(tmp_path):
 
 
 def test_codegen_never_writes_through_a_link_planted_in_the_folder(tmp_path):
-    """A received folder may hold links where codegen writes (``c/replay.c``, ``c/build.log``, the
+    """A received folder may hold links where codegen writes (``c/tools/replay.c``, ``c/build.log``, the
     manifest, CasADi's file): followed, they would overwrite any file of the user (``~/.bashrc``).
     Each is replaced by a fresh file; the files they point to stay as they were."""
     gf = toy()
     d = tmp_path / "toy"
     write_gain_file(gf, d / "gains.json")
     victims = {}
-    for rel in ("c/replay.c", "c/build.log", f"c/{gf.name}_casadi.c", f"c/{gf.name}.h", f"lib{gf.name}.manifest.json"):
+    for rel in ("c/tools/replay.c", "c/build.log", f"c/{gf.name}_casadi.c", f"c/{gf.name}.h", f"lib{gf.name}.manifest.json"):
         victim = tmp_path / f"victim_{len(victims)}.txt"
         victim.write_text("mine\n")
-        (d / rel).parent.mkdir(exist_ok=True)
+        (d / rel).parent.mkdir(parents=True, exist_ok=True)
         (d / rel).symlink_to(victim)
         victims[rel] = victim
     assert main(["codegen", str(d)]) == 0
@@ -188,5 +188,12 @@ def test_codegen_never_writes_through_a_link_planted_in_the_folder(tmp_path):
     write_gain_file(gf, d2 / "gains.json")
     (d2 / "c").symlink_to(elsewhere)
     with pytest.raises(BuildError, match=r"c is a symbolic link; expected a folder of its own for the generated C"):
+        cg.generate_sources(read_gain_file(d2 / "gains.json"), d2 / "c")
+    assert list(elsewhere.iterdir()) == []
+    # and so is a link as the folder of the programs, c/tools
+    (d2 / "c").unlink()
+    (d2 / "c").mkdir()
+    (d2 / "c" / "tools").symlink_to(elsewhere)
+    with pytest.raises(BuildError, match=r"tools is a symbolic link; expected the folder `fdisyn codegen` writes the replay"):
         cg.generate_sources(read_gain_file(d2 / "gains.json"), d2 / "c")
     assert list(elsewhere.iterdir()) == []

@@ -58,6 +58,7 @@ def test_the_references_hold_the_moved_sections() -> None:
         "The reports", "References",
     ]
     assert _headings(PLANT_FILES, "### ") == [
+        "Process noise, names and units", "Several designs on one page, and options from the command line",
         "A nonlinear plant (the NAFDF)", "A generalised UIO bank (`kalman_uio_gos`)", "A Beard filter (`beard_fdf`)",
     ]
 

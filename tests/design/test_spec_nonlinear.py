@@ -104,7 +104,7 @@ def _write(tmp_path: Path, old: str, new: str) -> Path:
         ("x0 = [0.0]", "x0 = [0.0, 1.0]", "x0 must have 1 entries"),
         ("x0 = [0.0]", 'x0 = ["zero"]', r"\[simulation\].x0 must be a list of 1 numbers"),
         ("R = [[0.01]]", "R = [[0.01, 0.0]]", r"\[model\].R has shape \(1, 2\); expected \(1, 1\)"),
-        ("Q = [[0.0]]", "Q = [[-1.0]]", r"\[model\].Q must be positive semidefinite"),
+        ("Q_sample = [[0.0]]", "Q_sample = [[-1.0]]", r"\[model\].Q_sample must be positive semidefinite"),
         ("R = [[0.01]]", "R = 0.0", r"\[model\].R must be positive definite"),
         ('states = ["x"]', "states = 3", r"\[signals\].states must be a list of names"),
         ("window = 10", 'window = "ten"', r"\[design\].window = 'ten': expected a whole number of samples in 1\.\.1000"),
@@ -137,14 +137,14 @@ def test_bad_nonlinear_files_name_the_problem(tmp_path, old, new, match) -> None
 
 def test_the_papers_noise_letters_are_read_as_q_and_r(problem, tmp_path) -> None:
     """Zhou, Xi & Zhang's ``Q1``, ``Q2`` (eq. (2.1)) may stand for ``Q``, ``R``; errors name the key the file wrote."""
-    lettered = _write(tmp_path, "Q = [[0.0]]", "Q1 = [[0.0]]")
+    lettered = _write(tmp_path, "Q_sample = [[0.0]]", "Q1 = [[0.0]]")
     lettered.write_text(lettered.read_text().replace("R = [[0.01]]", "Q2 = [[0.01]]", 1))
     assert load_spec(lettered).design().extensions["nafdf"]["plant"] == problem.design().extensions["nafdf"]["plant"]
     lettered.write_text(lettered.read_text().replace("Q2 = [[0.01]]", "Q2 = 0.0", 1))
     with pytest.raises(SpecError, match=r"\[model\].Q2 must be positive definite"):
         load_spec(lettered).design()
     with pytest.raises(SpecError, match=r"\[model\] gives both 'Q1' and 'Q': they are the same matrix"):
-        load_spec(_write(tmp_path, "Q = [[0.0]]", "Q = [[0.0]]\nQ1 = [[0.0]]"))
+        load_spec(_write(tmp_path, "Q_sample = [[0.0]]", "Q = [[0.0]]\nQ1 = [[0.0]]"))
 
 
 @pytest.mark.parametrize(

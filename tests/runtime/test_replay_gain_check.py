@@ -134,7 +134,7 @@ def test_the_refusal_is_one_text_compiled_into_the_replay(motor_built):
     """The C program's printf format is STALE_BUILD itself, written as a C literal by `fdisyn codegen`."""
     from fdisyn.codegen.library import c_string_literal
 
-    src = (motor_built.artifacts.c_dir / "replay.c").read_text()
+    src = (motor_built.artifacts.c_dir / "tools" / "replay.c").read_text()
     assert f"#define STALE_BUILD {c_string_literal(STALE_BUILD)}\n" in src
     assert STALE_BUILD.count("%") == 5 and STALE_BUILD.count("%s") == 3 and STALE_BUILD.count("%.16s") == 2
 
@@ -169,7 +169,7 @@ def driver(motor_built, tmp_path_factory: pytest.TempPathFactory) -> Path:
     (d / "driver.c").write_text(_DRIVER)
     c_dir = motor_built.artifacts.c_dir
     wrapper = c_dir / f"{motor_built.gain_file.name}.c"
-    subprocess.run([*compiler(), "-std=c99", "-O2", f"-I{c_dir}", str(d / "driver.c"), str(wrapper), "-o", str(d / "driver"), "-lm"],
+    subprocess.run([*compiler(), "-std=c99", "-O2", f"-I{c_dir / 'tools'}", str(d / "driver.c"), str(wrapper), "-o", str(d / "driver"), "-lm"],
                    check=True, capture_output=True, timeout=300)
     return d / "driver"
 

@@ -38,7 +38,7 @@ from fdisyn.numerics.robust_cones import (
 )
 from fdisyn.detectors.sequential import MAX_ARL_SAMPLES
 from fdisyn.runtime.errors import ArgumentError, ExistenceError
-from fdisyn.runtime.gainfile import GainFile
+from fdisyn.runtime.gainfile import GainFile, signals_block
 from fdisyn.runtime.schema import MAX_MAGNITUDE, SCALAR_STEP_LIMITS
 from fdisyn.runtime.names import shown
 from fdisyn.runtime.warmup import longest_warmup
@@ -413,6 +413,7 @@ def design_beard_fdf(
     return beard_gain_file(
         flt, name=name, problem=problem or name, design_name=f"beard_fdf_{kind}", Ts=ts, inputs=tuple(pd.inputs),
         outputs=tuple(pd.outputs), faults=fault_names, certificate=cert, options=record,
+        signals=signals_block(pd.units, pd.labels, pd.inputs, pd.outputs, fault_names),
     )
 
 

@@ -221,8 +221,11 @@ def beard_gain_file(
     faults: Sequence[str],
     certificate: Certificate,
     options: Mapping[str, object] | None = None,
+    signals: Mapping[str, Mapping[str, str]] | None = None,
 ) -> GainFile:
     """The gain file (kind ``"beard_fdf"``) of a filter: the common fields plus the payload.
+
+    ``signals`` is the file's optional block of units and labels (:func:`~fdisyn.runtime.gainfile.signals_block`).
 
     The certificate is stored as ``{"passed": …, "beard_fdf": certificate}``, the design options in the
     provenance. The file is read back before it is returned (:func:`beard_from_gain_file`): what this
@@ -252,6 +255,7 @@ def beard_gain_file(
         certificate={"passed": bool(cert["passed"]), KIND: cert},
         provenance=provenance(options=dict(options or {})),
         extensions={KIND: _payload(flt)},
+        signals=signals,
     )
     beard_from_gain_file(gf)
     return gf

@@ -17,7 +17,7 @@ from fdisyn.models.nonlinear import NonlinearPlant
 from fdisyn.models.sampling import check_sample_time
 from fdisyn.numerics.linalg import as_covariance
 from fdisyn.runtime.errors import FdisynError, GainFileError
-from fdisyn.runtime.gainfile import GainFile, StepSpec
+from fdisyn.runtime.gainfile import GainFile, StepSpec, signals_block
 from fdisyn.runtime.validate import check_magnitudes
 from fdisyn.runtime.layout import StateLayout
 from fdisyn.runtime.names import shown
@@ -467,6 +467,7 @@ def nafdf_gain_file(
         certificate={"passed": bool(cert["passed"]), "nafdf": cert},
         provenance=provenance(options=dict(options or {})),
         extensions={"nafdf": payload},
+        signals=signals_block(pl.units, pl.labels, pl.inputs, pl.outputs, design.fault_names),
     )
 
 
