@@ -37,8 +37,9 @@ diagnoser name
     255-byte file-name limit of common file systems and every symbol under 100
     characters (gcc and clang keep all of them significant; C99 promises
     only 63, which no prefix plus suffix scheme can meet). Reserved:
-    ``replay`` and ``bench`` (their sources ``replay.c`` and ``bench.c``
-    share the folder with ``<name>.c``) and names starting with ``casadi`` in
+    ``replay`` and ``bench`` (the programs ``DIR/c/tools/replay.c`` and
+    ``bench.c`` include ``<name>.h``: a build of both that puts the tools on
+    its include path would find two files of one name) and names starting with ``casadi`` in
     any case (CasADi's generated code owns ``casadi_*`` and ``CASADI_*``).
 label
     problem, design, generator, residual and statistic names: a letter or
@@ -94,8 +95,8 @@ RESERVED_SIGNAL_NAMES: Mapping[str, str] = {
 """Names a signal may not take, with the column they would collide with."""
 
 RESERVED_DIAGNOSER_NAMES: Mapping[str, str] = {
-    "replay": "its wrapper <name>.c would overwrite the replay program's replay.c",
-    "bench": "its wrapper <name>.c would overwrite the benchmark's bench.c",
+    "replay": "its library <name>.c would share its name with the replay program's tools/replay.c",
+    "bench": "its library <name>.c would share its name with the benchmark's tools/bench.c",
 }
 
 _TOKEN = r"[A-Za-z][A-Za-z0-9_]*"

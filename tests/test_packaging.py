@@ -70,6 +70,8 @@ def test_the_wheel_carries_the_examples_and_installs_the_runtime_alone(wheel: Pa
             assert zf.read(f"fdisyn/examples/{name}.toml") == (EXAMPLES / f"{name}.toml").read_bytes(), name
         # the references: the plant files' beside the examples, the formats' with the runtime
         assert zf.read("fdisyn/examples/PLANT_FILES.md") == PLANT_FILES.read_bytes()
+        for script in sorted((EXAMPLES / "workflows").glob("*.py")):  # the workflow scripts the README names
+            assert zf.read(f"fdisyn/examples/workflows/{script.name}") == script.read_bytes(), script.name
         assert zf.read("fdisyn/runtime/REFERENCE.md") == (ROOT / "runtime" / "REFERENCE.md").read_bytes()
         (meta,) = [n for n in zf.namelist() if n.endswith(".dist-info/METADATA")]
         requires = [ln.split(":", 1)[1].strip() for ln in zf.read(meta).decode().splitlines() if ln.startswith("Requires-Dist:")]

@@ -554,9 +554,11 @@ def _kalman_uio(plant: LinearPlant, st: UIOStructure, variant: str) -> UIODesign
         sig_opt, _ = uio_error_covariance(st, l_truth, q, r, c)
         paper_info: dict[str, object] = {"trace_Sigma_optimal": float(np.trace(sig_opt)), "recursion_distance_after_iterations": distance}
         return _finish(plant, st, paper, "kalman_uio", "paper", checks, paper_info)
-    if red.A.shape[0] > NLP_STATES:
-        return _riccati_gain(plant, st, red, truth, l_truth, paper)
     l_red0 = red.V.T @ paper @ red.Uc
+    if red.A.shape[0] > NLP_STATES:
+        return _riccati_gain(plant, st, red, truth, l_truth, paper, f"reduced problem of {red.A.shape[0]} > {NLP_STATES} states")
+    if _noise_free_state(red, l_red0):
+        return _riccati_gain(plant, st, red, truth, l_truth, paper, "a state of the error no noise reaches: the NLP's scaling by its variance is void")
     try:
         lt_nlp, stats = _nlp_gain(red, l_red0)
         start = "paper gain"
@@ -604,11 +606,23 @@ def _optimality_checks(
     ]
 
 
+def _noise_free_state(red: ReducedProblem, lt0: np.ndarray) -> bool:
+    """Whether the error covariance at the starting gain ``lt0`` has a state of zero variance (to the floor the
+    NLP scales by, :func:`_nlp_gain`): no process or sensor noise reaches it (a plant without process noise, ``Q =
+    0``). The NLP's scaling by that variance is then void, while the minimum-variance gain is the Riccati one."""
+    f0 = red.A - lt0 @ red.C
+    if spectral_radius(f0) >= 1.0:
+        return False
+    d = np.diag(dlyap(f0, red.Q - red.S @ lt0.T - lt0 @ red.S.T + lt0 @ red.R @ lt0.T))
+    return bool(np.min(d) <= np.finfo(float).tiny * max(1.0, float(np.max(d))))
+
+
 def _riccati_gain(
-    plant: LinearPlant, st: UIOStructure, red: ReducedProblem, truth: Any, l_truth: np.ndarray, paper: np.ndarray
+    plant: LinearPlant, st: UIOStructure, red: ReducedProblem, truth: Any, l_truth: np.ndarray, paper: np.ndarray, why: str
 ) -> UIODesign:
-    """The minimum-variance gain of a reduced problem above :data:`NLP_STATES` states: the stabilising solution
-    of the filtering DARE with cross term, certified by the full-coordinate optimality condition.
+    """The minimum-variance gain of a reduced problem the NLP does not solve (above :data:`NLP_STATES` states, or
+    with a state no noise reaches: ``why``): the stabilising solution of the filtering DARE with cross term,
+    certified by the full-coordinate optimality condition.
 
     ``trace Σ(L)`` over the stabilising gains has one stationary point, the Riccati gain (the steady-state
     Kalman filter's optimality; Anderson & Moore, *Optimal Filtering*, 1979, ch. 4), so the stationarity
@@ -621,7 +635,7 @@ def _riccati_gain(
     checks = _optimality_checks(st, plant, truth, l_truth, sig, sig_r, "the gradient of trace Σ over all n×p gains vanishes "
                                 "only at the minimum-variance gain; the residual of the Riccati gain is round-off times cond(Σ_r)")
     info: dict[str, object] = {
-        "gain_route": f"Riccati (reduced problem of {red.A.shape[0]} > {NLP_STATES} states: no NLP cross-check)",
+        "gain_route": f"Riccati ({why}: no NLP cross-check)",
         "dare_residual": truth.residual,
         "paper_gain_excess_trace": float(np.trace(uio_error_covariance(st, paper, q, r, c)[0])) / max(tr, 1e-300) - 1.0,
     }

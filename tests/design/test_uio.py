@@ -330,3 +330,20 @@ def test_lyapunov_helper_is_exact():
     q = np.eye(4)
     x = dlyap(a, q)
     np.testing.assert_allclose(a @ x @ a.T + q, x, atol=1e-13)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_a_plant_without_process_noise_gets_its_minimum_variance_gain(seed: int) -> None:
+    """``Q = 0``: on a stable plant whose unknown input reaches no sensor noise, the error of the open-loop
+    observer is zero (``L = 0``, ``Σ = 0``): the minimum-variance gain, certified by the Riccati solution and the
+    optimality condition (the NLP's scaling by the start's variances is void there, as no noise reaches them)."""
+    rng = np.random.default_rng(seed)
+    n = 3
+    a = rng.standard_normal((n, n))
+    a *= 0.8 / max(abs(np.linalg.eigvals(a)))
+    plant = LinearPlant.create(A=a, B=rng.standard_normal((n, 1)), C=np.eye(n), Q=np.zeros((n, n)), R=0.01 * np.eye(n), Ts=0.1)
+    d = kalman_uio(plant)
+    np.testing.assert_allclose(d.L, 0.0, atol=1e-12)  # truth: x̂ = x exactly without process noise, so no correction
+    np.testing.assert_allclose(d.Sigma, 0.0, atol=1e-12)
+    np.testing.assert_allclose(d.Sigma_r, plant.R, rtol=1e-12)  # the residual is the sensor noise alone
+    assert "no noise reaches" in str(d.certificate.info["gain_route"])
