@@ -381,6 +381,7 @@ def _built(spec: Any, designs: Sequence[str] | None, workdir: str | Path | None,
     process runs here (``None``)."""
     from fdisyn.app import WORKDIR
     from fdisyn.evaluation.built import build
+    from fdisyn.reporting.page import variant_tag
 
     prob = _as_problem(spec)
     names = list(prob.designs) if designs is None else list(designs)
@@ -390,7 +391,8 @@ def _built(spec: Any, designs: Sequence[str] | None, workdir: str | Path | None,
         if d not in prob.designs:
             raise ArgumentError(f"problem {prob.name!r} has no design {d!r}; designs: {sorted(prob.designs)}")
     prob.check_options(options)  # a bad option is refused before anything is designed or compiled
-    root = Path(WORKDIR if workdir is None else workdir) / prob.name
+    # the folders the report builds in (its main variant's): a report after an evaluation compiles nothing again
+    root = Path(WORKDIR if workdir is None else workdir) / prob.name / variant_tag("default")
     built = {d: build(prob, d, root / d, **options) for d in names}
     return prob, built, str(spec) if isinstance(spec, (str, Path)) else None
 

@@ -131,7 +131,10 @@ def _rounding_scale(gf: GainFile, before: np.ndarray, res: RunResult, U: np.ndar
     small difference of large terms (an integrating state, a large operating
     point) is compared against its terms, not against itself. A CUSUM or GLR
     statistic is a sum clamped to ``[0, 2h]`` or over a window, of terms of
-    its own size: ``|J| + h``. A diagnoser without linear generators: ``|r|`` and ``|J|``.
+    its own size, ``|J| + h``, each computed from the residuals: the terms'
+    scales (that of ``rᵀ W r``) add up since the CUSUM last restarted from 0,
+    or over the GLR's window (:func:`_sum_memory`). A diagnoser without linear
+    generators: ``|r|`` and ``|J|``.
     """
     if not gf.generators:
         return np.abs(res.r), np.abs(res.J)
@@ -157,8 +160,12 @@ def _rounding_scale(gf: GainFile, before: np.ndarray, res: RunResult, U: np.ndar
                 s_j[:, j] = np.einsum("ki,ij,kj->k", r_abs, np.abs(ev.W), r_abs + 2.0 * block)
                 detector = DETECTORS[ev.kind]
                 if detector.sequential:
-                    # clamped (CUSUM) or windowed (GLR) sums of terms of the size of J and h: errors of |J| + h
-                    s_j[:, j] = np.abs(res.J[:, j]) + ev.threshold
+                    # clamped (CUSUM) or windowed (GLR) sums of terms of the size of J and h, each term computed from
+                    # the residuals: its own rounding, of |J| + h, and the residuals' errors the terms carry (their
+                    # first-order part, 2 |r|ᵀ|W| s_r) added up over the sum's memory
+                    carried = 2.0 * np.einsum("ki,ij,kj->k", r_abs, np.abs(ev.W), block)
+                    memory = _sum_memory(carried, res.J[:, j], ev.window if detector.windowed else None, 2.0 * ev.threshold)
+                    s_j[:, j] = np.abs(res.J[:, j]) + ev.threshold + memory
                 elif detector.windowed:  # a sum of q over the window (WSSR): the window's errors add up
                     valid = np.all(np.isfinite(U), axis=1) & np.all(np.isfinite(Y[:, list(gen.outputs_used)]), axis=1)
                     summed = np.convolve(s_j[valid, j], np.ones(ev.window))[: int(np.sum(valid))]
@@ -166,6 +173,19 @@ def _rounding_scale(gf: GainFile, before: np.ndarray, res: RunResult, U: np.ndar
                     s_j[valid, j] = summed
         k += gen.n_residual
     return s_r, s_j
+
+
+def _sum_memory(terms: np.ndarray, J: np.ndarray, window: int | None, clamp: float) -> np.ndarray:
+    """The rounding scale a sequential statistic carries from its past terms (``terms``: each sample's, from the
+    residuals): their sum over the last ``window`` samples (GLR), or since the statistic was last clamped (a CUSUM
+    at 0 or at its ceiling ``clamp``, twice its threshold, holds no error there)."""
+    if window is not None:
+        return np.convolve(terms, np.ones(int(window)))[: len(terms)]
+    out, total = np.empty_like(terms), 0.0
+    for k, (term, value) in enumerate(zip(terms, J, strict=True)):
+        total = 0.0 if value in (0.0, clamp) else total + term
+        out[k] = total
+    return out
 
 
 def _relative(a: np.ndarray, b: np.ndarray, scale: np.ndarray) -> float:

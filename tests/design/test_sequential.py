@@ -365,3 +365,37 @@ def test_the_glr_state_estimates_the_onset_and_size_of_a_bias():
     seen = est[gf.step.statistic_names[0]]
     assert seen.hypothesis.split("|")[0] == "y0" and abs(seen.onset_samples_ago - 100) <= 10, seen
     assert seen.size == pytest.approx(2.0, rel=0.25), seen
+
+
+def test_the_export_check_follows_a_cusum_over_its_memory(tmp_path, monkeypatch):
+    """A CUSUM sums its terms until it is clamped, so the residuals' rounding (large terms: a motor at 100 rad/s,
+    residuals of 0.05) adds up over that memory: C and the NumPy reference, which round differently, differ by
+    ~10⁻⁹ on J ≈ 2 and pass; a term wrong by 10⁻⁷ of the threshold, as a mistyped constant of the update would
+    make it, adds up the same way and fails (10⁻⁸ is at the tolerance here: the check's sensitivity on this plant,
+    five orders below any decision)."""
+    import dataclasses
+
+    import fdisyn
+    from fdisyn.app.pipeline import export_trace
+    from fdisyn.evaluation.built import build
+
+    a = np.array([[-100.0, -5.0, 0.0], [50.0, -0.1, 0.0], [0.0, 1.0, 0.0]])
+    plant = fdisyn.LinearPlant.create(A=a, B=[[100.0], [0.0], [0.0]], C=np.eye(3), E=[[0.0], [-1000.0], [0.0]],
+                                      Q=np.diag([1e-4, 1e-3, 1e-10]), R=np.diag([1e-4, 2.5e-3, 1e-6]), outputs=["i", "w", "th"])  # fmt: skip
+    prob = fdisyn.problem(plant, name="motor", Ts=0.001, designs={"cusum": {"method": "kalman_uio", "detector": "cusum"}},
+                          simulation={"duration": 4.0, "inputs": [{"kind": "step", "amplitude": 6.0, "start": 0.5}]},
+                          scenarios=[{"name": "w_bias", "duration": 4.0, "fault": "w", "onset": 2.0,
+                                      "sensor_faults": [{"sensor": "w", "kind": "offset", "value": 1.0}]}])  # fmt: skip
+    U, Y = export_trace(prob)
+    built = build(prob, "cusum", tmp_path / "cusum")
+    chk = check_export(built, U, Y)
+    assert chk.passed, chk.references
+    good = built.diagnoser.run(U, Y)
+    h = np.array([e.threshold for e in built.gain_file.evaluators])
+    J, run = good.J.copy(), np.zeros(len(h))
+    for k in range(len(J)):  # each sum off by 1e-7 h per term since it was last clamped (at 0 or 2h)
+        clamped = (good.J[k] == 0.0) | (good.J[k] == 2.0 * h)
+        run = np.where(clamped, 0.0, run + 1e-7 * h)
+        J[k] += run
+    monkeypatch.setattr(built.diagnoser, "run", lambda u, y: dataclasses.replace(good, J=J))
+    assert not check_export(built, U, Y).passed

@@ -45,13 +45,13 @@ def test_own_linear_plant(tmp_path: Path) -> None:
     assert "designs kalman (kalman_uio), wssr (kalman_uio)" in page
     assert page.count("speed (rad/s)") >= 2  # python-control's output name w_meas, the plant's label and unit
     _png(tmp_path / "motor_trace.png")
-    built = read_gain_file(tmp_path / ".fdisyn" / "motor" / "kalman" / "gains.json")
+    built = read_gain_file(tmp_path / ".fdisyn" / "motor" / "default" / "kalman" / "gains.json")
     assert built.inputs == ("voltage",) and built.outputs == ("i_meas", "w_meas", "theta_meas")  # from control.ss
     assert built.units["w_meas"] == "rad/s" and built.labels["w_meas"] == "speed"
     # the plant file it wrote designs the gain file the Python problem built, to the last bit
     for design in ("kalman", "wssr"):
         filed = problem_from_toml(tmp_path / "motor.toml").design(design)
-        assert _body(filed) == _body(read_gain_file(tmp_path / ".fdisyn" / "motor" / design / "gains.json"))
+        assert _body(filed) == _body(read_gain_file(tmp_path / ".fdisyn" / "motor" / "default" / design / "gains.json"))
     assert "isolated in 100%" in out
 
 
