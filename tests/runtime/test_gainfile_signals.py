@@ -1,5 +1,6 @@
 """The gain file's optional ``signals`` block (units and labels of its signals): written, read back, refused when
-corrupt in one line naming the field, and absent from files written before it, whose content hash is unchanged.
+corrupt in one line naming the field, and a file without it (written before it, or of a plant without units)
+reads and hashes as its own document.
 
 The files are the committed gain files of the reports; the truth of a hash is sha256 of the file's own document,
 serialised canonically here (sorted keys, no blanks, ASCII), independently of :meth:`GainFile.to_dict`."""
@@ -33,14 +34,25 @@ def _doc(path: Path = WIND) -> dict:
     return json.loads(path.read_text(encoding="utf-8"))
 
 
-def test_committed_files_have_no_block_and_keep_their_content_hash() -> None:
+def test_committed_files_read_with_and_without_the_block_and_keep_their_content_hash() -> None:
+    """Every committed gain file: its hash is that of its own document; the block is there exactly for the plants that
+    have units (the wind turbine's, not the ship's), and the same file without it reads, hashes as its document,
+    and has no units."""
     assert len(FILES) > 40
+    with_block = set()
     for path in FILES:
         doc = _doc(path)
-        assert "signals" not in doc, path
         gf = read_gain_file(path)
-        assert gf.signals is None and gf.units == {} and gf.labels == {}
         assert gain_file_sha256(gf) == _canonical_sha256(doc), path
+        if "signals" in doc:
+            with_block.add(path.parts[-3])
+            assert gf.signals == doc["signals"] and gf.units == doc["signals"].get("units", {})
+        bare = {k: v for k, v in doc.items() if k != "signals"}
+        old = gain_file_from_dict(bare)
+        assert old.signals is None and old.units == {} and old.labels == {}
+        assert gain_file_sha256(old) == _canonical_sha256(bare), path
+    assert "wind_turbine" in with_block and not {"ship_propulsion", "sampled_data_example"} & with_block
+    assert read_gain_file(WIND).units["omega_r_m1"] == "rad/s"  # the problem's plant's unit (problems/wind_turbine.py)
 
 
 def test_the_block_is_written_and_read_back_and_enters_the_hash(tmp_path) -> None:
@@ -101,5 +113,5 @@ def test_the_monitor_shows_units_and_the_fault_label() -> None:
     assert fault_label("omega_r_m1+omega_g_m2", mon.labels) == "rotor speed (sensor 1) + generator speed 2"
     assert fault_label("omega_r_m1|omega_g_m1", mon.labels) == "rotor speed (sensor 1) | omega_g_m1"
     assert fault_label("omega_g_m1", {}) == "omega_g_m1"
-    plain = Monitor(read_gain_file(WIND), backend="reference")
+    plain = Monitor(gain_file_from_dict({k: v for k, v in _doc().items() if k != "signals"}), backend="reference")
     assert plain.units == {} and plain.labels == {}
